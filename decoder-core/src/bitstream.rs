@@ -1,0 +1,550 @@
+//! The bitstream syntax, version 1: the header, and every syntax element of the payload in the
+//! order it is coded. `docs/bitstream.md` is the prose form of this module.
+//!
+//! Payload elements are coded through the [`Coder`] trait, so the decoder, the host encoder's
+//! writer and its rate estimator all run this same code.
+
+use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
+use crate::error::DecodeError;
+use crate::model::{
+    div_round, for_each_free_tap, ModelType, WeightQuantiser, Weights, CONTROL_QUANTISERS,
+    CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN,
+    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+};
+use crate::patch::Patch;
+
+/// The four magic bytes that open every stream.
+pub const MAGIC: [u8; 4] = *b"PIFS";
+/// The format version this crate reads and writes.
+pub const VERSION: u8 = 1;
+/// Size of the fixed part of the header, in bytes.
+pub const FIXED_HEADER_LEN: usize = 13;
+/// Smallest allowed leaf side, as a power of two.
+pub const MIN_LEAF_LOG2: u8 = 1;
+/// Largest allowed leaf side, as a power of two.
+pub const MAX_LEAF_LOG2: u8 = 9;
+/// Largest number of levels of a Lloyd-Max codebook.
+pub const MAX_CODEBOOK: usize = 16;
+/// Header flag: Lloyd-Max weight codebooks follow the fixed header.
+pub const FLAG_CODEBOOKS: u8 = 1;
+
+/// A Lloyd-Max codebook: sorted reconstruction levels (weight deviations, Q12).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Codebook {
+    /// Number of levels in use.
+    pub len: u8,
+    /// Levels, strictly increasing; entries past `len` are zero.
+    pub levels: [i16; MAX_CODEBOOK],
+}
+
+impl Codebook {
+    /// An empty codebook (no levels).
+    pub const EMPTY: Codebook = Codebook {
+        len: 0,
+        levels: [0; MAX_CODEBOOK],
+    };
+
+    /// Index of the level nearest to zero: the origin of the coded (signed) indices.
+    pub fn center(&self) -> i32 {
+        let used = &self.levels[..usize::from(self.len)];
+        let mut best = 0;
+        for (i, l) in used.iter().enumerate() {
+            if l.unsigned_abs() < used[best].unsigned_abs() {
+                best = i;
+            }
+        }
+        best as i32
+    }
+}
+
+/// The stream header.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Header {
+    /// Image width in pixels (1..=65535).
+    pub width: u16,
+    /// Image height in pixels (1..=65535).
+    pub height: u16,
+    /// Channels per pixel (1 in version 1: grayscale).
+    pub channels: u8,
+    /// Bits per sample (8 in version 1).
+    pub bit_depth: u8,
+    /// Smallest leaf side, as a power of two.
+    pub min_leaf_log2: u8,
+    /// Largest leaf side, as a power of two.
+    pub max_leaf_log2: u8,
+    /// Lloyd-Max codebooks of the weight classes (line, cell); empty when absent.
+    pub codebooks: [Codebook; 2],
+}
+
+impl Header {
+    /// Whether the stream carries Lloyd-Max codebooks.
+    pub fn has_codebooks(&self) -> bool {
+        self.codebooks[0].len > 0
+    }
+
+    /// Side of the quadtree's root, as a power of two: the smallest square that covers the
+    /// image and is at least one smallest leaf.
+    pub fn root_log2(&self) -> u8 {
+        let side = u32::from(self.width.max(self.height));
+        let mut log2 = 0u8;
+        while (1u32 << log2) < side {
+            log2 += 1;
+        }
+        log2.max(self.min_leaf_log2)
+    }
+
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        usize::from(self.width) * usize::from(self.height)
+    }
+
+    /// Length of the serialised header in bytes.
+    pub fn encoded_len(&self) -> usize {
+        let books: usize = if self.has_codebooks() {
+            self.codebooks
+                .iter()
+                .map(|b| 1 + 2 * usize::from(b.len))
+                .sum()
+        } else {
+            0
+        };
+        FIXED_HEADER_LEN + books
+    }
+
+    /// Parses the header at the start of `data`; returns it and the offset of the payload.
+    pub fn parse(data: &[u8]) -> Result<(Header, usize), DecodeError> {
+        let fixed =
+            data.get(..FIXED_HEADER_LEN)
+                .ok_or(if data.len() >= 4 && data[..4] != MAGIC {
+                    DecodeError::BadMagic
+                } else {
+                    DecodeError::Truncated
+                })?;
+        if fixed[..4] != MAGIC {
+            return Err(DecodeError::BadMagic);
+        }
+        if fixed[4] != VERSION {
+            return Err(DecodeError::UnsupportedVersion(fixed[4]));
+        }
+        let channels = fixed[5];
+        if channels != 1 {
+            return Err(DecodeError::UnsupportedChannels(channels));
+        }
+        let bit_depth = fixed[6];
+        if bit_depth != 8 {
+            return Err(DecodeError::UnsupportedBitDepth(bit_depth));
+        }
+        let flags = fixed[7];
+        if flags & !FLAG_CODEBOOKS != 0 {
+            return Err(DecodeError::InvalidHeader("reserved flag bits are set"));
+        }
+        let width = u16::from_le_bytes([fixed[8], fixed[9]]);
+        let height = u16::from_le_bytes([fixed[10], fixed[11]]);
+        if width == 0 || height == 0 {
+            return Err(DecodeError::InvalidHeader(
+                "width and height must be at least 1",
+            ));
+        }
+        let min_leaf_log2 = fixed[12] & 0x0F;
+        let max_leaf_log2 = fixed[12] >> 4;
+        if !(MIN_LEAF_LOG2..=MAX_LEAF_LOG2).contains(&min_leaf_log2)
+            || !(min_leaf_log2..=MAX_LEAF_LOG2).contains(&max_leaf_log2)
+        {
+            return Err(DecodeError::InvalidHeader("leaf sizes"));
+        }
+        let mut header = Header {
+            width,
+            height,
+            channels,
+            bit_depth,
+            min_leaf_log2,
+            max_leaf_log2,
+            codebooks: [Codebook::EMPTY; 2],
+        };
+        let mut pos = FIXED_HEADER_LEN;
+        if flags & FLAG_CODEBOOKS != 0 {
+            for book in header.codebooks.iter_mut() {
+                let len = *data.get(pos).ok_or(DecodeError::Truncated)?;
+                pos += 1;
+                if !(2..=MAX_CODEBOOK as u8).contains(&len) {
+                    return Err(DecodeError::InvalidHeader("codebook size"));
+                }
+                book.len = len;
+                for i in 0..usize::from(len) {
+                    let b = data.get(pos..pos + 2).ok_or(DecodeError::Truncated)?;
+                    pos += 2;
+                    let level = i16::from_le_bytes([b[0], b[1]]);
+                    if i32::from(level).abs() > WEIGHT_LIMIT
+                        || (i > 0 && level <= book.levels[i - 1])
+                    {
+                        return Err(DecodeError::InvalidHeader("codebook levels"));
+                    }
+                    book.levels[i] = level;
+                }
+            }
+        }
+        Ok((header, pos))
+    }
+
+    /// Serialises the header into `out` (which must hold [`Header::encoded_len`] bytes);
+    /// returns the number of bytes written.
+    pub fn write(&self, out: &mut [u8]) -> usize {
+        let flags = if self.has_codebooks() {
+            FLAG_CODEBOOKS
+        } else {
+            0
+        };
+        let w = self.width.to_le_bytes();
+        let h = self.height.to_le_bytes();
+        let fixed = [
+            MAGIC[0],
+            MAGIC[1],
+            MAGIC[2],
+            MAGIC[3],
+            VERSION,
+            self.channels,
+            self.bit_depth,
+            flags,
+            w[0],
+            w[1],
+            h[0],
+            h[1],
+            (self.max_leaf_log2 << 4) | self.min_leaf_log2,
+        ];
+        out[..FIXED_HEADER_LEN].copy_from_slice(&fixed);
+        let mut pos = FIXED_HEADER_LEN;
+        if self.has_codebooks() {
+            for book in &self.codebooks {
+                out[pos] = book.len;
+                pos += 1;
+                for l in &book.levels[..usize::from(book.len)] {
+                    out[pos..pos + 2].copy_from_slice(&l.to_le_bytes());
+                    pos += 2;
+                }
+            }
+        }
+        pos
+    }
+}
+
+/// The syntax elements of one leaf, as coded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LeafSyntax {
+    /// Model type index into [`MODELS`].
+    pub model: u8,
+    /// Control quantiser index into [`CONTROL_STEPS`].
+    pub cquant: u8,
+    /// Weight quantiser index into [`WEIGHT_QUANTISER_KINDS`] (0 when the model has no weights).
+    pub wquant: u8,
+    /// Control values as quantiser indices (value = index * step), row-major.
+    pub control: [i32; MAX_CONTROL],
+    /// Free weights as signed quantiser indices, in [`for_each_free_tap`] order.
+    pub weights: [i32; MAX_WEIGHTS],
+}
+
+impl Default for LeafSyntax {
+    fn default() -> Self {
+        LeafSyntax {
+            model: 0,
+            cquant: 0,
+            wquant: 0,
+            control: [0; MAX_CONTROL],
+            weights: [0; MAX_WEIGHTS],
+        }
+    }
+}
+
+/// Number of residual classes of control values: the leaf's first value, the rest of its first
+/// row and column, its interior.
+const CONTROL_CLASSES: usize = 3;
+
+/// All adaptive contexts of the payload. Starts at [`Contexts::default`] for every stream.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Contexts {
+    split: [Prob; MAX_LEAF_LOG2 as usize + 1],
+    model: [[Prob; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
+    cquant: [[Prob; CONTROL_QUANTISERS]; MODEL_COUNT],
+    wquant: [[Prob; WEIGHT_QUANTISERS]; MODEL_COUNT],
+    control: [IntContexts; CONTROL_CLASSES],
+    weights: [[IntContexts; 2]; 2],
+}
+
+impl Default for Contexts {
+    fn default() -> Self {
+        Contexts {
+            split: [Prob::default(); MAX_LEAF_LOG2 as usize + 1],
+            model: [[Prob::default(); MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
+            cquant: [[Prob::default(); CONTROL_QUANTISERS]; MODEL_COUNT],
+            wquant: [[Prob::default(); WEIGHT_QUANTISERS]; MODEL_COUNT],
+            control: [IntContexts::default(); CONTROL_CLASSES],
+            weights: [[IntContexts::default(); 2]; 2],
+        }
+    }
+}
+
+/// Number of leaf corners remembered for predicting a leaf's first control value.
+pub const CORNER_MEMORY: usize = 32;
+
+/// Prediction state carried from leaf to leaf: the corner values of recently decoded leaves.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Predictor {
+    corners: [(u32, u32, i16); CORNER_MEMORY],
+    len: usize,
+    next: usize,
+}
+
+impl Default for Predictor {
+    fn default() -> Self {
+        Predictor {
+            corners: [(0, 0, 0); CORNER_MEMORY],
+            len: 0,
+            next: 0,
+        }
+    }
+}
+
+impl Predictor {
+    /// Predicted value of the sample at `(x, y)`: the remembered corner at that position, else
+    /// the nearest one (city-block distance, most recent first on ties), else mid-grey.
+    pub fn predict(&self, x: u32, y: u32) -> i32 {
+        let mut best: Option<(u64, i16)> = None;
+        for k in 0..self.len {
+            // Walk from the most recent entry backwards.
+            let idx = (self.next + CORNER_MEMORY - 1 - k) % CORNER_MEMORY;
+            let (cx, cy, v) = self.corners[idx];
+            let d = u64::from(cx.abs_diff(x)) + u64::from(cy.abs_diff(y));
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, v));
+            }
+        }
+        best.map_or(128 * SAMPLE_ONE, |(_, v)| i32::from(v))
+    }
+
+    /// Remembers the four corners of a decoded leaf of side `2^log2` at `(x, y)`.
+    pub fn remember(&mut self, x: u32, y: u32, log2: u8, patch: &Patch) {
+        let side = patch.model.grid();
+        let s = 1u32 << log2;
+        let c = &patch.control;
+        let corners = [
+            (x, y, c[0]),
+            (x + s, y, c[side - 1]),
+            (x, y + s, c[(side - 1) * side]),
+            (x + s, y + s, c[side * side - 1]),
+        ];
+        for corner in corners {
+            self.corners[self.next] = corner;
+            self.next = (self.next + 1) % CORNER_MEMORY;
+            self.len = (self.len + 1).min(CORNER_MEMORY);
+        }
+    }
+}
+
+/// Codes the split flag of a node of side `2^log2` (only coded where the node could be either a
+/// leaf or split: see [`crate::quadtree`]).
+pub fn code_split<C: Coder>(
+    c: &mut C,
+    ctx: &mut Contexts,
+    log2: u8,
+    split: &mut bool,
+) -> Result<(), DecodeError> {
+    let p = ctx
+        .split
+        .get_mut(usize::from(log2))
+        .ok_or(DecodeError::InvalidData("node size"))?;
+    c.bit(p, split)
+}
+
+/// The models usable at a block of side `2^log2`, in index order, and how many there are.
+pub fn models_for_block(log2: u8) -> ([u8; MODEL_COUNT], usize) {
+    let mut list = [0u8; MODEL_COUNT];
+    let mut n = 0;
+    for (i, m) in MODELS.iter().enumerate() {
+        if m.fits_block(log2) {
+            list[n] = i as u8;
+            n += 1;
+        }
+    }
+    (list, n)
+}
+
+/// Codes a leaf of side `2^log2`: model type, quantisers, control values, weights.
+/// `first_prediction` is the predicted value of the leaf's top-left control value (from
+/// [`Predictor::predict`]).
+pub fn code_leaf<C: Coder>(
+    c: &mut C,
+    ctx: &mut Contexts,
+    log2: u8,
+    first_prediction: i32,
+    leaf: &mut LeafSyntax,
+) -> Result<(), DecodeError> {
+    let (models, count) = models_for_block(log2);
+    if count == 0 {
+        return Err(DecodeError::InvalidData("leaf size"));
+    }
+    // Model type: truncated unary over the models this block size allows.
+    let mut pos = models[..count]
+        .iter()
+        .position(|&m| m == leaf.model)
+        .unwrap_or(0) as u32;
+    let model_ctx = ctx
+        .model
+        .get_mut(usize::from(log2))
+        .ok_or(DecodeError::InvalidData("leaf size"))?;
+    code_unary(c, model_ctx, count as u32, &mut pos)?;
+    leaf.model = models[pos as usize];
+    let mi = usize::from(leaf.model);
+    let model = MODELS[mi];
+
+    let mut cq = u32::from(leaf.cquant);
+    code_tree(c, &mut ctx.cquant[mi], 3, &mut cq)?;
+    leaf.cquant = cq as u8;
+
+    let mut wq = 0u32;
+    if model.weight_count() > 0 {
+        wq = u32::from(leaf.wquant);
+        code_tree(c, &mut ctx.wquant[mi], 2, &mut wq)?;
+    }
+    leaf.wquant = wq as u8;
+
+    code_control(c, ctx, model, first_prediction, leaf)?;
+    if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
+        code_weights(c, ctx, model, leaf)?;
+    } else {
+        leaf.weights = [0; MAX_WEIGHTS];
+    }
+    Ok(())
+}
+
+/// Control values: raster order, each predicted from its reconstructed neighbours (left, above:
+/// the median predictor of LOCO-I in the interior) and coded as the difference of quantiser
+/// indices.
+fn code_control<C: Coder>(
+    c: &mut C,
+    ctx: &mut Contexts,
+    model: ModelType,
+    first_prediction: i32,
+    leaf: &mut LeafSyntax,
+) -> Result<(), DecodeError> {
+    let step = CONTROL_STEPS[usize::from(leaf.cquant) & 7];
+    let side = model.grid();
+    let mut values = [0i32; MAX_CONTROL];
+    let mut prev_mag = 0usize;
+    for r in 0..side {
+        for col in 0..side {
+            let i = r * side + col;
+            let (pred, class) = match (r, col) {
+                (0, 0) => (first_prediction, 0),
+                (0, _) => (values[i - 1], 1),
+                (_, 0) => (values[i - side], 1),
+                _ => (
+                    med(values[i - 1], values[i - side], values[i - side - 1]),
+                    2,
+                ),
+            };
+            let pred_index = div_round(pred, step);
+            let mut residual = leaf.control[i] - pred_index;
+            ctx.control[class].code(c, prev_mag, &mut residual)?;
+            let index = pred_index + residual;
+            let value = index * step;
+            if !(SAMPLE_MIN..=SAMPLE_MAX).contains(&value) {
+                return Err(DecodeError::InvalidData("control value"));
+            }
+            leaf.control[i] = index;
+            values[i] = value;
+            prev_mag = residual.unsigned_abs().min(2) as usize;
+        }
+    }
+    Ok(())
+}
+
+/// Median edge detector (LOCO-I): the median of `left`, `up` and `left + up - up_left`.
+fn med(left: i32, up: i32, up_left: i32) -> i32 {
+    let (lo, hi) = if left < up { (left, up) } else { (up, left) };
+    if up_left >= hi {
+        lo
+    } else if up_left <= lo {
+        hi
+    } else {
+        left + up - up_left
+    }
+}
+
+fn code_weights<C: Coder>(
+    c: &mut C,
+    ctx: &mut Contexts,
+    model: ModelType,
+    leaf: &mut LeafSyntax,
+) -> Result<(), DecodeError> {
+    let narrow = usize::from(model.transforms == 4);
+    let mut i = 0;
+    let mut prev_mag = [0usize; 2];
+    let mut result = Ok(());
+    for_each_free_tap(model, |slot| {
+        if result.is_err() {
+            return;
+        }
+        let class = slot.class() as usize;
+        let mut v = leaf.weights[i];
+        result = ctx.weights[narrow][class].code(c, prev_mag[class], &mut v);
+        leaf.weights[i] = v;
+        prev_mag[class] = v.unsigned_abs().min(2) as usize;
+        i += 1;
+    });
+    result
+}
+
+/// Reconstructs the patch a leaf describes. Fails if a codebook index is out of range or a
+/// codebook is used that the stream does not carry.
+pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeError> {
+    let model = *MODELS
+        .get(usize::from(leaf.model))
+        .ok_or(DecodeError::InvalidData("model type"))?;
+    let step = *CONTROL_STEPS
+        .get(usize::from(leaf.cquant))
+        .ok_or(DecodeError::InvalidData("control quantiser"))?;
+    let mut control = [0i16; MAX_CONTROL];
+    for (dst, &index) in control
+        .iter_mut()
+        .zip(&leaf.control[..model.control_count()])
+    {
+        let v = index
+            .checked_mul(step)
+            .ok_or(DecodeError::InvalidData("control value"))?;
+        if !(SAMPLE_MIN..=SAMPLE_MAX).contains(&v) {
+            return Err(DecodeError::InvalidData("control value"));
+        }
+        *dst = v as i16;
+    }
+    let kind = *WEIGHT_QUANTISER_KINDS
+        .get(usize::from(leaf.wquant))
+        .ok_or(DecodeError::InvalidData("weight quantiser"))?;
+    let mut deviations = [0i32; MAX_WEIGHTS];
+    let mut i = 0;
+    let mut result = Ok(());
+    for_each_free_tap(model, |slot| {
+        let index = leaf.weights[i];
+        deviations[i] = match kind {
+            WeightQuantiser::Default => 0,
+            WeightQuantiser::Uniform(step) => index
+                .saturating_mul(step)
+                .clamp(-2 * WEIGHT_LIMIT, 2 * WEIGHT_LIMIT),
+            WeightQuantiser::Codebook => {
+                let book = &header.codebooks[slot.class() as usize];
+                let at = book.center() + index;
+                if book.len == 0 || at < 0 || at >= i32::from(book.len) {
+                    result = Err(DecodeError::InvalidData("codebook index"));
+                    0
+                } else {
+                    i32::from(book.levels[at as usize])
+                }
+            }
+        };
+        i += 1;
+    });
+    result?;
+    Ok(Patch {
+        model,
+        control,
+        weights: Weights::from_deviations(model, &deviations),
+    })
+}

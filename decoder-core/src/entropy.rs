@@ -1,0 +1,278 @@
+//! Entropy coding: adaptive binary arithmetic (range) coding.
+//!
+//! The bitstream syntax ([`crate::bitstream`]) is written once, against the [`Coder`] trait: every
+//! syntax element is passed by `&mut`, an encoder reads it and a decoder overwrites it. The
+//! decoder here ([`RangeDecoder`]) and the host encoder's writer and rate estimator all implement
+//! that trait, so the three can never disagree about what is coded, in which order, with which
+//! context.
+//!
+//! The coder is the classic carry-propagating binary range coder: 32-bit range, 12-bit
+//! probabilities, adaptation by a shift of [`ADAPT_SHIFT`].
+
+use crate::error::DecodeError;
+
+/// Number of bits of a probability.
+pub const PROB_BITS: u32 = 12;
+/// Probability scale: a [`Prob`] holds `P(bit = 0) * PROB_ONE`.
+pub const PROB_ONE: u16 = 1 << PROB_BITS;
+/// Adaptation speed: after each coded bit, a probability moves by `1 / 2^ADAPT_SHIFT` of its
+/// distance to the observed outcome.
+pub const ADAPT_SHIFT: u32 = 4;
+/// The range is renormalised (one byte shifted) whenever it falls below this value.
+pub const RANGE_TOP: u32 = 1 << 24;
+
+/// An adaptive binary context: the probability that the next bit coded with it is `0`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Prob(pub u16);
+
+impl Default for Prob {
+    fn default() -> Self {
+        Prob(PROB_ONE / 2)
+    }
+}
+
+impl Prob {
+    /// The split point of `range` for this probability (the size of the `0` sub-interval).
+    #[inline]
+    pub fn bound(self, range: u32) -> u32 {
+        (range >> PROB_BITS) * u32::from(self.0)
+    }
+
+    /// Moves the probability towards the bit just coded.
+    #[inline]
+    pub fn update(&mut self, bit: bool) {
+        if bit {
+            self.0 -= self.0 >> ADAPT_SHIFT;
+        } else {
+            self.0 += (PROB_ONE - self.0) >> ADAPT_SHIFT;
+        }
+    }
+}
+
+/// One side of the arithmetic coder. Syntax elements are passed by `&mut`: an encoder codes the
+/// value it is given, a decoder replaces it with the value it read.
+pub trait Coder {
+    /// Codes one bit with an adaptive context (and updates the context).
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError>;
+    /// Codes one equiprobable bit (no context).
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError>;
+}
+
+/// Sequential source of payload bytes for the [`RangeDecoder`].
+///
+/// Implemented for byte slices (an image in flash); a streaming source (UART, radio, SPI flash)
+/// implements it to decode without holding the stream in memory.
+pub trait ByteSource {
+    /// The next byte, or `None` at the end of the stream.
+    fn next_byte(&mut self) -> Option<u8>;
+}
+
+/// A [`ByteSource`] over a borrowed slice.
+#[derive(Debug, Clone)]
+pub struct SliceSource<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> SliceSource<'a> {
+    /// Reads `data` from its first byte.
+    pub fn new(data: &'a [u8]) -> Self {
+        SliceSource { data, pos: 0 }
+    }
+
+    /// Bytes consumed so far.
+    pub fn position(&self) -> usize {
+        self.pos
+    }
+}
+
+impl ByteSource for SliceSource<'_> {
+    #[inline]
+    fn next_byte(&mut self) -> Option<u8> {
+        let b = self.data.get(self.pos).copied();
+        if b.is_some() {
+            self.pos += 1;
+        }
+        b
+    }
+}
+
+/// Binary range decoder over any [`ByteSource`].
+#[derive(Debug)]
+pub struct RangeDecoder<S: ByteSource> {
+    source: S,
+    range: u32,
+    code: u32,
+}
+
+impl<S: ByteSource> RangeDecoder<S> {
+    /// Starts decoding: reads the first four payload bytes.
+    pub fn new(mut source: S) -> Result<Self, DecodeError> {
+        let mut code = 0u32;
+        for _ in 0..4 {
+            code = (code << 8) | u32::from(source.next_byte().ok_or(DecodeError::Truncated)?);
+        }
+        Ok(RangeDecoder {
+            source,
+            range: u32::MAX,
+            code,
+        })
+    }
+
+    /// Gives the byte source back (for example to read what follows the payload).
+    pub fn into_source(self) -> S {
+        self.source
+    }
+
+    #[inline]
+    fn normalize(&mut self) -> Result<(), DecodeError> {
+        while self.range < RANGE_TOP {
+            let b = self.source.next_byte().ok_or(DecodeError::Truncated)?;
+            self.range <<= 8;
+            self.code = (self.code << 8) | u32::from(b);
+        }
+        Ok(())
+    }
+}
+
+impl<S: ByteSource> Coder for RangeDecoder<S> {
+    #[inline]
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+        let bound = p.bound(self.range);
+        *bit = self.code >= bound;
+        if *bit {
+            self.code -= bound;
+            self.range -= bound;
+        } else {
+            self.range = bound;
+        }
+        p.update(*bit);
+        self.normalize()
+    }
+
+    #[inline]
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+        self.range >>= 1;
+        *bit = self.code >= self.range;
+        if *bit {
+            self.code -= self.range;
+        }
+        self.normalize()
+    }
+}
+
+/// Contexts for one class of signed integers (residuals), binarised as: zero flag, sign, then
+/// an Exp-Golomb magnitude whose unary prefix bits are context coded and whose suffix bits are
+/// bypass coded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IntContexts {
+    zero: [Prob; 3],
+    sign: [Prob; 3],
+    prefix: [[Prob; MAX_PREFIX]; 2],
+}
+
+/// Longest Exp-Golomb prefix: magnitudes are below `2^MAX_PREFIX`.
+pub const MAX_PREFIX: usize = 15;
+
+impl Default for IntContexts {
+    fn default() -> Self {
+        IntContexts {
+            zero: [Prob::default(); 3],
+            sign: [Prob::default(); 3],
+            prefix: [[Prob::default(); MAX_PREFIX]; 2],
+        }
+    }
+}
+
+impl IntContexts {
+    /// Codes a signed integer `v` with `|v| < 2^MAX_PREFIX`. `ctx` (0..=2) selects the
+    /// neighbourhood class, usually from the size of the previous value of the same kind.
+    pub fn code<C: Coder>(
+        &mut self,
+        c: &mut C,
+        ctx: usize,
+        v: &mut i32,
+    ) -> Result<(), DecodeError> {
+        let ctx = ctx.min(2);
+        let mut nonzero = *v != 0;
+        c.bit(&mut self.zero[ctx], &mut nonzero)?;
+        if !nonzero {
+            *v = 0;
+            return Ok(());
+        }
+        let mut negative = *v < 0;
+        c.bit(&mut self.sign[ctx], &mut negative)?;
+        // Exp-Golomb of magnitude m >= 1: k = floor(log2 m) in unary, then k low bits.
+        let m = v.unsigned_abs();
+        let k_in = 31 - m.max(1).leading_zeros() as usize;
+        let prefix = &mut self.prefix[usize::from(ctx > 0)];
+        let mut k = 0usize;
+        loop {
+            if k >= MAX_PREFIX {
+                return Err(DecodeError::InvalidData("integer magnitude"));
+            }
+            let mut more = k < k_in;
+            c.bit(&mut prefix[k], &mut more)?;
+            if !more {
+                break;
+            }
+            k += 1;
+        }
+        let mut mag: u32 = 1;
+        for i in (0..k).rev() {
+            let mut b = (m >> i) & 1 == 1;
+            c.bypass(&mut b)?;
+            mag = (mag << 1) | u32::from(b);
+        }
+        // mag < 2^15, so the cast is lossless.
+        *v = if negative { -(mag as i32) } else { mag as i32 };
+        Ok(())
+    }
+}
+
+/// Codes an unsigned value `0..count` (`count <= 2^bits`) as a binary tree of `bits` context-coded
+/// decisions (`ctx` needs `2^bits` entries; entry 0 is unused).
+pub fn code_tree<C: Coder>(
+    c: &mut C,
+    ctx: &mut [Prob],
+    bits: u32,
+    v: &mut u32,
+) -> Result<(), DecodeError> {
+    let mut node = 1usize;
+    let mut out = 0u32;
+    for i in (0..bits).rev() {
+        let mut b = (*v >> i) & 1 == 1;
+        let p = ctx
+            .get_mut(node)
+            .ok_or(DecodeError::InvalidData("context"))?;
+        c.bit(p, &mut b)?;
+        node = (node << 1) | usize::from(b);
+        out = (out << 1) | u32::from(b);
+    }
+    *v = out;
+    Ok(())
+}
+
+/// Codes an index `0..count` as a truncated unary code with one context per position
+/// (`ctx.len() >= count - 1`).
+pub fn code_unary<C: Coder>(
+    c: &mut C,
+    ctx: &mut [Prob],
+    count: u32,
+    v: &mut u32,
+) -> Result<(), DecodeError> {
+    let mut i = 0u32;
+    while i + 1 < count {
+        let mut more = *v > i;
+        let p = ctx
+            .get_mut(i as usize)
+            .ok_or(DecodeError::InvalidData("context"))?;
+        c.bit(p, &mut more)?;
+        if !more {
+            break;
+        }
+        i += 1;
+    }
+    *v = i;
+    Ok(())
+}

@@ -1,0 +1,318 @@
+//! The patch models: projected IFS given in subdivision-scheme form, and their quantisers.
+//!
+//! A model type is a control grid of `(m+1) x (m+1)` values and `N x N` subdivision transforms.
+//! One subdivision step maps a control grid onto the `(N*m+1) x (N*m+1)` grid of its `N x N`
+//! sub-grids; each sub-grid is again a control grid, subdivided with the same transforms
+//! (thesis II.1.4.2: exact tabulation by recursive subdivision). The transforms are given as
+//! *rules* (thesis II.2.1.3): the subdivided grid keeps the old points (interpolating scheme),
+//! a new point on an old grid line is a barycentric combination of the four nearest points of
+//! that line (indices clamped to the line's ends), and a new point inside an old cell is a
+//! barycentric combination of the four new line points at the same phases on the cell's sides.
+//! Rules depend on the phase `r = q mod N` of the new point only, so every transform matrix is
+//! barycentric, a sub-grid's border depends only on that border (the raccord condition holds by
+//! construction), and a breadth-first and a depth-first evaluation give identical values.
+
+/// Fixed-point scale of weights: a weight `w` is stored as `w * 4096`.
+pub const WEIGHT_ONE: i32 = 1 << WEIGHT_BITS;
+/// Fractional bits of weights.
+pub const WEIGHT_BITS: u32 = 12;
+/// Largest magnitude of a free (coded) weight, `2.0`.
+pub const WEIGHT_LIMIT: i32 = 2 * WEIGHT_ONE;
+/// Fixed-point scale of samples: a grey level `g` is stored as `g * 16`.
+pub const SAMPLE_ONE: i32 = 1 << SAMPLE_BITS;
+/// Fractional bits of samples.
+pub const SAMPLE_BITS: u32 = 4;
+/// Smallest representable sample value (grey level -256).
+pub const SAMPLE_MIN: i32 = -256 * SAMPLE_ONE;
+/// Largest representable sample value (grey level 511.9375).
+pub const SAMPLE_MAX: i32 = 512 * SAMPLE_ONE - 1;
+
+/// Largest control grid side (`m + 1`).
+pub const MAX_GRID: usize = 9;
+/// Largest number of control values of a model.
+pub const MAX_CONTROL: usize = MAX_GRID * MAX_GRID;
+/// Largest number of free weights of a model.
+pub const MAX_WEIGHTS: usize = 45;
+/// Number of model types.
+pub const MODEL_COUNT: usize = 5;
+
+/// A model type: `(m+1)^2` control values and `N^2` subdivision transforms.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModelType {
+    /// Intervals of the control grid per side (`m`).
+    pub intervals: u8,
+    /// Transforms per side (`N`, 2 or 4).
+    pub transforms: u8,
+}
+
+/// The model types, indexed by the 'model' syntax element.
+///
+/// Type 0 is the degenerate bilinear patch (2x2 control values, fixed weights); types 1-4 are the
+/// thesis's four (III.2.2).
+pub const MODELS: [ModelType; MODEL_COUNT] = [
+    ModelType {
+        intervals: 1,
+        transforms: 2,
+    },
+    ModelType {
+        intervals: 2,
+        transforms: 2,
+    },
+    ModelType {
+        intervals: 4,
+        transforms: 2,
+    },
+    ModelType {
+        intervals: 4,
+        transforms: 4,
+    },
+    ModelType {
+        intervals: 8,
+        transforms: 4,
+    },
+];
+
+impl ModelType {
+    /// Side of the control grid, `m + 1`.
+    pub const fn grid(self) -> usize {
+        self.intervals as usize + 1
+    }
+
+    /// Number of control values.
+    pub const fn control_count(self) -> usize {
+        self.grid() * self.grid()
+    }
+
+    /// Number of free line weights (both directions, all phases).
+    pub const fn line_weight_count(self) -> usize {
+        if self.intervals < 2 {
+            0
+        } else {
+            2 * (self.transforms as usize - 1) * 3
+        }
+    }
+
+    /// Number of free cell weights (all phase pairs).
+    pub const fn cell_weight_count(self) -> usize {
+        if self.intervals < 2 {
+            0
+        } else {
+            let p = self.transforms as usize - 1;
+            p * p * 3
+        }
+    }
+
+    /// Number of free weights.
+    pub const fn weight_count(self) -> usize {
+        self.line_weight_count() + self.cell_weight_count()
+    }
+
+    /// Whether this model may code a block of side `2^log2`: the block must be at least two
+    /// control intervals wide per control interval, so that at least one subdivision happens.
+    pub const fn fits_block(self, log2: u8) -> bool {
+        log2 < 16 && (1u32 << log2) >= 2 * self.intervals as u32
+    }
+}
+
+/// Number of control-value quantisers (the 'cquant' element, 3 bits).
+pub const CONTROL_QUANTISERS: usize = 8;
+/// Control step of each control quantiser, in sample units (1/16 grey level).
+pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] = [24, 32, 48, 64, 96, 128, 192, 256];
+
+/// Number of weight quantisers (the 'wquant' element, 2 bits).
+pub const WEIGHT_QUANTISERS: usize = 4;
+
+/// How the free weights of a leaf are quantised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WeightQuantiser {
+    /// No weights coded: the smooth default scheme.
+    Default,
+    /// Uniform: deviation from the default is `index * step` (weight units).
+    Uniform(i32),
+    /// Lloyd-Max: deviation from the default is a level of the stream's codebook.
+    Codebook,
+}
+
+/// The weight quantiser of each 'wquant' value.
+pub const WEIGHT_QUANTISER_KINDS: [WeightQuantiser; WEIGHT_QUANTISERS] = [
+    WeightQuantiser::Default,
+    WeightQuantiser::Uniform(WEIGHT_ONE / 32),
+    WeightQuantiser::Uniform(WEIGHT_ONE / 8),
+    WeightQuantiser::Codebook,
+];
+
+/// Weight classes, each with its own contexts and Lloyd-Max codebook.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WeightClass {
+    /// Rules for new points on grid lines.
+    Line = 0,
+    /// Rules for new points inside grid cells.
+    Cell = 1,
+}
+
+/// Default line rule taps (4-point cubic interpolation) for phase `r` of `N` transforms,
+/// weights on line points `a-1, a, a+1, a+2`.
+pub const fn default_line_taps(n: u8, r: usize) -> [i32; 4] {
+    match (n, r) {
+        (4, 1) => [-224, 3360, 1120, -160],
+        (4, 3) => [-160, 1120, 3360, -224],
+        _ => [-256, 2304, 2304, -256],
+    }
+}
+
+/// Default cell rule taps for phases `(r1, r2)` of `N` transforms, weights on the new points of
+/// the top, bottom, left and right sides of the cell.
+pub const fn default_cell_taps(n: u8, r1: usize, r2: usize) -> [i32; 4] {
+    let n = n as i32;
+    let (r1, r2) = (r1 as i32, r2 as i32);
+    let half = WEIGHT_ONE / 2;
+    [
+        half * (n - r1) / n,
+        half * r1 / n,
+        half * (n - r2) / n,
+        half * r2 / n,
+    ]
+}
+
+/// The tap of a rule that is not coded: it makes the taps sum to one.
+pub const LINE_DEPENDENT_TAP: usize = 1;
+/// The tap of a cell rule that is not coded.
+pub const CELL_DEPENDENT_TAP: usize = 0;
+
+/// Fully expanded subdivision weights of one patch, in weight units (Q12).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Weights {
+    /// `line[dir][r-1]`: taps for new points on horizontal (`dir` 0, along a row) and vertical
+    /// (`dir` 1, along a column) lines at phase `r`.
+    pub line: [[[i32; 4]; 3]; 2],
+    /// `cell[r1-1][r2-1]`: taps (top, bottom, left, right) for new points at row phase `r1` and
+    /// column phase `r2`.
+    pub cell: [[[i32; 4]; 3]; 3],
+}
+
+impl Weights {
+    /// The smooth default scheme of model `model`.
+    pub fn default_for(model: ModelType) -> Self {
+        let n = model.transforms;
+        let mut w = Weights {
+            line: [[[0; 4]; 3]; 2],
+            cell: [[[0; 4]; 3]; 3],
+        };
+        for r in 1..n as usize {
+            w.line[0][r - 1] = default_line_taps(n, r);
+            w.line[1][r - 1] = default_line_taps(n, r);
+            for r2 in 1..n as usize {
+                w.cell[r - 1][r2 - 1] = default_cell_taps(n, r, r2);
+            }
+        }
+        w
+    }
+
+    /// Builds the weights of `model` from the deviations of its free taps from the default
+    /// (`deviations.len() >= model.weight_count()`, in the canonical order of
+    /// [`for_each_free_tap`]). Free taps are clamped to `[-WEIGHT_LIMIT, WEIGHT_LIMIT]`, and each
+    /// rule's dependent tap makes its taps sum to exactly [`WEIGHT_ONE`].
+    pub fn from_deviations(model: ModelType, deviations: &[i32]) -> Self {
+        let mut w = Self::default_for(model);
+        let mut i = 0;
+        for_each_free_tap(model, |slot| {
+            let d = deviations.get(i).copied().unwrap_or(0);
+            i += 1;
+            let tap = w.tap_mut(slot);
+            *tap = (*tap + d).clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT);
+        });
+        for rule in w.line.iter_mut().flatten() {
+            rule[LINE_DEPENDENT_TAP] = 0;
+            let s: i32 = rule.iter().sum();
+            rule[LINE_DEPENDENT_TAP] = WEIGHT_ONE - s;
+        }
+        for rule in w.cell.iter_mut().flatten() {
+            rule[CELL_DEPENDENT_TAP] = 0;
+            let s: i32 = rule.iter().sum();
+            rule[CELL_DEPENDENT_TAP] = WEIGHT_ONE - s;
+        }
+        w
+    }
+
+    /// The tap addressed by `slot`.
+    pub fn tap_mut(&mut self, slot: TapSlot) -> &mut i32 {
+        match slot {
+            TapSlot::Line { dir, phase, tap } => &mut self.line[dir][phase - 1][tap],
+            TapSlot::Cell { r1, r2, tap } => &mut self.cell[r1 - 1][r2 - 1][tap],
+        }
+    }
+
+    /// The tap addressed by `slot`.
+    pub fn tap(&self, slot: TapSlot) -> i32 {
+        match slot {
+            TapSlot::Line { dir, phase, tap } => self.line[dir][phase - 1][tap],
+            TapSlot::Cell { r1, r2, tap } => self.cell[r1 - 1][r2 - 1][tap],
+        }
+    }
+}
+
+/// Address of one free weight.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TapSlot {
+    /// A line-rule tap.
+    Line {
+        /// 0: horizontal lines, 1: vertical lines.
+        dir: usize,
+        /// Phase `r` in `1..N`.
+        phase: usize,
+        /// Tap index 0..4 (never the dependent one).
+        tap: usize,
+    },
+    /// A cell-rule tap.
+    Cell {
+        /// Row phase `r1` in `1..N`.
+        r1: usize,
+        /// Column phase `r2` in `1..N`.
+        r2: usize,
+        /// Tap index 0..4 (never the dependent one).
+        tap: usize,
+    },
+}
+
+impl TapSlot {
+    /// The coefficient class of this weight.
+    pub fn class(self) -> WeightClass {
+        match self {
+            TapSlot::Line { .. } => WeightClass::Line,
+            TapSlot::Cell { .. } => WeightClass::Cell,
+        }
+    }
+}
+
+/// Visits the free taps of `model` in canonical (coding) order: line rules (horizontal then
+/// vertical, phases ascending, taps ascending), then cell rules (row phase, column phase, taps).
+pub fn for_each_free_tap(model: ModelType, mut f: impl FnMut(TapSlot)) {
+    if model.weight_count() == 0 {
+        return;
+    }
+    let n = model.transforms as usize;
+    for dir in 0..2 {
+        for phase in 1..n {
+            for tap in (0..4).filter(|&t| t != LINE_DEPENDENT_TAP) {
+                f(TapSlot::Line { dir, phase, tap });
+            }
+        }
+    }
+    for r1 in 1..n {
+        for r2 in 1..n {
+            for tap in (0..4).filter(|&t| t != CELL_DEPENDENT_TAP) {
+                f(TapSlot::Cell { r1, r2, tap });
+            }
+        }
+    }
+}
+
+/// Rounded division of a sample value by a quantiser step (ties away from zero); used for
+/// prediction in the index domain.
+pub fn div_round(v: i32, step: i32) -> i32 {
+    if v >= 0 {
+        (v + step / 2) / step
+    } else {
+        -((-v + step / 2) / step)
+    }
+}

@@ -1,0 +1,221 @@
+//! Patch synthesis: exact tabulation of a projected-IFS patch by recursive subdivision, in
+//! integer arithmetic that is bit-exact on every platform.
+//!
+//! Values are samples in 1/16 grey level ([`SAMPLE_ONE`]); weights are in 1/4096
+//! ([`WEIGHT_ONE`]). Every new point is `(sum(tap * value) + 2048) >> 12` (arithmetic shift),
+//! clamped to `[SAMPLE_MIN, SAMPLE_MAX]`. With free taps bounded by [`WEIGHT_LIMIT`] the sum of
+//! tap magnitudes of a rule is at most `3 * 8192 + 28672 = 53248`, and `53248 * 8192 < 2^31`, so
+//! the accumulation never overflows an `i32`.
+//!
+//! Evaluation is depth-first: a control grid is refined one sub-grid at a time and each sub-grid
+//! is refined recursively, so memory is one small grid per level (at most
+//! [`ARENA_LEN`] values), independent of the block size. The last level is not stored: pixels are
+//! computed directly from the parent grid and handed to the [`PixelSink`] in tiles of at most
+//! [`TILE`] x [`TILE`].
+
+use crate::model::{
+    ModelType, Weights, MAX_CONTROL, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN, WEIGHT_BITS,
+};
+#[cfg(doc)]
+use crate::model::{SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE};
+
+/// Side of the tiles handed to a [`PixelSink`].
+pub const TILE: usize = 16;
+/// Values of the per-level grid stack (enough for the deepest model at the largest leaf).
+pub const ARENA_LEN: usize = 256;
+
+/// Receives decoded pixels, one rectangular tile at a time.
+pub trait PixelSink {
+    /// Pixels of the `w x h` rectangle at `(x, y)`, row-major (`pixels.len() == w * h`).
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]);
+}
+
+/// An axis-aligned rectangle of pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    /// Left column.
+    pub x: u32,
+    /// Top row.
+    pub y: u32,
+    /// Width in pixels.
+    pub w: u32,
+    /// Height in pixels.
+    pub h: u32,
+}
+
+impl Rect {
+    /// The rectangle of the given size at the origin.
+    pub const fn of_size(w: u32, h: u32) -> Self {
+        Rect { x: 0, y: 0, w, h }
+    }
+
+    fn right(&self) -> u64 {
+        u64::from(self.x) + u64::from(self.w)
+    }
+
+    fn bottom(&self) -> u64 {
+        u64::from(self.y) + u64::from(self.h)
+    }
+
+    /// Whether the square of side `ext` at `(x, y)` overlaps this rectangle.
+    pub fn overlaps_square(&self, x: u32, y: u32, ext: u32) -> bool {
+        u64::from(x) < self.right()
+            && u64::from(y) < self.bottom()
+            && u64::from(x) + u64::from(ext) > u64::from(self.x)
+            && u64::from(y) + u64::from(ext) > u64::from(self.y)
+    }
+}
+
+/// A reconstructed patch: a model type, its control values and its subdivision weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Patch {
+    /// The model type.
+    pub model: ModelType,
+    /// Control values, row-major, `model.grid()` per row, in sample units.
+    pub control: [i16; MAX_CONTROL],
+    /// The subdivision rules.
+    pub weights: Weights,
+}
+
+#[inline]
+fn round_clamp(acc: i32) -> i32 {
+    ((acc + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS).clamp(SAMPLE_MIN, SAMPLE_MAX)
+}
+
+/// Converts a sample value to an 8-bit pixel (round to nearest, saturate).
+#[inline]
+pub fn sample_to_pixel(v: i32) -> u8 {
+    ((v + (1 << (SAMPLE_BITS - 1))) >> SAMPLE_BITS).clamp(0, 255) as u8
+}
+
+impl Patch {
+    /// The refined value at refined coordinates `(q1, q2)` (row, column; `0..=N*m`) of the
+    /// control grid `g` (row-major, side `m+1`).
+    #[inline]
+    fn point(&self, g: &[i16], q1: usize, q2: usize) -> i32 {
+        let n = self.model.transforms as usize;
+        let (a1, r1) = (q1 / n, q1 % n);
+        let (a2, r2) = (q2 / n, q2 % n);
+        match (r1, r2) {
+            (0, 0) => i32::from(g[a1 * self.model.grid() + a2]),
+            (0, _) => self.line(g, 0, a1, a2, r2),
+            (_, 0) => self.line(g, 1, a2, a1, r1),
+            _ => {
+                let taps = &self.weights.cell[r1 - 1][r2 - 1];
+                let top = self.line(g, 0, a1, a2, r2);
+                let bottom = self.line(g, 0, a1 + 1, a2, r2);
+                let left = self.line(g, 1, a2, a1, r1);
+                let right = self.line(g, 1, a2 + 1, a1, r1);
+                round_clamp(taps[0] * top + taps[1] * bottom + taps[2] * left + taps[3] * right)
+            }
+        }
+    }
+
+    /// New point at phase `r` between points `a` and `a+1` of line `fixed` (a row when `dir` is
+    /// 0, a column when 1); taps on points `a-1..=a+2`, indices clamped to the line.
+    #[inline]
+    fn line(&self, g: &[i16], dir: usize, fixed: usize, a: usize, r: usize) -> i32 {
+        let side = self.model.grid();
+        let m = side - 1;
+        let taps = &self.weights.line[dir][r - 1];
+        let mut acc = 0i32;
+        for (t, &tap) in taps.iter().enumerate() {
+            let idx = (a + t).saturating_sub(1).min(m);
+            let v = if dir == 0 {
+                g[fixed * side + idx]
+            } else {
+                g[idx * side + fixed]
+            };
+            acc += tap * i32::from(v);
+        }
+        round_clamp(acc)
+    }
+
+    /// Renders the pixels of the leaf block of side `2^log2` at `(x0, y0)` that fall inside
+    /// `clip`, tile by tile. `log2` must satisfy `model.fits_block(log2)` (otherwise nothing is
+    /// drawn).
+    pub fn render<S: PixelSink>(&self, x0: u32, y0: u32, log2: u8, clip: Rect, sink: &mut S) {
+        if !self.model.fits_block(log2) {
+            return;
+        }
+        let mut arena = [0i16; ARENA_LEN];
+        let n2 = self.model.control_count();
+        arena[..n2].copy_from_slice(&self.control[..n2]);
+        let spacing = (1u32 << log2) / u32::from(self.model.intervals);
+        self.walk(&mut arena, x0, y0, spacing, &clip, sink);
+    }
+
+    /// Subdivides the grid at the front of `grids` (pixel spacing `sp` between its points),
+    /// storing children after it.
+    fn walk<S: PixelSink>(
+        &self,
+        grids: &mut [i16],
+        x: u32,
+        y: u32,
+        sp: u32,
+        clip: &Rect,
+        sink: &mut S,
+    ) {
+        let m = u32::from(self.model.intervals);
+        let n = u32::from(self.model.transforms);
+        let side = self.model.grid();
+        let n2 = side * side;
+        if grids.len() < n2 || !clip.overlaps_square(x, y, m * sp) {
+            return;
+        }
+        let (g, rest) = grids.split_at_mut(n2);
+        if sp <= n {
+            self.emit(g, x, y, sp, clip, sink);
+            return;
+        }
+        let csp = sp / n;
+        for i in 0..n {
+            for j in 0..n {
+                let (cx, cy) = (x + j * m * csp, y + i * m * csp);
+                if !clip.overlaps_square(cx, cy, m * csp) || rest.len() < n2 {
+                    continue;
+                }
+                for u in 0..side {
+                    for v in 0..side {
+                        let q1 = (i * m) as usize + u;
+                        let q2 = (j * m) as usize + v;
+                        rest[u * side + v] = self.point(g, q1, q2) as i16;
+                    }
+                }
+                self.walk(rest, cx, cy, csp, clip, sink);
+            }
+        }
+    }
+
+    /// Emits the `m*sp` square of pixels covered by grid `g`, computing each pixel from `g` at
+    /// refined stride `N / sp`.
+    fn emit<S: PixelSink>(&self, g: &[i16], x: u32, y: u32, sp: u32, clip: &Rect, sink: &mut S) {
+        let ext = u32::from(self.model.intervals) * sp;
+        let stride = (u32::from(self.model.transforms) / sp.max(1)) as usize;
+        let x_lo = x.max(clip.x);
+        let y_lo = y.max(clip.y);
+        let x_hi = (u64::from(x) + u64::from(ext)).min(clip.right()) as u32;
+        let y_hi = (u64::from(y) + u64::from(ext)).min(clip.bottom()) as u32;
+        let mut buf = [0u8; TILE * TILE];
+        let mut ty = y_lo;
+        while ty < y_hi {
+            let th = (y_hi - ty).min(TILE as u32);
+            let mut tx = x_lo;
+            while tx < x_hi {
+                let tw = (x_hi - tx).min(TILE as u32);
+                let mut k = 0;
+                for py in ty..ty + th {
+                    let q1 = (py - y) as usize * stride;
+                    for px in tx..tx + tw {
+                        let q2 = (px - x) as usize * stride;
+                        buf[k] = sample_to_pixel(self.point(g, q1, q2));
+                        k += 1;
+                    }
+                }
+                sink.tile(tx, ty, tw, th, &buf[..k]);
+                tx += tw;
+            }
+            ty += th;
+        }
+    }
+}

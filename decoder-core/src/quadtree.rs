@@ -1,0 +1,156 @@
+//! The quadtree walk: visits the nodes of the cut in coding order and codes split flags and
+//! leaves. The decoder and the encoder's writer both run [`walk`]; they differ only in their
+//! [`Coder`] and [`TreeVisitor`].
+//!
+//! The root is the smallest power-of-two square (at least one smallest leaf) that covers the
+//! image, anchored at the top-left pixel. Children are visited in Z order: top-left, top-right,
+//! bottom-left, bottom-right. Nodes entirely outside the image are skipped (nothing is coded for
+//! them). A node larger than the largest leaf is split without a flag; a node of the smallest
+//! leaf size is a leaf without a flag; every other node codes a split flag.
+
+use crate::bitstream::{
+    code_leaf, code_split, reconstruct, Contexts, Header, LeafSyntax, Predictor,
+};
+use crate::entropy::Coder;
+use crate::error::DecodeError;
+use crate::patch::Patch;
+
+/// A quadtree node: the square of side `2^log2` pixels at `(x, y)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Node {
+    /// Left column.
+    pub x: u32,
+    /// Top row.
+    pub y: u32,
+    /// Side, as a power of two.
+    pub log2: u8,
+}
+
+impl Node {
+    /// Side in pixels.
+    pub fn size(&self) -> u32 {
+        1 << self.log2
+    }
+
+    /// The four children in coding (Z) order.
+    pub fn children(&self) -> [Node; 4] {
+        let h = self.size() / 2;
+        let l = self.log2 - 1;
+        [
+            Node {
+                x: self.x,
+                y: self.y,
+                log2: l,
+            },
+            Node {
+                x: self.x + h,
+                y: self.y,
+                log2: l,
+            },
+            Node {
+                x: self.x,
+                y: self.y + h,
+                log2: l,
+            },
+            Node {
+                x: self.x + h,
+                y: self.y + h,
+                log2: l,
+            },
+        ]
+    }
+}
+
+/// What a node is in the coding order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NodeKind {
+    /// Entirely outside the image: not coded.
+    Outside,
+    /// Split without a flag (larger than the largest leaf).
+    ForcedSplit,
+    /// A leaf without a flag (smallest leaf size).
+    ForcedLeaf,
+    /// Carries a split flag.
+    Flagged,
+}
+
+/// Classifies `node` for a stream with `header`.
+pub fn node_kind(header: &Header, node: &Node) -> NodeKind {
+    if node.x >= u32::from(header.width) || node.y >= u32::from(header.height) {
+        NodeKind::Outside
+    } else if node.log2 > header.max_leaf_log2 {
+        NodeKind::ForcedSplit
+    } else if node.log2 <= header.min_leaf_log2 {
+        NodeKind::ForcedLeaf
+    } else {
+        NodeKind::Flagged
+    }
+}
+
+/// The two sides of the walk: an encoder supplies decisions, a decoder consumes results.
+pub trait TreeVisitor {
+    /// Encoder: whether `node` is split (called before its flag is coded). Decoders may return
+    /// anything: the flag read from the stream replaces it.
+    fn split(&mut self, node: &Node) -> bool;
+    /// Encoder: fills in the leaf's syntax elements before they are coded. Decoders do nothing.
+    fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax);
+    /// Called once the leaf is coded, with its reconstruction.
+    fn leaf(&mut self, node: &Node, leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError>;
+}
+
+/// The adaptive state of the walk: contexts and prediction memory.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct WalkState {
+    /// Adaptive contexts.
+    pub contexts: Contexts,
+    /// Prediction memory.
+    pub predictor: Predictor,
+}
+
+/// Codes the whole quadtree of a stream with `header`.
+pub fn walk<C: Coder, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+) -> Result<WalkState, DecodeError> {
+    let mut state = WalkState::default();
+    let root = Node {
+        x: 0,
+        y: 0,
+        log2: header.root_log2(),
+    };
+    walk_node(header, coder, visitor, &mut state, root)?;
+    Ok(state)
+}
+
+fn walk_node<C: Coder, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+    state: &mut WalkState,
+    node: Node,
+) -> Result<(), DecodeError> {
+    let split = match node_kind(header, &node) {
+        NodeKind::Outside => return Ok(()),
+        NodeKind::ForcedSplit => true,
+        NodeKind::ForcedLeaf => false,
+        NodeKind::Flagged => {
+            let mut split = visitor.split(&node);
+            code_split(coder, &mut state.contexts, node.log2, &mut split)?;
+            split
+        }
+    };
+    if split {
+        for child in node.children() {
+            walk_node(header, coder, visitor, state, child)?;
+        }
+        return Ok(());
+    }
+    let mut leaf = LeafSyntax::default();
+    visitor.prepare_leaf(&node, &mut leaf);
+    let prediction = state.predictor.predict(node.x, node.y);
+    code_leaf(coder, &mut state.contexts, node.log2, prediction, &mut leaf)?;
+    let patch = reconstruct(header, &leaf)?;
+    state.predictor.remember(node.x, node.y, node.log2, &patch);
+    visitor.leaf(&node, &leaf, &patch)
+}

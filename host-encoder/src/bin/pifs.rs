@@ -1,0 +1,291 @@
+//! `pifs`: encode, decode and inspect PIFS images.
+
+use clap::{Args, Parser, Subcommand};
+use host_encoder::{analyse, io, EncoderConfig, Target};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Fractal (projected-IFS quadtree) image codec for low-bandwidth links and small displays.
+#[derive(Parser, Debug)]
+#[command(name = "pifs", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Encode an image (PNG, JPEG, PGM/PPM, BMP, TIFF) into a .pifs stream.
+    Encode(EncodeArgs),
+    /// Decode a .pifs stream into a PNG or PGM image.
+    Decode {
+        /// Input .pifs file.
+        input: PathBuf,
+        /// Output image (.png or .pgm).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Describe a .pifs stream: dimensions, size, quadtree and model usage.
+    Info {
+        /// Input .pifs file.
+        input: PathBuf,
+    },
+}
+
+#[derive(Args, Debug)]
+struct EncodeArgs {
+    /// Input image.
+    input: PathBuf,
+    /// Output .pifs file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Target bits per pixel (whole file); the default target is 0.25.
+    #[arg(long, group = "target")]
+    bpp: Option<f64>,
+    /// Largest file size in bytes (header included).
+    #[arg(long, group = "target")]
+    bytes: Option<usize>,
+    /// Smallest file reaching this PSNR (dB).
+    #[arg(long, group = "target")]
+    psnr: Option<f64>,
+    /// Smallest leaf side as a power of two.
+    #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
+    min_leaf_log2: u8,
+    /// Largest leaf side as a power of two.
+    #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
+    max_leaf_log2: u8,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Encode(args)) => encode(&args),
+        Some(Command::Decode { input, output }) => decode(&input, &output),
+        Some(Command::Info { input }) => info(&input),
+        None => demo(),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("pifs: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn target_of(args: &EncodeArgs) -> Target {
+    match (args.bpp, args.bytes, args.psnr) {
+        (_, Some(n), _) => Target::Bytes(n),
+        (_, _, Some(p)) => Target::Psnr(p),
+        (Some(b), _, _) => Target::Bpp(b),
+        _ => Target::Bpp(0.25),
+    }
+}
+
+fn progress_bar(total: u64) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("analysing {bar:40} {pos}/{len} nodes ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    Some(bar)
+}
+
+fn encode(args: &EncodeArgs) -> Result<(), String> {
+    let start = Instant::now();
+    let target = target_of(args);
+    validate_target(target)?;
+    let plane = io::load_luma(&args.input)?;
+    let config = EncoderConfig {
+        min_leaf_log2: args.min_leaf_log2,
+        max_leaf_log2: args.max_leaf_log2.max(args.min_leaf_log2),
+        ..EncoderConfig::default()
+    };
+    let (w, h) = (plane.width, plane.height);
+    let total = node_count(w, h, &config);
+    let bar = progress_bar(total);
+    let analysis = analyse(plane, &config, &|n| {
+        if let Some(b) = &bar {
+            b.set_position(n);
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let encoded = analysis.encode(target).map_err(|e| e.to_string())?;
+    io::write_atomic(&args.output, &encoded.bytes)?;
+    let bpp = encoded.bytes.len() as f64 * 8.0 / (f64::from(w) * f64::from(h));
+    println!(
+        "{}: {}x{} -> {} bytes, {:.4} bpp, PSNR {:.2} dB, {} leaves, rate estimate gap {:+.2}%, {:.2} s",
+        args.output.display(),
+        w,
+        h,
+        encoded.bytes.len(),
+        bpp,
+        encoded.psnr,
+        encoded.leaves,
+        100.0 * (encoded.estimated_payload_bits - encoded.actual_payload_bits) / encoded.actual_payload_bits.max(1.0),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn validate_target(target: Target) -> Result<(), String> {
+    match target {
+        Target::Bpp(b) if !(b.is_finite() && b > 0.0) => {
+            Err(format!("--bpp must be a positive number, got {b}"))
+        }
+        Target::Bytes(0) => Err("--bytes must be at least 1".into()),
+        Target::Psnr(p) if !(p.is_finite() && p > 0.0) => {
+            Err(format!("--psnr must be a positive number, got {p}"))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Number of nodes the analysis visits (for the progress bar).
+fn node_count(w: u32, h: u32, config: &EncoderConfig) -> u64 {
+    (config.min_leaf_log2..=config.max_leaf_log2)
+        .map(|l| u64::from(w.div_ceil(1 << l)) * u64::from(h.div_ceil(1 << l)))
+        .sum()
+}
+
+fn read_stream(input: &Path) -> Result<Vec<u8>, String> {
+    std::fs::read(input).map_err(|e| format!("cannot read {}: {e}", input.display()))
+}
+
+fn decode(input: &Path, output: &Path) -> Result<(), String> {
+    let start = Instant::now();
+    let data = read_stream(input)?;
+    let header =
+        decoder_core::read_header(&data).map_err(|e| format!("{}: {e}", input.display()))?;
+    let mut pixels = vec![0u8; header.pixel_count()];
+    decoder_core::decode_into(&data, &mut pixels)
+        .map_err(|e| format!("{}: {e}", input.display()))?;
+    let bytes = io::encode_gray(
+        output,
+        u32::from(header.width),
+        u32::from(header.height),
+        &pixels,
+    )?;
+    io::write_atomic(output, &bytes)?;
+    println!(
+        "{}: {}x{} decoded in {:.1} ms",
+        output.display(),
+        header.width,
+        header.height,
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(())
+}
+
+fn info(input: &Path) -> Result<(), String> {
+    struct Stats {
+        per_depth: std::collections::BTreeMap<u8, usize>,
+        models: [usize; decoder_core::model::MODEL_COUNT],
+        cquant: [usize; 8],
+        wquant: [usize; 4],
+    }
+    impl decoder_core::LeafObserver for Stats {
+        fn leaf(&mut self, info: &decoder_core::LeafInfo) {
+            *self.per_depth.entry(info.node.log2).or_default() += 1;
+            self.models[usize::from(info.model)] += 1;
+            self.cquant[usize::from(info.cquant)] += 1;
+            self.wquant[usize::from(info.wquant)] += 1;
+        }
+    }
+    struct Discard;
+    impl decoder_core::PixelSink for Discard {
+        fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, _p: &[u8]) {}
+    }
+    let data = read_stream(input)?;
+    let stats = Stats {
+        per_depth: Default::default(),
+        models: [0; 5],
+        cquant: [0; 8],
+        wquant: [0; 4],
+    };
+    let (header, stats) = decoder_core::decode_observed(&data, &mut Discard, stats)
+        .map_err(|e| format!("{}: {e}", input.display()))?;
+    let px = header.pixel_count() as f64;
+    println!("{}", input.display());
+    println!("  format version   {}", decoder_core::bitstream::VERSION);
+    println!(
+        "  dimensions       {}x{}, {} channel(s), {} bits",
+        header.width, header.height, header.channels, header.bit_depth
+    );
+    println!(
+        "  size             {} bytes ({} header), {:.4} bpp",
+        data.len(),
+        header.encoded_len(),
+        data.len() as f64 * 8.0 / px
+    );
+    println!(
+        "  leaf sizes       {}..{} px",
+        1 << header.min_leaf_log2,
+        1 << header.max_leaf_log2
+    );
+    println!(
+        "  codebooks        {}",
+        if header.has_codebooks() {
+            "Lloyd-Max (line, cell)"
+        } else {
+            "none"
+        }
+    );
+    let total: usize = stats.per_depth.values().sum();
+    println!("  leaves           {total}");
+    for (log2, n) in stats.per_depth.iter().rev() {
+        println!("    {:>3}x{:<3}       {n}", 1 << log2, 1 << log2);
+    }
+    let names = ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"];
+    println!("  models");
+    for (name, n) in names.iter().zip(stats.models) {
+        println!("    {name:<14} {n}");
+    }
+    println!(
+        "  control quantiser use (steps {:?} /16 grey): {:?}",
+        decoder_core::model::CONTROL_STEPS,
+        stats.cquant
+    );
+    println!(
+        "  weight quantiser use (default, fine, coarse, Lloyd-Max): {:?}",
+        stats.wquant
+    );
+    Ok(())
+}
+
+/// The bundled sample image, encoded and decoded with default settings.
+fn demo() -> Result<(), String> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let sample = root.join("samples/kodim23.png");
+    let out = root.join("out");
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    println!(
+        "pifs demo: encoding the bundled sample {} (Kodak kodim23, grayscale)",
+        sample.display()
+    );
+    for bpp in [0.1, 0.25] {
+        let stream = out.join(format!("kodim23-{bpp}bpp.pifs"));
+        let decoded = out.join(format!("kodim23-{bpp}bpp.png"));
+        let args = EncodeArgs {
+            input: sample.clone(),
+            output: stream.clone(),
+            bpp: Some(bpp),
+            bytes: None,
+            psnr: None,
+            min_leaf_log2: EncoderConfig::default().min_leaf_log2,
+            max_leaf_log2: EncoderConfig::default().max_leaf_log2,
+        };
+        encode(&args)?;
+        decode(&stream, &decoded)?;
+    }
+    println!("results in {}", out.display());
+    Ok(())
+}

@@ -1,0 +1,242 @@
+//! Exhaustive analysis (thesis Alg. 1): every model that a block can support is fitted at every
+//! quadtree node down to the smallest leaf, then quantised with every quantiser, and each
+//! candidate's distortion is measured through decoder-core's own reconstruction (closed loop).
+
+use super::fit::{fit_block, Fit};
+use super::quantise::{lloyd_max, quantise, weight_classes};
+use super::{EncoderConfig, Plane};
+use decoder_core::bitstream::{models_for_block, Codebook, Header};
+use decoder_core::model::{
+    WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+};
+use decoder_core::model::{WeightQuantiser, SAMPLE_ONE};
+use decoder_core::patch::{PixelSink, Rect};
+use decoder_core::quadtree::Node;
+use rayon::prelude::*;
+
+/// One way of coding a node as a leaf.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate {
+    /// Index into the node's fits.
+    pub fit: u8,
+    /// Control quantiser.
+    pub cq: u8,
+    /// Weight quantiser.
+    pub wq: u8,
+    /// Closed-loop squared error over the node's in-image pixels.
+    pub sse: f64,
+}
+
+/// Everything the analysis knows about one node.
+#[derive(Debug, Clone)]
+pub struct NodeAnalysis {
+    /// The node.
+    pub node: Node,
+    /// One fit per model the node supports.
+    pub fits: Vec<Fit>,
+    /// Every (fit, quantiser) pair with its distortion.
+    pub candidates: Vec<Candidate>,
+    /// Estimate of the prediction of the leaf's first control value, for rate estimates.
+    pub first_prediction: i32,
+}
+
+/// The nodes of one quadtree level.
+#[derive(Debug, Clone)]
+pub struct Level {
+    /// Node side, as a power of two.
+    pub log2: u8,
+    /// Nodes per row.
+    pub cols: u32,
+    /// Analysed nodes, row-major; `None` outside the image.
+    pub nodes: Vec<Option<NodeAnalysis>>,
+}
+
+impl Level {
+    /// The node at `(x, y)` (its top-left pixel), if analysed.
+    pub fn get(&self, x: u32, y: u32) -> Option<&NodeAnalysis> {
+        let i = (y >> self.log2) * self.cols + (x >> self.log2);
+        self.nodes.get(i as usize).and_then(Option::as_ref)
+    }
+}
+
+/// The result of the exhaustive analysis of one image: serves any number of targets.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    /// The image.
+    pub plane: Plane,
+    /// Header of the streams written from this analysis (with the Lloyd-Max codebooks).
+    pub header: Header,
+    /// Levels from the smallest leaf (index 0) to the root.
+    pub levels: Vec<Level>,
+}
+
+impl Analysis {
+    /// The level of nodes of side `2^log2`.
+    pub fn level(&self, log2: u8) -> Option<&Level> {
+        self.levels
+            .get(usize::from(log2.checked_sub(self.header.min_leaf_log2)?))
+    }
+
+    /// Analyses `plane`. `progress` is called with the number of nodes analysed so far.
+    pub fn run(plane: Plane, config: &EncoderConfig, progress: &(dyn Fn(u64) + Sync)) -> Analysis {
+        let mut header = Header {
+            width: plane.width as u16,
+            height: plane.height as u16,
+            channels: 1,
+            bit_depth: 8,
+            min_leaf_log2: config.min_leaf_log2,
+            max_leaf_log2: config.max_leaf_log2.max(config.min_leaf_log2),
+            codebooks: [Codebook::EMPTY; 2],
+        };
+        let root = header.root_log2();
+        let done = std::sync::atomic::AtomicU64::new(0);
+        let mut levels = Vec::new();
+        for log2 in header.min_leaf_log2..=root {
+            let cols = (plane.width + (1 << log2) - 1) >> log2;
+            let rows = (plane.height + (1 << log2) - 1) >> log2;
+            let analyse = log2 <= header.max_leaf_log2;
+            let nodes: Vec<Option<NodeAnalysis>> = (0..cols * rows)
+                .into_par_iter()
+                .map(|i| {
+                    let node = Node {
+                        x: (i % cols) << log2,
+                        y: (i / cols) << log2,
+                        log2,
+                    };
+                    if !analyse {
+                        return None;
+                    }
+                    let (models, count) = models_for_block(log2);
+                    let fits = models[..count]
+                        .iter()
+                        .map(|&m| fit_block(&plane, &node, m))
+                        .collect();
+                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    progress(n + 1);
+                    Some(NodeAnalysis {
+                        node,
+                        fits,
+                        candidates: Vec::new(),
+                        first_prediction: first_prediction(&plane, &node),
+                    })
+                })
+                .collect();
+            levels.push(Level { log2, cols, nodes });
+        }
+        header.codebooks = design_codebooks(&levels, config.codebook_levels);
+        let mut analysis = Analysis {
+            plane,
+            header,
+            levels,
+        };
+        analysis.measure_candidates();
+        analysis
+    }
+
+    /// Quantises every fit with every quantiser and measures the closed-loop distortion.
+    fn measure_candidates(&mut self) {
+        let plane = &self.plane;
+        let header = &self.header;
+        for level in &mut self.levels {
+            level.nodes.par_iter_mut().flatten().for_each(|na| {
+                let mut out = Vec::new();
+                for (fi, fit) in na.fits.iter().enumerate() {
+                    let model = MODELS[usize::from(fit.model)];
+                    let fitted_weights = fit.weights.iter().any(|&w| w != 0.0);
+                    for cq in 0..CONTROL_QUANTISERS as u8 {
+                        for wq in 0..WEIGHT_QUANTISERS as u8 {
+                            let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
+                            let usable = match kind {
+                                WeightQuantiser::Default => true,
+                                WeightQuantiser::Uniform(_) => fitted_weights,
+                                WeightQuantiser::Codebook => {
+                                    fitted_weights && header.has_codebooks()
+                                }
+                            };
+                            if !usable || (model.weight_count() == 0 && wq > 0) {
+                                continue;
+                            }
+                            let leaf = quantise(fit, cq, wq, &header.codebooks);
+                            let sse = closed_loop_sse(plane, header, &na.node, &leaf);
+                            out.push(Candidate {
+                                fit: fi as u8,
+                                cq,
+                                wq,
+                                sse,
+                            });
+                        }
+                    }
+                }
+                na.candidates = out;
+            });
+        }
+    }
+}
+
+/// A prediction of a leaf's first control value as the decoder's corner memory would give it:
+/// approximated by the image sample at that corner.
+fn first_prediction(plane: &Plane, node: &Node) -> i32 {
+    i32::from(plane.get(node.x.min(plane.width - 1), node.y.min(plane.height - 1))) * SAMPLE_ONE
+}
+
+/// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
+pub fn closed_loop_sse(
+    plane: &Plane,
+    header: &Header,
+    node: &Node,
+    leaf: &decoder_core::LeafSyntax,
+) -> f64 {
+    let Ok(patch) = decoder_core::bitstream::reconstruct(header, leaf) else {
+        return f64::INFINITY;
+    };
+    struct Sse<'a> {
+        plane: &'a Plane,
+        total: u64,
+    }
+    impl PixelSink for Sse<'_> {
+        fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+            let mut k = 0;
+            for py in y..y + h {
+                for px in x..x + w {
+                    let d = i64::from(self.plane.get(px, py)) - i64::from(pixels[k]);
+                    self.total += (d * d) as u64;
+                    k += 1;
+                }
+            }
+        }
+    }
+    let mut sink = Sse { plane, total: 0 };
+    patch.render(
+        node.x,
+        node.y,
+        node.log2,
+        Rect::of_size(plane.width, plane.height),
+        &mut sink,
+    );
+    sink.total as f64
+}
+
+/// Lloyd-Max codebooks for the line and cell weights, from every fitted weight.
+fn design_codebooks(levels: &[Level], size: usize) -> [Codebook; 2] {
+    if size < 2 {
+        return [Codebook::EMPTY; 2];
+    }
+    let mut samples = [Vec::new(), Vec::new()];
+    for na in levels.iter().flat_map(|l| l.nodes.iter().flatten()) {
+        for fit in &na.fits {
+            if fit.weights.iter().all(|&w| w == 0.0) {
+                continue;
+            }
+            for (w, class) in fit.weights.iter().zip(weight_classes(fit.model)) {
+                samples[usize::from(class == WeightClass::Cell)].push(*w);
+            }
+        }
+    }
+    let line = lloyd_max(&mut samples[0], size);
+    let cell = lloyd_max(&mut samples[1], size);
+    if line.len == 0 || cell.len == 0 {
+        [Codebook::EMPTY; 2]
+    } else {
+        [line, cell]
+    }
+}

@@ -1,0 +1,245 @@
+//! The fractal inverse problem for one block: Levenberg-Marquardt on the control values and the
+//! free subdivision weights of a model (thesis II.3), with exact derivatives from
+//! [`Tabulator`].
+//!
+//! Own LM on `nalgebra` rather than the `levenberg-marquardt` crate: the normal equations are
+//! accumulated directly from the tabulated samples (`J^T J` is at most 126 x 126, while `J` would
+//! be thousands of rows), and the weights are box-bounded by the format.
+
+use super::synthesis::Tabulator;
+use super::Plane;
+use decoder_core::model::{ModelType, WEIGHT_LIMIT, WEIGHT_ONE};
+use decoder_core::quadtree::Node;
+use nalgebra::{DMatrix, DVector};
+
+/// Largest number of samples used to fit one block: bigger blocks are fitted on a regular
+/// sub-lattice of their pixels (the closed-loop distortion still counts every pixel).
+pub const MAX_FIT_SAMPLES: u32 = 64 * 64;
+/// Levenberg-Marquardt iterations per fit.
+pub const MAX_ITERATIONS: usize = 8;
+
+/// Fitted real-valued parameters of one model on one block.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fit {
+    /// Model type index.
+    pub model: u8,
+    /// Control values, grey levels, row-major.
+    pub control: Vec<f64>,
+    /// Deviations of the free weights from the default scheme (1.0 = one).
+    pub weights: Vec<f64>,
+}
+
+/// The samples of a block the fit looks at: in-image pixels on a lattice of stride `stride`.
+struct Lattice {
+    x0: u32,
+    y0: u32,
+    stride: u32,
+    width: u32,
+    height: u32,
+}
+
+impl Lattice {
+    fn new(plane: &Plane, node: &Node) -> Self {
+        let mut stride = 1;
+        while (node.size() / stride) * (node.size() / stride) > MAX_FIT_SAMPLES {
+            stride *= 2;
+        }
+        Lattice {
+            x0: node.x,
+            y0: node.y,
+            stride,
+            width: plane.width,
+            height: plane.height,
+        }
+    }
+
+    fn wants(&self, dx: u32, dy: u32) -> bool {
+        dx % self.stride == 0
+            && dy % self.stride == 0
+            && self.x0 + dx < self.width
+            && self.y0 + dy < self.height
+    }
+}
+
+/// Fits model `model_index` to the block `node` of `plane`.
+pub fn fit_block(plane: &Plane, node: &Node, model_index: u8) -> Fit {
+    let model = decoder_core::model::MODELS[usize::from(model_index)];
+    let lattice = Lattice::new(plane, node);
+    let control = initial_control(plane, node, model);
+    let nc = control.len();
+    let mut count = 0usize;
+    for dy in 0..node.size() {
+        for dx in 0..node.size() {
+            count += usize::from(lattice.wants(dx, dy));
+        }
+    }
+    // Weights are only fitted where the block has clearly more samples than parameters
+    // (thesis III.2.3: otherwise the problem is singular).
+    let nw = if count >= 3 * (nc + model.weight_count()) {
+        model.weight_count()
+    } else {
+        0
+    };
+    let mut theta = control;
+    theta.resize(nc + nw, 0.0);
+    levenberg_marquardt(plane, node, model, &lattice, &mut theta, nc);
+    let weights = {
+        let mut w = theta.split_off(nc);
+        w.resize(model.weight_count(), 0.0);
+        w
+    };
+    Fit {
+        model: model_index,
+        control: theta,
+        weights,
+    }
+}
+
+/// Control values sampled from the block (nearest in-image pixel): the interpolating scheme's
+/// natural starting point.
+fn initial_control(plane: &Plane, node: &Node, model: ModelType) -> Vec<f64> {
+    let side = model.grid();
+    let m = u32::from(model.intervals);
+    let sp = node.size() / m;
+    let mut c = Vec::with_capacity(side * side);
+    for u in 0..side as u32 {
+        for v in 0..side as u32 {
+            let x = (node.x + v * sp)
+                .min(node.x + node.size() - 1)
+                .min(plane.width - 1);
+            let y = (node.y + u * sp)
+                .min(node.y + node.size() - 1)
+                .min(plane.height - 1);
+            c.push(f64::from(plane.get(x, y)));
+        }
+    }
+    c
+}
+
+/// Sum of squared errors of `theta` on the lattice.
+fn sse(
+    plane: &Plane,
+    node: &Node,
+    model: ModelType,
+    lattice: &Lattice,
+    theta: &[f64],
+    nc: usize,
+) -> f64 {
+    let mut tab = Tabulator::new(model, &theta[nc..], false);
+    let mut total = 0.0;
+    tab.run(
+        &theta[..nc],
+        node.log2,
+        &|dx, dy| lattice.wants(dx, dy),
+        &mut |dx, dy, s| {
+            let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
+            total += e * e;
+        },
+    );
+    total
+}
+
+/// Normal equations `J^T J`, `J^T r` and the SSE at `theta`.
+fn normal_equations(
+    plane: &Plane,
+    node: &Node,
+    model: ModelType,
+    lattice: &Lattice,
+    theta: &[f64],
+    nc: usize,
+) -> (DMatrix<f64>, DVector<f64>, f64) {
+    let n = theta.len();
+    let mut tab = Tabulator::new(model, &theta[nc..], true);
+    let wbase = 1 + nc;
+    let mut jtj = DMatrix::<f64>::zeros(n, n);
+    let mut jtr = DVector::<f64>::zeros(n);
+    let mut total = 0.0;
+    let mut row = vec![0.0; n];
+    tab.run(
+        &theta[..nc],
+        node.log2,
+        &|dx, dy| lattice.wants(dx, dy),
+        &mut |dx, dy, s| {
+            let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
+            total += e * e;
+            row[..nc].copy_from_slice(&s[1..1 + nc]);
+            row[nc..].copy_from_slice(&s[wbase..wbase + (n - nc)]);
+            for a in 0..n {
+                let ra = row[a];
+                if ra == 0.0 {
+                    continue;
+                }
+                jtr[a] += ra * e;
+                for b in a..n {
+                    jtj[(a, b)] += ra * row[b];
+                }
+            }
+        },
+    );
+    for a in 0..n {
+        for b in 0..a {
+            jtj[(a, b)] = jtj[(b, a)];
+        }
+    }
+    (jtj, jtr, total)
+}
+
+fn clamp_params(theta: &mut [f64], nc: usize) {
+    for c in &mut theta[..nc] {
+        *c = c.clamp(-200.0, 450.0);
+    }
+    // Deviations are bounded loosely here; the tabulator clamps the taps themselves.
+    let lim = 2.0 * f64::from(WEIGHT_LIMIT) / f64::from(WEIGHT_ONE);
+    for w in &mut theta[nc..] {
+        *w = w.clamp(-lim, lim);
+    }
+}
+
+fn levenberg_marquardt(
+    plane: &Plane,
+    node: &Node,
+    model: ModelType,
+    lattice: &Lattice,
+    theta: &mut Vec<f64>,
+    nc: usize,
+) {
+    let n = theta.len();
+    let (mut jtj, mut jtr, mut current) = normal_equations(plane, node, model, lattice, theta, nc);
+    let mut mu = 1e-6;
+    for _ in 0..MAX_ITERATIONS {
+        if current <= 1e-9 {
+            break;
+        }
+        let mut a = jtj.clone();
+        for i in 0..n {
+            a[(i, i)] += mu * (jtj[(i, i)] + 1e-9) + 1e-12;
+        }
+        let Some(chol) = a.cholesky() else {
+            mu = (mu * 10.0).max(1e-3);
+            continue;
+        };
+        let delta = chol.solve(&jtr);
+        if delta.iter().any(|d| !d.is_finite()) {
+            mu = (mu * 10.0).max(1e-3);
+            continue;
+        }
+        let mut trial = theta.clone();
+        for (t, d) in trial.iter_mut().zip(delta.iter()) {
+            *t += d;
+        }
+        clamp_params(&mut trial, nc);
+        let trial_sse = sse(plane, node, model, lattice, &trial, nc);
+        if trial_sse.is_finite() && trial_sse < current {
+            let gain = (current - trial_sse) / current;
+            *theta = trial;
+            mu = (mu / 4.0).max(1e-9);
+            if gain < 1e-4 || n == nc {
+                // Linear in the control values: one exact step is the optimum.
+                break;
+            }
+            (jtj, jtr, current) = normal_equations(plane, node, model, lattice, theta, nc);
+        } else {
+            mu = (mu * 8.0).max(1e-4);
+        }
+    }
+}

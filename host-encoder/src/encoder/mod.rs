@@ -1,0 +1,305 @@
+//! The encoder: analysis, quantisation, rate control and writing, mirroring decoder-core's
+//! layout.
+
+pub mod analysis;
+pub mod fit;
+pub mod quantise;
+pub mod rate;
+pub mod synthesis;
+pub mod writer;
+
+use analysis::Analysis;
+use decoder_core::bitstream::{Codebook, Contexts, Header};
+use rate::RateTable;
+use std::fmt;
+
+/// An 8-bit grayscale image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Plane {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major samples.
+    pub data: Vec<u8>,
+}
+
+impl Plane {
+    /// Wraps row-major samples (`data.len() == width * height`).
+    pub fn new(width: u32, height: u32, data: Vec<u8>) -> Self {
+        assert_eq!(
+            data.len(),
+            width as usize * height as usize,
+            "plane size mismatch"
+        );
+        Plane {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// The sample at `(x, y)`.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> u8 {
+        self.data[y as usize * self.width as usize + x as usize]
+    }
+}
+
+/// Settings of the analysis.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EncoderConfig {
+    /// Smallest leaf side, as a power of two (at least 1).
+    pub min_leaf_log2: u8,
+    /// Largest leaf side, as a power of two (at most 9).
+    pub max_leaf_log2: u8,
+    /// Levels of the Lloyd-Max weight codebooks (0: none).
+    pub codebook_levels: usize,
+}
+
+impl Default for EncoderConfig {
+    fn default() -> Self {
+        EncoderConfig {
+            min_leaf_log2: 2,
+            max_leaf_log2: 8,
+            codebook_levels: 8,
+        }
+    }
+}
+
+/// What an encode must achieve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// At most this many bits per pixel (whole file).
+    Bpp(f64),
+    /// At most this many bytes (whole file).
+    Bytes(usize),
+    /// The smallest file whose PSNR is at least this many dB.
+    Psnr(f64),
+}
+
+/// Why an encode failed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EncodeError {
+    /// The image is larger than the format allows (65535 per side) or empty.
+    BadDimensions(u32, u32),
+    /// The target is not a positive finite number.
+    BadTarget(String),
+    /// Even the smallest stream is larger than the budget.
+    BudgetTooSmall {
+        /// The budget, bytes.
+        budget: usize,
+        /// The smallest stream the encoder can write for this image, bytes.
+        smallest: usize,
+    },
+    /// The PSNR cannot be reached.
+    QualityUnreachable {
+        /// Requested PSNR, dB.
+        requested: f64,
+        /// Best reachable, dB.
+        best: f64,
+    },
+    /// Internal error from the shared syntax code (a bug).
+    Internal(String),
+}
+
+impl fmt::Display for EncodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EncodeError::BadDimensions(w, h) => write!(
+                f,
+                "image size {w}x{h} is not supported (1 to 65535 per side)"
+            ),
+            EncodeError::BadTarget(t) => write!(f, "invalid target: {t}"),
+            EncodeError::BudgetTooSmall { budget, smallest } => {
+                write!(f, "budget of {budget} bytes is too small: the smallest stream for this image is {smallest} bytes")
+            }
+            EncodeError::QualityUnreachable { requested, best } => {
+                write!(f, "PSNR {requested:.2} dB is unreachable: the best this encoder reaches is {best:.2} dB")
+            }
+            EncodeError::Internal(e) => write!(f, "internal encoder error: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for EncodeError {}
+
+/// An encoded stream with its figures.
+#[derive(Debug, Clone)]
+pub struct Encoded {
+    /// The complete `.pifs` stream.
+    pub bytes: Vec<u8>,
+    /// The encoder's closed-loop reconstruction (equal to what any decoder produces).
+    pub reconstruction: Vec<u8>,
+    /// Squared error of the reconstruction.
+    pub sse: f64,
+    /// PSNR of the reconstruction, dB (infinite when lossless).
+    pub psnr: f64,
+    /// Payload bits the rate model predicted for the final plan.
+    pub estimated_payload_bits: f64,
+    /// Payload bits actually written.
+    pub actual_payload_bits: f64,
+    /// Leaves in the quadtree cut.
+    pub leaves: usize,
+}
+
+/// Number of estimate/encode passes that let the rate model follow the real coder.
+const RATE_PASSES: usize = 3;
+
+/// PSNR (peak 255) of a squared error over `pixels` pixels.
+pub fn psnr(sse: f64, pixels: usize) -> f64 {
+    if sse <= 0.0 {
+        return f64::INFINITY;
+    }
+    10.0 * (255.0f64 * 255.0 * pixels as f64 / sse).log10()
+}
+
+impl Analysis {
+    /// Encodes for `target`. May be called any number of times on one analysis.
+    pub fn encode(&self, target: Target) -> Result<Encoded, EncodeError> {
+        let pixels = self.header.pixel_count();
+        let budget = match target {
+            Target::Bpp(b) if b.is_finite() && b > 0.0 => {
+                Some((b * pixels as f64 / 8.0).floor() as usize)
+            }
+            Target::Bytes(n) if n > 0 => Some(n),
+            Target::Psnr(p) if p.is_finite() && p > 0.0 => None,
+            other => return Err(EncodeError::BadTarget(format!("{other:?}"))),
+        };
+        let mut variants = vec![Header {
+            codebooks: [Codebook::EMPTY; 2],
+            ..self.header
+        }];
+        if self.header.has_codebooks() {
+            variants.push(self.header);
+        }
+        let mut best: Option<Encoded> = None;
+        let mut last_err = None;
+        for header in variants {
+            let result = match (budget, target) {
+                (Some(n), _) => self.encode_budget(&header, n),
+                (None, Target::Psnr(p)) => self.encode_quality(&header, p),
+                _ => unreachable!("targets are validated above"),
+            };
+            match result {
+                Ok(e) => {
+                    let better = match (&best, budget) {
+                        (None, _) => true,
+                        (Some(b), Some(_)) => e.sse < b.sse,
+                        (Some(b), None) => e.bytes.len() < b.bytes.len(),
+                    };
+                    if better {
+                        best = Some(e);
+                    }
+                }
+                Err(e) => last_err = Some(e),
+            }
+        }
+        best.ok_or_else(|| last_err.unwrap_or_else(|| EncodeError::Internal("no variant".into())))
+    }
+
+    fn finish(&self, plan: &rate::Plan, written: writer::Written, header: &Header) -> Encoded {
+        let pixels = self.header.pixel_count();
+        let sse: f64 = written
+            .reconstruction
+            .iter()
+            .zip(&self.plane.data)
+            .map(|(&a, &b)| {
+                let d = f64::from(a) - f64::from(b);
+                d * d
+            })
+            .sum();
+        let actual = (written.bytes.len() - header.encoded_len()) as f64 * 8.0;
+        Encoded {
+            psnr: psnr(sse, pixels),
+            sse,
+            estimated_payload_bits: plan.bits,
+            actual_payload_bits: actual,
+            leaves: written.leaves,
+            bytes: written.bytes,
+            reconstruction: written.reconstruction,
+        }
+    }
+
+    fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
+        writer::write(self, header, plan).map_err(|e| EncodeError::Internal(e.to_string()))
+    }
+
+    /// Best stream of at most `budget` bytes.
+    fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
+        // The range coder's flush adds four bytes to the payload.
+        let overhead = (header.encoded_len() + 4) as f64 * 8.0;
+        let mut snapshot = Contexts::default();
+        let mut target_bits = budget as f64 * 8.0 - overhead;
+        let mut rates = RateTable::new(self, header, &snapshot);
+        let mut plan = rates.plan_for_bits(self, header, target_bits);
+        let mut written = self.write(header, &plan)?;
+        for _ in 1..RATE_PASSES {
+            snapshot = written.final_contexts.clone();
+            rates = RateTable::new(self, header, &snapshot);
+            plan = rates.plan_for_bits(self, header, target_bits);
+            written = self.write(header, &plan)?;
+        }
+        // Tighten the estimate's target until the real stream fits.
+        let mut tries = 0;
+        while written.bytes.len() > budget {
+            tries += 1;
+            let excess = (written.bytes.len() - budget) as f64 * 8.0;
+            target_bits -= excess.max(8.0) * if tries > 4 { 2.0 } else { 1.0 };
+            let smaller = rates.plan_for_bits(self, header, target_bits);
+            let smaller_written = self.write(header, &smaller)?;
+            if smaller_written.bytes.len() >= written.bytes.len() && target_bits < -overhead
+                || tries > 40
+            {
+                return Err(EncodeError::BudgetTooSmall {
+                    budget,
+                    smallest: smaller_written.bytes.len(),
+                });
+            }
+            plan = smaller;
+            written = smaller_written;
+        }
+        Ok(self.finish(&plan, written, header))
+    }
+
+    /// Smallest stream whose PSNR reaches `db`.
+    fn encode_quality(&self, header: &Header, db: f64) -> Result<Encoded, EncodeError> {
+        let pixels = self.header.pixel_count() as f64;
+        let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
+        let mut snapshot = Contexts::default();
+        let mut plan = None;
+        let mut written = None;
+        for _ in 0..RATE_PASSES {
+            let rates = RateTable::new(self, header, &snapshot);
+            let p = rates.plan_for_sse(self, header, max_sse);
+            let w = self.write(header, &p)?;
+            snapshot = w.final_contexts.clone();
+            plan = Some(p);
+            written = Some(w);
+        }
+        let (plan, written) = (
+            plan.expect("at least one pass"),
+            written.expect("at least one pass"),
+        );
+        let encoded = self.finish(&plan, written, header);
+        if encoded.sse > max_sse {
+            return Err(EncodeError::QualityUnreachable {
+                requested: db,
+                best: encoded.psnr,
+            });
+        }
+        Ok(encoded)
+    }
+}
+
+/// Analyses an image with `config`; the result encodes any number of targets.
+pub fn analyse(
+    plane: Plane,
+    config: &EncoderConfig,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Analysis, EncodeError> {
+    if plane.width == 0 || plane.height == 0 || plane.width > 65535 || plane.height > 65535 {
+        return Err(EncodeError::BadDimensions(plane.width, plane.height));
+    }
+    Ok(Analysis::run(plane, config, progress))
+}

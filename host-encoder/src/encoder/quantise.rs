@@ -1,0 +1,108 @@
+//! Quantisation of fitted parameters into syntax elements: uniform quantisers for control values
+//! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4).
+
+use super::fit::Fit;
+use decoder_core::bitstream::{Codebook, LeafSyntax, MAX_CODEBOOK};
+use decoder_core::model::{
+    for_each_free_tap, WeightClass, WeightQuantiser, CONTROL_STEPS, MODELS, SAMPLE_MAX, SAMPLE_MIN,
+    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
+};
+
+/// Quantises `fit` with control quantiser `cq` and weight quantiser `wq`.
+pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyntax {
+    let model = MODELS[usize::from(fit.model)];
+    let mut leaf = LeafSyntax {
+        model: fit.model,
+        cquant: cq,
+        wquant: wq,
+        ..LeafSyntax::default()
+    };
+    let step = CONTROL_STEPS[usize::from(cq)];
+    let (lo, hi) = (SAMPLE_MIN.div_euclid(step) + 1, SAMPLE_MAX.div_euclid(step));
+    for (dst, &c) in leaf.control.iter_mut().zip(&fit.control) {
+        *dst = ((c * f64::from(SAMPLE_ONE) / f64::from(step)).round() as i32).clamp(lo, hi);
+    }
+    let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
+    let mut i = 0;
+    for_each_free_tap(model, |slot| {
+        let dev = fit.weights.get(i).copied().unwrap_or(0.0) * f64::from(WEIGHT_ONE);
+        leaf.weights[i] = match kind {
+            WeightQuantiser::Default => 0,
+            WeightQuantiser::Uniform(step) => {
+                let lim = 2 * WEIGHT_LIMIT / step;
+                ((dev / f64::from(step)).round() as i32).clamp(-lim, lim)
+            }
+            WeightQuantiser::Codebook => {
+                let book = &codebooks[slot.class() as usize];
+                nearest_level(book, dev) - book.center()
+            }
+        };
+        i += 1;
+    });
+    leaf
+}
+
+fn nearest_level(book: &Codebook, v: f64) -> i32 {
+    let mut best = 0;
+    for i in 0..usize::from(book.len) {
+        if (f64::from(book.levels[i]) - v).abs() < (f64::from(book.levels[best]) - v).abs() {
+            best = i;
+        }
+    }
+    best as i32
+}
+
+/// Designs a Lloyd-Max codebook of `levels` levels (at most [`MAX_CODEBOOK`]) for the weight
+/// deviations `samples` (weight units, 1.0 = one). Returns an empty codebook when there is too
+/// little data.
+pub fn lloyd_max(samples: &mut [f64], levels: usize) -> Codebook {
+    let levels = levels.clamp(2, MAX_CODEBOOK);
+    if samples.len() < levels * 4 {
+        return Codebook::EMPTY;
+    }
+    samples.sort_by(f64::total_cmp);
+    let scale = f64::from(WEIGHT_ONE);
+    // Start at the quantiles, then alternate centroids and midpoints (Lloyd's method I).
+    let mut q: Vec<f64> = (0..levels)
+        .map(|i| samples[(2 * i + 1) * samples.len() / (2 * levels)] * scale)
+        .collect();
+    for _ in 0..50 {
+        let mut sum = vec![0.0; levels];
+        let mut count = vec![0usize; levels];
+        let mut j = 0;
+        for &s in samples.iter() {
+            let v = s * scale;
+            while j + 1 < levels && v > 0.5 * (q[j] + q[j + 1]) {
+                j += 1;
+            }
+            sum[j] += v;
+            count[j] += 1;
+        }
+        for i in 0..levels {
+            if count[i] > 0 {
+                q[i] = sum[i] / count[i] as f64;
+            }
+        }
+    }
+    let mut book = Codebook::EMPTY;
+    let mut last = i32::MIN;
+    for v in q {
+        let l = (v.round() as i32).clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT);
+        if l > last {
+            book.levels[usize::from(book.len)] = l as i16;
+            book.len += 1;
+            last = l;
+        }
+    }
+    if book.len < 2 {
+        return Codebook::EMPTY;
+    }
+    book
+}
+
+/// The weight class of every free weight of model `model`, in coding order.
+pub fn weight_classes(model: u8) -> Vec<WeightClass> {
+    let mut v = Vec::new();
+    for_each_free_tap(MODELS[usize::from(model)], |slot| v.push(slot.class()));
+    v
+}

@@ -1,0 +1,249 @@
+//! Rate control: Lagrangian bottom-up pruning of the quadtree (thesis Alg. 2) and the search for
+//! the multiplier that meets a target (thesis III.3.6.3).
+//!
+//! Rates come from decoder-core's own syntax code run on a [`BitCounter`] whose contexts start
+//! from a snapshot of the real coder's state (the previous pass's final contexts), so the
+//! estimate follows the real coder.
+
+use super::analysis::Analysis;
+use crate::entropy::BitCounter;
+use decoder_core::bitstream::{code_leaf, code_split, Contexts, Header};
+use decoder_core::model::WeightQuantiser;
+use decoder_core::model::WEIGHT_QUANTISER_KINDS;
+use decoder_core::quadtree::{node_kind, Node, NodeKind};
+use rayon::prelude::*;
+
+/// Per-candidate rates (bits) under one context snapshot, laid out like the analysis.
+#[derive(Debug, Clone)]
+pub struct RateTable {
+    bits: Vec<Vec<Vec<f32>>>,
+    split_bits: Vec<[f64; 2]>,
+}
+
+/// What the optimiser decided for one node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// Coded as a leaf with this candidate.
+    Leaf(u16),
+    /// Split into four.
+    Split,
+}
+
+/// A quadtree cut with one candidate per leaf.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Decisions per level (same layout as the analysis levels).
+    pub decisions: Vec<Vec<Decision>>,
+    /// Estimated squared error (exact: leaves are reconstructed independently).
+    pub sse: f64,
+    /// Estimated payload bits.
+    pub bits: f64,
+}
+
+impl Plan {
+    /// The decision for `node`, if it was analysed.
+    pub fn decision(&self, analysis: &Analysis, node: &Node) -> Option<Decision> {
+        let level = analysis.level(node.log2)?;
+        let i = (node.y >> node.log2) * level.cols + (node.x >> node.log2);
+        self.decisions
+            .get(usize::from(node.log2 - analysis.header.min_leaf_log2))?
+            .get(i as usize)
+            .copied()
+    }
+}
+
+impl RateTable {
+    /// Rates of every candidate, coded from the context state `snapshot`.
+    pub fn new(analysis: &Analysis, header: &Header, snapshot: &Contexts) -> RateTable {
+        let bits = analysis
+            .levels
+            .iter()
+            .map(|level| {
+                level
+                    .nodes
+                    .par_iter()
+                    .map(|na| {
+                        let Some(na) = na else { return Vec::new() };
+                        na.candidates
+                            .iter()
+                            .map(|c| {
+                                let mut leaf = super::quantise::quantise(
+                                    &na.fits[usize::from(c.fit)],
+                                    c.cq,
+                                    c.wq,
+                                    &header.codebooks,
+                                );
+                                let mut counter = BitCounter::default();
+                                let mut ctx = snapshot.clone();
+                                match code_leaf(
+                                    &mut counter,
+                                    &mut ctx,
+                                    level.log2,
+                                    na.first_prediction,
+                                    &mut leaf,
+                                ) {
+                                    Ok(()) => counter.bits() as f32,
+                                    Err(_) => f32::INFINITY,
+                                }
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect();
+        let split_bits = (0..=decoder_core::bitstream::MAX_LEAF_LOG2)
+            .map(|log2| {
+                let mut out = [0.0; 2];
+                for (flag, slot) in out.iter_mut().enumerate() {
+                    let mut counter = BitCounter::default();
+                    let mut ctx = snapshot.clone();
+                    let _ = code_split(&mut counter, &mut ctx, log2, &mut (flag == 1));
+                    *slot = counter.bits();
+                }
+                out
+            })
+            .collect();
+        RateTable { bits, split_bits }
+    }
+
+    /// The best cut for multiplier `lambda` (squared error per bit). Candidates using the
+    /// Lloyd-Max codebooks are allowed only when `header` carries them.
+    pub fn optimise(&self, analysis: &Analysis, header: &Header, lambda: f64) -> Plan {
+        let min = analysis.header.min_leaf_log2;
+        let mut decisions: Vec<Vec<Decision>> = Vec::with_capacity(analysis.levels.len());
+        // (J, sse, bits) per node of the level below.
+        let mut below: Vec<(f64, f64, f64)> = Vec::new();
+        let mut below_cols = 0u32;
+        let mut below_rows = 0u32;
+        for (li, level) in analysis.levels.iter().enumerate() {
+            let rows = (u32::from(header.height) + (1 << level.log2) - 1) >> level.log2;
+            let mut here = Vec::with_capacity(level.nodes.len());
+            let mut dec = Vec::with_capacity(level.nodes.len());
+            for i in 0..level.cols * rows {
+                let (cx, cy) = (i % level.cols, i / level.cols);
+                let node = Node {
+                    x: cx << level.log2,
+                    y: cy << level.log2,
+                    log2: level.log2,
+                };
+                let kind = node_kind(header, &node);
+                let leaf = level.nodes[i as usize].as_ref().and_then(|na| {
+                    let mut best: Option<(f64, f64, f64, u16)> = None;
+                    for (ci, c) in na.candidates.iter().enumerate() {
+                        if WEIGHT_QUANTISER_KINDS[usize::from(c.wq)] == WeightQuantiser::Codebook
+                            && !header.has_codebooks()
+                        {
+                            continue;
+                        }
+                        let bits = f64::from(self.bits[li][i as usize][ci]);
+                        let j = c.sse + lambda * bits;
+                        if best.is_none_or(|b| j < b.0) {
+                            best = Some((j, c.sse, bits, ci as u16));
+                        }
+                    }
+                    best
+                });
+                let split = (level.log2 > min).then(|| {
+                    let mut acc = (0.0, 0.0, 0.0);
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (bx, by) = (2 * cx + dx, 2 * cy + dy);
+                        if bx < below_cols && by < below_rows {
+                            let b = below[(by * below_cols + bx) as usize];
+                            acc = (acc.0 + b.0, acc.1 + b.1, acc.2 + b.2);
+                        }
+                    }
+                    acc
+                });
+                let flag = &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
+                let (cost, d) = match (kind, leaf, split) {
+                    (NodeKind::ForcedLeaf, Some(l), _) => ((l.0, l.1, l.2), Decision::Leaf(l.3)),
+                    (NodeKind::Flagged, Some(l), Some(s)) => {
+                        let jl = l.0 + lambda * flag[0];
+                        let js = s.0 + lambda * flag[1];
+                        if jl <= js {
+                            ((jl, l.1, l.2 + flag[0]), Decision::Leaf(l.3))
+                        } else {
+                            ((js, s.1, s.2 + flag[1]), Decision::Split)
+                        }
+                    }
+                    (_, _, Some(s)) => (s, Decision::Split),
+                    (_, Some(l), None) => ((l.0, l.1, l.2), Decision::Leaf(l.3)),
+                    (_, None, None) => (
+                        (f64::INFINITY, f64::INFINITY, f64::INFINITY),
+                        Decision::Split,
+                    ),
+                };
+                here.push(cost);
+                dec.push(d);
+            }
+            below = here;
+            below_cols = level.cols;
+            below_rows = rows;
+            decisions.push(dec);
+        }
+        let root = below.first().copied().unwrap_or((0.0, 0.0, 0.0));
+        Plan {
+            decisions,
+            sse: root.1,
+            bits: root.2,
+        }
+    }
+
+    /// The plan with the least distortion whose estimated payload fits in `budget_bits`
+    /// (the cheapest plan if none fits), by bisection on the multiplier.
+    pub fn plan_for_bits(&self, analysis: &Analysis, header: &Header, budget_bits: f64) -> Plan {
+        self.bisect(analysis, header, Constraint::Rate, |p| {
+            p.bits <= budget_bits
+        })
+    }
+
+    /// The cheapest plan whose squared error is at most `max_sse` (the best plan if none is).
+    pub fn plan_for_sse(&self, analysis: &Analysis, header: &Header, max_sse: f64) -> Plan {
+        self.bisect(analysis, header, Constraint::Distortion, |p| {
+            p.sse <= max_sse
+        })
+    }
+
+    /// Bisection on the logarithm of the multiplier. Plans get cheaper and worse as it grows,
+    /// so a rate constraint holds from some multiplier on (we want the smallest such), and a
+    /// distortion constraint holds up to some multiplier (we want the largest).
+    fn bisect(
+        &self,
+        analysis: &Analysis,
+        header: &Header,
+        constraint: Constraint,
+        ok: impl Fn(&Plan) -> bool,
+    ) -> Plan {
+        let (mut lo, mut hi) = (1e-4f64.ln(), 1e9f64.ln());
+        let plan_lo = self.optimise(analysis, header, lo.exp());
+        let plan_hi = self.optimise(analysis, header, hi.exp());
+        let (mut best, fallback) = match constraint {
+            Constraint::Rate if ok(&plan_lo) => return plan_lo,
+            Constraint::Rate => (plan_hi.clone(), !ok(&plan_hi)),
+            Constraint::Distortion if ok(&plan_hi) => return plan_hi,
+            Constraint::Distortion => (plan_lo.clone(), !ok(&plan_lo)),
+        };
+        if fallback {
+            return best;
+        }
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            let p = self.optimise(analysis, header, mid.exp());
+            let good = ok(&p);
+            match (constraint, good) {
+                (Constraint::Rate, true) | (Constraint::Distortion, false) => hi = mid,
+                (Constraint::Rate, false) | (Constraint::Distortion, true) => lo = mid,
+            }
+            if good {
+                best = p;
+            }
+        }
+        best
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Constraint {
+    Rate,
+    Distortion,
+}

@@ -1,0 +1,296 @@
+//! Floating-point tabulation of a patch, with derivatives, for fitting.
+//!
+//! It follows decoder-core's integer synthesis rule for rule (same subdivision, same taps, same
+//! clamping of indices), without rounding. Each sample carries a vector: its value, then its
+//! derivatives with respect to every control value and every free weight. The derivatives follow
+//! the subdivision recursion (thesis II.3.4: the tabulation is polynomial in the parameters), so
+//! the Jacobian is exact: no finite differences.
+
+use decoder_core::model::{
+    for_each_free_tap, ModelType, TapSlot, Weights, CELL_DEPENDENT_TAP, LINE_DEPENDENT_TAP,
+    WEIGHT_ONE,
+};
+
+/// Parameter index of every free tap of a model, by rule (`usize::MAX` for the dependent tap).
+#[derive(Debug, Clone)]
+struct TapIndex {
+    line: [[[usize; 4]; 3]; 2],
+    cell: [[[usize; 4]; 3]; 3],
+}
+
+impl TapIndex {
+    fn new(model: ModelType) -> Self {
+        let mut t = TapIndex {
+            line: [[[usize::MAX; 4]; 3]; 2],
+            cell: [[[usize::MAX; 4]; 3]; 3],
+        };
+        let mut k = 0;
+        for_each_free_tap(model, |slot| {
+            match slot {
+                TapSlot::Line { dir, phase, tap } => t.line[dir][phase - 1][tap] = k,
+                TapSlot::Cell { r1, r2, tap } => t.cell[r1 - 1][r2 - 1][tap] = k,
+            }
+            k += 1;
+        });
+        t
+    }
+}
+
+/// Real-valued subdivision weights.
+#[derive(Debug, Clone)]
+struct RealWeights {
+    line: [[[f64; 4]; 3]; 2],
+    cell: [[[f64; 4]; 3]; 3],
+}
+
+/// A patch model ready to be tabulated in floating point.
+#[derive(Debug, Clone)]
+pub struct Tabulator {
+    model: ModelType,
+    index: TapIndex,
+    weights: RealWeights,
+    /// Floats per sample: 1 (value only) or `1 + control + weights`.
+    k: usize,
+    nc: usize,
+    scratch: Vec<Vec<f64>>,
+}
+
+impl Tabulator {
+    /// Prepares `model` with free-weight deviations `dev` (weight units, 1.0 = one) and, when
+    /// `derivatives` is set, derivative tracking.
+    pub fn new(model: ModelType, dev: &[f64], derivatives: bool) -> Self {
+        let base = Weights::default_for(model);
+        let index = TapIndex::new(model);
+        let mut w = RealWeights {
+            line: [[[0.0; 4]; 3]; 2],
+            cell: [[[0.0; 4]; 3]; 3],
+        };
+        let lim = 2.0;
+        for dir in 0..2 {
+            for p in 0..3 {
+                let mut sum = 0.0;
+                for t in 0..4 {
+                    if t == LINE_DEPENDENT_TAP {
+                        continue;
+                    }
+                    let d = match index.line[dir][p][t] {
+                        usize::MAX => 0.0,
+                        k => dev.get(k).copied().unwrap_or(0.0),
+                    };
+                    let v = (f64::from(base.line[dir][p][t]) / f64::from(WEIGHT_ONE) + d)
+                        .clamp(-lim, lim);
+                    w.line[dir][p][t] = v;
+                    sum += v;
+                }
+                w.line[dir][p][LINE_DEPENDENT_TAP] = 1.0 - sum;
+            }
+        }
+        for r1 in 0..3 {
+            for r2 in 0..3 {
+                let mut sum = 0.0;
+                for t in 0..4 {
+                    if t == CELL_DEPENDENT_TAP {
+                        continue;
+                    }
+                    let d = match index.cell[r1][r2][t] {
+                        usize::MAX => 0.0,
+                        k => dev.get(k).copied().unwrap_or(0.0),
+                    };
+                    let v = (f64::from(base.cell[r1][r2][t]) / f64::from(WEIGHT_ONE) + d)
+                        .clamp(-lim, lim);
+                    w.cell[r1][r2][t] = v;
+                    sum += v;
+                }
+                w.cell[r1][r2][CELL_DEPENDENT_TAP] = 1.0 - sum;
+            }
+        }
+        let nc = model.control_count();
+        let k = if derivatives {
+            1 + nc + model.weight_count()
+        } else {
+            1
+        };
+        Tabulator {
+            model,
+            index,
+            weights: w,
+            k,
+            nc,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Floats per emitted sample.
+    pub fn sample_len(&self) -> usize {
+        self.k
+    }
+
+    /// Tabulates the block of side `2^log2` with control values `control` (grey levels,
+    /// row-major) and calls `emit(dx, dy, sample)` for every owned sample `(dx, dy)` (offsets in
+    /// the block, `0..2^log2`) accepted by `want`.
+    pub fn run(
+        &mut self,
+        control: &[f64],
+        log2: u8,
+        want: &dyn Fn(u32, u32) -> bool,
+        emit: &mut dyn FnMut(u32, u32, &[f64]),
+    ) {
+        let m = usize::from(self.model.intervals);
+        let side = m + 1;
+        let k = self.k;
+        let mut g = vec![0.0; side * side * k];
+        for (j, &c) in control.iter().enumerate().take(side * side) {
+            g[j * k] = c;
+            if k > 1 {
+                g[j * k + 1 + j] = 1.0;
+            }
+        }
+        let sp = (1u32 << log2) / m as u32;
+        self.recurse(&g, 0, 0, sp, 0, want, emit);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn recurse(
+        &mut self,
+        g: &[f64],
+        x: u32,
+        y: u32,
+        sp: u32,
+        level: usize,
+        want: &dyn Fn(u32, u32) -> bool,
+        emit: &mut dyn FnMut(u32, u32, &[f64]),
+    ) {
+        let m = usize::from(self.model.intervals);
+        let n = usize::from(self.model.transforms);
+        let k = self.k;
+        let rs = n * m + 1;
+        while self.scratch.len() < 2 * (level + 1) {
+            self.scratch.push(Vec::new());
+        }
+        let mut r = std::mem::take(&mut self.scratch[2 * level]);
+        r.clear();
+        r.resize(rs * rs * k, 0.0);
+        self.refine(g, &mut r);
+        if sp <= n as u32 {
+            let stride = n / sp as usize;
+            let ext = m as u32 * sp;
+            for dy in 0..ext {
+                for dx in 0..ext {
+                    if want(x + dx, y + dy) {
+                        let q = ((dy as usize * stride) * rs + dx as usize * stride) * k;
+                        emit(x + dx, y + dy, &r[q..q + k]);
+                    }
+                }
+            }
+        } else {
+            let csp = sp / n as u32;
+            let side = m + 1;
+            let mut child = std::mem::take(&mut self.scratch[2 * level + 1]);
+            child.clear();
+            child.resize(side * side * k, 0.0);
+            for i in 0..n {
+                for j in 0..n {
+                    for u in 0..side {
+                        let src = ((i * m + u) * rs + j * m) * k;
+                        child[u * side * k..(u + 1) * side * k]
+                            .copy_from_slice(&r[src..src + side * k]);
+                    }
+                    let cx = x + (j * m) as u32 * csp;
+                    let cy = y + (i * m) as u32 * csp;
+                    self.recurse(&child, cx, cy, csp, level + 1, want, emit);
+                }
+            }
+            self.scratch[2 * level + 1] = child;
+        }
+        self.scratch[2 * level] = r;
+    }
+
+    /// One subdivision step of the grid `g` (side m+1) into `r` (side N*m+1).
+    fn refine(&self, g: &[f64], r: &mut [f64]) {
+        let m = usize::from(self.model.intervals);
+        let n = usize::from(self.model.transforms);
+        let side = m + 1;
+        let rs = n * m + 1;
+        let k = self.k;
+        let wbase = 1 + self.nc;
+        for u in 0..side {
+            for v in 0..side {
+                let (d, s) = (((u * n) * rs + v * n) * k, (u * side + v) * k);
+                r[d..d + k].copy_from_slice(&g[s..s + k]);
+            }
+        }
+        // Line points: rows (dir 0) and columns (dir 1).
+        for dir in 0..2 {
+            for line in 0..side {
+                for a in 0..m {
+                    for ph in 1..n {
+                        let taps = &self.weights.line[dir][ph - 1];
+                        let pidx = &self.index.line[dir][ph - 1];
+                        let src = |t: usize| -> usize {
+                            let idx = (a + t).saturating_sub(1).min(m);
+                            if dir == 0 {
+                                (line * side + idx) * k
+                            } else {
+                                (idx * side + line) * k
+                            }
+                        };
+                        let dst = if dir == 0 {
+                            ((line * n) * rs + a * n + ph) * k
+                        } else {
+                            ((a * n + ph) * rs + line * n) * k
+                        };
+                        let (s0, s1, s2, s3) = (src(0), src(1), src(2), src(3));
+                        for e in 0..k {
+                            r[dst + e] = taps[0] * g[s0 + e]
+                                + taps[1] * g[s1 + e]
+                                + taps[2] * g[s2 + e]
+                                + taps[3] * g[s3 + e];
+                        }
+                        if k > 1 {
+                            let srcs = [s0, s1, s2, s3];
+                            let dep = g[srcs[LINE_DEPENDENT_TAP]];
+                            for t in 0..4 {
+                                if pidx[t] != usize::MAX {
+                                    r[dst + wbase + pidx[t]] += g[srcs[t]] - dep;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Cell points, from the new line points on the cell's four sides.
+        for a1 in 0..m {
+            for a2 in 0..m {
+                for r1 in 1..n {
+                    for r2 in 1..n {
+                        let taps = &self.weights.cell[r1 - 1][r2 - 1];
+                        let pidx = &self.index.cell[r1 - 1][r2 - 1];
+                        let at = |q1: usize, q2: usize| (q1 * rs + q2) * k;
+                        let srcs = [
+                            at(a1 * n, a2 * n + r2),
+                            at((a1 + 1) * n, a2 * n + r2),
+                            at(a1 * n + r1, a2 * n),
+                            at(a1 * n + r1, (a2 + 1) * n),
+                        ];
+                        let dst = at(a1 * n + r1, a2 * n + r2);
+                        for e in 0..k {
+                            r[dst + e] = taps[0] * r[srcs[0] + e]
+                                + taps[1] * r[srcs[1] + e]
+                                + taps[2] * r[srcs[2] + e]
+                                + taps[3] * r[srcs[3] + e];
+                        }
+                        if k > 1 {
+                            let dep = r[srcs[CELL_DEPENDENT_TAP]];
+                            for t in 0..4 {
+                                if pidx[t] != usize::MAX {
+                                    r[dst + wbase + pidx[t]] += r[srcs[t]] - dep;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

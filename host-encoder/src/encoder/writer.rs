@@ -1,0 +1,110 @@
+//! Writing the stream: decoder-core's quadtree walk driven by a [`Plan`], with the range
+//! encoder as its coder.
+
+use super::analysis::Analysis;
+use super::quantise::quantise;
+use super::rate::{Decision, Plan};
+use crate::entropy::RangeEncoder;
+use decoder_core::bitstream::{Contexts, Header, LeafSyntax};
+use decoder_core::patch::{Patch, PixelSink, Rect};
+use decoder_core::quadtree::{walk, Node, TreeVisitor};
+use decoder_core::DecodeError;
+
+/// A written stream and the encoder's own reconstruction of it.
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// The complete stream (header and payload).
+    pub bytes: Vec<u8>,
+    /// Decoded pixels as the encoder reconstructed them, row-major.
+    pub reconstruction: Vec<u8>,
+    /// Context state at the end of the payload (seeds the next rate estimate).
+    pub final_contexts: Contexts,
+    /// Leaves coded.
+    pub leaves: usize,
+}
+
+struct PlanVisitor<'a> {
+    analysis: &'a Analysis,
+    header: &'a Header,
+    plan: &'a Plan,
+    image: Vec<u8>,
+    leaves: usize,
+}
+
+impl TreeVisitor for PlanVisitor<'_> {
+    fn split(&mut self, node: &Node) -> bool {
+        !matches!(
+            self.plan.decision(self.analysis, node),
+            Some(Decision::Leaf(_))
+        )
+    }
+
+    fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax) {
+        let na = self
+            .analysis
+            .level(node.log2)
+            .and_then(|l| l.get(node.x, node.y));
+        if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.analysis, node))
+        {
+            let c = na.candidates[usize::from(ci)];
+            *leaf = quantise(
+                &na.fits[usize::from(c.fit)],
+                c.cq,
+                c.wq,
+                &self.header.codebooks,
+            );
+        }
+    }
+
+    fn leaf(&mut self, node: &Node, _leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError> {
+        self.leaves += 1;
+        let clip = Rect::of_size(u32::from(self.header.width), u32::from(self.header.height));
+        let width = usize::from(self.header.width);
+        struct Into<'b> {
+            image: &'b mut [u8],
+            width: usize,
+        }
+        impl PixelSink for Into<'_> {
+            fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+                for (row, src) in pixels.chunks_exact(w as usize).take(h as usize).enumerate() {
+                    let at = (y as usize + row) * self.width + x as usize;
+                    self.image[at..at + w as usize].copy_from_slice(src);
+                }
+            }
+        }
+        patch.render(
+            node.x,
+            node.y,
+            node.log2,
+            clip,
+            &mut Into {
+                image: &mut self.image,
+                width,
+            },
+        );
+        Ok(())
+    }
+}
+
+/// Writes the stream for `plan` with `header`.
+pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Written, DecodeError> {
+    let mut visitor = PlanVisitor {
+        analysis,
+        header,
+        plan,
+        image: vec![0; header.pixel_count()],
+        leaves: 0,
+    };
+    let mut coder = RangeEncoder::new();
+    let state = walk(header, &mut coder, &mut visitor)?;
+    let payload = coder.finish();
+    let mut bytes = vec![0u8; header.encoded_len()];
+    header.write(&mut bytes);
+    bytes.extend_from_slice(&payload);
+    Ok(Written {
+        bytes,
+        reconstruction: visitor.image,
+        final_contexts: state.contexts,
+        leaves: visitor.leaves,
+    })
+}
