@@ -12,6 +12,7 @@ use crate::model::{
     SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use crate::patch::Patch;
+use crate::quadtree::Node;
 
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
@@ -255,17 +256,28 @@ impl Default for LeafSyntax {
 }
 
 /// Number of residual classes of control values: the leaf's first value, the rest of its first
-/// row and column, its interior.
-const CONTROL_CLASSES: usize = 3;
+/// row and column, its interior, and values whose position was shared with an earlier leaf.
+const CONTROL_CLASSES: usize = 4;
+/// Control residuals have separate contexts for fine, medium and coarse steps.
+const STEP_GROUPS: usize = 3;
+
+/// The context group of control quantiser `cq`.
+fn step_group(cq: u8) -> usize {
+    match cq {
+        0..=3 => 0,
+        4..=7 => 1,
+        _ => 2,
+    }
+}
 
 /// All adaptive contexts of the payload. Starts at [`Contexts::default`] for every stream.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Contexts {
     split: [Prob; MAX_LEAF_LOG2 as usize + 1],
     model: [[Prob; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
-    cquant: [[Prob; CONTROL_QUANTISERS]; MODEL_COUNT],
+    cquant: [[Prob; 16]; MODEL_COUNT],
     wquant: [[Prob; WEIGHT_QUANTISERS]; MODEL_COUNT],
-    control: [IntContexts; CONTROL_CLASSES],
+    control: [[IntContexts; CONTROL_CLASSES]; STEP_GROUPS],
     weights: [[IntContexts; 2]; 2],
 }
 
@@ -274,23 +286,37 @@ impl Default for Contexts {
         Contexts {
             split: [Prob::default(); MAX_LEAF_LOG2 as usize + 1],
             model: [[Prob::default(); MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
-            cquant: [[Prob::default(); CONTROL_QUANTISERS]; MODEL_COUNT],
+            cquant: [[Prob::default(); 16]; MODEL_COUNT],
             wquant: [[Prob::default(); WEIGHT_QUANTISERS]; MODEL_COUNT],
-            control: [IntContexts::default(); CONTROL_CLASSES],
+            control: [[IntContexts::default(); CONTROL_CLASSES]; STEP_GROUPS],
             weights: [[IntContexts::default(); 2]; 2],
         }
     }
 }
 
 /// Number of leaf corners remembered for predicting a leaf's first control value.
-pub const CORNER_MEMORY: usize = 32;
+pub const CORNER_MEMORY: usize = 16;
+/// Slots of the shared-sample cache.
+pub const SAMPLE_CACHE: usize = 128;
 
-/// Prediction state carried from leaf to leaf: the corner values of recently decoded leaves.
+/// Where a leaf's control values get their predictions from.
+pub trait SamplePrediction {
+    /// The value of an earlier leaf's control point at exactly pixel position `(x, y)`, if known.
+    fn shared(&self, x: u32, y: u32) -> Option<i32>;
+    /// A prediction for the sample at `(x, y)` when nothing is known there.
+    fn nearest(&self, x: u32, y: u32) -> i32;
+}
+
+/// Prediction state carried from leaf to leaf: the corners of recently decoded leaves, and a
+/// direct-mapped cache of the control points on their bottom rows and right columns, which are
+/// exactly where later leaves' top rows and left columns lie.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Predictor {
     corners: [(u32, u32, i16); CORNER_MEMORY],
     len: usize,
     next: usize,
+    keys: [u32; SAMPLE_CACHE],
+    values: [i16; SAMPLE_CACHE],
 }
 
 impl Default for Predictor {
@@ -299,14 +325,32 @@ impl Default for Predictor {
             corners: [(0, 0, 0); CORNER_MEMORY],
             len: 0,
             next: 0,
+            keys: [u32::MAX; SAMPLE_CACHE],
+            values: [0; SAMPLE_CACHE],
         }
     }
 }
 
-impl Predictor {
-    /// Predicted value of the sample at `(x, y)`: the remembered corner at that position, else
-    /// the nearest one (city-block distance, most recent first on ties), else mid-grey.
-    pub fn predict(&self, x: u32, y: u32) -> i32 {
+/// Cache key of a pixel position (positions of 65535 and beyond are not cached).
+fn cache_key(x: u32, y: u32) -> Option<u32> {
+    (x < 0xFFFF && y < 0xFFFF).then_some((x << 16) | y)
+}
+
+/// Cache slot of a key.
+fn cache_slot(key: u32) -> usize {
+    (key.wrapping_mul(0x9E37_79B1) >> (32 - SAMPLE_CACHE.trailing_zeros())) as usize
+}
+
+impl SamplePrediction for Predictor {
+    fn shared(&self, x: u32, y: u32) -> Option<i32> {
+        let key = cache_key(x, y)?;
+        let slot = cache_slot(key);
+        (self.keys[slot] == key).then(|| i32::from(self.values[slot]))
+    }
+
+    /// The remembered corner nearest to `(x, y)` (city-block distance, most recent first on
+    /// ties), else mid-grey.
+    fn nearest(&self, x: u32, y: u32) -> i32 {
         let mut best: Option<(u64, i16)> = None;
         for k in 0..self.len {
             // Walk from the most recent entry backwards.
@@ -319,22 +363,40 @@ impl Predictor {
         }
         best.map_or(128 * SAMPLE_ONE, |(_, v)| i32::from(v))
     }
+}
 
-    /// Remembers the four corners of a decoded leaf of side `2^log2` at `(x, y)`.
+impl Predictor {
+    /// Remembers a decoded leaf of side `2^log2` at `(x, y)`: its four corners, and the control
+    /// points of its bottom row and right column.
     pub fn remember(&mut self, x: u32, y: u32, log2: u8, patch: &Patch) {
         let side = patch.model.grid();
+        let m = side - 1;
         let s = 1u32 << log2;
+        let sp = s / m as u32;
         let c = &patch.control;
         let corners = [
             (x, y, c[0]),
-            (x + s, y, c[side - 1]),
-            (x, y + s, c[(side - 1) * side]),
+            (x + s, y, c[m]),
+            (x, y + s, c[m * side]),
             (x + s, y + s, c[side * side - 1]),
         ];
         for corner in corners {
             self.corners[self.next] = corner;
             self.next = (self.next + 1) % CORNER_MEMORY;
             self.len = (self.len + 1).min(CORNER_MEMORY);
+        }
+        for k in 0..side {
+            let along = k as u32 * sp;
+            self.store(x + along, y + s, c[m * side + k]);
+            self.store(x + s, y + along, c[k * side + m]);
+        }
+    }
+
+    fn store(&mut self, x: u32, y: u32, v: i16) {
+        if let Some(key) = cache_key(x, y) {
+            let slot = cache_slot(key);
+            self.keys[slot] = key;
+            self.values[slot] = v;
         }
     }
 }
@@ -367,16 +429,16 @@ pub fn models_for_block(log2: u8) -> ([u8; MODEL_COUNT], usize) {
     (list, n)
 }
 
-/// Codes a leaf of side `2^log2`: model type, quantisers, control values, weights.
-/// `first_prediction` is the predicted value of the leaf's top-left control value (from
-/// [`Predictor::predict`]).
-pub fn code_leaf<C: Coder>(
+/// Codes a leaf: model type, quantisers, control values, weights. `prediction` supplies the
+/// values of earlier leaves.
+pub fn code_leaf<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
-    log2: u8,
-    first_prediction: i32,
+    node: &Node,
+    prediction: &P,
     leaf: &mut LeafSyntax,
 ) -> Result<(), DecodeError> {
+    let log2 = node.log2;
     let (models, count) = models_for_block(log2);
     if count == 0 {
         return Err(DecodeError::InvalidData("leaf size"));
@@ -396,7 +458,10 @@ pub fn code_leaf<C: Coder>(
     let model = MODELS[mi];
 
     let mut cq = u32::from(leaf.cquant);
-    code_tree(c, &mut ctx.cquant[mi], 3, &mut cq)?;
+    code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
+    if cq as usize >= CONTROL_QUANTISERS {
+        return Err(DecodeError::InvalidData("control quantiser"));
+    }
     leaf.cquant = cq as u8;
 
     let mut wq = 0u32;
@@ -406,7 +471,7 @@ pub fn code_leaf<C: Coder>(
     }
     leaf.wquant = wq as u8;
 
-    code_control(c, ctx, model, first_prediction, leaf)?;
+    code_control(c, ctx, model, node, prediction, leaf)?;
     if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
         code_weights(c, ctx, model, leaf)?;
     } else {
@@ -415,42 +480,67 @@ pub fn code_leaf<C: Coder>(
     Ok(())
 }
 
-/// Control values: raster order, each predicted from its reconstructed neighbours (left, above:
-/// the median predictor of LOCO-I in the interior) and coded as the difference of quantiser
-/// indices.
-fn code_control<C: Coder>(
+/// Intra-leaf prediction of control value `(r, c)` (not the first) from the leaf's values
+/// reconstructed so far (row-major, side `side`): left on the first row, above on the first
+/// column, the LOCO-I median elsewhere.
+pub fn intra_prediction(values: &[i32], side: usize, r: usize, c: usize) -> i32 {
+    let i = r * side + c;
+    match (r, c) {
+        (0, 0) => 0,
+        (0, _) => values[i - 1],
+        (_, 0) => values[i - side],
+        _ => med(values[i - 1], values[i - side], values[i - side - 1]),
+    }
+}
+
+/// Reconstructs control value `i` of a leaf from its index: the first value is `index * step`,
+/// every other one `intra prediction + index * step`, clamped to the sample range.
+pub fn control_value(values: &[i32], side: usize, i: usize, step: i32, index: i32) -> i32 {
+    let base = if i == 0 {
+        0
+    } else {
+        intra_prediction(values, side, i / side, i % side)
+    };
+    base.saturating_add(index.saturating_mul(step))
+        .clamp(SAMPLE_MIN, SAMPLE_MAX)
+}
+
+/// Control values: raster order, DPCM within the leaf (see [`control_value`]). The first index
+/// is coded as its difference from a prediction by earlier leaves ([`SamplePrediction`]: the
+/// control point an earlier leaf had at exactly that position, else the nearest remembered
+/// corner); the others as they are.
+fn code_control<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
     model: ModelType,
-    first_prediction: i32,
+    node: &Node,
+    prediction: &P,
     leaf: &mut LeafSyntax,
 ) -> Result<(), DecodeError> {
-    let step = CONTROL_STEPS[usize::from(leaf.cquant) & 7];
+    let step = *CONTROL_STEPS
+        .get(usize::from(leaf.cquant))
+        .ok_or(DecodeError::InvalidData("control quantiser"))?;
+    let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.grid();
+    let sp = node.size() / u32::from(model.intervals);
     let mut values = [0i32; MAX_CONTROL];
     let mut prev_mag = 0usize;
     for r in 0..side {
         for col in 0..side {
             let i = r * side + col;
-            let (pred, class) = match (r, col) {
-                (0, 0) => (first_prediction, 0),
-                (0, _) => (values[i - 1], 1),
-                (_, 0) => (values[i - side], 1),
-                _ => (
-                    med(values[i - 1], values[i - side], values[i - side - 1]),
-                    2,
-                ),
+            let (x, y) = (node.x + col as u32 * sp, node.y + r as u32 * sp);
+            let (pred_index, class) = if i == 0 {
+                match prediction.shared(x, y) {
+                    Some(v) => (div_round(v, step), 3),
+                    None => (div_round(prediction.nearest(x, y), step), 0),
+                }
+            } else {
+                (0, if r == 0 || col == 0 { 1 } else { 2 })
             };
-            let pred_index = div_round(pred, step);
-            let mut residual = leaf.control[i] - pred_index;
-            ctx.control[class].code(c, prev_mag, &mut residual)?;
-            let index = pred_index + residual;
-            let value = index * step;
-            if !(SAMPLE_MIN..=SAMPLE_MAX).contains(&value) {
-                return Err(DecodeError::InvalidData("control value"));
-            }
-            leaf.control[i] = index;
-            values[i] = value;
+            let mut residual = leaf.control[i].saturating_sub(pred_index);
+            contexts[class].code(c, prev_mag, &mut residual)?;
+            leaf.control[i] = pred_index + residual;
+            values[i] = control_value(&values, side, i, step, leaf.control[i]);
             prev_mag = residual.unsigned_abs().min(2) as usize;
         }
     }
@@ -502,18 +592,13 @@ pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeEr
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
+    let side = model.grid();
+    let mut values = [0i32; MAX_CONTROL];
     let mut control = [0i16; MAX_CONTROL];
-    for (dst, &index) in control
-        .iter_mut()
-        .zip(&leaf.control[..model.control_count()])
-    {
-        let v = index
-            .checked_mul(step)
-            .ok_or(DecodeError::InvalidData("control value"))?;
-        if !(SAMPLE_MIN..=SAMPLE_MAX).contains(&v) {
-            return Err(DecodeError::InvalidData("control value"));
-        }
-        *dst = v as i16;
+    for i in 0..model.control_count() {
+        values[i] = control_value(&values, side, i, step, leaf.control[i]);
+        // The sample range fits in an i16.
+        control[i] = values[i] as i16;
     }
     let kind = *WEIGHT_QUANTISER_KINDS
         .get(usize::from(leaf.wquant))

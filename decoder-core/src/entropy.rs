@@ -172,7 +172,7 @@ pub struct IntContexts {
 }
 
 /// Longest Exp-Golomb prefix: magnitudes are below `2^MAX_PREFIX`.
-pub const MAX_PREFIX: usize = 15;
+pub const MAX_PREFIX: usize = 12;
 
 impl Default for IntContexts {
     fn default() -> Self {

@@ -114,10 +114,11 @@ impl ModelType {
     }
 }
 
-/// Number of control-value quantisers (the 'cquant' element, 3 bits).
-pub const CONTROL_QUANTISERS: usize = 8;
+/// Number of control-value quantisers (the 'cquant' element, coded on 4 bits).
+pub const CONTROL_QUANTISERS: usize = 12;
 /// Control step of each control quantiser, in sample units (1/16 grey level).
-pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] = [24, 32, 48, 64, 96, 128, 192, 256];
+pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] =
+    [24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024];
 
 /// Number of weight quantisers (the 'wquant' element, 2 bits).
 pub const WEIGHT_QUANTISERS: usize = 4;

@@ -93,9 +93,11 @@ impl Patch {
     /// control grid `g` (row-major, side `m+1`).
     #[inline]
     fn point(&self, g: &[i16], q1: usize, q2: usize) -> i32 {
-        let n = self.model.transforms as usize;
-        let (a1, r1) = (q1 / n, q1 % n);
-        let (a2, r2) = (q2 / n, q2 % n);
+        // N is 2 or 4: shifts and masks instead of divisions.
+        let shift = self.model.transforms.trailing_zeros();
+        let mask = (1usize << shift) - 1;
+        let (a1, r1) = (q1 >> shift, q1 & mask);
+        let (a2, r2) = (q2 >> shift, q2 & mask);
         match (r1, r2) {
             (0, 0) => i32::from(g[a1 * self.model.grid() + a2]),
             (0, _) => self.line(g, 0, a1, a2, r2),

@@ -148,8 +148,13 @@ fn walk_node<C: Coder, V: TreeVisitor>(
     }
     let mut leaf = LeafSyntax::default();
     visitor.prepare_leaf(&node, &mut leaf);
-    let prediction = state.predictor.predict(node.x, node.y);
-    code_leaf(coder, &mut state.contexts, node.log2, prediction, &mut leaf)?;
+    code_leaf(
+        coder,
+        &mut state.contexts,
+        &node,
+        &state.predictor,
+        &mut leaf,
+    )?;
     let patch = reconstruct(header, &leaf)?;
     state.predictor.remember(node.x, node.y, node.log2, &patch);
     visitor.leaf(&node, &leaf, &patch)

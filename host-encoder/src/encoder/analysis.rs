@@ -4,8 +4,10 @@
 
 use super::fit::{fit_block, Fit};
 use super::quantise::{lloyd_max, quantise, weight_classes};
+use super::rate::RateTable;
 use super::{EncoderConfig, Plane};
-use decoder_core::bitstream::{models_for_block, Codebook, Header};
+use decoder_core::bitstream::Contexts;
+use decoder_core::bitstream::{models_for_block, Codebook, Header, SamplePrediction};
 use decoder_core::model::{
     WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
@@ -36,8 +38,6 @@ pub struct NodeAnalysis {
     pub fits: Vec<Fit>,
     /// Every (fit, quantiser) pair with its distortion.
     pub candidates: Vec<Candidate>,
-    /// Estimate of the prediction of the leaf's first control value, for rate estimates.
-    pub first_prediction: i32,
 }
 
 /// The nodes of one quadtree level.
@@ -117,7 +117,6 @@ impl Analysis {
                         node,
                         fits,
                         candidates: Vec::new(),
-                        first_prediction: first_prediction(&plane, &node),
                     })
                 })
                 .collect();
@@ -129,8 +128,46 @@ impl Analysis {
             header,
             levels,
         };
+        let timing = std::env::var_os("PIFS_TIMING").is_some();
+        let t = std::time::Instant::now();
         analysis.measure_candidates();
+        if timing {
+            eprintln!("closed-loop candidates: {:.2} s", t.elapsed().as_secs_f64());
+        }
+        let t = std::time::Instant::now();
+        analysis.prune_candidates();
+        if timing {
+            eprintln!("candidate pruning: {:.2} s", t.elapsed().as_secs_f64());
+        }
         analysis
+    }
+
+    /// Keeps, at every node, only the candidates that are its best leaf for some multiplier of
+    /// interest, under rates measured from a trial encode's adapted contexts. Every later
+    /// encode then weighs a handful of candidates per node instead of all of them.
+    fn prune_candidates(&mut self) {
+        let pixels = self.header.pixel_count() as f64;
+        let first = RateTable::new(self, &self.header, &Contexts::default());
+        let plan = first.plan_for_bits(self, &self.header, 0.2 * pixels);
+        let snapshot = match super::writer::write(self, &self.header, &plan) {
+            Ok(w) => w.final_contexts,
+            Err(_) => Contexts::default(),
+        };
+        let rates = RateTable::new(self, &self.header, &snapshot);
+        let lambdas: Vec<f64> = (0..64)
+            .map(|i| 10f64.powf(-2.0 + 8.0 * f64::from(i) / 63.0))
+            .collect();
+        let keep = rates.lambda_optimal(self, &lambdas);
+        for (level, keep) in self.levels.iter_mut().zip(keep) {
+            for (na, keep) in level.nodes.iter_mut().zip(keep) {
+                if let Some(na) = na {
+                    na.candidates = keep
+                        .iter()
+                        .map(|&ci| na.candidates[usize::from(ci)])
+                        .collect();
+                }
+            }
+        }
     }
 
     /// Quantises every fit with every quantiser and measures the closed-loop distortion.
@@ -153,7 +190,10 @@ impl Analysis {
                                     fitted_weights && header.has_codebooks()
                                 }
                             };
-                            if !usable || (model.weight_count() == 0 && wq > 0) {
+                            // Weighted variants are tried on every other control step (a
+                            // step ratio of 2): they are rarely chosen, and this halves
+                            // their cost.
+                            if !usable || (wq > 0 && (model.weight_count() == 0 || cq % 2 == 1)) {
                                 continue;
                             }
                             let leaf = quantise(fit, cq, wq, &header.codebooks);
@@ -173,10 +213,33 @@ impl Analysis {
     }
 }
 
-/// A prediction of a leaf's first control value as the decoder's corner memory would give it:
-/// approximated by the image sample at that corner.
-fn first_prediction(plane: &Plane, node: &Node) -> i32 {
-    i32::from(plane.get(node.x.min(plane.width - 1), node.y.min(plane.height - 1))) * SAMPLE_ONE
+/// The prediction of a leaf's first control value, estimated before the stream exists: except
+/// at the image's origin, an earlier leaf is taken to have had a control point at the leaf's
+/// corner, with the image's value there.
+pub struct ImagePrediction<'a> {
+    /// The image.
+    pub plane: &'a Plane,
+    /// The leaf.
+    pub node: Node,
+}
+
+impl ImagePrediction<'_> {
+    fn sample(&self, x: u32, y: u32) -> i32 {
+        i32::from(
+            self.plane
+                .get(x.min(self.plane.width - 1), y.min(self.plane.height - 1)),
+        ) * SAMPLE_ONE
+    }
+}
+
+impl SamplePrediction for ImagePrediction<'_> {
+    fn shared(&self, x: u32, y: u32) -> Option<i32> {
+        (x > 0 || y > 0).then(|| self.sample(x, y))
+    }
+
+    fn nearest(&self, x: u32, y: u32) -> i32 {
+        self.sample(x, y)
+    }
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.

@@ -14,9 +14,11 @@ use nalgebra::{DMatrix, DVector};
 
 /// Largest number of samples used to fit one block: bigger blocks are fitted on a regular
 /// sub-lattice of their pixels (the closed-loop distortion still counts every pixel).
-pub const MAX_FIT_SAMPLES: u32 = 64 * 64;
+pub const MAX_FIT_SAMPLES: u32 = 32 * 32;
 /// Levenberg-Marquardt iterations per fit.
-pub const MAX_ITERATIONS: usize = 8;
+pub const MAX_ITERATIONS: usize = 5;
+/// Whether fits include the row and column shared with the right and lower neighbours.
+const FIT_SHARED_BORDER: bool = false;
 
 /// Fitted real-valued parameters of one model on one block.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,6 +33,7 @@ pub struct Fit {
 
 /// The samples of a block the fit looks at: in-image pixels on a lattice of stride `stride`.
 struct Lattice {
+    size: u32,
     x0: u32,
     y0: u32,
     stride: u32,
@@ -45,6 +48,7 @@ impl Lattice {
             stride *= 2;
         }
         Lattice {
+            size: node.size() + u32::from(FIT_SHARED_BORDER),
             x0: node.x,
             y0: node.y,
             stride,
@@ -53,9 +57,20 @@ impl Lattice {
         }
     }
 
+    /// Whether the square of side `ext` at block offset `(dx, dy)` holds a lattice sample.
+    fn any_in(&self, dx: u32, dy: u32, ext: u32) -> bool {
+        let first = |d: u32| d.div_ceil(self.stride) * self.stride;
+        let (fx, fy) = (first(dx), first(dy));
+        fx < dx + ext && fy < dy + ext && self.x0 + fx < self.width && self.y0 + fy < self.height
+    }
+
+    /// Samples of the block, including the row and column it shares with its right and lower
+    /// neighbours (the patch interpolates them too, and neighbours predict from them).
     fn wants(&self, dx: u32, dy: u32) -> bool {
-        dx % self.stride == 0
-            && dy % self.stride == 0
+        dx < self.size
+            && dy < self.size
+            && dx.is_multiple_of(self.stride)
+            && dy.is_multiple_of(self.stride)
             && self.x0 + dx < self.width
             && self.y0 + dy < self.height
     }
@@ -68,8 +83,8 @@ pub fn fit_block(plane: &Plane, node: &Node, model_index: u8) -> Fit {
     let control = initial_control(plane, node, model);
     let nc = control.len();
     let mut count = 0usize;
-    for dy in 0..node.size() {
-        for dx in 0..node.size() {
+    for dy in 0..=node.size() {
+        for dx in 0..=node.size() {
             count += usize::from(lattice.wants(dx, dy));
         }
     }
@@ -131,6 +146,7 @@ fn sse(
         &theta[..nc],
         node.log2,
         &|dx, dy| lattice.wants(dx, dy),
+        &|dx, dy, e| lattice.any_in(dx, dy, e),
         &mut |dx, dy, s| {
             let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
             total += e * e;
@@ -154,33 +170,49 @@ fn normal_equations(
     let mut jtj = DMatrix::<f64>::zeros(n, n);
     let mut jtr = DVector::<f64>::zeros(n);
     let mut total = 0.0;
-    let mut row = vec![0.0; n];
+    // Rows are gathered in blocks and folded in with a matrix product (J^T J += B^T B).
+    const BLOCK: usize = 128;
+    let mut block = DMatrix::<f64>::zeros(BLOCK, n);
+    let mut errors = DVector::<f64>::zeros(BLOCK);
+    let mut rows = 0usize;
+    let flush = |block: &mut DMatrix<f64>,
+                 errors: &mut DVector<f64>,
+                 rows: &mut usize,
+                 jtj: &mut DMatrix<f64>,
+                 jtr: &mut DVector<f64>| {
+        if *rows == 0 {
+            return;
+        }
+        if *rows < BLOCK {
+            block.rows_mut(*rows, BLOCK - *rows).fill(0.0);
+            errors.rows_mut(*rows, BLOCK - *rows).fill(0.0);
+        }
+        jtj.gemm_tr(1.0, block, block, 1.0);
+        jtr.gemv_tr(1.0, block, errors, 1.0);
+        *rows = 0;
+    };
     tab.run(
         &theta[..nc],
         node.log2,
         &|dx, dy| lattice.wants(dx, dy),
+        &|dx, dy, e| lattice.any_in(dx, dy, e),
         &mut |dx, dy, s| {
             let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
             total += e * e;
-            row[..nc].copy_from_slice(&s[1..1 + nc]);
-            row[nc..].copy_from_slice(&s[wbase..wbase + (n - nc)]);
-            for a in 0..n {
-                let ra = row[a];
-                if ra == 0.0 {
-                    continue;
-                }
-                jtr[a] += ra * e;
-                for b in a..n {
-                    jtj[(a, b)] += ra * row[b];
-                }
+            errors[rows] = e;
+            for a in 0..nc {
+                block[(rows, a)] = s[1 + a];
+            }
+            for a in nc..n {
+                block[(rows, a)] = s[wbase + a - nc];
+            }
+            rows += 1;
+            if rows == BLOCK {
+                flush(&mut block, &mut errors, &mut rows, &mut jtj, &mut jtr);
             }
         },
     );
-    for a in 0..n {
-        for b in 0..a {
-            jtj[(a, b)] = jtj[(b, a)];
-        }
-    }
+    flush(&mut block, &mut errors, &mut rows, &mut jtj, &mut jtr);
     (jtj, jtr, total)
 }
 
@@ -233,7 +265,7 @@ fn levenberg_marquardt(
             let gain = (current - trial_sse) / current;
             *theta = trial;
             mu = (mu / 4.0).max(1e-9);
-            if gain < 1e-4 || n == nc {
+            if gain < 1e-3 || n == nc {
                 // Linear in the control values: one exact step is the optimum.
                 break;
             }

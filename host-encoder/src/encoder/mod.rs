@@ -144,7 +144,7 @@ pub struct Encoded {
 }
 
 /// Number of estimate/encode passes that let the rate model follow the real coder.
-const RATE_PASSES: usize = 3;
+const RATE_PASSES: usize = 2;
 
 /// PSNR (peak 255) of a squared error over `pixels` pixels.
 pub fn psnr(sse: f64, pixels: usize) -> f64 {

@@ -2,10 +2,12 @@
 //! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4).
 
 use super::fit::Fit;
-use decoder_core::bitstream::{Codebook, LeafSyntax, MAX_CODEBOOK};
+use decoder_core::bitstream::{
+    control_value, intra_prediction, Codebook, LeafSyntax, MAX_CODEBOOK,
+};
 use decoder_core::model::{
-    for_each_free_tap, WeightClass, WeightQuantiser, CONTROL_STEPS, MODELS, SAMPLE_MAX, SAMPLE_MIN,
-    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
+    for_each_free_tap, WeightClass, WeightQuantiser, CONTROL_STEPS, MAX_CONTROL, MODELS,
+    SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
 };
 
 /// Quantises `fit` with control quantiser `cq` and weight quantiser `wq`.
@@ -17,10 +19,20 @@ pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyn
         wquant: wq,
         ..LeafSyntax::default()
     };
+    // DPCM within the leaf, against the values the decoder will reconstruct.
     let step = CONTROL_STEPS[usize::from(cq)];
-    let (lo, hi) = (SAMPLE_MIN.div_euclid(step) + 1, SAMPLE_MAX.div_euclid(step));
-    for (dst, &c) in leaf.control.iter_mut().zip(&fit.control) {
-        *dst = ((c * f64::from(SAMPLE_ONE) / f64::from(step)).round() as i32).clamp(lo, hi);
+    let side = model.grid();
+    let mut values = [0i32; MAX_CONTROL];
+    for (i, &c) in fit.control.iter().enumerate().take(side * side) {
+        let target =
+            (c * f64::from(SAMPLE_ONE)).clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX));
+        let base = if i == 0 {
+            0.0
+        } else {
+            f64::from(intra_prediction(&values, side, i / side, i % side))
+        };
+        leaf.control[i] = ((target - base) / f64::from(step)).round() as i32;
+        values[i] = control_value(&values, side, i, step, leaf.control[i]);
     }
     let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
     let mut i = 0;

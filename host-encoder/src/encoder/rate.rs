@@ -75,11 +75,15 @@ impl RateTable {
                                 );
                                 let mut counter = BitCounter::default();
                                 let mut ctx = snapshot.clone();
+                                let prediction = super::analysis::ImagePrediction {
+                                    plane: &analysis.plane,
+                                    node: na.node,
+                                };
                                 match code_leaf(
                                     &mut counter,
                                     &mut ctx,
-                                    level.log2,
-                                    na.first_prediction,
+                                    &na.node,
+                                    &prediction,
                                     &mut leaf,
                                 ) {
                                     Ok(()) => counter.bits() as f32,
@@ -104,6 +108,45 @@ impl RateTable {
             })
             .collect();
         RateTable { bits, split_bits }
+    }
+
+    /// For every analysed node, the candidates that are the node's best leaf for at least one
+    /// of `lambdas` (indices into its candidate list, ascending).
+    pub fn lambda_optimal(&self, analysis: &Analysis, lambdas: &[f64]) -> Vec<Vec<Vec<u16>>> {
+        analysis
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(li, level)| {
+                level
+                    .nodes
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, na)| {
+                        let Some(na) = na else { return Vec::new() };
+                        let mut keep: Vec<u16> = lambdas
+                            .iter()
+                            .filter_map(|&lambda| {
+                                na.candidates
+                                    .iter()
+                                    .enumerate()
+                                    .map(|(ci, c)| {
+                                        (
+                                            c.sse + lambda * f64::from(self.bits[li][i][ci]),
+                                            ci as u16,
+                                        )
+                                    })
+                                    .min_by(|a, b| a.0.total_cmp(&b.0))
+                                    .map(|(_, ci)| ci)
+                            })
+                            .collect();
+                        keep.sort_unstable();
+                        keep.dedup();
+                        keep
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// The best cut for multiplier `lambda` (squared error per bit). Candidates using the

@@ -52,6 +52,7 @@ pub struct Tabulator {
     /// Floats per sample: 1 (value only) or `1 + control + weights`.
     k: usize,
     nc: usize,
+    block: u32,
     scratch: Vec<Vec<f64>>,
 }
 
@@ -116,6 +117,7 @@ impl Tabulator {
             weights: w,
             k,
             nc,
+            block: 0,
             scratch: Vec::new(),
         }
     }
@@ -126,13 +128,16 @@ impl Tabulator {
     }
 
     /// Tabulates the block of side `2^log2` with control values `control` (grey levels,
-    /// row-major) and calls `emit(dx, dy, sample)` for every owned sample `(dx, dy)` (offsets in
-    /// the block, `0..2^log2`) accepted by `want`.
+    /// row-major) and calls `emit(dx, dy, sample)` for every sample `(dx, dy)` (offsets in the
+    /// block, `0..=2^log2`: the owned pixels and the shared row and column past them) accepted
+    /// by `want`. `any(dx, dy, ext)` tells whether a square of
+    /// side `ext` holds any wanted sample, so that squares without one are not subdivided.
     pub fn run(
         &mut self,
         control: &[f64],
         log2: u8,
         want: &dyn Fn(u32, u32) -> bool,
+        any: &dyn Fn(u32, u32, u32) -> bool,
         emit: &mut dyn FnMut(u32, u32, &[f64]),
     ) {
         let m = usize::from(self.model.intervals);
@@ -146,7 +151,8 @@ impl Tabulator {
             }
         }
         let sp = (1u32 << log2) / m as u32;
-        self.recurse(&g, 0, 0, sp, 0, want, emit);
+        self.block = 1 << log2;
+        self.recurse(&g, 0, 0, sp, 0, want, any, emit);
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -158,8 +164,12 @@ impl Tabulator {
         sp: u32,
         level: usize,
         want: &dyn Fn(u32, u32) -> bool,
+        any: &dyn Fn(u32, u32, u32) -> bool,
         emit: &mut dyn FnMut(u32, u32, &[f64]),
     ) {
+        if !any(x, y, self.model.intervals as u32 * sp + 1) {
+            return;
+        }
         let m = usize::from(self.model.intervals);
         let n = usize::from(self.model.transforms);
         let k = self.k;
@@ -174,8 +184,11 @@ impl Tabulator {
         if sp <= n as u32 {
             let stride = n / sp as usize;
             let ext = m as u32 * sp;
-            for dy in 0..ext {
-                for dx in 0..ext {
+            // Windows on the block's far edges also emit the shared row/column beyond it.
+            let last_x = if x + ext == self.block { ext } else { ext - 1 };
+            let last_y = if y + ext == self.block { ext } else { ext - 1 };
+            for dy in 0..=last_y {
+                for dx in 0..=last_x {
                     if want(x + dx, y + dy) {
                         let q = ((dy as usize * stride) * rs + dx as usize * stride) * k;
                         emit(x + dx, y + dy, &r[q..q + k]);
@@ -197,7 +210,7 @@ impl Tabulator {
                     }
                     let cx = x + (j * m) as u32 * csp;
                     let cy = y + (i * m) as u32 * csp;
-                    self.recurse(&child, cx, cy, csp, level + 1, want, emit);
+                    self.recurse(&child, cx, cy, csp, level + 1, want, any, emit);
                 }
             }
             self.scratch[2 * level + 1] = child;

@@ -1,0 +1,141 @@
+#!/usr/bin/env bash
+# Embedded budgets of the PIFS decoder, measured on emulated MCUs (QEMU):
+#   RAM   = static RAM (.data + .bss of the firmware) + peak stack of one decode
+#           (stack painting), on Cortex-M3 (lm3s6965evb, 64 KiB RAM) and Cortex-M0 (microbit,
+#           16 KiB RAM);
+#   flash = code + read-only data the decoder adds: firmware with the decoder call minus the
+#           same firmware without it (`baseline` feature), size-optimised release build;
+#   speed = instructions per output pixel on Cortex-M3 (SysTick under `-icount shift=0`).
+# Images: kodim23 as 128x128, 320x240 and 768x512 grayscale, encoded at 0.1 and 0.5 bpp with the
+# host `pifs` encoder. Generated files go to target/bench-embedded/. Prints a markdown table.
+#
+#   bash bench/embedded.sh [KODIM23.png]      (default: ../shared/images/kodak/kodim23.png)
+#
+# Needs qemu-system-arm and python3 (standard library only).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+src=${1:-../shared/images/kodak/kodim23.png}
+out=$root/target/bench-embedded
+fw=$root/firmware-example
+mkdir -p "$out"
+command -v qemu-system-arm >/dev/null || {
+    echo "bench/embedded.sh needs qemu-system-arm:" >&2
+    echo "  apt-get update && apt-get install -y --no-install-recommends qemu-system-arm" >&2
+    exit 1
+}
+rustup target add thumbv7m-none-eabi thumbv6m-none-eabi >/dev/null 2>&1 || true
+
+# 1. Images and streams.
+cargo build --release -q -p host-encoder
+python3 bench/crop_png.py "$src" "$out" kodim23 128x128/4 320x240/2 768x512 >/dev/null
+streams=()
+for size in 128x128 320x240 768x512; do
+    for bpp in 0.1 0.5; do
+        s=$out/kodim23_${size}_${bpp}bpp.pifs
+        if [ ! -s "$s" ] || [ "$out/kodim23_$size.pgm" -nt "$s" ] || [ target/release/pifs -nt "$s" ]; then
+            ./target/release/pifs encode "$out/kodim23_$size.pgm" -o "$s" --bpp "$bpp" >/dev/null
+        fi
+        streams+=("$s")
+    done
+done
+
+# 2. Firmware builds (one per target and variant, all streams embedded) and runs.
+build() { # target features streams... -> prints the ELF path (a copy under $out)
+    local target=$1 features=$2
+    shift 2
+    local list
+    list=$(IFS=:; echo "$*")
+    (cd "$fw" && env -u CARGO_TARGET_DIR -u CARGO_BUILD_TARGET -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS \
+        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" --features "$features")
+    local elf=$out/fw-$target-$features.elf
+    cp "$root/target/firmware/$target/release/pifs-firmware-example" "$elf"
+    echo "$elf"
+}
+run() { # target elf -> PIFS-BENCH lines on stdout; QEMU's status in $out/status
+    local cpu machine
+    case $1 in
+        thumbv7m-none-eabi) cpu=cortex-m3 machine=lm3s6965evb ;;
+        *) cpu=cortex-m0 machine=microbit ;;
+    esac
+    local status=0
+    timeout 300 qemu-system-arm -cpu $cpu -machine $machine -display none -monitor none \
+        -serial none -semihosting-config enable=on,target=native -icount shift=0 \
+        -kernel "$2" 2>"$out/qemu.err" >/dev/null || status=$?
+    echo $status >"$out/status"
+    grep '^PIFS-BENCH' "$out/qemu.err" || true
+}
+field() { sed -n "s/.* $1=\([^ ]*\).*/\1/p"; }
+declare -A stack instr static flash base_flash
+for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
+    elf=$(build $target bench "${streams[@]}")
+    read -r text data bss _ < <(size "$elf" | tail -1)
+    static[$target]=$((data + bss))
+    flash[$target]=$((text + data))
+    belf=$(build $target baseline "${streams[@]}")
+    read -r btext bdata bbss _ < <(size "$belf" | tail -1)
+    base_flash[$target]=$((btext + bdata))
+    # A decode that overflows the board's RAM locks the core up: note it, rebuild without that
+    # stream and go on with the rest.
+    todo=("${streams[@]}")
+    while [ ${#todo[@]} -gt 0 ]; do
+        lines=$(run $target "$elf")
+        done_names=$(echo "$lines" | field name)
+        rest=()
+        for s in "${todo[@]}"; do
+            n=$(basename "$s")
+            if echo "$done_names" | grep -qx "$n"; then
+                l=$(echo "$lines" | grep " name=$n ")
+                stack[$target/$n]=$(echo "$l" | field stack)
+                instr[$target/$n]=$(echo "$l" | field instr)
+            else
+                rest+=("$s")
+            fi
+        done
+        [ ${#rest[@]} -gt 0 ] || break
+        if [ "$(cat "$out/status")" = 0 ]; then
+            echo "firmware exited without results for: ${rest[*]}" >&2
+            exit 1
+        fi
+        first=$(basename "${rest[0]}")
+        stack[$target/$first]=overflow
+        echo "$target: decoding $first locked the core up (stack overflow?): $(grep -m1 -o 'Lockup.*' "$out/qemu.err" || tail -1 "$out/qemu.err")" >&2
+        todo=("${rest[@]:1}")
+        [ ${#todo[@]} -gt 0 ] || break
+        elf=$(build $target bench "${todo[@]}")
+    done
+done
+
+# 3. The table.
+v7=thumbv7m-none-eabi
+v6=thumbv6m-none-eabi
+ram() { # target name
+    local s=${stack[$1/$2]:-}
+    if [[ $s =~ ^[0-9]+$ ]]; then echo "$((s + static[$1])) ($s + ${static[$1]})"; else echo "${s:-n/a}"; fi
+}
+echo
+echo "### PIFS decoder on Cortex-M (QEMU), firmware-example \`bench\` build, opt-level \"s\", LTO"
+echo
+echo "| image | bpp | stream bytes | M3 RAM: static + stack (bytes) | M0 RAM: static + stack (bytes) | M3 instructions | M3 instr/pixel |"
+echo "|---|---:|---:|---:|---:|---:|---:|"
+for s in "${streams[@]}"; do
+    n=$(basename "$s")
+    size=$(echo "$n" | sed 's/kodim23_\([0-9x]*\)_.*/\1/')
+    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
+    bytes=$(stat -c %s "$s")
+    px=$(( ${size%x*} * ${size#*x} ))
+    i=${instr[$v7/$n]:-}
+    ipp=n/a
+    [[ $i =~ ^[0-9]+$ ]] && ipp=$(awk -v i="$i" -v p="$px" 'BEGIN { printf "%.1f", i / p }')
+    echo "| kodim23 $size | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | ${i:-n/a} | $ipp |"
+done
+echo
+echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) |"
+echo "|---|---:|---:|---:|"
+for t in $v7 $v6; do
+    echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) |"
+done
+echo
+echo "Budgets: RAM (static + stack) <= 4096 bytes, decoder code <= 16384 bytes. Anchors: TJpgDec"
+echo "3.1 KiB work area + 3.1 KiB code (Cortex-M0); JPEGDEC ~18 KiB RAM. Static RAM is the whole"
+echo "firmware's (SysTick counter, loggers); the decoder itself has no static data."

@@ -1,0 +1,65 @@
+//! Rate/distortion sweep: analyses each image once, encodes it at every target rate, decodes
+//! every stream with decoder-core and prints one CSV row per (image, rate).
+//!
+//! `cargo run --release -p host-encoder --example rd_sweep -- [--bpp 0.05,0.1] [--min-leaf-log2 N] IMAGE...`
+
+use host_encoder::{analyse, io, psnr, EncoderConfig, Target};
+use std::time::Instant;
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut rates = vec![0.05, 0.1, 0.25, 0.5];
+    if let Some(i) = args.iter().position(|a| a == "--bpp") {
+        rates = args[i + 1]
+            .split(',')
+            .map(|r| r.parse().expect("--bpp takes numbers"))
+            .collect();
+        args.drain(i..i + 2);
+    }
+    let mut config = EncoderConfig::default();
+    if let Some(i) = args.iter().position(|a| a == "--min-leaf-log2") {
+        config.min_leaf_log2 = args[i + 1].parse().expect("--min-leaf-log2 takes a number");
+        args.drain(i..i + 2);
+    }
+    println!("image,width,height,target_bpp,bytes,bpp,psnr_db,analysis_s,encode_s,decode_ms,leaves,rate_gap_pct");
+    for path in &args {
+        let plane = io::load_luma(std::path::Path::new(path)).expect("readable image");
+        let (w, h) = (plane.width, plane.height);
+        let original = plane.data.clone();
+        let t = Instant::now();
+        let analysis = analyse(plane, &config, &|_| {}).expect("analysis");
+        let analysis_s = t.elapsed().as_secs_f64();
+        for &bpp in &rates {
+            let t = Instant::now();
+            let name = std::path::Path::new(path)
+                .file_name()
+                .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
+            match analysis.encode(Target::Bpp(bpp)) {
+                Ok(e) => {
+                    let encode_s = t.elapsed().as_secs_f64();
+                    let t = Instant::now();
+                    let mut pixels = vec![0u8; original.len()];
+                    decoder_core::decode_into(&e.bytes, &mut pixels).expect("own stream decodes");
+                    let decode_ms = t.elapsed().as_secs_f64() * 1e3;
+                    let sse: f64 = pixels
+                        .iter()
+                        .zip(&original)
+                        .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+                        .sum();
+                    let gap = 100.0 * (e.estimated_payload_bits - e.actual_payload_bits)
+                        / e.actual_payload_bits.max(1.0);
+                    println!(
+                        "{name},{w},{h},{bpp},{},{:.5},{:.3},{analysis_s:.2},{encode_s:.2},{decode_ms:.1},{},{gap:.2}",
+                        e.bytes.len(),
+                        e.bytes.len() as f64 * 8.0 / f64::from(w * h),
+                        psnr(sse, original.len()),
+                        e.leaves
+                    );
+                }
+                Err(err) => {
+                    println!("{name},{w},{h},{bpp},,,,{analysis_s:.2},,,,unreachable: {err}")
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,254 @@
+//! Shared helpers of the integration tests: deterministic synthetic images, PSNR, hashing,
+//! encoder settings small enough to keep the suite fast.
+#![allow(dead_code)]
+
+use host_encoder::{analyse, Analysis, EncoderConfig, Plane};
+use sha2::{Digest, Sha256};
+use std::path::PathBuf;
+
+/// A 32-bit linear congruential generator (Numerical Recipes constants): deterministic on
+/// every platform, no dependency.
+#[derive(Debug, Clone)]
+pub struct Lcg(u32);
+
+impl Lcg {
+    pub fn new(seed: u32) -> Self {
+        Lcg(seed ^ 0x9E37_79B9)
+    }
+
+    pub fn next_u32(&mut self) -> u32 {
+        self.0 = self.0.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        self.0
+    }
+
+    /// Uniform in `0..n` (high bits: the low bits of an LCG are weak).
+    pub fn below(&mut self, n: u32) -> u32 {
+        ((u64::from(self.next_u32() >> 8) * u64::from(n)) >> 24) as u32
+    }
+
+    /// Uniform in `[-1, 1)`.
+    pub fn unit(&mut self) -> f64 {
+        f64::from(self.next_u32() >> 8) / f64::from(1u32 << 23) - 1.0
+    }
+}
+
+/// A smooth diagonal gradient.
+pub fn gradient(width: u32, height: u32) -> Plane {
+    let mut data = Vec::with_capacity(width as usize * height as usize);
+    let (w, h) = (f64::from(width.max(2) - 1), f64::from(height.max(2) - 1));
+    for y in 0..height {
+        for x in 0..width {
+            let v = 20.0 + 150.0 * f64::from(x) / w + 70.0 * f64::from(y) / h;
+            data.push(v.round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    Plane::new(width, height, data)
+}
+
+/// A synthetic test image: a gradient, a bright disc and a dark bar (edges), and a little
+/// pseudo-random texture of amplitude `noise` grey levels. Deterministic in `seed`.
+pub fn synthetic(width: u32, height: u32, seed: u32, noise: u32) -> Plane {
+    let mut rng = Lcg::new(seed);
+    let (wf, hf) = (f64::from(width), f64::from(height));
+    let (cx, cy, r) = (wf * 0.62, hf * 0.38, wf.min(hf) * 0.22);
+    let bar_x0 = (wf * 0.15) as u32;
+    let bar_x1 = bar_x0 + (width / 8).max(1);
+    let mut data = Vec::with_capacity(width as usize * height as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let (xf, yf) = (f64::from(x), f64::from(y));
+            let mut v = 40.0 + 120.0 * xf / wf.max(1.0) + 60.0 * yf / hf.max(1.0);
+            v += 12.0 * (xf * 0.21).sin() * (yf * 0.13).cos();
+            if (xf - cx).powi(2) + (yf - cy).powi(2) < r * r {
+                v += 55.0;
+            }
+            if (bar_x0..bar_x1).contains(&x) && y > height / 3 {
+                v -= 70.0;
+            }
+            let n = if noise > 0 {
+                rng.below(2 * noise + 1) as f64 - f64::from(noise)
+            } else {
+                0.0
+            };
+            data.push((v + n).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    Plane::new(width, height, data)
+}
+
+/// Leaf settings small enough for fast tests: leaves from 4x4 to 32x32, 8-level codebooks.
+pub fn small_config() -> EncoderConfig {
+    EncoderConfig {
+        min_leaf_log2: 2,
+        max_leaf_log2: 5,
+        codebook_levels: 8,
+    }
+}
+
+/// Analyses `plane` with `config`, panicking on error (test helper).
+pub fn analyse_with(plane: Plane, config: &EncoderConfig) -> Analysis {
+    analyse(plane, config, &|_| {}).expect("analysis")
+}
+
+/// Squared error between two equally long pixel buffers.
+pub fn sse(a: &[u8], b: &[u8]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(&p, &q)| {
+            let d = f64::from(p) - f64::from(q);
+            d * d
+        })
+        .sum()
+}
+
+/// PSNR (peak 255) between two equally long pixel buffers.
+pub fn psnr_u8(a: &[u8], b: &[u8]) -> f64 {
+    host_encoder::psnr(sse(a, b), a.len())
+}
+
+/// Decodes `stream` with decoder-core into a fresh buffer sized from its header.
+pub fn decode_all(
+    stream: &[u8],
+) -> Result<(decoder_core::Header, Vec<u8>), decoder_core::DecodeError> {
+    let header = decoder_core::read_header(stream)?;
+    let mut out = vec![0u8; header.pixel_count() * usize::from(header.channels)];
+    let h = decoder_core::decode_into(stream, &mut out)?;
+    assert_eq!(h, header, "decode_into returned a different header");
+    Ok((header, out))
+}
+
+/// Lower-case hexadecimal SHA-256.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// `tests/golden/`.
+pub fn golden_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("golden")
+}
+
+/// A [`decoder_core::PixelSink`] that records how often every pixel of a `width x height` image
+/// is written, the last value written, and any tile that breaks the sink contract (out of the
+/// image, larger than [`decoder_core::patch::TILE`], or `pixels.len() != w * h`).
+pub struct CoverageSink {
+    pub width: u32,
+    pub height: u32,
+    pub counts: Vec<u32>,
+    pub pixels: Vec<u8>,
+    pub tiles: usize,
+    pub violations: Vec<String>,
+}
+
+impl CoverageSink {
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        CoverageSink {
+            width,
+            height,
+            counts: vec![0; n],
+            pixels: vec![0; n],
+            tiles: 0,
+            violations: Vec::new(),
+        }
+    }
+
+    /// Pixels written a number of times other than once: `(x, y, count)`, at most `limit`.
+    pub fn not_once(&self, limit: usize) -> Vec<(u32, u32, u32)> {
+        self.counts
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| c != 1)
+            .take(limit)
+            .map(|(i, &c)| {
+                (
+                    (i % self.width as usize) as u32,
+                    (i / self.width as usize) as u32,
+                    c,
+                )
+            })
+            .collect()
+    }
+}
+
+impl decoder_core::PixelSink for CoverageSink {
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        self.tiles += 1;
+        let tile = decoder_core::patch::TILE as u32;
+        if w == 0 || h == 0 || w > tile || h > tile {
+            self.violations
+                .push(format!("tile {w}x{h} at ({x}, {y}): bad tile size"));
+        }
+        if pixels.len() != w as usize * h as usize {
+            self.violations.push(format!(
+                "tile {w}x{h} at ({x}, {y}): {} pixels",
+                pixels.len()
+            ));
+            return;
+        }
+        if u64::from(x) + u64::from(w) > u64::from(self.width)
+            || u64::from(y) + u64::from(h) > u64::from(self.height)
+        {
+            self.violations.push(format!(
+                "tile {w}x{h} at ({x}, {y}) outside the {}x{} image",
+                self.width, self.height
+            ));
+            return;
+        }
+        let mut k = 0;
+        for py in y..y + h {
+            for px in x..x + w {
+                let i = py as usize * self.width as usize + px as usize;
+                self.counts[i] += 1;
+                self.pixels[i] = pixels[k];
+                k += 1;
+            }
+        }
+    }
+}
+
+/// One line of `tests/golden/golden.txt`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GoldenEntry {
+    pub file: String,
+    pub width: u16,
+    pub height: u16,
+    pub sha256: String,
+}
+
+/// Parses `tests/golden/golden.txt` (`<file> <width> <height> <sha256>` per line; blank lines
+/// and lines starting with `#` are ignored).
+pub fn golden_list() -> Vec<GoldenEntry> {
+    let path = golden_dir().join("golden.txt");
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (run the `regenerate` golden test)", path.display()));
+    text.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            assert_eq!(f.len(), 4, "golden.txt: bad line {l:?}");
+            GoldenEntry {
+                file: f[0].to_string(),
+                width: f[1].parse().expect("width"),
+                height: f[2].parse().expect("height"),
+                sha256: f[3].to_string(),
+            }
+        })
+        .collect()
+}
+
+/// The golden streams: `(file name, bytes)`.
+pub fn golden_streams() -> Vec<(String, Vec<u8>)> {
+    golden_list()
+        .into_iter()
+        .map(|g| {
+            let path = golden_dir().join(&g.file);
+            let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            (g.file, bytes)
+        })
+        .collect()
+}

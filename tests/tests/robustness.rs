@@ -1,0 +1,445 @@
+//! The decoder never panics: random byte strings, random payloads behind valid headers, golden
+//! streams truncated at every length, with random bit flips and random byte overwrites. Every
+//! call returns `Ok` or a typed `Err`, never writes outside the image, and malformed headers
+//! give the right typed error.
+
+mod common;
+
+use common::{golden_streams, CoverageSink};
+use decoder_core::bitstream::{FIXED_HEADER_LEN, FLAG_CODEBOOKS, MAGIC, VERSION};
+use decoder_core::DecodeError;
+use proptest::prelude::*;
+use std::sync::OnceLock;
+
+/// Largest image the tests allocate a buffer for; larger claimed images must be refused with
+/// `BufferTooSmall` when given a smaller buffer.
+const MAX_PIXELS: usize = 1 << 22;
+
+fn streams() -> &'static [(String, Vec<u8>)] {
+    static STREAMS: OnceLock<Vec<(String, Vec<u8>)>> = OnceLock::new();
+    STREAMS.get_or_init(golden_streams)
+}
+
+/// Decodes `data` as a decoder-core user would, checking the invariants that hold whatever the
+/// bytes: no panic (the caller is a test, a panic fails it), a header error for an unparsable
+/// header, and a buffer error for a buffer smaller than the header claims.
+fn decode_checked(data: &[u8]) -> Result<(), DecodeError> {
+    let header = match decoder_core::read_header(data) {
+        Ok(h) => h,
+        Err(e) => {
+            // The same error through the full decoder, whatever the buffer.
+            let mut buf = [0u8; 16];
+            assert_eq!(decoder_core::decode_into(data, &mut buf), Err(e));
+            let mut sink = CoverageSink::new(1, 1);
+            assert_eq!(decoder_core::decode(data, &mut sink).err(), Some(e));
+            assert_eq!(sink.tiles, 0);
+            return Err(e);
+        }
+    };
+    let n = header.pixel_count();
+    assert!(n > 0);
+    if n > MAX_PIXELS {
+        let mut small = vec![0u8; 1024];
+        assert_eq!(
+            decoder_core::decode_into(data, &mut small),
+            Err(DecodeError::BufferTooSmall)
+        );
+        return Err(DecodeError::BufferTooSmall);
+    }
+    let mut out = vec![0u8; n];
+    let result = decoder_core::decode_into(data, &mut out);
+    if let Ok(h) = result {
+        assert_eq!(h, header);
+    }
+    // The tile interface on the same bytes: the same outcome, and whatever the payload, no tile
+    // outside the image or larger than a tile, and no pixel twice.
+    let mut sink = CoverageSink::new(u32::from(header.width), u32::from(header.height));
+    let via_sink = decoder_core::decode(data, &mut sink);
+    assert_eq!(via_sink, result);
+    assert!(sink.violations.is_empty(), "{:?}", &sink.violations[..1]);
+    assert!(
+        sink.counts.iter().all(|&c| c <= 1),
+        "a pixel was written twice"
+    );
+    if result.is_ok() {
+        assert!(
+            sink.counts.iter().all(|&c| c == 1),
+            "a pixel was never written"
+        );
+        assert!(sink.pixels == out);
+    }
+    result.map(|_| ())
+}
+
+/// A valid fixed header (no codebooks) for a `width x height` image.
+fn header_bytes(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Vec<u8> {
+    let mut h = MAGIC.to_vec();
+    h.extend_from_slice(&[VERSION, 1, 8, 0]);
+    h.extend_from_slice(&width.to_le_bytes());
+    h.extend_from_slice(&height.to_le_bytes());
+    h.push((max_leaf << 4) | min_leaf);
+    assert_eq!(h.len(), FIXED_HEADER_LEN);
+    h
+}
+
+#[test]
+fn golden_streams_decode_cleanly() {
+    assert!(!streams().is_empty());
+    for (name, bytes) in streams() {
+        assert_eq!(decode_checked(bytes), Ok(()), "{name}");
+    }
+}
+
+#[test]
+fn truncation_at_every_length_is_detected() {
+    // The range decoder consumes its stream to the last byte (the encoder's flush bytes
+    // included), so every proper prefix of a valid stream, cut in the header or anywhere in the
+    // payload, is reported as truncated: never `Ok` with part of the image left unwritten.
+    for (name, bytes) in streams() {
+        for len in 0..bytes.len() {
+            assert_eq!(
+                decode_checked(&bytes[..len]),
+                Err(DecodeError::Truncated),
+                "{name} cut to {len} of {} bytes",
+                bytes.len()
+            );
+        }
+    }
+}
+
+#[test]
+fn header_errors_are_typed() {
+    let good = header_bytes(16, 16, 2, 4);
+    let with = |i: usize, v: u8| {
+        let mut h = good.clone();
+        h[i] = v;
+        h.extend_from_slice(&[0; 8]);
+        h
+    };
+    let cases: Vec<(&str, Vec<u8>, DecodeError)> = vec![
+        ("empty", vec![], DecodeError::Truncated),
+        ("magic prefix only", b"PIF".to_vec(), DecodeError::Truncated),
+        (
+            "short, good magic",
+            good[..9].to_vec(),
+            DecodeError::Truncated,
+        ),
+        (
+            "short, bad magic",
+            b"GIF89a".to_vec(),
+            DecodeError::BadMagic,
+        ),
+        ("bad magic", with(0, b'Q'), DecodeError::BadMagic),
+        ("bad magic, last byte", with(3, b's'), DecodeError::BadMagic),
+        ("version 0", with(4, 0), DecodeError::UnsupportedVersion(0)),
+        ("version 2", with(4, 2), DecodeError::UnsupportedVersion(2)),
+        (
+            "version 255",
+            with(4, 255),
+            DecodeError::UnsupportedVersion(255),
+        ),
+        (
+            "channels 3",
+            with(5, 3),
+            DecodeError::UnsupportedChannels(3),
+        ),
+        (
+            "channels 0",
+            with(5, 0),
+            DecodeError::UnsupportedChannels(0),
+        ),
+        (
+            "bit depth 16",
+            with(6, 16),
+            DecodeError::UnsupportedBitDepth(16),
+        ),
+        (
+            "reserved flag",
+            with(7, 2),
+            DecodeError::InvalidHeader("reserved flag bits are set"),
+        ),
+        (
+            "width 0",
+            {
+                let mut h = with(8, 0);
+                h[9] = 0;
+                h
+            },
+            DecodeError::InvalidHeader("width and height must be at least 1"),
+        ),
+        (
+            "height 0",
+            {
+                let mut h = with(10, 0);
+                h[11] = 0;
+                h
+            },
+            DecodeError::InvalidHeader("width and height must be at least 1"),
+        ),
+        (
+            "min leaf 0",
+            with(12, 0x40),
+            DecodeError::InvalidHeader("leaf sizes"),
+        ),
+        (
+            "min leaf above max leaf",
+            with(12, 0x34),
+            DecodeError::InvalidHeader("leaf sizes"),
+        ),
+        (
+            "max leaf 10",
+            with(12, 0xA2),
+            DecodeError::InvalidHeader("leaf sizes"),
+        ),
+        (
+            "codebook flag without codebooks",
+            {
+                let mut h = good.clone();
+                h[7] = FLAG_CODEBOOKS;
+                h
+            },
+            DecodeError::Truncated,
+        ),
+        (
+            "codebook of one level",
+            {
+                let mut h = good.clone();
+                h[7] = FLAG_CODEBOOKS;
+                h.extend_from_slice(&[1, 0, 0]);
+                h
+            },
+            DecodeError::InvalidHeader("codebook size"),
+        ),
+        (
+            "codebook of 17 levels",
+            {
+                let mut h = good.clone();
+                h[7] = FLAG_CODEBOOKS;
+                h.push(17);
+                h.extend_from_slice(&[0; 40]);
+                h
+            },
+            DecodeError::InvalidHeader("codebook size"),
+        ),
+        (
+            "codebook levels not increasing",
+            {
+                let mut h = good.clone();
+                h[7] = FLAG_CODEBOOKS;
+                h.push(2);
+                h.extend_from_slice(&5i16.to_le_bytes());
+                h.extend_from_slice(&5i16.to_le_bytes());
+                h
+            },
+            DecodeError::InvalidHeader("codebook levels"),
+        ),
+        (
+            "codebook level beyond the weight limit",
+            {
+                let mut h = good.clone();
+                h[7] = FLAG_CODEBOOKS;
+                h.push(2);
+                h.extend_from_slice(&0i16.to_le_bytes());
+                h.extend_from_slice(&i16::MAX.to_le_bytes());
+                h
+            },
+            DecodeError::InvalidHeader("codebook levels"),
+        ),
+        (
+            "second codebook cut short",
+            {
+                let mut h = good.clone();
+                h[7] = FLAG_CODEBOOKS;
+                h.push(2);
+                h.extend_from_slice(&(-8i16).to_le_bytes());
+                h.extend_from_slice(&8i16.to_le_bytes());
+                h.push(3);
+                h.extend_from_slice(&0i16.to_le_bytes());
+                h
+            },
+            DecodeError::Truncated,
+        ),
+        (
+            "payload shorter than the coder's first four bytes",
+            {
+                let mut h = good.clone();
+                h.extend_from_slice(&[0; 3]);
+                h
+            },
+            DecodeError::Truncated,
+        ),
+    ];
+    for (what, bytes, expected) in cases {
+        assert_eq!(
+            decoder_core::read_header(&bytes).err().or_else(|| {
+                // Header fine: the error must come from the payload.
+                let mut buf = vec![0u8; 256];
+                decoder_core::decode_into(&bytes, &mut buf).err()
+            }),
+            Some(expected),
+            "{what}"
+        );
+        assert_eq!(decode_checked(&bytes), Err(expected), "{what}");
+    }
+    // And the header of a real stream, with each of those fields damaged.
+    let (name, golden) = &streams()[0];
+    for (i, v, expected) in [
+        (0, b'X', DecodeError::BadMagic),
+        (4, 2, DecodeError::UnsupportedVersion(2)),
+        (5, 3, DecodeError::UnsupportedChannels(3)),
+    ] {
+        let mut b = golden.clone();
+        b[i] = v;
+        assert_eq!(decode_checked(&b), Err(expected), "{name} byte {i} = {v}");
+    }
+    for (lo, hi) in [(8, 9), (10, 11)] {
+        let mut b = golden.clone();
+        b[lo] = 0;
+        b[hi] = 0;
+        assert!(
+            matches!(decode_checked(&b), Err(DecodeError::InvalidHeader(_))),
+            "{name} zero dimension"
+        );
+    }
+}
+
+#[test]
+fn header_claiming_a_huge_image_needs_a_huge_buffer() {
+    let mut data = header_bytes(65535, 65535, 2, 9);
+    data.extend_from_slice(&[0x55; 64]);
+    let header = decoder_core::read_header(&data).unwrap();
+    assert_eq!(header.pixel_count(), 65535 * 65535);
+    assert_eq!(header.root_log2(), 16);
+    let mut small = vec![0u8; 1 << 16];
+    assert_eq!(
+        decoder_core::decode_into(&data, &mut small),
+        Err(DecodeError::BufferTooSmall)
+    );
+}
+
+/// Index of a golden stream.
+fn golden_index() -> impl Strategy<Value = usize> {
+    0..streams().len()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 256,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn random_bytes_never_panic(data in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let _ = decode_checked(&data);
+    }
+
+    #[test]
+    fn random_bytes_after_magic_never_panic(
+        tail in proptest::collection::vec(any::<u8>(), 0..512),
+    ) {
+        let mut data = MAGIC.to_vec();
+        data.extend_from_slice(&tail);
+        let _ = decode_checked(&data);
+    }
+
+    #[test]
+    fn random_payload_behind_a_valid_header_never_panics(
+        width in 1u16..200,
+        height in 1u16..200,
+        min_leaf in 1u8..=9,
+        extra in 0u8..=8,
+        payload in proptest::collection::vec(any::<u8>(), 0..1024),
+    ) {
+        let max_leaf = (min_leaf + extra).min(9);
+        let mut data = header_bytes(width, height, min_leaf, max_leaf);
+        data.extend_from_slice(&payload);
+        let result = decode_checked(&data);
+        if payload.len() < 4 {
+            prop_assert_eq!(result, Err(DecodeError::Truncated));
+        }
+    }
+
+    #[test]
+    fn truncated_golden_streams_are_errors(
+        which in golden_index(),
+        cut in any::<prop::sample::Index>(),
+    ) {
+        let bytes = &streams()[which].1;
+        let len = cut.index(bytes.len());
+        prop_assert_eq!(decode_checked(&bytes[..len]), Err(DecodeError::Truncated));
+    }
+
+    #[test]
+    fn golden_streams_with_bit_flips_never_panic(
+        which in golden_index(),
+        flips in proptest::collection::vec((any::<prop::sample::Index>(), 0u8..8), 1..8),
+    ) {
+        let mut bytes = streams()[which].1.clone();
+        for (at, bit) in &flips {
+            let i = at.index(bytes.len());
+            bytes[i] ^= 1 << bit;
+        }
+        let _ = decode_checked(&bytes);
+    }
+
+    #[test]
+    fn golden_payloads_with_bit_flips_never_panic(
+        which in golden_index(),
+        flips in proptest::collection::vec((any::<prop::sample::Index>(), 0u8..8), 1..4),
+    ) {
+        // Flips confined to the payload: the header stays valid, so the range decoder and the
+        // syntax checks see every damaged stream.
+        let mut bytes = streams()[which].1.clone();
+        let start = decoder_core::read_header(&bytes).unwrap().encoded_len();
+        for (at, bit) in &flips {
+            let i = start + at.index(bytes.len() - start);
+            bytes[i] ^= 1 << bit;
+        }
+        let _ = decode_checked(&bytes);
+    }
+
+    #[test]
+    fn golden_streams_with_overwritten_bytes_never_panic(
+        which in golden_index(),
+        writes in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+    ) {
+        let mut bytes = streams()[which].1.clone();
+        for (at, v) in &writes {
+            let i = at.index(bytes.len());
+            bytes[i] = *v;
+        }
+        let _ = decode_checked(&bytes);
+    }
+
+    #[test]
+    fn golden_streams_with_a_random_tail_never_panic(
+        which in golden_index(),
+        keep in any::<prop::sample::Index>(),
+        tail in proptest::collection::vec(any::<u8>(), 0..256),
+    ) {
+        let golden = &streams()[which].1;
+        let mut bytes = golden[..keep.index(golden.len() + 1)].to_vec();
+        bytes.extend_from_slice(&tail);
+        let _ = decode_checked(&bytes);
+    }
+
+    #[test]
+    fn golden_headers_with_random_fields_never_panic(
+        which in golden_index(),
+        width in any::<u16>(),
+        height in any::<u16>(),
+        leaves in any::<u8>(),
+    ) {
+        // Dimensions and leaf sizes rewritten: the payload no longer matches the header, up to
+        // images far larger than the buffer cap.
+        let mut bytes = streams()[which].1.clone();
+        bytes[8..10].copy_from_slice(&width.to_le_bytes());
+        bytes[10..12].copy_from_slice(&height.to_le_bytes());
+        bytes[12] = leaves;
+        let result = decode_checked(&bytes);
+        if width == 0 || height == 0 {
+            prop_assert!(matches!(result, Err(DecodeError::InvalidHeader(_))), "{:?}", result);
+        }
+    }
+}
