@@ -166,30 +166,28 @@ fn normal_equations(
 ) -> (DMatrix<f64>, DVector<f64>, f64) {
     let n = theta.len();
     let mut tab = Tabulator::new(model, &theta[nc..], true);
-    let wbase = 1 + nc;
     let mut jtj = DMatrix::<f64>::zeros(n, n);
     let mut jtr = DVector::<f64>::zeros(n);
     let mut total = 0.0;
-    // Rows are gathered in blocks and folded in with a matrix product (J^T J += B^T B).
+    // Jacobian rows are gathered as the columns of a block (contiguous: a sample's derivative
+    // vector, ordered like theta, is copied whole) and folded in with one matrix product,
+    // J^T J += B B^T.
     const BLOCK: usize = 128;
-    let mut block = DMatrix::<f64>::zeros(BLOCK, n);
+    let mut block = DMatrix::<f64>::zeros(n, BLOCK);
     let mut errors = DVector::<f64>::zeros(BLOCK);
-    let mut rows = 0usize;
-    let flush = |block: &mut DMatrix<f64>,
-                 errors: &mut DVector<f64>,
-                 rows: &mut usize,
+    let mut cols = 0usize;
+    let flush = |block: &DMatrix<f64>,
+                 errors: &DVector<f64>,
+                 cols: &mut usize,
                  jtj: &mut DMatrix<f64>,
                  jtr: &mut DVector<f64>| {
-        if *rows == 0 {
+        if *cols == 0 {
             return;
         }
-        if *rows < BLOCK {
-            block.rows_mut(*rows, BLOCK - *rows).fill(0.0);
-            errors.rows_mut(*rows, BLOCK - *rows).fill(0.0);
-        }
-        jtj.gemm_tr(1.0, block, block, 1.0);
-        jtr.gemv_tr(1.0, block, errors, 1.0);
-        *rows = 0;
+        let used = block.columns(0, *cols);
+        jtj.gemm(1.0, &used, &used.transpose(), 1.0);
+        jtr.gemv(1.0, &used, &errors.rows(0, *cols), 1.0);
+        *cols = 0;
     };
     tab.run(
         &theta[..nc],
@@ -199,20 +197,15 @@ fn normal_equations(
         &mut |dx, dy, s| {
             let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
             total += e * e;
-            errors[rows] = e;
-            for a in 0..nc {
-                block[(rows, a)] = s[1 + a];
-            }
-            for a in nc..n {
-                block[(rows, a)] = s[wbase + a - nc];
-            }
-            rows += 1;
-            if rows == BLOCK {
-                flush(&mut block, &mut errors, &mut rows, &mut jtj, &mut jtr);
+            errors[cols] = e;
+            block.column_mut(cols).copy_from_slice(&s[1..1 + n]);
+            cols += 1;
+            if cols == BLOCK {
+                flush(&block, &errors, &mut cols, &mut jtj, &mut jtr);
             }
         },
     );
-    flush(&mut block, &mut errors, &mut rows, &mut jtj, &mut jtr);
+    flush(&block, &errors, &mut cols, &mut jtj, &mut jtr);
     (jtj, jtr, total)
 }
 

@@ -31,7 +31,7 @@ pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyn
         } else {
             f64::from(intra_prediction(&values, side, i / side, i % side))
         };
-        leaf.control[i] = ((target - base) / f64::from(step)).round() as i32;
+        leaf.control[i] = deadzone_round((target - base) / f64::from(step));
         values[i] = control_value(&values, side, i, step, leaf.control[i]);
     }
     let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
@@ -52,6 +52,14 @@ pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyn
         i += 1;
     });
     leaf
+}
+
+/// Rounding offset of the control quantisers: values are rounded towards zero unless they are
+/// at least this far past a step, so that small residuals cost nothing (a dead zone).
+const ROUNDING_OFFSET: f64 = 0.35;
+
+fn deadzone_round(v: f64) -> i32 {
+    (v.signum() * (v.abs() + ROUNDING_OFFSET).floor()) as i32
 }
 
 fn nearest_level(book: &Codebook, v: f64) -> i32 {
