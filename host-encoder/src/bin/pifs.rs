@@ -58,7 +58,29 @@ struct EncodeArgs {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                e.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
+                e.exit();
+            }
+            // One line, like every other error of this tool; `--help` has the details.
+            let text = e.to_string();
+            let first = text
+                .lines()
+                .next()
+                .unwrap_or("invalid arguments")
+                .trim_start_matches("error: ");
+            eprintln!("pifs: {first} (see pifs --help)");
+            return ExitCode::from(2);
+        }
+    };
     let result = match cli.command {
         Some(Command::Encode(args)) => encode(&args),
         Some(Command::Decode { input, output }) => decode(&input, &output),

@@ -131,6 +131,29 @@ fn initial_control(plane: &Plane, node: &Node, model: ModelType) -> Vec<f64> {
     c
 }
 
+/// Tabulates `theta` on the lattice and calls `f(residual, sample)` for every lattice sample
+/// (`sample` carries derivatives when `derivatives` is set).
+#[allow(clippy::too_many_arguments)]
+fn for_each_residual(
+    plane: &Plane,
+    node: &Node,
+    model: ModelType,
+    lattice: &Lattice,
+    theta: &[f64],
+    nc: usize,
+    derivatives: bool,
+    f: &mut dyn FnMut(f64, &[f64]),
+) {
+    let mut tab = Tabulator::new(model, &theta[nc..], derivatives);
+    tab.run(
+        &theta[..nc],
+        node.log2,
+        &|dx, dy| lattice.wants(dx, dy),
+        &|dx, dy, e| lattice.any_in(dx, dy, e),
+        &mut |dx, dy, s| f(f64::from(plane.get(node.x + dx, node.y + dy)) - s[0], s),
+    );
+}
+
 /// Sum of squared errors of `theta` on the lattice.
 fn sse(
     plane: &Plane,
@@ -140,17 +163,16 @@ fn sse(
     theta: &[f64],
     nc: usize,
 ) -> f64 {
-    let mut tab = Tabulator::new(model, &theta[nc..], false);
     let mut total = 0.0;
-    tab.run(
-        &theta[..nc],
-        node.log2,
-        &|dx, dy| lattice.wants(dx, dy),
-        &|dx, dy, e| lattice.any_in(dx, dy, e),
-        &mut |dx, dy, s| {
-            let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
-            total += e * e;
-        },
+    for_each_residual(
+        plane,
+        node,
+        model,
+        lattice,
+        theta,
+        nc,
+        false,
+        &mut |e, _| total += e * e,
     );
     total
 }
@@ -165,7 +187,6 @@ fn normal_equations(
     nc: usize,
 ) -> (DMatrix<f64>, DVector<f64>, f64) {
     let n = theta.len();
-    let mut tab = Tabulator::new(model, &theta[nc..], true);
     let mut jtj = DMatrix::<f64>::zeros(n, n);
     let mut jtr = DVector::<f64>::zeros(n);
     let mut total = 0.0;
@@ -189,22 +210,15 @@ fn normal_equations(
         jtr.gemv(1.0, &used, &errors.rows(0, *cols), 1.0);
         *cols = 0;
     };
-    tab.run(
-        &theta[..nc],
-        node.log2,
-        &|dx, dy| lattice.wants(dx, dy),
-        &|dx, dy, e| lattice.any_in(dx, dy, e),
-        &mut |dx, dy, s| {
-            let e = f64::from(plane.get(node.x + dx, node.y + dy)) - s[0];
-            total += e * e;
-            errors[cols] = e;
-            block.column_mut(cols).copy_from_slice(&s[1..1 + n]);
-            cols += 1;
-            if cols == BLOCK {
-                flush(&block, &errors, &mut cols, &mut jtj, &mut jtr);
-            }
-        },
-    );
+    for_each_residual(plane, node, model, lattice, theta, nc, true, &mut |e, s| {
+        total += e * e;
+        errors[cols] = e;
+        block.column_mut(cols).copy_from_slice(&s[1..1 + n]);
+        cols += 1;
+        if cols == BLOCK {
+            flush(&block, &errors, &mut cols, &mut jtj, &mut jtr);
+        }
+    });
     flush(&block, &errors, &mut cols, &mut jtj, &mut jtr);
     (jtj, jtr, total)
 }

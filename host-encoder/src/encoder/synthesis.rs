@@ -62,47 +62,34 @@ impl Tabulator {
     pub fn new(model: ModelType, dev: &[f64], derivatives: bool) -> Self {
         let base = Weights::default_for(model);
         let index = TapIndex::new(model);
+        // One rule: free taps are default + deviation (bounded like decoder-core's), the
+        // dependent tap makes the rule sum to one.
+        let real_rule = |base: &[i32; 4], params: &[usize; 4], dependent: usize| -> [f64; 4] {
+            let mut rule = [0.0; 4];
+            for t in (0..4).filter(|&t| t != dependent) {
+                let d = match params[t] {
+                    usize::MAX => 0.0,
+                    k => dev.get(k).copied().unwrap_or(0.0),
+                };
+                rule[t] = (f64::from(base[t]) / f64::from(WEIGHT_ONE) + d).clamp(-2.0, 2.0);
+            }
+            rule[dependent] = 1.0 - rule.iter().sum::<f64>();
+            rule
+        };
         let mut w = RealWeights {
             line: [[[0.0; 4]; 3]; 2],
             cell: [[[0.0; 4]; 3]; 3],
         };
-        let lim = 2.0;
         for dir in 0..2 {
             for p in 0..3 {
-                let mut sum = 0.0;
-                for t in 0..4 {
-                    if t == LINE_DEPENDENT_TAP {
-                        continue;
-                    }
-                    let d = match index.line[dir][p][t] {
-                        usize::MAX => 0.0,
-                        k => dev.get(k).copied().unwrap_or(0.0),
-                    };
-                    let v = (f64::from(base.line[dir][p][t]) / f64::from(WEIGHT_ONE) + d)
-                        .clamp(-lim, lim);
-                    w.line[dir][p][t] = v;
-                    sum += v;
-                }
-                w.line[dir][p][LINE_DEPENDENT_TAP] = 1.0 - sum;
+                w.line[dir][p] =
+                    real_rule(&base.line[dir][p], &index.line[dir][p], LINE_DEPENDENT_TAP);
             }
         }
         for r1 in 0..3 {
             for r2 in 0..3 {
-                let mut sum = 0.0;
-                for t in 0..4 {
-                    if t == CELL_DEPENDENT_TAP {
-                        continue;
-                    }
-                    let d = match index.cell[r1][r2][t] {
-                        usize::MAX => 0.0,
-                        k => dev.get(k).copied().unwrap_or(0.0),
-                    };
-                    let v = (f64::from(base.cell[r1][r2][t]) / f64::from(WEIGHT_ONE) + d)
-                        .clamp(-lim, lim);
-                    w.cell[r1][r2][t] = v;
-                    sum += v;
-                }
-                w.cell[r1][r2][CELL_DEPENDENT_TAP] = 1.0 - sum;
+                w.cell[r1][r2] =
+                    real_rule(&base.cell[r1][r2], &index.cell[r1][r2], CELL_DEPENDENT_TAP);
             }
         }
         let nc = model.control_count();
