@@ -27,7 +27,7 @@ command -v qemu-system-arm >/dev/null || {
 rustup target add thumbv7m-none-eabi thumbv6m-none-eabi >/dev/null 2>&1 || true
 
 # 1. Images and streams.
-cargo build --release -q -p host-encoder
+cargo build --release -q -p host-encoder 2>"$out/build.log" || { cat "$out/build.log" >&2; exit 1; }
 python3 bench/crop_png.py "$src" "$out" kodim23 128x128/4 320x240/2 768x512 >/dev/null
 streams=()
 for size in 128x128 320x240 768x512; do
@@ -47,7 +47,8 @@ build() { # target features streams... -> prints the ELF path (a copy under $out
     local list
     list=$(IFS=:; echo "$*")
     (cd "$fw" && env -u CARGO_TARGET_DIR -u CARGO_BUILD_TARGET -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS \
-        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" --features "$features")
+        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" --features "$features") \
+        2>"$out/build.log" || { cat "$out/build.log" >&2; exit 1; }
     local elf=$out/fw-$target-$features.elf
     cp "$root/target/firmware/$target/release/pifs-firmware-example" "$elf"
     echo "$elf"

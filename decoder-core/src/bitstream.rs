@@ -237,10 +237,10 @@ pub struct LeafSyntax {
     pub cquant: u8,
     /// Weight quantiser index into [`WEIGHT_QUANTISER_KINDS`] (0 when the model has no weights).
     pub wquant: u8,
-    /// Control values as quantiser indices (value = index * step), row-major.
-    pub control: [i32; MAX_CONTROL],
+    /// Control values as DPCM quantiser indices (see [`control_value`]), row-major.
+    pub control: [i16; MAX_CONTROL],
     /// Free weights as signed quantiser indices, in [`for_each_free_tap`] order.
-    pub weights: [i32; MAX_WEIGHTS],
+    pub weights: [i16; MAX_WEIGHTS],
 }
 
 impl Default for LeafSyntax {
@@ -483,26 +483,28 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
 /// Intra-leaf prediction of control value `(r, c)` (not the first) from the leaf's values
 /// reconstructed so far (row-major, side `side`): left on the first row, above on the first
 /// column, the LOCO-I median elsewhere.
-pub fn intra_prediction(values: &[i32], side: usize, r: usize, c: usize) -> i32 {
+pub fn intra_prediction(values: &[i16], side: usize, r: usize, c: usize) -> i32 {
     let i = r * side + c;
+    let at = |k: usize| i32::from(values[k]);
     match (r, c) {
         (0, 0) => 0,
-        (0, _) => values[i - 1],
-        (_, 0) => values[i - side],
-        _ => med(values[i - 1], values[i - side], values[i - side - 1]),
+        (0, _) => at(i - 1),
+        (_, 0) => at(i - side),
+        _ => med(at(i - 1), at(i - side), at(i - side - 1)),
     }
 }
 
 /// Reconstructs control value `i` of a leaf from its index: the first value is `index * step`,
 /// every other one `intra prediction + index * step`, clamped to the sample range.
-pub fn control_value(values: &[i32], side: usize, i: usize, step: i32, index: i32) -> i32 {
+pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i32) -> i16 {
     let base = if i == 0 {
         0
     } else {
         intra_prediction(values, side, i / side, i % side)
     };
+    // The sample range fits in an i16.
     base.saturating_add(index.saturating_mul(step))
-        .clamp(SAMPLE_MIN, SAMPLE_MAX)
+        .clamp(SAMPLE_MIN, SAMPLE_MAX) as i16
 }
 
 /// Control values: raster order, DPCM within the leaf (see [`control_value`]). The first index
@@ -523,7 +525,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.grid();
     let sp = node.size() / u32::from(model.intervals);
-    let mut values = [0i32; MAX_CONTROL];
+    let mut values = [0i16; MAX_CONTROL];
     let mut prev_mag = 0usize;
     for r in 0..side {
         for col in 0..side {
@@ -537,10 +539,12 @@ fn code_control<C: Coder, P: SamplePrediction>(
             } else {
                 (0, if r == 0 || col == 0 { 1 } else { 2 })
             };
-            let mut residual = leaf.control[i].saturating_sub(pred_index);
+            let mut residual = i32::from(leaf.control[i]) - pred_index;
             contexts[class].code(c, prev_mag, &mut residual)?;
-            leaf.control[i] = pred_index + residual;
-            values[i] = control_value(&values, side, i, step, leaf.control[i]);
+            let index = i16::try_from(pred_index + residual)
+                .map_err(|_| DecodeError::InvalidData("control value"))?;
+            leaf.control[i] = index;
+            values[i] = control_value(&values, side, i, step, i32::from(index));
             prev_mag = residual.unsigned_abs().min(2) as usize;
         }
     }
@@ -574,9 +578,10 @@ fn code_weights<C: Coder>(
             return;
         }
         let class = slot.class() as usize;
-        let mut v = leaf.weights[i];
+        let mut v = i32::from(leaf.weights[i]);
         result = ctx.weights[narrow][class].code(c, prev_mag[class], &mut v);
-        leaf.weights[i] = v;
+        // |v| < 2^MAX_PREFIX: always fits.
+        leaf.weights[i] = v as i16;
         prev_mag[class] = v.unsigned_abs().min(2) as usize;
         i += 1;
     });
@@ -586,6 +591,17 @@ fn code_weights<C: Coder>(
 /// Reconstructs the patch a leaf describes. Fails if a codebook index is out of range or a
 /// codebook is used that the stream does not carry.
 pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeError> {
+    let mut patch = Patch::EMPTY;
+    reconstruct_into(header, leaf, &mut patch)?;
+    Ok(patch)
+}
+
+/// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack).
+pub fn reconstruct_into(
+    header: &Header,
+    leaf: &LeafSyntax,
+    patch: &mut Patch,
+) -> Result<(), DecodeError> {
     let model = *MODELS
         .get(usize::from(leaf.model))
         .ok_or(DecodeError::InvalidData("model type"))?;
@@ -593,12 +609,10 @@ pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeEr
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let side = model.grid();
-    let mut values = [0i32; MAX_CONTROL];
-    let mut control = [0i16; MAX_CONTROL];
+    patch.model = model;
+    patch.control = [0; MAX_CONTROL];
     for i in 0..model.control_count() {
-        values[i] = control_value(&values, side, i, step, leaf.control[i]);
-        // The sample range fits in an i16.
-        control[i] = values[i] as i16;
+        patch.control[i] = control_value(&patch.control, side, i, step, i32::from(leaf.control[i]));
     }
     let kind = *WEIGHT_QUANTISER_KINDS
         .get(usize::from(leaf.wquant))
@@ -607,7 +621,7 @@ pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeEr
     let mut i = 0;
     let mut result = Ok(());
     for_each_free_tap(model, |slot| {
-        let index = leaf.weights[i];
+        let index = i32::from(leaf.weights[i]);
         deviations[i] = match kind {
             WeightQuantiser::Default => 0,
             WeightQuantiser::Uniform(step) => index
@@ -627,9 +641,6 @@ pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeEr
         i += 1;
     });
     result?;
-    Ok(Patch {
-        model,
-        control,
-        weights: Weights::from_deviations(model, &deviations),
-    })
+    patch.weights = Weights::from_deviations(model, &deviations);
+    Ok(())
 }

@@ -12,7 +12,10 @@
 //! - [`entropy`]: the range decoder and the binarisations;
 //! - [`model`]: model types, subdivision rules, quantisers;
 //! - [`patch`]: integer patch synthesis (where a pixel is made);
-//! - [`quadtree`]: the walk over the quadtree cut.
+//! - [`quadtree`]: the walk over the quadtree cut;
+//! - [`stream`]: decoding from a sequential [`entropy::ByteSource`] (no stream in RAM) and
+//!   decoding of a clip rectangle only;
+//! - `graphics` (cargo feature `embedded-graphics`): a stream as an embedded-graphics image.
 //!
 //! ```
 //! # fn demo(stream: &[u8]) -> Result<(), decoder_core::DecodeError> {
@@ -31,10 +34,15 @@ mod error;
 pub mod model;
 pub mod patch;
 pub mod quadtree;
+pub mod stream;
+
+#[cfg(feature = "embedded-graphics")]
+pub mod graphics;
 
 pub use bitstream::{Header, LeafSyntax};
 pub use error::DecodeError;
 pub use patch::{PixelSink, Rect};
+pub use stream::{decode_region, decode_stream, decode_stream_region, MAX_HEADER_LEN};
 
 use entropy::{RangeDecoder, SliceSource};
 use patch::Patch;
@@ -116,7 +124,7 @@ pub fn decode_observed<S: PixelSink, O: LeafObserver>(
         sink,
         observer,
     };
-    quadtree::walk(&header, &mut coder, &mut drawer)?;
+    stream::run_walk(&header, &mut coder, &mut drawer)?;
     Ok((header, drawer.observer))
 }
 

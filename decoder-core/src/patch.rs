@@ -89,6 +89,16 @@ pub fn sample_to_pixel(v: i32) -> u8 {
 }
 
 impl Patch {
+    /// A flat bilinear patch at zero (a placeholder to reconstruct into).
+    pub const EMPTY: Patch = Patch {
+        model: crate::model::MODELS[0],
+        control: [0; MAX_CONTROL],
+        weights: Weights {
+            line: [[[0; 4]; 3]; 2],
+            cell: [[[0; 4]; 3]; 3],
+        },
+    };
+
     /// The refined value at refined coordinates `(q1, q2)` (row, column; `0..=N*m`) of the
     /// control grid `g` (row-major, side `m+1`).
     #[inline]
@@ -191,6 +201,7 @@ impl Patch {
 
     /// Emits the `m*sp` square of pixels covered by grid `g`, computing each pixel from `g` at
     /// refined stride `N / sp`.
+    #[inline(never)]
     fn emit<S: PixelSink>(&self, g: &[i16], x: u32, y: u32, sp: u32, clip: &Rect, sink: &mut S) {
         let ext = u32::from(self.model.intervals) * sp;
         let stride = (u32::from(self.model.transforms) / sp.max(1)) as usize;

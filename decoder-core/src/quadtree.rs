@@ -9,7 +9,7 @@
 //! leaf size is a leaf without a flag; every other node codes a split flag.
 
 use crate::bitstream::{
-    code_leaf, code_split, reconstruct, Contexts, Header, LeafSyntax, Predictor,
+    code_leaf, code_split, reconstruct_into, Contexts, Header, LeafSyntax, Predictor,
 };
 use crate::entropy::Coder;
 use crate::error::DecodeError;
@@ -114,13 +114,23 @@ pub fn walk<C: Coder, V: TreeVisitor>(
     visitor: &mut V,
 ) -> Result<WalkState, DecodeError> {
     let mut state = WalkState::default();
+    walk_with(header, coder, visitor, &mut state)?;
+    Ok(state)
+}
+
+/// Like [`walk`], with a caller-provided state (no copy of it is returned).
+pub fn walk_with<C: Coder, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+    state: &mut WalkState,
+) -> Result<(), DecodeError> {
     let root = Node {
         x: 0,
         y: 0,
         log2: header.root_log2(),
     };
-    walk_node(header, coder, visitor, &mut state, root)?;
-    Ok(state)
+    walk_node(header, coder, visitor, state, root)
 }
 
 fn walk_node<C: Coder, V: TreeVisitor>(
@@ -146,6 +156,19 @@ fn walk_node<C: Coder, V: TreeVisitor>(
         }
         return Ok(());
     }
+    walk_leaf(header, coder, visitor, state, node)
+}
+
+/// A leaf's syntax, reconstruction and drawing: out of line, so that its buffers are not part
+/// of every frame of the recursive walk.
+#[inline(never)]
+fn walk_leaf<C: Coder, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+    state: &mut WalkState,
+    node: Node,
+) -> Result<(), DecodeError> {
     let mut leaf = LeafSyntax::default();
     visitor.prepare_leaf(&node, &mut leaf);
     code_leaf(
@@ -155,7 +178,8 @@ fn walk_node<C: Coder, V: TreeVisitor>(
         &state.predictor,
         &mut leaf,
     )?;
-    let patch = reconstruct(header, &leaf)?;
+    let mut patch = Patch::EMPTY;
+    reconstruct_into(header, &leaf, &mut patch)?;
     state.predictor.remember(node.x, node.y, node.log2, &patch);
     visitor.leaf(&node, &leaf, &patch)
 }

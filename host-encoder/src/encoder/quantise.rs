@@ -22,7 +22,7 @@ pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyn
     // DPCM within the leaf, against the values the decoder will reconstruct.
     let step = CONTROL_STEPS[usize::from(cq)];
     let side = model.grid();
-    let mut values = [0i32; MAX_CONTROL];
+    let mut values = [0i16; MAX_CONTROL];
     for (i, &c) in fit.control.iter().enumerate().take(side * side) {
         let target =
             (c * f64::from(SAMPLE_ONE)).clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX));
@@ -31,22 +31,24 @@ pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyn
         } else {
             f64::from(intra_prediction(&values, side, i / side, i % side))
         };
-        leaf.control[i] = deadzone_round((target - base) / f64::from(step));
-        values[i] = control_value(&values, side, i, step, leaf.control[i]);
+        // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
+        leaf.control[i] = deadzone_round((target - base) / f64::from(step)) as i16;
+        values[i] = control_value(&values, side, i, step, i32::from(leaf.control[i]));
     }
     let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
     let mut i = 0;
     for_each_free_tap(model, |slot| {
         let dev = fit.weights.get(i).copied().unwrap_or(0.0) * f64::from(WEIGHT_ONE);
+        // Both kinds give small indices (at most 2 * WEIGHT_LIMIT / step, or a codebook size).
         leaf.weights[i] = match kind {
             WeightQuantiser::Default => 0,
             WeightQuantiser::Uniform(step) => {
                 let lim = 2 * WEIGHT_LIMIT / step;
-                ((dev / f64::from(step)).round() as i32).clamp(-lim, lim)
+                ((dev / f64::from(step)).round() as i32).clamp(-lim, lim) as i16
             }
             WeightQuantiser::Codebook => {
                 let book = &codebooks[slot.class() as usize];
-                nearest_level(book, dev) - book.center()
+                (nearest_level(book, dev) - book.center()) as i16
             }
         };
         i += 1;

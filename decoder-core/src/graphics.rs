@@ -1,0 +1,349 @@
+//! [`embedded-graphics`](https://docs.rs/embedded-graphics) support (cargo feature
+//! `embedded-graphics`): a PIFS stream as an [`ImageDrawable`].
+//!
+//! ```
+//! use decoder_core::graphics::PifsImage;
+//! use embedded_graphics::{image::Image, pixelcolor::Rgb565, prelude::*};
+//!
+//! fn show<D>(stream: &[u8], display: &mut D) -> Result<(), D::Error>
+//! where
+//!     D: DrawTarget<Color = Rgb565>,
+//! {
+//!     // Checks the header once; drawing never panics.
+//!     let Ok(logo) = PifsImage::new(stream) else {
+//!         return Ok(()); // not a PIFS stream
+//!     };
+//!     Image::new(&logo, Point::new(10, 20)).draw(display)
+//! }
+//! # let mut display = embedded_graphics::mock_display::MockDisplay::<Rgb565>::new();
+//! # show(b"not a stream", &mut display).unwrap();
+//! ```
+//!
+//! Pixels reach the display as whole tiles (at most [`TILE`](crate::patch::TILE) x
+//! [`TILE`](crate::patch::TILE)) through [`DrawTarget::fill_contiguous`], never pixel by pixel.
+//! Only tiles that are visible are synthesised: the area drawn is cut to the target's
+//! [`bounding_box`](embedded_graphics_core::geometry::Dimensions::bounding_box) (an image partly off-screen) and, for
+//! [`ImageDrawable::draw_sub_image`], to the sub-image. The payload is always entropy-decoded in
+//! full, since the arithmetic decoder must see every bit; what is skipped is the pixel synthesis.
+//! When nothing at all is visible, the stream is not read.
+//!
+//! # Errors while drawing
+//!
+//! [`PifsImage::new`] validates the header, so an image that exists has a sane size. A damaged
+//! payload can still fail mid-way: the [`ImageDrawable`] methods then **stop drawing** and return
+//! `Ok(())` (the [`ImageDrawable`] signature has no room for a [`DecodeError`]); the pixels of the
+//! leaves decoded before the error have been drawn. They never panic. To see the error, use
+//! [`PifsImage::draw_checked`] / [`PifsImage::draw_sub_image_checked`], which return a
+//! [`DrawError`], or check the whole payload once with [`PifsImage::verify`] (entropy decoding
+//! only, no pixels).
+//!
+//! # Colours
+//!
+//! The decoder produces 8-bit luma. [`FromGray`] turns it into the colour type of the display:
+//! it is implemented for every colour type of embedded-graphics (grays and RGB/BGR use the
+//! embedded-graphics conversion from [`Gray8`]; [`BinaryColor`] is `On` for luma `>= 128`).
+//! Everything is integer arithmetic.
+
+use core::marker::PhantomData;
+
+use embedded_graphics_core::draw_target::DrawTarget;
+use embedded_graphics_core::geometry::{OriginDimensions, Point, Size};
+use embedded_graphics_core::image::ImageDrawable;
+use embedded_graphics_core::pixelcolor::{
+    Bgr555, Bgr565, Bgr666, Bgr888, BinaryColor, Gray2, Gray4, Gray8, PixelColor, Rgb555, Rgb565,
+    Rgb666, Rgb888,
+};
+use embedded_graphics_core::primitives::Rectangle;
+
+use crate::bitstream::Header;
+use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
+use crate::error::DecodeError;
+use crate::patch::{PixelSink, Rect};
+use crate::stream::{read_header_from, walk_payload};
+
+/// A colour type that decoded 8-bit luma can be drawn as.
+pub trait FromGray: PixelColor {
+    /// The colour of luma `luma` (0 black, 255 white).
+    fn from_gray(luma: u8) -> Self;
+}
+
+impl FromGray for Gray8 {
+    #[inline]
+    fn from_gray(luma: u8) -> Self {
+        Gray8::new(luma)
+    }
+}
+
+impl FromGray for BinaryColor {
+    /// `On` for luma `>= 128`, `Off` below.
+    #[inline]
+    fn from_gray(luma: u8) -> Self {
+        if luma >= 128 {
+            BinaryColor::On
+        } else {
+            BinaryColor::Off
+        }
+    }
+}
+
+macro_rules! from_gray8 {
+    ($($color:ty),*) => {
+        $(impl FromGray for $color {
+            /// The embedded-graphics conversion of [`Gray8`] (rounded, integer).
+            #[inline]
+            fn from_gray(luma: u8) -> Self {
+                <$color>::from(Gray8::new(luma))
+            }
+        })*
+    };
+}
+
+from_gray8!(Gray2, Gray4, Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888, Bgr888);
+
+/// What went wrong while drawing with [`PifsImage::draw_checked`] and friends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DrawError<E> {
+    /// The stream is damaged: decoding stopped here (earlier leaves were drawn).
+    Decode(DecodeError),
+    /// The draw target failed: drawing stopped at its first error.
+    Target(E),
+}
+
+impl<E> From<DecodeError> for DrawError<E> {
+    fn from(e: DecodeError) -> Self {
+        DrawError::Decode(e)
+    }
+}
+
+/// A PIFS stream held in memory (flash or RAM), drawable with embedded-graphics in colour `C`.
+///
+/// Creating one parses and validates the header; every draw decodes the stream again, tile by
+/// tile, without a frame buffer (the decoder's state lives on the stack only while drawing).
+/// `C` is usually inferred from the draw target.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PifsImage<'a, C = Gray8> {
+    data: &'a [u8],
+    payload: &'a [u8],
+    header: Header,
+    color: PhantomData<C>,
+}
+
+impl<'a, C> PifsImage<'a, C> {
+    /// Wraps the stream `data`, after checking its header (and that the payload can start).
+    pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
+        let (header, offset) = Header::parse(data)?;
+        let payload = data.get(offset..).ok_or(DecodeError::Truncated)?;
+        // The range decoder's start (the first four payload bytes) is part of the validation.
+        RangeDecoder::new(SliceSource::new(payload))?;
+        Ok(PifsImage {
+            data,
+            payload,
+            header,
+            color: PhantomData,
+        })
+    }
+
+    /// The stream's header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Decodes the whole image into `sink` (grayscale tiles, image coordinates).
+    pub fn decode_to<S: PixelSink>(&self, sink: &mut S) -> Result<(), DecodeError> {
+        self.decode_region_to(Rect::of_size(u32::MAX, u32::MAX), sink)
+    }
+
+    /// Decodes only the pixels inside `clip` (image coordinates) into `sink`.
+    pub fn decode_region_to<S: PixelSink>(
+        &self,
+        clip: Rect,
+        sink: &mut S,
+    ) -> Result<(), DecodeError> {
+        walk_payload(
+            &self.header,
+            SliceSource::new(self.payload),
+            clip,
+            sink,
+            |_| false,
+        )
+    }
+
+    /// Decodes the image into `out` (row-major, `width * height` bytes of luma).
+    pub fn decode_into(&self, out: &mut [u8]) -> Result<(), DecodeError> {
+        crate::decode_into(self.data, out).map(|_| ())
+    }
+
+    /// The whole stream (header and payload).
+    pub fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
+    /// Entropy-decodes the whole payload without producing pixels: `Ok` when drawing will not
+    /// meet a decoding error.
+    pub fn verify(&self) -> Result<(), DecodeError> {
+        self.decode_region_to(Rect::of_size(0, 0), &mut NoPixels)
+    }
+}
+
+struct NoPixels;
+
+impl PixelSink for NoPixels {
+    fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, _pixels: &[u8]) {}
+}
+
+impl<C: FromGray> PifsImage<'_, C> {
+    /// Draws the image with its top-left corner at the target's origin, like
+    /// [`ImageDrawable::draw`], but reports decoding errors.
+    pub fn draw_checked<D>(&self, target: &mut D) -> Result<(), DrawError<D::Error>>
+    where
+        D: DrawTarget<Color = C>,
+    {
+        let all = Rectangle::new(Point::zero(), self.size());
+        draw_area(&self.header, self.source(), target, &all)
+    }
+
+    /// Draws the part `area` (image coordinates) of the image with `area`'s top-left corner at
+    /// the target's origin, like [`ImageDrawable::draw_sub_image`], but reports decoding
+    /// errors.
+    pub fn draw_sub_image_checked<D>(
+        &self,
+        target: &mut D,
+        area: &Rectangle,
+    ) -> Result<(), DrawError<D::Error>>
+    where
+        D: DrawTarget<Color = C>,
+    {
+        draw_area(&self.header, self.source(), target, area)
+    }
+
+    fn source(&self) -> SliceSource<'_> {
+        SliceSource::new(self.payload)
+    }
+}
+
+impl<C> OriginDimensions for PifsImage<'_, C> {
+    fn size(&self) -> Size {
+        Size::new(self.header.width.into(), self.header.height.into())
+    }
+}
+
+impl<C: FromGray> ImageDrawable for PifsImage<'_, C> {
+    type Color = C;
+
+    /// Draws the image; a decoding error stops the drawing silently (see the
+    /// [module documentation](self)); the target's first error is returned.
+    fn draw<D>(&self, target: &mut D) -> Result<(), D::Error>
+    where
+        D: DrawTarget<Color = C>,
+    {
+        ignore_decode_errors(self.draw_checked(target))
+    }
+
+    /// Draws the part `area` of the image at the target's origin, synthesising only the tiles
+    /// that intersect `area`; decoding errors stop the drawing silently.
+    fn draw_sub_image<D>(&self, target: &mut D, area: &Rectangle) -> Result<(), D::Error>
+    where
+        D: DrawTarget<Color = Self::Color>,
+    {
+        ignore_decode_errors(self.draw_sub_image_checked(target, area))
+    }
+}
+
+fn ignore_decode_errors<E>(r: Result<(), DrawError<E>>) -> Result<(), E> {
+    match r {
+        Err(DrawError::Target(e)) => Err(e),
+        _ => Ok(()),
+    }
+}
+
+/// Decodes a stream read sequentially from `source` (see [`crate::stream`]) straight onto
+/// `target`, with the image's top-left corner at the target's origin. Returns the header.
+///
+/// Unlike [`PifsImage`], the stream cannot be replayed, so everything is read even when only a
+/// part of the image is visible.
+pub fn draw_stream<B, D>(mut source: B, target: &mut D) -> Result<Header, DrawError<D::Error>>
+where
+    B: ByteSource,
+    D: DrawTarget,
+    D::Color: FromGray,
+{
+    let header = read_header_from(&mut source)?;
+    let size = Size::new(header.width.into(), header.height.into());
+    draw_area(
+        &header,
+        source,
+        target,
+        &Rectangle::new(Point::zero(), size),
+    )?;
+    Ok(header)
+}
+
+/// Draws `area` (image coordinates) of the image whose payload `source` holds, with `area`'s
+/// top-left corner at the target's origin.
+fn draw_area<B, D>(
+    header: &Header,
+    source: B,
+    target: &mut D,
+    area: &Rectangle,
+) -> Result<(), DrawError<D::Error>>
+where
+    B: ByteSource,
+    D: DrawTarget,
+    D::Color: FromGray,
+{
+    let offset = area.top_left;
+    let image = Rectangle::new(
+        Point::zero(),
+        Size::new(header.width.into(), header.height.into()),
+    );
+    // The target's visible area, in image coordinates.
+    let visible = target.bounding_box();
+    let visible = Rectangle::new(visible.top_left + offset, visible.size);
+    let clip = area.intersection(&image).intersection(&visible);
+    if clip.is_zero_sized() || clip.top_left.x < 0 || clip.top_left.y < 0 {
+        return Ok(());
+    }
+    let clip = Rect {
+        x: clip.top_left.x as u32,
+        y: clip.top_left.y as u32,
+        w: clip.size.width,
+        h: clip.size.height,
+    };
+    let mut sink = TargetSink {
+        target,
+        offset,
+        error: None,
+    };
+    let result = walk_payload(header, source, clip, &mut sink, |s| s.error.is_some());
+    match sink.error {
+        Some(e) => Err(DrawError::Target(e)),
+        None => result.map_err(DrawError::Decode),
+    }
+}
+
+/// Forwards decoded tiles to a draw target, translated by `-offset`; remembers the target's
+/// first error and ignores everything after it.
+struct TargetSink<'t, D: DrawTarget> {
+    target: &'t mut D,
+    offset: Point,
+    error: Option<D::Error>,
+}
+
+impl<D> PixelSink for TargetSink<'_, D>
+where
+    D: DrawTarget,
+    D::Color: FromGray,
+{
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        if self.error.is_some() {
+            return;
+        }
+        // Tile coordinates are below 2^16 (image coordinates), so they fit in i32.
+        let at = Point::new(x as i32, y as i32) - self.offset;
+        let area = Rectangle::new(at, Size::new(w, h));
+        let colors = pixels.iter().map(|&l| D::Color::from_gray(l));
+        if let Err(e) = self.target.fill_contiguous(&area, colors) {
+            self.error = Some(e);
+        }
+    }
+}

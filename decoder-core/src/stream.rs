@@ -1,0 +1,434 @@
+//! Streaming and region decoding.
+//!
+//! [`decode_stream`] decodes from any [`ByteSource`] (a UART, a radio link, an SPI flash read
+//! sequentially) without ever holding the stream in memory: the header is collected into a small
+//! fixed buffer ([`MAX_HEADER_LEN`] bytes), parsed with [`Header::parse`], and the payload is fed
+//! straight into the [`RangeDecoder`]. Each byte is pulled exactly once, in order.
+//!
+//! [`decode_region`] and [`decode_stream_region`] only synthesise the pixels inside a clip
+//! rectangle. The whole payload is still entropy-decoded (the arithmetic coder and the adaptive
+//! contexts must see every bit), but leaves outside the clip produce no pixels and cost no
+//! synthesis.
+
+use crate::bitstream::{Header, LeafSyntax, FIXED_HEADER_LEN, MAX_CODEBOOK};
+use crate::entropy::{ByteSource, Coder, RangeDecoder, SliceSource};
+use crate::error::DecodeError;
+use crate::patch::{Patch, PixelSink, Rect};
+use crate::quadtree::{self, Node, TreeVisitor};
+
+/// Longest possible header: the fixed part and two codebooks of [`MAX_CODEBOOK`] levels
+/// (`13 + 2 * (1 + 2 * 16) = 79` bytes in version 1). [`decode_stream`] never buffers more.
+pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + 2 * (1 + 2 * MAX_CODEBOOK);
+
+/// Reads exactly the header's bytes from `source` and parses them.
+///
+/// The fixed part is read first; further bytes (the optional codebooks) are pulled one at a time
+/// only while [`Header::parse`] reports the header as truncated, so the source is left at the
+/// first payload byte. Errors are those of [`Header::parse`] on the same bytes; a source that
+/// ends early gives [`DecodeError::Truncated`] (or [`DecodeError::BadMagic`], like a short slice
+/// would).
+pub fn read_header_from<B: ByteSource>(source: &mut B) -> Result<Header, DecodeError> {
+    let mut buf = [0u8; MAX_HEADER_LEN];
+    let mut len = 0;
+    while len < FIXED_HEADER_LEN {
+        match source.next_byte() {
+            Some(b) => {
+                buf[len] = b;
+                len += 1;
+            }
+            None => break,
+        }
+    }
+    loop {
+        match Header::parse(&buf[..len]) {
+            Ok((header, _)) => return Ok(header),
+            Err(DecodeError::Truncated) if (FIXED_HEADER_LEN..MAX_HEADER_LEN).contains(&len) => {
+                buf[len] = source.next_byte().ok_or(DecodeError::Truncated)?;
+                len += 1;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Decodes a stream read sequentially from `source`, handing pixels to `sink` tile by tile.
+///
+/// Produces exactly the tiles (same order, same pixels) and the result of [`crate::decode`] on
+/// the same bytes, while holding at most [`MAX_HEADER_LEN`] bytes of the stream at a time.
+pub fn decode_stream<B: ByteSource, S: PixelSink>(
+    source: B,
+    sink: &mut S,
+) -> Result<Header, DecodeError> {
+    decode_stream_region(source, Rect::of_size(u32::MAX, u32::MAX), sink)
+}
+
+/// Like [`decode_stream`], but only the pixels inside `clip` (image coordinates) are synthesised
+/// and handed to `sink`; the payload is still read and entropy-decoded to its end.
+pub fn decode_stream_region<B: ByteSource, S: PixelSink>(
+    mut source: B,
+    clip: Rect,
+    sink: &mut S,
+) -> Result<Header, DecodeError> {
+    let header = read_header_from(&mut source)?;
+    walk_payload(&header, source, clip, sink, |_| false)?;
+    Ok(header)
+}
+
+/// Decodes the stream in `data`, synthesising only the pixels inside `clip` (image
+/// coordinates): tiles are those of [`crate::decode`], cut to the clip. The whole payload is
+/// still entropy-decoded, so payload errors are reported wherever they are.
+pub fn decode_region<S: PixelSink>(
+    data: &[u8],
+    clip: Rect,
+    sink: &mut S,
+) -> Result<Header, DecodeError> {
+    let (header, offset) = Header::parse(data)?;
+    let payload = data.get(offset..).ok_or(DecodeError::Truncated)?;
+    walk_payload(&header, SliceSource::new(payload), clip, sink, |_| false)?;
+    Ok(header)
+}
+
+/// The error [`walk_payload`] returns when its `stop` predicate ended the walk.
+pub(crate) const STOPPED: DecodeError = DecodeError::InvalidData("walk stopped by the pixel sink");
+
+/// Runs the quadtree walk over the payload in `source` (positioned at the first payload byte),
+/// rendering leaves into `sink` cut to `clip` (itself cut to the image). After every leaf,
+/// `stop(sink)` may end the walk early: it then returns [`STOPPED`].
+pub(crate) fn walk_payload<B, S, F>(
+    header: &Header,
+    source: B,
+    clip: Rect,
+    sink: &mut S,
+    stop: F,
+) -> Result<(), DecodeError>
+where
+    B: ByteSource,
+    S: PixelSink,
+    F: Fn(&S) -> bool,
+{
+    let mut coder = RangeDecoder::new(source)?;
+    let mut visitor = ClipVisitor {
+        clip: intersect(
+            clip,
+            Rect::of_size(header.width.into(), header.height.into()),
+        ),
+        sink,
+        stop,
+    };
+    run_walk(header, &mut coder, &mut visitor)
+}
+
+/// The walk, its final state dropped: every decoding path goes through here. Not inlined, so
+/// that the walk's state (the adaptive contexts and the prediction memory) stays in this one
+/// frame instead of being copied into every caller's.
+#[inline(never)]
+pub(crate) fn run_walk<C: Coder, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+) -> Result<(), DecodeError> {
+    let mut state = fresh_state();
+    quadtree::walk_with(header, coder, visitor, &mut state)
+}
+
+/// The intersection of two rectangles (an empty rectangle at the origin when they are
+/// disjoint).
+pub fn intersect(a: Rect, b: Rect) -> Rect {
+    let x0 = a.x.max(b.x);
+    let y0 = a.y.max(b.y);
+    let x1 = (u64::from(a.x) + u64::from(a.w)).min(u64::from(b.x) + u64::from(b.w));
+    let y1 = (u64::from(a.y) + u64::from(a.h)).min(u64::from(b.y) + u64::from(b.h));
+    if x1 <= u64::from(x0) || y1 <= u64::from(y0) {
+        return Rect::of_size(0, 0);
+    }
+    // Both ends are at most one of the inputs' ends, which fit in u32 + u32; the sizes are at
+    // most the smaller input's size, so they fit in u32.
+    Rect {
+        x: x0,
+        y: y0,
+        w: (x1 - u64::from(x0)) as u32,
+        h: (y1 - u64::from(y0)) as u32,
+    }
+}
+
+#[inline(never)]
+fn fresh_state() -> quadtree::WalkState {
+    quadtree::WalkState::default()
+}
+
+struct ClipVisitor<'s, S, F> {
+    clip: Rect,
+    sink: &'s mut S,
+    stop: F,
+}
+
+impl<S: PixelSink, F: Fn(&S) -> bool> TreeVisitor for ClipVisitor<'_, S, F> {
+    fn split(&mut self, _node: &Node) -> bool {
+        false
+    }
+
+    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
+
+    // Not inlined: the synthesis buffers then live only while a leaf is drawn, instead of in
+    // every frame of the recursive quadtree walk.
+    #[inline(never)]
+    fn leaf(&mut self, node: &Node, _leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError> {
+        if self.clip.w > 0 && self.clip.h > 0 {
+            patch.render(node.x, node.y, node.log2, self.clip, self.sink);
+        }
+        if (self.stop)(self.sink) {
+            Err(STOPPED)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+    use std::path::PathBuf;
+    use std::string::String;
+    use std::vec::Vec;
+
+    /// Records every tile.
+    #[derive(Default, PartialEq, Debug)]
+    struct Recorder {
+        tiles: Vec<(u32, u32, u32, u32, Vec<u8>)>,
+    }
+
+    impl PixelSink for Recorder {
+        fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+            self.tiles.push((x, y, w, h, pixels.to_vec()));
+        }
+    }
+
+    /// Yields one byte per call and counts the calls made after the end.
+    struct ByteByByte<'a> {
+        data: &'a [u8],
+        pos: usize,
+        past_end: usize,
+    }
+
+    impl ByteSource for ByteByByte<'_> {
+        fn next_byte(&mut self) -> Option<u8> {
+            let b = self.data.get(self.pos).copied();
+            match b {
+                Some(_) => self.pos += 1,
+                None => self.past_end += 1,
+            }
+            b
+        }
+    }
+
+    fn golden() -> Vec<(String, Vec<u8>)> {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/golden");
+        let mut out = Vec::new();
+        if let Ok(entries) = std::fs::read_dir(&dir) {
+            for e in entries.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if name.ends_with(".pifs") {
+                    out.push((name, std::fs::read(e.path()).unwrap()));
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
+    fn header_with_codebooks() -> Vec<u8> {
+        let mut h = Vec::from(*b"PIFS");
+        h.extend_from_slice(&[crate::bitstream::VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42]);
+        for len in [3u8, 16] {
+            h.push(len);
+            for i in 0..i16::from(len) {
+                h.extend_from_slice(&(i * 100 - 700).to_le_bytes());
+            }
+        }
+        h
+    }
+
+    #[test]
+    fn header_is_read_exactly() {
+        let mut bytes = header_with_codebooks();
+        let len = bytes.len();
+        bytes.extend_from_slice(&[0xAB, 0xCD]);
+        let mut src = ByteByByte {
+            data: &bytes,
+            pos: 0,
+            past_end: 0,
+        };
+        let header = read_header_from(&mut src).unwrap();
+        assert_eq!(src.pos, len, "read past the header");
+        assert_eq!(header.encoded_len(), len);
+        assert_eq!(Header::parse(&bytes).unwrap(), (header, len));
+        assert!(len <= MAX_HEADER_LEN);
+    }
+
+    #[test]
+    fn every_truncated_header_matches_the_slice_parser() {
+        let bytes = header_with_codebooks();
+        for cut in 0..bytes.len() {
+            let mut src = ByteByByte {
+                data: &bytes[..cut],
+                pos: 0,
+                past_end: 0,
+            };
+            let streamed = read_header_from(&mut src);
+            let sliced = Header::parse(&bytes[..cut]).map(|(h, _)| h);
+            assert_eq!(streamed, sliced, "cut at {cut}");
+        }
+    }
+
+    #[test]
+    fn streamed_equals_sliced_for_every_golden_vector_and_prefix() {
+        let vectors = golden();
+        assert!(!vectors.is_empty(), "no golden vectors in tests/golden/");
+        for (name, data) in &vectors {
+            let mut sliced = Recorder::default();
+            let r_slice = crate::decode(data, &mut sliced);
+            let mut streamed = Recorder::default();
+            let src = ByteByByte {
+                data,
+                pos: 0,
+                past_end: 0,
+            };
+            let r_stream = decode_stream(src, &mut streamed);
+            assert_eq!(r_stream, r_slice, "{name}");
+            assert_eq!(streamed, sliced, "{name}: tiles differ");
+            // Truncated streams fail identically, after the same tiles.
+            for cut in (0..data.len()).step_by(1 + data.len() / 64) {
+                let mut a = Recorder::default();
+                let mut b = Recorder::default();
+                let ra = crate::decode(&data[..cut], &mut a);
+                let rb = decode_stream(SliceSource::new(&data[..cut]), &mut b);
+                assert_eq!(ra, rb, "{name} cut at {cut}");
+                assert_eq!(a, b, "{name} cut at {cut}");
+            }
+        }
+    }
+
+    #[test]
+    fn region_decoding_is_the_full_decode_cut_to_the_clip() {
+        for (name, data) in &golden() {
+            let Ok(header) = crate::read_header(data) else {
+                continue;
+            };
+            let (w, h) = (u32::from(header.width), u32::from(header.height));
+            let mut full = std::vec![0u8; (w * h) as usize];
+            if crate::decode_into(data, &mut full).is_err() {
+                continue;
+            }
+            let clips = [
+                Rect { x: 0, y: 0, w, h },
+                Rect {
+                    x: w / 3,
+                    y: h / 4,
+                    w: w / 2 + 1,
+                    h: h / 3 + 1,
+                },
+                Rect {
+                    x: w - 1,
+                    y: 0,
+                    w: 100,
+                    h: 1,
+                },
+                Rect {
+                    x: w,
+                    y: h,
+                    w: 5,
+                    h: 5,
+                },
+            ];
+            for clip in clips {
+                let mut rec = Recorder::default();
+                decode_region(data, clip, &mut rec).unwrap();
+                let inside = intersect(clip, Rect::of_size(w, h));
+                let mut seen = std::vec![0u32; (w * h) as usize];
+                for (x, y, tw, th, px) in &rec.tiles {
+                    assert!(
+                        *tw as usize <= crate::patch::TILE && *th as usize <= crate::patch::TILE
+                    );
+                    for j in 0..*th {
+                        for i in 0..*tw {
+                            let (px_x, px_y) = (x + i, y + j);
+                            assert!(
+                                px_x >= inside.x
+                                    && px_y >= inside.y
+                                    && px_x < inside.x + inside.w
+                                    && px_y < inside.y + inside.h,
+                                "{name}: pixel ({px_x}, {px_y}) outside clip {clip:?}"
+                            );
+                            let k = (px_y * w + px_x) as usize;
+                            seen[k] += 1;
+                            assert_eq!(px[(j * tw + i) as usize], full[k], "{name}");
+                        }
+                    }
+                }
+                let covered = seen.iter().filter(|&&c| c == 1).count() as u32;
+                assert_eq!(covered, inside.w * inside.h, "{name}: clip {clip:?}");
+                assert!(seen.iter().all(|&c| c <= 1), "{name}: overdraw");
+            }
+        }
+    }
+
+    #[test]
+    fn stop_predicate_ends_the_walk() {
+        for (_, data) in &golden() {
+            let Ok((header, offset)) = Header::parse(data) else {
+                continue;
+            };
+            let mut rec = Recorder::default();
+            let r = walk_payload(
+                &header,
+                SliceSource::new(&data[offset..]),
+                Rect::of_size(u32::MAX, u32::MAX),
+                &mut rec,
+                |r: &Recorder| !r.tiles.is_empty(),
+            );
+            assert_eq!(r, Err(STOPPED));
+        }
+    }
+
+    #[test]
+    fn intersection() {
+        let a = Rect {
+            x: 2,
+            y: 3,
+            w: 10,
+            h: 10,
+        };
+        assert_eq!(
+            intersect(
+                a,
+                Rect {
+                    x: 5,
+                    y: 0,
+                    w: 100,
+                    h: 5
+                }
+            ),
+            Rect {
+                x: 5,
+                y: 3,
+                w: 7,
+                h: 2
+            }
+        );
+        assert_eq!(intersect(a, Rect::of_size(2, 100)), Rect::of_size(0, 0));
+        assert_eq!(
+            intersect(
+                Rect {
+                    x: u32::MAX,
+                    y: u32::MAX,
+                    w: u32::MAX,
+                    h: u32::MAX
+                },
+                a
+            ),
+            Rect::of_size(0, 0)
+        );
+    }
+}

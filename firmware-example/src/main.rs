@@ -1,0 +1,175 @@
+//! Example firmware for PIFS on Cortex-M, run under QEMU (`lm3s6965evb`, Cortex-M3, with
+//! `thumbv7m-none-eabi`; `microbit`, Cortex-M0, with `thumbv6m-none-eabi`).
+//!
+//! Default build: decodes every golden vector of `tests/golden/` (embedded with
+//! `include_bytes!`, listed by `build.rs`) through embedded-graphics and prints, on semihosting
+//! **stderr**, one machine-readable line per image:
+//!
+//! ```text
+//! PIFS name=<file> w=<width> h=<height> sha256=<hex> tiles=<hex> stack=<bytes> instr=<count>
+//! ```
+//!
+//! - `sha256`: SHA-256 of the decoded pixels in row-major order (what `golden.txt` records),
+//!   computed without a frame buffer: the image is drawn one row at a time as a sub-image
+//!   (`draw_sub_image` with a `width x 1` area, a row buffer only);
+//! - `tiles`: SHA-256 of the tiles in the order they reach the display, hashed as they arrive in
+//!   `fill_contiguous` during one `Image::draw`: per tile `x, y, w, h` (u32, little-endian) then
+//!   its `w * h` luma bytes;
+//! - `stack`, `instr`: peak stack (bytes, by painting) and instructions (SysTick under
+//!   `-icount shift=0`) of one full decode drawn onto a display that only sums the pixels.
+//!
+//! The smallest image is also drawn into a real frame buffer (`PIFS-FB name=<file>
+//! sha256=<hex>`, row-major like `sha256`), and every image is also decoded from a byte-at-a-time
+//! stream source (`draw_stream`), which must give the same tiles. The human-readable log goes
+//! through `defmt` (semihosting stdout; decode it with `defmt-print -e <elf>`). QEMU exits with
+//! status 0 when everything decoded, 1 otherwise.
+//!
+//! With the `bench` feature (see `bench/embedded.sh`) it embeds the streams listed in
+//! `PIFS_BENCH_STREAMS` (a path list, `:`-separated), decodes each once with
+//! `decoder_core::decode` into a sink that sums the pixels, and prints
+//! `PIFS-BENCH name=… w=… h=… bytes=… stack=… instr=… checksum=… ok=…` per stream;
+//! `baseline` builds the same firmware without the decoder call (for the flash and RAM
+//! deltas).
+#![no_std]
+#![no_main]
+
+use cortex_m as _; // The critical-section implementation.
+use defmt_semihosting as _; // The defmt global logger.
+
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, heprintln};
+
+mod measure;
+#[cfg(not(feature = "bench"))]
+mod targets;
+
+/// An embedded stream.
+pub struct Vector {
+    /// File name.
+    pub name: &'static str,
+    /// Width recorded in `golden.txt` (or read from the bench stream's header).
+    pub width: u16,
+    /// Height, likewise.
+    pub height: u16,
+    /// The stream.
+    pub data: &'static [u8],
+}
+
+include!(concat!(env!("OUT_DIR"), "/vectors.rs"));
+
+#[entry]
+fn main() -> ! {
+    let core = cortex_m::Peripherals::take().unwrap();
+    let counter = measure::Counter::start(core.SYST);
+    let milli = counter.milli_instr_per_tick();
+    heprintln!(
+        "PIFS-CALIB instr_per_tick={}.{:03} free_stack={}",
+        milli / 1000,
+        milli % 1000,
+        measure::free_stack()
+    );
+    let ok = run(&counter);
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    #[allow(clippy::empty_loop)]
+    loop {}
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    match info.location() {
+        Some(l) => heprintln!("PIFS-PANIC at {}:{}", l.file(), l.line()),
+        None => heprintln!("PIFS-PANIC"),
+    }
+    debug::exit(debug::EXIT_FAILURE);
+    #[allow(clippy::empty_loop)]
+    loop {}
+}
+
+/// Lower-case hexadecimal of a 32-byte digest.
+pub struct Hex(pub [u8; 32]);
+
+impl core::fmt::Display for Hex {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for b in self.0 {
+            write!(f, "{b:02x}")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(not(feature = "bench"))]
+fn run(counter: &measure::Counter) -> bool {
+    defmt::info!(
+        "PIFS example firmware: {=usize} golden vectors",
+        VECTORS.len()
+    );
+    let mut ok = true;
+    for v in VECTORS {
+        ok &= targets::check_vector(v, counter);
+    }
+    if ok {
+        defmt::info!("all vectors decoded");
+    } else {
+        defmt::error!("some vectors failed");
+    }
+    ok
+}
+
+#[cfg(feature = "bench")]
+fn run(counter: &measure::Counter) -> bool {
+    use core::hint::black_box;
+
+    /// Sums the pixels, so that the decode cannot be optimised away.
+    struct Sum(u32);
+
+    impl decoder_core::PixelSink for Sum {
+        fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, pixels: &[u8]) {
+            for &p in pixels {
+                self.0 = self.0.wrapping_add(u32::from(p));
+            }
+        }
+    }
+
+    /// The measured call, not inlined so that all its stack is below the caller's.
+    #[inline(never)]
+    fn decode_once(data: &'static [u8], sum: &mut Sum) -> bool {
+        #[cfg(not(feature = "baseline"))]
+        let ok = decoder_core::decode(black_box(data), sum).is_ok();
+        #[cfg(feature = "baseline")]
+        let ok = {
+            use decoder_core::PixelSink;
+            sum.tile(0, 0, 0, 0, black_box(data));
+            true
+        };
+        ok
+    }
+
+    let mut all_ok = true;
+    for v in VECTORS {
+        defmt::info!("bench: {=str}, {=usize} bytes", v.name, v.data.len());
+        let mut sum = Sum(0);
+        measure::paint();
+        let base = measure::sp();
+        let t0 = measure::ticks();
+        let ok = decode_once(v.data, &mut sum);
+        let t1 = measure::ticks();
+        let stack = measure::peak(base);
+        heprintln!(
+            "PIFS-BENCH name={} w={} h={} bytes={} stack={} instr={} checksum={} ok={}",
+            v.name,
+            v.width,
+            v.height,
+            v.data.len(),
+            stack,
+            counter.instructions(t1 - t0),
+            sum.0,
+            ok
+        );
+        all_ok &= ok;
+    }
+    all_ok
+}

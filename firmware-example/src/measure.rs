@@ -1,0 +1,159 @@
+//! Measurements on the emulated MCU: peak stack by painting, instructions by SysTick.
+//!
+//! QEMU does not model cycles. Run with `-icount shift=0`, virtual time advances exactly one
+//! nanosecond per executed instruction, so SysTick (clocked by the core clock) counts
+//! instructions in fixed units: [`Counter::calibrate`] measures how many instructions one tick
+//! is (a loop of a known instruction count), and [`Counter::instructions`] converts. The 24-bit
+//! counter runs with reload `0xFF_FFFF`; its wraps are counted in the SysTick exception.
+
+use core::arch::asm;
+use core::ptr::{addr_of, read_volatile, write_volatile};
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m::peripheral::SYST;
+use cortex_m_rt::exception;
+
+/// SysTick reload value: the full 24-bit range.
+const RELOAD: u32 = 0x00FF_FFFF;
+
+/// Number of SysTick wraps so far.
+static WRAPS: AtomicU32 = AtomicU32::new(0);
+
+#[exception]
+fn SysTick() {
+    // Load and store: Cortex-M0 has no atomic read-modify-write, and nothing else writes it.
+    WRAPS.store(
+        WRAPS.load(Ordering::Relaxed).wrapping_add(1),
+        Ordering::Relaxed,
+    );
+}
+
+/// SysTick ticks since [`Counter::start`].
+pub fn ticks() -> u64 {
+    loop {
+        let wraps = WRAPS.load(Ordering::Relaxed);
+        let current = SYST::get_current();
+        if WRAPS.load(Ordering::Relaxed) == wraps {
+            return (u64::from(wraps) << 24) | u64::from(RELOAD - current);
+        }
+    }
+}
+
+/// Runs exactly `2 * n` instructions (`subs` + `bne` per iteration), `n >= 1`.
+#[inline(never)]
+fn spin(n: u32) {
+    // SAFETY: a register-only countdown loop.
+    unsafe {
+        asm!(
+            "2:",
+            "subs {n}, #1",
+            "bne 2b",
+            n = inout(reg) n => _,
+            // Not `nomem`: the asm must stay a compiler barrier between the timer reads.
+            options(nostack),
+        );
+    }
+}
+
+/// Converts SysTick ticks into instruction counts.
+pub struct Counter {
+    /// Instructions of the calibration loop.
+    instr: u64,
+    /// Ticks of the calibration loop.
+    ticks: u64,
+}
+
+impl Counter {
+    /// Starts SysTick (core clock, full reload, wrap interrupt) and calibrates it.
+    pub fn start(mut syst: SYST) -> Counter {
+        syst.set_clock_source(SystClkSource::External);
+        syst.set_reload(RELOAD);
+        syst.clear_current();
+        syst.enable_interrupt();
+        syst.enable_counter();
+        // The counter starts at 0 and loads the reload value on its first tick: let it.
+        while SYST::get_current() == 0 {}
+        Counter::calibrate()
+    }
+
+    /// Times two countdown loops; their difference is exactly `2 * (N2 - N1)` instructions.
+    fn calibrate() -> Counter {
+        const N1: u32 = 1 << 18;
+        const N2: u32 = 1 << 21;
+        let t0 = ticks();
+        spin(N1);
+        let t1 = ticks();
+        spin(N2);
+        let t2 = ticks();
+        let short = t1 - t0;
+        let long = t2 - t1;
+        Counter {
+            instr: 2 * u64::from(N2 - N1),
+            ticks: long.saturating_sub(short),
+        }
+    }
+
+    /// Instructions per tick, times 1000 (0 when SysTick does not run).
+    pub fn milli_instr_per_tick(&self) -> u64 {
+        (self.instr * 1000).checked_div(self.ticks).unwrap_or(0)
+    }
+
+    /// Instructions executed in `ticks` SysTick ticks (rounded; one tick of resolution).
+    pub fn instructions(&self, ticks: u64) -> u64 {
+        (ticks * self.instr + self.ticks / 2)
+            .checked_div(self.ticks)
+            .unwrap_or(0)
+    }
+}
+
+extern "C" {
+    /// Start of the heap = end of `.bss`/`.uninit` (cortex-m-rt's linker script): the lowest
+    /// address the stack can grow to.
+    static __sheap: u32;
+}
+
+/// The paint pattern.
+const PAINT: u32 = 0xC0DE_5AFE;
+
+/// The current stack pointer.
+#[inline(always)]
+pub fn sp() -> usize {
+    let sp: usize;
+    // SAFETY: reads a register.
+    unsafe { asm!("mov {}, sp", out(reg) sp, options(nomem, nostack, preserves_flags)) };
+    sp
+}
+
+fn stack_floor() -> usize {
+    (addr_of!(__sheap) as usize + 3) & !3
+}
+
+/// Paints the free stack (from the end of static RAM up to just below this function's frame)
+/// with [`PAINT`]. Call it from the frame that then calls the code to measure.
+#[inline(never)]
+pub fn paint() {
+    let top = (sp() - 16) & !3;
+    let mut p = stack_floor();
+    while p < top {
+        // SAFETY: `[floor, top)` is free stack below the live frames; nothing else uses it.
+        unsafe { write_volatile(p as *mut u32, PAINT) };
+        p += 4;
+    }
+}
+
+/// Peak stack used below `base` (a stack pointer read before the measured call) since the last
+/// [`paint`]: `base` minus the lowest address whose paint was overwritten.
+pub fn peak(base: usize) -> usize {
+    let mut p = stack_floor();
+    // SAFETY: reads free stack memory painted by `paint`.
+    while p < base && unsafe { read_volatile(p as *const u32) } == PAINT {
+        p += 4;
+    }
+    base.saturating_sub(p)
+}
+
+/// Bytes of free stack (end of static RAM to `sp`).
+pub fn free_stack() -> usize {
+    sp().saturating_sub(stack_floor())
+}

@@ -1,0 +1,360 @@
+//! The draw targets of the golden-vector run, and the run itself.
+
+use core::convert::Infallible;
+
+use cortex_m_semihosting::heprintln;
+use decoder_core::entropy::ByteSource;
+use decoder_core::graphics::{draw_stream, DrawError, PifsImage};
+use embedded_graphics::image::{Image, ImageDrawableExt};
+use embedded_graphics::pixelcolor::{Gray8, GrayColor};
+use embedded_graphics::prelude::*;
+use embedded_graphics::primitives::Rectangle;
+use sha2::{Digest, Sha256};
+
+use crate::{measure, Hex, Vector, FRAME_BUFFER_LEN, FRAME_BUFFER_VECTOR, MAX_WIDTH};
+
+/// A display that only sums what it receives: the cheapest target, for measuring the decoder.
+struct SumDisplay {
+    size: Size,
+    sum: u32,
+}
+
+impl OriginDimensions for SumDisplay {
+    fn size(&self) -> Size {
+        self.size
+    }
+}
+
+impl DrawTarget for SumDisplay {
+    type Color = Gray8;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Infallible> {
+        for Pixel(_, c) in pixels {
+            self.sum = self.sum.wrapping_add(u32::from(c.luma()));
+        }
+        Ok(())
+    }
+
+    fn fill_contiguous<I: IntoIterator<Item = Gray8>>(
+        &mut self,
+        _area: &Rectangle,
+        colors: I,
+    ) -> Result<(), Infallible> {
+        for c in colors {
+            self.sum = self.sum.wrapping_add(u32::from(c.luma()));
+        }
+        Ok(())
+    }
+}
+
+/// Hashes tiles as they arrive: per tile `x, y, w, h` (u32 LE) then the luma bytes. Records
+/// any pixel that arrives through `draw_iter` (the decoder must use `fill_contiguous` only).
+struct TileHasher {
+    size: Size,
+    sha: Sha256,
+    tiles: u32,
+    per_pixel: u32,
+}
+
+impl TileHasher {
+    fn new(size: Size) -> Self {
+        TileHasher {
+            size,
+            sha: Sha256::new(),
+            tiles: 0,
+            per_pixel: 0,
+        }
+    }
+}
+
+impl OriginDimensions for TileHasher {
+    fn size(&self) -> Size {
+        self.size
+    }
+}
+
+impl DrawTarget for TileHasher {
+    type Color = Gray8;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Infallible> {
+        self.per_pixel += pixels.into_iter().count() as u32;
+        Ok(())
+    }
+
+    fn fill_contiguous<I: IntoIterator<Item = Gray8>>(
+        &mut self,
+        area: &Rectangle,
+        colors: I,
+    ) -> Result<(), Infallible> {
+        let mut buf = [0u8; 256];
+        let mut n = 0;
+        for c in colors {
+            if n < buf.len() {
+                buf[n] = c.luma();
+            }
+            n += 1;
+        }
+        for v in [
+            area.top_left.x as u32,
+            area.top_left.y as u32,
+            area.size.width,
+            area.size.height,
+        ] {
+            self.sha.update(v.to_le_bytes());
+        }
+        self.sha.update(&buf[..n.min(buf.len())]);
+        self.tiles += 1;
+        Ok(())
+    }
+}
+
+/// A one-row display: the row buffer of the row-by-row (row-major) hash.
+struct RowDisplay {
+    width: u32,
+    row: [u8; MAX_WIDTH],
+}
+
+impl OriginDimensions for RowDisplay {
+    fn size(&self) -> Size {
+        Size::new(self.width, 1)
+    }
+}
+
+impl DrawTarget for RowDisplay {
+    type Color = Gray8;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Infallible> {
+        for Pixel(p, c) in pixels {
+            if p.y == 0 && p.x >= 0 && (p.x as u32) < self.width {
+                self.row[p.x as usize] = c.luma();
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A Gray8 frame buffer of `size` pixels, row-major.
+struct FrameBuffer<'b> {
+    size: Size,
+    pixels: &'b mut [u8],
+}
+
+impl OriginDimensions for FrameBuffer<'_> {
+    fn size(&self) -> Size {
+        self.size
+    }
+}
+
+impl DrawTarget for FrameBuffer<'_> {
+    type Color = Gray8;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Infallible> {
+        let (w, h) = (self.size.width as i32, self.size.height as i32);
+        for Pixel(p, c) in pixels {
+            if p.x >= 0 && p.y >= 0 && p.x < w && p.y < h {
+                self.pixels[(p.y * w + p.x) as usize] = c.luma();
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A byte source that hands out one byte per call, standing in for a UART.
+struct Uart {
+    data: &'static [u8],
+    pos: usize,
+}
+
+impl ByteSource for Uart {
+    fn next_byte(&mut self) -> Option<u8> {
+        let b = self.data.get(self.pos).copied();
+        if b.is_some() {
+            self.pos += 1;
+        }
+        b
+    }
+}
+
+/// Decodes one vector every way; prints its `PIFS` line; `false` on any failure.
+///
+/// Every pass is its own function (not inlined), so that only one decoder state and one
+/// display are on the stack at a time: the micro:bit has 16 KiB of RAM.
+pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
+    let img: PifsImage<'static, Gray8> = match PifsImage::new(v.data) {
+        Ok(img) => img,
+        Err(e) => {
+            heprintln!("PIFS-ERROR name={} header: {}", v.name, e);
+            return false;
+        }
+    };
+    let size = img.size();
+    if size != Size::new(v.width.into(), v.height.into()) {
+        heprintln!(
+            "PIFS-ERROR name={} size {}x{} differs from golden.txt",
+            v.name,
+            size.width,
+            size.height
+        );
+        return false;
+    }
+    let (stack, instr) = match measured_decode(&img, counter) {
+        Ok(m) => m,
+        Err(e) => {
+            heprintln!("PIFS-ERROR name={} decode: {}", v.name, e);
+            return false;
+        }
+    };
+    let (tile_hash, tiles, per_pixel) = tile_hash(&img);
+    if per_pixel != 0 {
+        heprintln!(
+            "PIFS-ERROR name={} {} pixels drawn one by one",
+            v.name,
+            per_pixel
+        );
+        return false;
+    }
+    match stream_tile_hash(v.data, size) {
+        Ok(h) if h == tile_hash => {}
+        Ok(_) => {
+            heprintln!("PIFS-ERROR name={} streamed tiles differ", v.name);
+            return false;
+        }
+        Err(e) => {
+            heprintln!("PIFS-ERROR name={} stream: {}", v.name, e);
+            return false;
+        }
+    }
+    let pixel_hash = row_hash(&img);
+
+    defmt::info!(
+        "{=str}: {=u32}x{=u32}, {=usize} bytes, {=u32} tiles, {=u64} instructions, {=usize} bytes of stack",
+        v.name,
+        size.width,
+        size.height,
+        v.data.len(),
+        tiles,
+        instr,
+        stack
+    );
+    heprintln!(
+        "PIFS name={} w={} h={} sha256={} tiles={} stack={} instr={}",
+        v.name,
+        size.width,
+        size.height,
+        Hex(pixel_hash),
+        Hex(tile_hash),
+        stack,
+        instr
+    );
+    if v.name == FRAME_BUFFER_VECTOR {
+        frame_buffer(v, &img);
+    }
+    true
+}
+
+/// One full decode onto [`SumDisplay`], with peak stack and instructions.
+#[inline(never)]
+fn measured_decode(
+    img: &PifsImage<'static, Gray8>,
+    counter: &measure::Counter,
+) -> Result<(usize, u64), decoder_core::DecodeError> {
+    let mut display = SumDisplay {
+        size: img.size(),
+        sum: 0,
+    };
+    measure::paint();
+    let base = measure::sp();
+    let t0 = measure::ticks();
+    let result = draw_once(img, &mut display);
+    let t1 = measure::ticks();
+    let stack = measure::peak(base);
+    match result {
+        Ok(()) => Ok((stack, counter.instructions(t1 - t0))),
+        Err(DrawError::Decode(e)) => Err(e),
+        Err(DrawError::Target(never)) => match never {},
+    }
+}
+
+/// The measured call: not inlined, so that all of the decoder's stack is below the caller's
+/// stack pointer.
+#[inline(never)]
+fn draw_once(
+    img: &PifsImage<'static, Gray8>,
+    display: &mut SumDisplay,
+) -> Result<(), DrawError<Infallible>> {
+    img.draw_checked(display)
+}
+
+/// Tiles hashed as they arrive, through the embedded-graphics `Image` API: the hash, the
+/// number of tiles, the number of pixels that arrived one by one.
+#[inline(never)]
+fn tile_hash(img: &PifsImage<'static, Gray8>) -> ([u8; 32], u32, u32) {
+    let mut tiles = TileHasher::new(img.size());
+    let Ok(()) = Image::new(img, Point::zero()).draw(&mut tiles);
+    (tiles.sha.finalize().into(), tiles.tiles, tiles.per_pixel)
+}
+
+/// The tile hash of a decode from a byte-at-a-time stream.
+#[inline(never)]
+fn stream_tile_hash(
+    data: &'static [u8],
+    size: Size,
+) -> Result<[u8; 32], decoder_core::DecodeError> {
+    let mut streamed = TileHasher::new(size);
+    match draw_stream(Uart { data, pos: 0 }, &mut streamed) {
+        Ok(_) => Ok(streamed.sha.finalize().into()),
+        Err(DrawError::Decode(e)) => Err(e),
+        Err(DrawError::Target(never)) => match never {},
+    }
+}
+
+/// Row-major hash without a frame buffer: one sub-image (`draw_sub_image`) per row.
+#[inline(never)]
+fn row_hash(img: &PifsImage<'static, Gray8>) -> [u8; 32] {
+    let size = img.size();
+    let mut row = RowDisplay {
+        width: size.width,
+        row: [0; MAX_WIDTH],
+    };
+    let mut sha = Sha256::new();
+    for y in 0..size.height {
+        let area = Rectangle::new(Point::new(0, y as i32), Size::new(size.width, 1));
+        let Ok(()) = Image::new(&img.sub_image(&area), Point::zero()).draw(&mut row);
+        sha.update(&row.row[..size.width as usize]);
+    }
+    sha.finalize().into()
+}
+
+/// The smallest image, drawn into a real frame buffer.
+#[inline(never)]
+fn frame_buffer(v: &Vector, img: &PifsImage<'static, Gray8>) {
+    let mut pixels = [0u8; FRAME_BUFFER_LEN];
+    let size = img.size();
+    let n = ((size.width * size.height) as usize).min(FRAME_BUFFER_LEN);
+    let mut fb = FrameBuffer {
+        size,
+        pixels: &mut pixels[..n],
+    };
+    let Ok(()) = Image::new(img, Point::zero()).draw(&mut fb);
+    heprintln!(
+        "PIFS-FB name={} sha256={}",
+        v.name,
+        Hex(Sha256::digest(&pixels[..n]).into())
+    );
+}

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Runs every test of the project, the QEMU (Cortex-M3 and Cortex-M0) firmware tests included,
+# installing first what a fresh machine lacks: the Cortex-M Rust targets and qemu-system-arm.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# rust-toolchain.toml pins the toolchain, but its targets are not installed automatically here.
+rustup target add thumbv7m-none-eabi thumbv6m-none-eabi
+if ! command -v qemu-system-arm >/dev/null 2>&1; then
+    sudo_if_needed() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
+    sudo_if_needed apt-get update
+    sudo_if_needed apt-get install -y --no-install-recommends qemu-system-arm
+fi
+
+# Host tests, integration tests and the firmware under QEMU (tests/tests/qemu.rs).
+cargo test --workspace
+# decoder-core must stay no_std: build it for a Cortex-M0 target.
+cargo build -p decoder-core --release --target thumbv6m-none-eabi

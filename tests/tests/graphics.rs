@@ -1,0 +1,477 @@
+//! embedded-graphics support of decoder-core (`decoder_core::graphics`, feature
+//! `embedded-graphics`), checked on the host against `decode_into`:
+//!
+//! - `Image::new(&PifsImage, position).draw(..)` onto `MockDisplay` (at most 64x64, so the small
+//!   golden vectors) draws exactly the decoded pixels, each once (MockDisplay rejects overdraw
+//!   and drawing outside the display), also when the image is partly off-screen;
+//! - `draw_sub_image` draws exactly the area, translated to the target's origin, and only
+//!   synthesises tiles that intersect it;
+//! - pixels arrive through `fill_contiguous` in tiles of at most 16x16, never through
+//!   `draw_iter`;
+//! - colour conversion to Gray8, Rgb565, Rgb888, BinaryColor (luma >= 128 is On);
+//! - damaged streams never panic, `draw_checked` reports them, target errors stop the drawing;
+//! - `draw_stream` from a byte-at-a-time source draws what the in-memory image draws.
+//!
+//! Expected values are derived from the golden streams at test time.
+
+mod common;
+
+use common::{decode_all, golden_dir, golden_list};
+use decoder_core::entropy::ByteSource;
+use decoder_core::graphics::{draw_stream, DrawError, FromGray, PifsImage};
+use decoder_core::patch::TILE;
+use decoder_core::DecodeError;
+use embedded_graphics::image::{Image, ImageDrawable, ImageDrawableExt};
+use embedded_graphics::mock_display::MockDisplay;
+use embedded_graphics::pixelcolor::{BinaryColor, Gray8, Rgb565, Rgb888, RgbColor};
+use embedded_graphics::prelude::*;
+use embedded_graphics::primitives::Rectangle;
+
+/// A golden vector: name, stream, decoded pixels (row-major), width, height.
+struct Decoded {
+    name: String,
+    stream: Vec<u8>,
+    pixels: Vec<u8>,
+    width: u32,
+    height: u32,
+}
+
+impl Decoded {
+    fn luma(&self, x: i32, y: i32) -> Option<u8> {
+        (x >= 0 && y >= 0 && (x as u32) < self.width && (y as u32) < self.height)
+            .then(|| self.pixels[y as usize * self.width as usize + x as usize])
+    }
+
+    fn image<C>(&self) -> PifsImage<'_, C> {
+        PifsImage::new(&self.stream).unwrap_or_else(|e| panic!("{}: {e}", self.name))
+    }
+}
+
+/// Every golden vector, decoded with `decode_into`.
+fn golden() -> Vec<Decoded> {
+    let list = golden_list();
+    assert!(!list.is_empty(), "no golden vectors");
+    list.into_iter()
+        .map(|g| {
+            let stream = std::fs::read(golden_dir().join(&g.file)).unwrap();
+            let (header, pixels) =
+                decode_all(&stream).unwrap_or_else(|e| panic!("{}: {e}", g.file));
+            Decoded {
+                name: g.file,
+                stream,
+                pixels,
+                width: header.width.into(),
+                height: header.height.into(),
+            }
+        })
+        .collect()
+}
+
+/// The golden vectors that fit a MockDisplay (64x64).
+fn small() -> Vec<Decoded> {
+    let v: Vec<Decoded> = golden()
+        .into_iter()
+        .filter(|d| d.width <= 64 && d.height <= 64)
+        .collect();
+    assert!(
+        v.len() >= 2,
+        "fewer than two golden vectors of at most 64x64"
+    );
+    v
+}
+
+/// What a 64x64 display shows when `d` is drawn with the top-left of `area` (image
+/// coordinates) at `at`, in colour `C`.
+fn expected<C: FromGray>(d: &Decoded, area: Rectangle, at: Point) -> MockDisplay<C> {
+    let mut display = MockDisplay::new();
+    for y in 0..64 {
+        for x in 0..64 {
+            let p = Point::new(x, y) - at + area.top_left;
+            if area.contains(p) {
+                if let Some(l) = d.luma(p.x, p.y) {
+                    display.set_pixel(Point::new(x, y), Some(C::from_gray(l)));
+                }
+            }
+        }
+    }
+    display
+}
+
+fn whole(d: &Decoded) -> Rectangle {
+    Rectangle::new(Point::zero(), Size::new(d.width, d.height))
+}
+
+#[test]
+fn image_draws_the_decoded_pixels_once_each() {
+    for d in small() {
+        let img = d.image::<Gray8>();
+        assert_eq!(img.size(), Size::new(d.width, d.height), "{}", d.name);
+        let mut display = MockDisplay::<Gray8>::new();
+        Image::new(&img, Point::zero()).draw(&mut display).unwrap();
+        display.assert_eq(&expected(&d, whole(&d), Point::zero()));
+    }
+}
+
+#[test]
+fn image_at_an_offset_and_partly_off_screen_is_clipped_to_the_display() {
+    for d in small() {
+        let img = d.image::<Gray8>();
+        let (w, h) = (d.width as i32, d.height as i32);
+        for at in [
+            Point::new(3, 5),
+            Point::new(-7, -3),
+            Point::new(64 - w / 2, 64 - h / 2),
+            Point::new(-w / 2, 60),
+            Point::new(64 - 1, -h + 1),
+        ] {
+            // MockDisplay panics on pixels outside 64x64: nothing off-screen may be drawn.
+            let mut display = MockDisplay::<Gray8>::new();
+            Image::new(&img, at).draw(&mut display).unwrap();
+            display.assert_eq(&expected(&d, whole(&d), at));
+        }
+    }
+}
+
+#[test]
+fn sub_images_draw_exactly_their_area_at_the_origin() {
+    for d in small() {
+        let img = d.image::<Gray8>();
+        let (w, h) = (d.width as i32, d.height as i32);
+        let areas = [
+            Rectangle::new(Point::new(0, 0), Size::new(d.width, d.height)),
+            Rectangle::new(
+                Point::new(w / 3, h / 4),
+                Size::new(d.width / 2, d.height / 2),
+            ),
+            Rectangle::new(Point::new(1, 1), Size::new(1, 1)),
+            Rectangle::new(Point::new(w - 4, h - 3), Size::new(10, 10)),
+            Rectangle::new(Point::new(-3, -2), Size::new(8, 9)),
+            Rectangle::new(Point::new(0, h - 1), Size::new(d.width, 1)),
+        ];
+        for area in areas {
+            for at in [Point::zero(), Point::new(5, 2), Point::new(-2, -1)] {
+                // `sub_image` first cuts the area to the image.
+                let mut display = MockDisplay::<Gray8>::new();
+                Image::new(&img.sub_image(&area), at)
+                    .draw(&mut display)
+                    .unwrap();
+                display.assert_eq(&expected(&d, whole(&d).intersection(&area), at));
+                // `draw_sub_image` itself takes any area: its top-left is the target's origin.
+                let mut display = MockDisplay::<Gray8>::new();
+                img.draw_sub_image(&mut display.translated(at), &area)
+                    .unwrap();
+                display.assert_eq(&expected(&d, area, at));
+            }
+        }
+    }
+}
+
+#[test]
+fn colour_types_follow_the_conversion_rules() {
+    assert_eq!(BinaryColor::from_gray(127), BinaryColor::Off);
+    assert_eq!(BinaryColor::from_gray(128), BinaryColor::On);
+    assert_eq!(Rgb888::from_gray(77), Rgb888::new(77, 77, 77));
+    assert_eq!(Rgb565::from_gray(0), Rgb565::BLACK);
+    assert_eq!(Rgb565::from_gray(255), Rgb565::WHITE);
+    assert_eq!(Rgb565::from_gray(130), Rgb565::from(Gray8::new(130)));
+    for d in small() {
+        let at = Point::new(-1, 2);
+        let mut display = MockDisplay::<BinaryColor>::new();
+        Image::new(&d.image::<BinaryColor>(), at)
+            .draw(&mut display)
+            .unwrap();
+        display.assert_eq(&expected(&d, whole(&d), at));
+
+        let mut display = MockDisplay::<Rgb565>::new();
+        Image::new(&d.image::<Rgb565>(), at)
+            .draw(&mut display)
+            .unwrap();
+        display.assert_eq(&expected(&d, whole(&d), at));
+
+        let mut display = MockDisplay::<Rgb888>::new();
+        Image::new(&d.image::<Rgb888>(), at)
+            .draw(&mut display)
+            .unwrap();
+        display.assert_eq(&expected(&d, whole(&d), at));
+        for y in 0..64 {
+            for x in 0..64 {
+                if let (Some(c), Some(l)) = (
+                    display.get_pixel(Point::new(x, y)),
+                    d.luma(x - at.x, y - at.y),
+                ) {
+                    assert_eq!(c, Rgb888::new(l, l, l), "{}", d.name);
+                }
+            }
+        }
+    }
+}
+
+/// A large display that records every `fill_contiguous` call and every pixel, counts pixels
+/// sent through `draw_iter`, and can be told to fail after a number of calls.
+struct Recorder {
+    size: Size,
+    fills: Vec<Rectangle>,
+    pixels: Vec<Option<u8>>,
+    per_pixel: usize,
+    fail_after: Option<usize>,
+}
+
+#[derive(Debug, PartialEq, Eq)]
+struct Broken;
+
+impl Recorder {
+    fn new(width: u32, height: u32) -> Self {
+        Recorder {
+            size: Size::new(width, height),
+            fills: Vec::new(),
+            pixels: vec![None; (width * height) as usize],
+            per_pixel: 0,
+            fail_after: None,
+        }
+    }
+}
+
+impl OriginDimensions for Recorder {
+    fn size(&self) -> Size {
+        self.size
+    }
+}
+
+impl DrawTarget for Recorder {
+    type Color = Gray8;
+    type Error = Broken;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(&mut self, pixels: I) -> Result<(), Broken> {
+        self.per_pixel += pixels.into_iter().count();
+        Ok(())
+    }
+
+    fn fill_contiguous<I: IntoIterator<Item = Gray8>>(
+        &mut self,
+        area: &Rectangle,
+        colors: I,
+    ) -> Result<(), Broken> {
+        if self.fail_after == Some(self.fills.len()) {
+            return Err(Broken);
+        }
+        self.fills.push(*area);
+        let colors: Vec<Gray8> = colors.into_iter().collect();
+        assert_eq!(colors.len() as u32, area.size.width * area.size.height);
+        for (p, c) in area.points().zip(colors) {
+            assert!(
+                self.bounding_box().contains(p),
+                "pixel {p:?} outside the target"
+            );
+            let i = (p.y as u32 * self.size.width + p.x as u32) as usize;
+            assert!(self.pixels[i].is_none(), "pixel {p:?} drawn twice");
+            self.pixels[i] = Some(c.into_storage());
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn pixels_arrive_as_tiles_through_fill_contiguous_only() {
+    for d in golden() {
+        let img = d.image::<Gray8>();
+        let mut target = Recorder::new(d.width, d.height);
+        Image::new(&img, Point::zero()).draw(&mut target).unwrap();
+        assert_eq!(target.per_pixel, 0, "{}: pixels drawn one by one", d.name);
+        for a in &target.fills {
+            assert!(
+                a.size.width as usize <= TILE && a.size.height as usize <= TILE,
+                "{}: tile {a:?}",
+                d.name
+            );
+        }
+        let drawn: Vec<u8> = target
+            .pixels
+            .iter()
+            .map(|p| p.unwrap_or_else(|| panic!("{}: pixel not drawn", d.name)))
+            .collect();
+        assert!(
+            drawn == d.pixels,
+            "{}: pixels differ from decode_into",
+            d.name
+        );
+    }
+}
+
+#[test]
+fn sub_image_and_off_screen_parts_synthesise_only_visible_tiles() {
+    for d in golden() {
+        let img = d.image::<Gray8>();
+        let full_tiles = {
+            let mut t = Recorder::new(d.width, d.height);
+            img.draw(&mut t).unwrap();
+            t.fills.len()
+        };
+        // A small area: only the tiles that intersect it arrive, cut to it.
+        let area = Rectangle::new(
+            Point::new(d.width as i32 / 2, d.height as i32 / 2),
+            Size::new(d.width.div_ceil(4), d.height.div_ceil(4)),
+        );
+        let mut t = Recorder::new(area.size.width, area.size.height);
+        img.draw_sub_image(&mut t, &area).unwrap();
+        assert!(t.pixels.iter().all(Option::is_some), "{}", d.name);
+        assert_eq!(t.per_pixel, 0);
+        for (p, v) in t.bounding_box().points().zip(&t.pixels) {
+            let q = p + area.top_left;
+            assert_eq!(*v, d.luma(q.x, q.y), "{}", d.name);
+        }
+        if d.width * d.height >= 64 * 64 {
+            assert!(t.fills.len() < full_tiles, "{}", d.name);
+        }
+        // A display smaller than the image: nothing outside it is sent.
+        let mut t = Recorder::new(d.width.div_ceil(2), d.height.div_ceil(3));
+        Image::new(&img, Point::new(-(d.width as i32) / 4, 0))
+            .draw(&mut t)
+            .unwrap();
+        assert!(t.pixels.iter().all(Option::is_some), "{}", d.name);
+        // Entirely off-screen: nothing at all.
+        let mut t = Recorder::new(10, 10);
+        Image::new(&img, Point::new(10, 0)).draw(&mut t).unwrap();
+        Image::new(&img, Point::new(-(d.width as i32), 0))
+            .draw(&mut t)
+            .unwrap();
+        assert!(t.fills.is_empty(), "{}", d.name);
+    }
+}
+
+#[test]
+fn damaged_streams_never_panic_and_draw_checked_reports_them() {
+    for d in golden() {
+        let header_len = decoder_core::read_header(&d.stream).unwrap().encoded_len();
+        // Truncated payload: the header is fine, decoding runs out of bytes.
+        let cut = &d.stream[..(header_len + 4).max(d.stream.len() * 2 / 3)];
+        let img = PifsImage::<Gray8>::new(cut).unwrap();
+        let mut t = Recorder::new(d.width, d.height);
+        assert_eq!(img.draw(&mut t), Ok(()), "{}", d.name);
+        let mut t = Recorder::new(d.width, d.height);
+        assert_eq!(
+            img.draw_checked(&mut t),
+            Err(DrawError::Decode(DecodeError::Truncated)),
+            "{}",
+            d.name
+        );
+        assert_eq!(img.verify(), Err(DecodeError::Truncated), "{}", d.name);
+        // What was drawn before the error is right.
+        for (i, p) in t.pixels.iter().enumerate() {
+            if let Some(v) = p {
+                assert_eq!(*v, d.pixels[i], "{}", d.name);
+            }
+        }
+        // Flipped payload bytes: any outcome but a panic.
+        for k in 0..16 {
+            let mut bad = d.stream.clone();
+            let i = header_len + (k * 7919) % (bad.len() - header_len);
+            bad[i] ^= 0x5A;
+            if let Ok(img) = PifsImage::<Gray8>::new(&bad) {
+                let _ = img.draw_checked(&mut Recorder::new(d.width, d.height));
+                let _ = img.draw(&mut Recorder::new(d.width, d.height));
+                let _ = img.verify();
+            }
+        }
+        assert_eq!(PifsImage::<Gray8>::new(&d.stream).unwrap().verify(), Ok(()));
+    }
+    assert_eq!(
+        PifsImage::<Gray8>::new(b"JPEG....").err(),
+        Some(DecodeError::BadMagic)
+    );
+    let d = &golden()[0];
+    let header_len = decoder_core::read_header(&d.stream).unwrap().encoded_len();
+    assert_eq!(
+        PifsImage::<Gray8>::new(&d.stream[..header_len]).err(),
+        Some(DecodeError::Truncated)
+    );
+}
+
+#[test]
+fn target_errors_stop_the_drawing() {
+    for d in golden() {
+        let img = d.image::<Gray8>();
+        let mut t = Recorder::new(d.width, d.height);
+        t.fail_after = Some(1);
+        assert_eq!(img.draw(&mut t), Err(Broken), "{}", d.name);
+        assert_eq!(
+            t.fills.len(),
+            1,
+            "{}: drawing went on after the error",
+            d.name
+        );
+        let mut t = Recorder::new(d.width, d.height);
+        t.fail_after = Some(0);
+        assert_eq!(img.draw_checked(&mut t), Err(DrawError::Target(Broken)));
+    }
+}
+
+/// One byte per call, like a UART.
+struct Uart<'a>(&'a [u8], usize);
+
+impl ByteSource for Uart<'_> {
+    fn next_byte(&mut self) -> Option<u8> {
+        let b = self.0.get(self.1).copied();
+        self.1 += usize::from(b.is_some());
+        b
+    }
+}
+
+#[test]
+fn streamed_drawing_equals_in_memory_drawing() {
+    for d in golden() {
+        let mut a = Recorder::new(d.width, d.height);
+        d.image::<Gray8>().draw(&mut a).unwrap();
+        let mut b = Recorder::new(d.width, d.height);
+        let header = draw_stream(Uart(&d.stream, 0), &mut b).unwrap();
+        assert_eq!(
+            (u32::from(header.width), u32::from(header.height)),
+            (d.width, d.height)
+        );
+        assert_eq!(a.fills, b.fills, "{}: tiles differ", d.name);
+        assert!(a.pixels == b.pixels, "{}: pixels differ", d.name);
+        // And the PixelSink-level streaming decoder gives the decode_into pixels.
+        let mut out = vec![0u8; d.pixels.len()];
+        struct Buf<'a>(&'a mut [u8], u32);
+        impl decoder_core::PixelSink for Buf<'_> {
+            fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+                for j in 0..h {
+                    for i in 0..w {
+                        self.0[((y + j) * self.1 + x + i) as usize] = pixels[(j * w + i) as usize];
+                    }
+                }
+            }
+        }
+        decoder_core::decode_stream(Uart(&d.stream, 0), &mut Buf(&mut out, d.width)).unwrap();
+        assert!(
+            out == d.pixels,
+            "{}: decode_stream differs from decode_into",
+            d.name
+        );
+        let mut region = Recorder::new(d.width, d.height);
+        let clip = decoder_core::Rect {
+            x: d.width / 4,
+            y: d.height / 4,
+            w: d.width / 2,
+            h: d.height / 2,
+        };
+        struct Rec<'a>(&'a mut Recorder);
+        impl decoder_core::PixelSink for Rec<'_> {
+            fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+                let area = Rectangle::new(Point::new(x as i32, y as i32), Size::new(w, h));
+                self.0
+                    .fill_contiguous(&area, pixels.iter().map(|&l| Gray8::new(l)))
+                    .unwrap();
+            }
+        }
+        decoder_core::decode_stream_region(Uart(&d.stream, 0), clip, &mut Rec(&mut region))
+            .unwrap();
+        for (i, p) in region.pixels.iter().enumerate() {
+            let (x, y) = (i as u32 % d.width, i as u32 / d.width);
+            let inside = x >= clip.x && y >= clip.y && x < clip.x + clip.w && y < clip.y + clip.h;
+            assert_eq!(p.is_some(), inside, "{}: ({x}, {y})", d.name);
+            if let Some(v) = p {
+                assert_eq!(*v, d.pixels[i]);
+            }
+        }
+    }
+}

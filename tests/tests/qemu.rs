@@ -1,0 +1,283 @@
+//! The example firmware (`firmware-example/`) on emulated Cortex-M boards.
+//!
+//! Each test builds the firmware for one target with a nested `cargo build --release` (run in
+//! the firmware folder, so that its `.cargo/config.toml` applies), runs it under
+//! `qemu-system-arm` (with a hang guard), and checks that QEMU exits successfully and that, for
+//! every golden vector of `tests/golden/golden.txt`, the firmware's hashes equal the ones the
+//! host computes here with decoder-core:
+//!
+//! - `sha256`: the row-major decoded pixels (also checked against `golden.txt`);
+//! - `tiles`: the tiles in arrival order (per tile `x, y, w, h` as u32 LE, then the pixels);
+//! - `PIFS-FB`: the frame-buffer decode of the smallest vector.
+//!
+//! QEMU is required: without `qemu-system-arm` these tests fail (CI installs it with
+//! `apt-get install -y --no-install-recommends qemu-system-arm`).
+
+mod common;
+
+use common::{decode_all, golden_dir, golden_list, sha256_hex};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const QEMU: &str = "qemu-system-arm";
+/// Hang guard for one QEMU run (a run takes about a second; a wrong memory layout hangs).
+const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
+
+struct Board {
+    target: &'static str,
+    machine: &'static str,
+    cpu: &'static str,
+    ram: &'static str,
+}
+
+const LM3S6965EVB: Board = Board {
+    target: "thumbv7m-none-eabi",
+    machine: "lm3s6965evb",
+    cpu: "cortex-m3",
+    ram: "64 KiB",
+};
+
+const MICROBIT: Board = Board {
+    target: "thumbv6m-none-eabi",
+    machine: "microbit",
+    cpu: "cortex-m0",
+    ram: "16 KiB",
+};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn require_qemu() {
+    match Command::new(QEMU).arg("--version").output() {
+        Ok(out) if out.status.success() => {}
+        Ok(out) => panic!("`{QEMU} --version` failed: {out:?}"),
+        Err(e) => panic!(
+            "{QEMU} is required by this test but could not be run ({e}). Install it with:\n    \
+             apt-get update && apt-get install -y --no-install-recommends qemu-system-arm"
+        ),
+    }
+}
+
+/// Builds the firmware for `target`; returns the ELF's path.
+fn build_firmware(target: &str) -> PathBuf {
+    let dir = root().join("firmware-example");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let out = Command::new(cargo)
+        .args(["build", "--release", "--target", target])
+        .current_dir(&dir)
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("CARGO_BUILD_TARGET")
+        .env_remove("CARGO_BUILD_TARGET_DIR")
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_RUSTFLAGS")
+        .output()
+        .expect("run cargo");
+    assert!(
+        out.status.success(),
+        "building the firmware for {target} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // `.cargo/config.toml` of the firmware puts its builds in <root>/target/firmware.
+    let elf = root()
+        .join("target/firmware")
+        .join(target)
+        .join("release/pifs-firmware-example");
+    assert!(elf.is_file(), "{} missing after the build", elf.display());
+    elf
+}
+
+/// Runs `elf` on `board`; returns (exit code, stdout bytes, stderr text).
+fn run_qemu(board: &Board, elf: &Path) -> (Option<i32>, Vec<u8>, String) {
+    let mut child = Command::new(QEMU)
+        .args(["-cpu", board.cpu, "-machine", board.machine])
+        .args(["-display", "none", "-monitor", "none", "-serial", "none"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=0", "-kernel"])
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start {QEMU}: {e}"));
+    let mut stdout = child.stdout.take().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let out_reader = std::thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = stdout.read_to_end(&mut v);
+        v
+    });
+    let err_reader = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let _ = stderr.read_to_end(&mut s);
+        String::from_utf8_lossy(&s).into_owned()
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for QEMU") {
+            break Some(status);
+        }
+        if start.elapsed() > QEMU_TIMEOUT {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let stdout = out_reader.join().unwrap();
+    let stderr = err_reader.join().unwrap();
+    match status {
+        Some(status) => (status.code(), stdout, stderr),
+        None => panic!(
+            "{} on {}: QEMU did not finish within {QEMU_TIMEOUT:?} (hung firmware?); stderr so \
+             far:\n{stderr}",
+            board.target, board.machine
+        ),
+    }
+}
+
+/// `key=value` fields of a line.
+fn fields(line: &str) -> BTreeMap<&str, &str> {
+    line.split_whitespace()
+        .filter_map(|f| f.split_once('='))
+        .collect()
+}
+
+/// SHA-256 of the tiles in arrival order, as the firmware's `tiles=` field.
+struct TileHash(Sha256);
+
+impl decoder_core::PixelSink for TileHash {
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        for v in [x, y, w, h] {
+            self.0.update(v.to_le_bytes());
+        }
+        self.0.update(pixels);
+    }
+}
+
+/// Per golden vector: (width, height, row-major sha256, tile sha256), from the host decoder.
+fn host_hashes() -> BTreeMap<String, (u16, u16, String, String)> {
+    let list = golden_list();
+    assert!(!list.is_empty(), "golden.txt lists no vectors");
+    list.into_iter()
+        .map(|g| {
+            let stream = std::fs::read(golden_dir().join(&g.file)).unwrap();
+            let (header, pixels) =
+                decode_all(&stream).unwrap_or_else(|e| panic!("{}: host decode: {e}", g.file));
+            let sha = sha256_hex(&pixels);
+            assert_eq!(
+                sha, g.sha256,
+                "{}: the host decoder disagrees with golden.txt",
+                g.file
+            );
+            assert_eq!(
+                (header.width, header.height),
+                (g.width, g.height),
+                "{}",
+                g.file
+            );
+            let mut tiles = TileHash(Sha256::new());
+            decoder_core::decode(&stream, &mut tiles).unwrap();
+            let tiles: String = tiles
+                .0
+                .finalize()
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect();
+            (g.file, (g.width, g.height, sha, tiles))
+        })
+        .collect()
+}
+
+fn check_board(board: &Board) {
+    require_qemu();
+    let expected = host_hashes();
+    let elf = build_firmware(board.target);
+    let (code, _defmt_frames, stderr) = run_qemu(board, &elf);
+    let context = format!(
+        "{} on QEMU {} ({}, {} RAM)",
+        board.target, board.machine, board.cpu, board.ram
+    );
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("PIFS")).collect();
+    for l in &lines {
+        println!("{}: {l}", board.machine);
+    }
+    if stderr.contains("Lockup") {
+        panic!(
+            "{context}: the firmware locked up (usually a stack overflow: the decoder needs more \
+             stack than the board has); last lines:\n{}",
+            stderr
+                .lines()
+                .rev()
+                .take(12)
+                .collect::<Vec<_>>()
+                .into_iter()
+                .rev()
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+    }
+    let errors: Vec<&&str> = lines
+        .iter()
+        .filter(|l| l.starts_with("PIFS-ERROR") || l.starts_with("PIFS-PANIC"))
+        .collect();
+    assert!(errors.is_empty(), "{context}: {errors:#?}");
+    assert_eq!(
+        code,
+        Some(0),
+        "{context}: QEMU exit status; stderr:\n{stderr}"
+    );
+
+    let mut seen = BTreeMap::new();
+    for l in lines.iter().filter(|l| l.starts_with("PIFS name=")) {
+        let f = fields(l);
+        let name = f["name"].to_string();
+        let (w, h, sha, tiles) = expected
+            .get(&name)
+            .unwrap_or_else(|| panic!("{context}: unknown vector in {l:?}"));
+        assert_eq!(f["w"], w.to_string(), "{context}: {name} width");
+        assert_eq!(f["h"], h.to_string(), "{context}: {name} height");
+        assert_eq!(
+            f["sha256"], sha,
+            "{context}: {name}: pixel hash differs from the host's"
+        );
+        assert_eq!(
+            f["tiles"], tiles,
+            "{context}: {name}: tile hash differs from the host's"
+        );
+        let stack: usize = f["stack"].parse().expect("stack");
+        let instr: u64 = f["instr"].parse().expect("instr");
+        assert!(stack > 0, "{context}: {name}: no stack measured");
+        assert!(instr > 0, "{context}: {name}: no instructions counted");
+        assert!(
+            seen.insert(name.clone(), ()).is_none(),
+            "{context}: {name} twice"
+        );
+    }
+    let missing: Vec<&String> = expected.keys().filter(|k| !seen.contains_key(*k)).collect();
+    assert!(missing.is_empty(), "{context}: no result for {missing:?}");
+
+    let fb: Vec<&&str> = lines.iter().filter(|l| l.starts_with("PIFS-FB ")).collect();
+    assert_eq!(fb.len(), 1, "{context}: frame-buffer lines {fb:?}");
+    let f = fields(fb[0]);
+    assert_eq!(
+        f["sha256"], expected[f["name"]].2,
+        "{context}: frame-buffer decode of {} differs from the host's",
+        f["name"]
+    );
+}
+
+#[test]
+fn firmware_on_cortex_m3_lm3s6965evb_matches_the_host() {
+    check_board(&LM3S6965EVB);
+}
+
+#[test]
+fn firmware_on_cortex_m0_microbit_matches_the_host() {
+    check_board(&MICROBIT);
+}
