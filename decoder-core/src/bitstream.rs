@@ -256,7 +256,8 @@ impl Default for LeafSyntax {
 }
 
 /// Number of residual classes of control values: the leaf's first value, the rest of its first
-/// row and column, its interior, and values whose position was shared with an earlier leaf.
+/// row and column, its interior, and first values predicted by a corner at exactly their
+/// position.
 const CONTROL_CLASSES: usize = 4;
 /// Control residuals have separate contexts for fine, medium and coarse steps.
 const STEP_GROUPS: usize = 3;
@@ -296,27 +297,20 @@ impl Default for Contexts {
 
 /// Number of leaf corners remembered for predicting a leaf's first control value.
 pub const CORNER_MEMORY: usize = 16;
-/// Slots of the shared-sample cache.
-pub const SAMPLE_CACHE: usize = 128;
 
-/// Where a leaf's control values get their predictions from.
+/// Where a leaf's first control value gets its prediction from.
 pub trait SamplePrediction {
-    /// The value of an earlier leaf's control point at exactly pixel position `(x, y)`, if known.
-    fn shared(&self, x: u32, y: u32) -> Option<i32>;
-    /// A prediction for the sample at `(x, y)` when nothing is known there.
-    fn nearest(&self, x: u32, y: u32) -> i32;
+    /// A prediction of the sample at pixel position `(x, y)`, and whether an earlier leaf had a
+    /// control point at exactly that position.
+    fn predict(&self, x: u32, y: u32) -> (i32, bool);
 }
 
-/// Prediction state carried from leaf to leaf: the corners of recently decoded leaves, and a
-/// direct-mapped cache of the control points on their bottom rows and right columns, which are
-/// exactly where later leaves' top rows and left columns lie.
+/// Prediction state carried from leaf to leaf: the corners of recently decoded leaves.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Predictor {
     corners: [(u32, u32, i16); CORNER_MEMORY],
     len: usize,
     next: usize,
-    keys: [u32; SAMPLE_CACHE],
-    values: [i16; SAMPLE_CACHE],
 }
 
 impl Default for Predictor {
@@ -325,32 +319,14 @@ impl Default for Predictor {
             corners: [(0, 0, 0); CORNER_MEMORY],
             len: 0,
             next: 0,
-            keys: [u32::MAX; SAMPLE_CACHE],
-            values: [0; SAMPLE_CACHE],
         }
     }
 }
 
-/// Cache key of a pixel position (positions of 65535 and beyond are not cached).
-fn cache_key(x: u32, y: u32) -> Option<u32> {
-    (x < 0xFFFF && y < 0xFFFF).then_some((x << 16) | y)
-}
-
-/// Cache slot of a key.
-fn cache_slot(key: u32) -> usize {
-    (key.wrapping_mul(0x9E37_79B1) >> (32 - SAMPLE_CACHE.trailing_zeros())) as usize
-}
-
 impl SamplePrediction for Predictor {
-    fn shared(&self, x: u32, y: u32) -> Option<i32> {
-        let key = cache_key(x, y)?;
-        let slot = cache_slot(key);
-        (self.keys[slot] == key).then(|| i32::from(self.values[slot]))
-    }
-
     /// The remembered corner nearest to `(x, y)` (city-block distance, most recent first on
     /// ties), else mid-grey.
-    fn nearest(&self, x: u32, y: u32) -> i32 {
+    fn predict(&self, x: u32, y: u32) -> (i32, bool) {
         let mut best: Option<(u64, i16)> = None;
         for k in 0..self.len {
             // Walk from the most recent entry backwards.
@@ -361,18 +337,16 @@ impl SamplePrediction for Predictor {
                 best = Some((d, v));
             }
         }
-        best.map_or(128 * SAMPLE_ONE, |(_, v)| i32::from(v))
+        best.map_or((128 * SAMPLE_ONE, false), |(d, v)| (i32::from(v), d == 0))
     }
 }
 
 impl Predictor {
-    /// Remembers a decoded leaf of side `2^log2` at `(x, y)`: its four corners, and the control
-    /// points of its bottom row and right column.
+    /// Remembers the four corners of a decoded leaf of side `2^log2` at `(x, y)`.
     pub fn remember(&mut self, x: u32, y: u32, log2: u8, patch: &Patch) {
         let side = patch.model.grid();
         let m = side - 1;
         let s = 1u32 << log2;
-        let sp = s / m as u32;
         let c = &patch.control;
         let corners = [
             (x, y, c[0]),
@@ -384,19 +358,6 @@ impl Predictor {
             self.corners[self.next] = corner;
             self.next = (self.next + 1) % CORNER_MEMORY;
             self.len = (self.len + 1).min(CORNER_MEMORY);
-        }
-        for k in 0..side {
-            let along = k as u32 * sp;
-            self.store(x + along, y + s, c[m * side + k]);
-            self.store(x + s, y + along, c[k * side + m]);
-        }
-    }
-
-    fn store(&mut self, x: u32, y: u32, v: i16) {
-        if let Some(key) = cache_key(x, y) {
-            let slot = cache_slot(key);
-            self.keys[slot] = key;
-            self.values[slot] = v;
         }
     }
 }
@@ -509,8 +470,8 @@ pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i3
 
 /// Control values: raster order, DPCM within the leaf (see [`control_value`]). The first index
 /// is coded as its difference from a prediction by earlier leaves ([`SamplePrediction`]: the
-/// control point an earlier leaf had at exactly that position, else the nearest remembered
-/// corner); the others as they are.
+/// nearest remembered corner, with its own contexts when it sits exactly at the leaf's corner);
+/// the others as they are.
 fn code_control<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
@@ -524,18 +485,14 @@ fn code_control<C: Coder, P: SamplePrediction>(
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.grid();
-    let sp = node.size() / u32::from(model.intervals);
     let mut values = [0i16; MAX_CONTROL];
     let mut prev_mag = 0usize;
     for r in 0..side {
         for col in 0..side {
             let i = r * side + col;
-            let (x, y) = (node.x + col as u32 * sp, node.y + r as u32 * sp);
             let (pred_index, class) = if i == 0 {
-                match prediction.shared(x, y) {
-                    Some(v) => (div_round(v, step), 3),
-                    None => (div_round(prediction.nearest(x, y), step), 0),
-                }
+                let (p, exact) = prediction.predict(node.x, node.y);
+                (div_round(p, step), if exact { 3 } else { 0 })
             } else {
                 (0, if r == 0 || col == 0 { 1 } else { 2 })
             };
@@ -617,12 +574,12 @@ pub fn reconstruct_into(
     let kind = *WEIGHT_QUANTISER_KINDS
         .get(usize::from(leaf.wquant))
         .ok_or(DecodeError::InvalidData("weight quantiser"))?;
-    let mut deviations = [0i32; MAX_WEIGHTS];
+    patch.weights = Weights::default_for(model);
     let mut i = 0;
     let mut result = Ok(());
     for_each_free_tap(model, |slot| {
         let index = i32::from(leaf.weights[i]);
-        deviations[i] = match kind {
+        let deviation = match kind {
             WeightQuantiser::Default => 0,
             WeightQuantiser::Uniform(step) => index
                 .saturating_mul(step)
@@ -638,9 +595,10 @@ pub fn reconstruct_into(
                 }
             }
         };
+        patch.weights.deviate(slot, deviation);
         i += 1;
     });
     result?;
-    patch.weights = Weights::from_deviations(model, &deviations);
+    patch.weights.balance();
     Ok(())
 }

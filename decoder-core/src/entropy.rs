@@ -167,8 +167,8 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IntContexts {
     zero: [Prob; 3],
-    sign: [Prob; 3],
-    prefix: [[Prob; MAX_PREFIX]; 2],
+    sign: Prob,
+    prefix: [Prob; MAX_PREFIX],
 }
 
 /// Longest Exp-Golomb prefix: magnitudes are below `2^MAX_PREFIX`.
@@ -178,8 +178,8 @@ impl Default for IntContexts {
     fn default() -> Self {
         IntContexts {
             zero: [Prob::default(); 3],
-            sign: [Prob::default(); 3],
-            prefix: [[Prob::default(); MAX_PREFIX]; 2],
+            sign: Prob::default(),
+            prefix: [Prob::default(); MAX_PREFIX],
         }
     }
 }
@@ -201,11 +201,11 @@ impl IntContexts {
             return Ok(());
         }
         let mut negative = *v < 0;
-        c.bit(&mut self.sign[ctx], &mut negative)?;
+        c.bit(&mut self.sign, &mut negative)?;
         // Exp-Golomb of magnitude m >= 1: k = floor(log2 m) in unary, then k low bits.
         let m = v.unsigned_abs();
         let k_in = 31 - m.max(1).leading_zeros() as usize;
-        let prefix = &mut self.prefix[usize::from(ctx > 0)];
+        let prefix = &mut self.prefix;
         let mut k = 0usize;
         loop {
             if k >= MAX_PREFIX {

@@ -217,22 +217,33 @@ impl Weights {
         let mut w = Self::default_for(model);
         let mut i = 0;
         for_each_free_tap(model, |slot| {
-            let d = deviations.get(i).copied().unwrap_or(0);
+            w.deviate(slot, deviations.get(i).copied().unwrap_or(0));
             i += 1;
-            let tap = w.tap_mut(slot);
-            *tap = (*tap + d).clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT);
         });
-        for rule in w.line.iter_mut().flatten() {
+        w.balance();
+        w
+    }
+
+    /// Adds `deviation` to the free tap `slot`, clamped to `[-WEIGHT_LIMIT, WEIGHT_LIMIT]`.
+    pub fn deviate(&mut self, slot: TapSlot, deviation: i32) {
+        let tap = self.tap_mut(slot);
+        *tap = tap
+            .saturating_add(deviation)
+            .clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT);
+    }
+
+    /// Sets every rule's dependent tap so that its taps sum to exactly [`WEIGHT_ONE`].
+    pub fn balance(&mut self) {
+        for rule in self.line.iter_mut().flatten() {
             rule[LINE_DEPENDENT_TAP] = 0;
             let s: i32 = rule.iter().sum();
             rule[LINE_DEPENDENT_TAP] = WEIGHT_ONE - s;
         }
-        for rule in w.cell.iter_mut().flatten() {
+        for rule in self.cell.iter_mut().flatten() {
             rule[CELL_DEPENDENT_TAP] = 0;
             let s: i32 = rule.iter().sum();
             rule[CELL_DEPENDENT_TAP] = WEIGHT_ONE - s;
         }
-        w
     }
 
     /// The tap addressed by `slot`.

@@ -233,12 +233,8 @@ impl ImagePrediction<'_> {
 }
 
 impl SamplePrediction for ImagePrediction<'_> {
-    fn shared(&self, x: u32, y: u32) -> Option<i32> {
-        (x > 0 || y > 0).then(|| self.sample(x, y))
-    }
-
-    fn nearest(&self, x: u32, y: u32) -> i32 {
-        self.sample(x, y)
+    fn predict(&self, x: u32, y: u32) -> (i32, bool) {
+        (self.sample(x, y), x > 0 || y > 0)
     }
 }
 
