@@ -20,7 +20,7 @@ use crate::model::{
 use crate::model::{SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE};
 
 /// Side of the tiles handed to a [`PixelSink`].
-pub const TILE: usize = 16;
+pub const TILE: usize = 8;
 /// Values of the per-level grid stack (enough for the deepest model at the largest leaf).
 pub const ARENA_LEN: usize = 256;
 

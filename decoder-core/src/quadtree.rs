@@ -133,34 +133,74 @@ pub fn walk_with<C: Coder, V: TreeVisitor>(
     walk_node(header, coder, visitor, state, root)
 }
 
+/// Deepest quadtree: a root of side 2^16 down to leaves of side 2.
+const MAX_DEPTH: usize = 16;
+
+/// Depth-first walk in Z order without recursion: the path from the root is one child index
+/// per level, and the current node is updated in place, so the walk's memory does not grow with
+/// the image.
 fn walk_node<C: Coder, V: TreeVisitor>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState,
-    node: Node,
+    root: Node,
 ) -> Result<(), DecodeError> {
-    let split = match node_kind(header, &node) {
-        NodeKind::Outside => return Ok(()),
-        NodeKind::ForcedSplit => true,
-        NodeKind::ForcedLeaf => false,
-        NodeKind::Flagged => {
-            let mut split = visitor.split(&node);
-            code_split(coder, &mut state.contexts, node.log2, &mut split)?;
-            split
+    let mut node = root;
+    let mut path = [0u8; MAX_DEPTH];
+    let mut depth = 0usize;
+    loop {
+        let split = match node_kind(header, &node) {
+            NodeKind::Outside => false,
+            NodeKind::ForcedSplit => true,
+            NodeKind::ForcedLeaf => {
+                walk_leaf(header, coder, visitor, state, node)?;
+                false
+            }
+            NodeKind::Flagged => {
+                let mut split = visitor.split(&node);
+                code_split(coder, &mut state.contexts, node.log2, &mut split)?;
+                if !split {
+                    walk_leaf(header, coder, visitor, state, node)?;
+                }
+                split
+            }
+        };
+        if split {
+            // Split nodes are larger than the smallest leaf, so log2 >= 1 here.
+            if depth == MAX_DEPTH || node.log2 == 0 {
+                return Err(DecodeError::InvalidData("quadtree depth"));
+            }
+            path[depth] = 0;
+            depth += 1;
+            node = node.children()[0];
+            continue;
         }
-    };
-    if split {
-        for child in node.children() {
-            walk_node(header, coder, visitor, state, child)?;
+        // Next sibling, climbing while the current node is its parent's last child.
+        loop {
+            let Some(last) = depth.checked_sub(1) else {
+                return Ok(());
+            };
+            let c = path[last];
+            let size = node.size();
+            let parent = Node {
+                x: node.x - u32::from(c & 1) * size,
+                y: node.y - u32::from(c >> 1) * size,
+                log2: node.log2 + 1,
+            };
+            if c < 3 {
+                path[last] = c + 1;
+                node = parent.children()[usize::from(c + 1)];
+                break;
+            }
+            node = parent;
+            depth = last;
         }
-        return Ok(());
     }
-    walk_leaf(header, coder, visitor, state, node)
 }
 
 /// A leaf's syntax, reconstruction and drawing: out of line, so that its buffers are not part
-/// of every frame of the recursive walk.
+/// of the walk's own frame.
 #[inline(never)]
 fn walk_leaf<C: Coder, V: TreeVisitor>(
     header: &Header,
