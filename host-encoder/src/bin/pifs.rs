@@ -295,7 +295,8 @@ fn info(input: &Path) -> Result<(), String> {
 
 /// The bundled sample image, encoded and decoded with default settings.
 fn demo() -> Result<(), String> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = manifest.parent().unwrap_or(manifest);
     let sample = root.join("samples/kodim23.png");
     let out = root.join("out");
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
