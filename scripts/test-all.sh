@@ -12,7 +12,12 @@ if ! command -v qemu-system-arm >/dev/null 2>&1; then
     sudo_if_needed apt-get install -y --no-install-recommends qemu-system-arm
 fi
 
-# Host tests, integration tests and the firmware under QEMU (tests/tests/qemu.rs).
-cargo test --workspace
 # decoder-core must stay no_std: build it for a Cortex-M0 target.
 cargo build -p decoder-core --release --target thumbv6m-none-eabi
+
+# Host tests, integration tests and the firmware under QEMU (tests/tests/qemu.rs), then one
+# closing line with the totals over every test binary.
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+cargo test --workspace 2>&1 | tee "$log"
+awk '/^test result:/ { p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' "$log"
