@@ -253,14 +253,6 @@ impl Weights {
             TapSlot::Cell { r1, r2, tap } => &mut self.cell[r1 - 1][r2 - 1][tap],
         }
     }
-
-    /// The tap addressed by `slot`.
-    pub fn tap(&self, slot: TapSlot) -> i32 {
-        match slot {
-            TapSlot::Line { dir, phase, tap } => self.line[dir][phase - 1][tap],
-            TapSlot::Cell { r1, r2, tap } => self.cell[r1 - 1][r2 - 1][tap],
-        }
-    }
 }
 
 /// Address of one free weight.
