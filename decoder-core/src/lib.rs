@@ -46,24 +46,12 @@ pub use stream::{decode_region, decode_stream, decode_stream_region, MAX_HEADER_
 
 use entropy::{RangeDecoder, SliceSource};
 use patch::Patch;
+pub use quadtree::LeafInfo;
 use quadtree::{Node, TreeVisitor};
 
 /// Reads and validates the header of a stream.
 pub fn read_header(data: &[u8]) -> Result<Header, DecodeError> {
     Header::parse(data).map(|(h, _)| h)
-}
-
-/// Statistics of one decoded leaf, for inspection tools.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LeafInfo {
-    /// The leaf's node.
-    pub node: Node,
-    /// Model type index.
-    pub model: u8,
-    /// Control quantiser index.
-    pub cquant: u8,
-    /// Weight quantiser index.
-    pub wquant: u8,
 }
 
 /// A [`PixelSink`] that also hears about every leaf (for inspection tools).
@@ -85,13 +73,9 @@ impl<S: PixelSink, O: LeafObserver> TreeVisitor for Drawer<'_, S, O> {
 
     fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
 
-    fn leaf(&mut self, node: &Node, leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError> {
-        self.observer.leaf(&LeafInfo {
-            node: *node,
-            model: leaf.model,
-            cquant: leaf.cquant,
-            wquant: leaf.wquant,
-        });
+    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
+        self.observer.leaf(info);
+        let node = &info.node;
         patch.render(node.x, node.y, node.log2, self.clip, self.sink);
         Ok(())
     }

@@ -13,16 +13,45 @@
 //! computed directly from the parent grid and handed to the [`PixelSink`] in tiles of at most
 //! [`TILE`] x [`TILE`].
 
+use crate::bitstream::MAX_LEAF_LOG2;
 use crate::model::{
-    ModelType, Weights, MAX_CONTROL, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN, WEIGHT_BITS,
+    ModelType, Weights, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN, WEIGHT_BITS,
 };
 #[cfg(doc)]
 use crate::model::{SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE};
 
 /// Side of the tiles handed to a [`PixelSink`].
 pub const TILE: usize = 8;
-/// Values of the per-level grid stack (enough for the deepest model at the largest leaf).
-pub const ARENA_LEN: usize = 256;
+/// Values of the per-level grid stack below a patch's control grid: the most that any model
+/// needs at the largest leaf (9x9 grids on two levels for the 9x9/4x4 model).
+pub const ARENA_LEN: usize = arena_len();
+
+/// The stored grids below the control grid when `model` tabulates a leaf of side `2^log2`, in
+/// values: one grid per subdivision level whose points are more than `N` pixels apart (the
+/// last level goes straight to pixels).
+const fn stored_values(model: ModelType, log2: u8) -> usize {
+    let n = model.transforms as u32;
+    let mut sp = (1u32 << log2) / model.intervals as u32;
+    let mut levels = 0;
+    while sp > n {
+        sp /= n;
+        levels += 1;
+    }
+    levels * model.control_count()
+}
+
+const fn arena_len() -> usize {
+    let mut max = 0;
+    let mut i = 0;
+    while i < MODELS.len() {
+        let v = stored_values(MODELS[i], MAX_LEAF_LOG2);
+        if v > max {
+            max = v;
+        }
+        i += 1;
+    }
+    max
+}
 
 /// Receives decoded pixels, one rectangular tile at a time.
 pub trait PixelSink {
@@ -152,16 +181,25 @@ impl Patch {
         }
         let mut arena = [0i16; ARENA_LEN];
         let n2 = self.model.control_count();
-        arena[..n2].copy_from_slice(&self.control[..n2]);
         let spacing = (1u32 << log2) / u32::from(self.model.intervals);
-        self.walk(&mut arena, x0, y0, spacing, &clip, sink);
+        self.walk(
+            &self.control[..n2],
+            &mut arena,
+            x0,
+            y0,
+            spacing,
+            &clip,
+            sink,
+        );
     }
 
-    /// Subdivides the grid at the front of `grids` (pixel spacing `sp` between its points),
-    /// storing children after it.
+    /// Subdivides grid `g` (pixel spacing `sp` between its points), storing each child grid at
+    /// the front of `below` while that child is refined.
+    #[allow(clippy::too_many_arguments)]
     fn walk<S: PixelSink>(
         &self,
-        grids: &mut [i16],
+        g: &[i16],
+        below: &mut [i16],
         x: u32,
         y: u32,
         sp: u32,
@@ -172,29 +210,32 @@ impl Patch {
         let n = u32::from(self.model.transforms);
         let side = self.model.grid();
         let n2 = side * side;
-        if grids.len() < n2 || !clip.overlaps_square(x, y, m * sp) {
+        if !clip.overlaps_square(x, y, m * sp) {
             return;
         }
-        let (g, rest) = grids.split_at_mut(n2);
         if sp <= n {
             self.emit(g, x, y, sp, clip, sink);
             return;
         }
         let csp = sp / n;
+        if below.len() < n2 {
+            return;
+        }
+        let (child, deeper) = below.split_at_mut(n2);
         for i in 0..n {
             for j in 0..n {
                 let (cx, cy) = (x + j * m * csp, y + i * m * csp);
-                if !clip.overlaps_square(cx, cy, m * csp) || rest.len() < n2 {
+                if !clip.overlaps_square(cx, cy, m * csp) {
                     continue;
                 }
                 for u in 0..side {
                     for v in 0..side {
                         let q1 = (i * m) as usize + u;
                         let q2 = (j * m) as usize + v;
-                        rest[u * side + v] = self.point(g, q1, q2) as i16;
+                        child[u * side + v] = self.point(g, q1, q2) as i16;
                     }
                 }
-                self.walk(rest, cx, cy, csp, clip, sink);
+                self.walk(child, deeper, cx, cy, csp, clip, sink);
             }
         }
     }
@@ -230,5 +271,48 @@ impl Patch {
             }
             ty += th;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bitstream::MIN_LEAF_LOG2;
+
+    /// Counts the pixels a render delivers and checks each lies in its leaf.
+    struct Count {
+        size: u32,
+        pixels: u64,
+    }
+
+    impl PixelSink for Count {
+        fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+            assert!(x + w <= self.size && y + h <= self.size);
+            assert_eq!(pixels.len() as u32, w * h);
+            self.pixels += u64::from(w * h);
+        }
+    }
+
+    /// The arena is sized by a formula: every model at every leaf size it may code must still
+    /// deliver every pixel (a short arena would silently skip sub-grids).
+    #[test]
+    fn arena_covers_every_model_and_leaf_size() {
+        for model in MODELS {
+            for log2 in MIN_LEAF_LOG2..=MAX_LEAF_LOG2 {
+                if !model.fits_block(log2) {
+                    continue;
+                }
+                let patch = Patch {
+                    model,
+                    control: [100; MAX_CONTROL],
+                    weights: Weights::default_for(model),
+                };
+                let size = 1u32 << log2;
+                let mut sink = Count { size, pixels: 0 };
+                patch.render(0, 0, log2, Rect::of_size(size, size), &mut sink);
+                assert_eq!(sink.pixels, u64::from(size * size), "{model:?} at 2^{log2}");
+            }
+        }
+        assert!(ARENA_LEN <= 162, "arena grew to {ARENA_LEN} values");
     }
 }

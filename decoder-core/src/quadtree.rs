@@ -9,7 +9,7 @@
 //! leaf size is a leaf without a flag; every other node codes a split flag.
 
 use crate::bitstream::{
-    code_leaf, code_split, reconstruct_into, Contexts, Header, LeafSyntax, Predictor,
+    code_leaf, code_split, reconstruct_weights, Contexts, Header, LeafSyntax, Predictor,
 };
 use crate::entropy::Coder;
 use crate::error::DecodeError;
@@ -95,7 +95,20 @@ pub trait TreeVisitor {
     /// Encoder: fills in the leaf's syntax elements before they are coded. Decoders do nothing.
     fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax);
     /// Called once the leaf is coded, with its reconstruction.
-    fn leaf(&mut self, node: &Node, leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError>;
+    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError>;
+}
+
+/// What a walk reports about a coded leaf besides its patch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LeafInfo {
+    /// The leaf's node.
+    pub node: Node,
+    /// Model type index.
+    pub model: u8,
+    /// Control quantiser index.
+    pub cquant: u8,
+    /// Weight quantiser index.
+    pub wquant: u8,
 }
 
 /// The adaptive state of the walk: contexts and prediction memory.
@@ -199,8 +212,8 @@ fn walk_node<C: Coder, V: TreeVisitor>(
     }
 }
 
-/// A leaf's syntax, reconstruction and drawing: out of line, so that its buffers are not part
-/// of the walk's own frame.
+/// A leaf's reconstruction and drawing: out of line, so that the patch is not part of the walk's
+/// own frame.
 #[inline(never)]
 fn walk_leaf<C: Coder, V: TreeVisitor>(
     header: &Header,
@@ -209,6 +222,23 @@ fn walk_leaf<C: Coder, V: TreeVisitor>(
     state: &mut WalkState,
     node: Node,
 ) -> Result<(), DecodeError> {
+    let mut patch = Patch::EMPTY;
+    let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
+    state.predictor.remember(node.x, node.y, node.log2, &patch);
+    visitor.leaf(&info, &patch)
+}
+
+/// A leaf's syntax, coded and reconstructed into `patch`. Out of line, so that the syntax
+/// elements are gone from the stack while the patch is drawn.
+#[inline(never)]
+fn code_leaf_patch<C: Coder, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+    state: &mut WalkState,
+    node: Node,
+    patch: &mut Patch,
+) -> Result<LeafInfo, DecodeError> {
     let mut leaf = LeafSyntax::default();
     visitor.prepare_leaf(&node, &mut leaf);
     code_leaf(
@@ -217,9 +247,13 @@ fn walk_leaf<C: Coder, V: TreeVisitor>(
         &node,
         &state.predictor,
         &mut leaf,
+        &mut patch.control,
     )?;
-    let mut patch = Patch::EMPTY;
-    reconstruct_into(header, &leaf, &mut patch)?;
-    state.predictor.remember(node.x, node.y, node.log2, &patch);
-    visitor.leaf(&node, &leaf, &patch)
+    reconstruct_weights(header, &leaf, patch)?;
+    Ok(LeafInfo {
+        node,
+        model: leaf.model,
+        cquant: leaf.cquant,
+        wquant: leaf.wquant,
+    })
 }

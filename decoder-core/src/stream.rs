@@ -14,7 +14,7 @@ use crate::bitstream::{Header, LeafSyntax, FIXED_HEADER_LEN, MAX_CODEBOOK};
 use crate::entropy::{ByteSource, Coder, RangeDecoder, SliceSource};
 use crate::error::DecodeError;
 use crate::patch::{Patch, PixelSink, Rect};
-use crate::quadtree::{self, Node, TreeVisitor};
+use crate::quadtree::{self, LeafInfo, Node, TreeVisitor};
 
 /// Longest possible header: the fixed part and two codebooks of [`MAX_CODEBOOK`] levels
 /// (`13 + 2 * (1 + 2 * 16) = 79` bytes in version 1). [`decode_stream`] never buffers more.
@@ -172,7 +172,8 @@ impl<S: PixelSink, F: Fn(&S) -> bool> TreeVisitor for ClipVisitor<'_, S, F> {
     // Not inlined: the synthesis buffers then live only while a leaf is drawn, instead of in
     // every frame of the recursive quadtree walk.
     #[inline(never)]
-    fn leaf(&mut self, node: &Node, _leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError> {
+    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
+        let node = &info.node;
         if self.clip.w > 0 && self.clip.h > 0 {
             patch.render(node.x, node.y, node.log2, self.clip, self.sink);
         }

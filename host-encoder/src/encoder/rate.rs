@@ -9,6 +9,7 @@ use super::analysis::Analysis;
 use crate::entropy::BitCounter;
 use decoder_core::bitstream::{code_leaf, code_split, Contexts, Header};
 use decoder_core::model::WeightQuantiser;
+use decoder_core::model::MAX_CONTROL;
 use decoder_core::model::WEIGHT_QUANTISER_KINDS;
 use decoder_core::quadtree::{node_kind, Node, NodeKind};
 use rayon::prelude::*;
@@ -85,6 +86,7 @@ impl RateTable {
                                     &na.node,
                                     &prediction,
                                     &mut leaf,
+                                    &mut [0; MAX_CONTROL],
                                 ) {
                                     Ok(()) => counter.bits() as f32,
                                     Err(_) => f32::INFINITY,

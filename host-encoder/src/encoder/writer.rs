@@ -7,7 +7,7 @@ use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
 use decoder_core::bitstream::{Contexts, Header, LeafSyntax};
 use decoder_core::patch::{Patch, PixelSink, Rect};
-use decoder_core::quadtree::{walk, Node, TreeVisitor};
+use decoder_core::quadtree::{walk, LeafInfo, Node, TreeVisitor};
 use decoder_core::DecodeError;
 
 /// A written stream and the encoder's own reconstruction of it.
@@ -56,7 +56,8 @@ impl TreeVisitor for PlanVisitor<'_> {
         }
     }
 
-    fn leaf(&mut self, node: &Node, _leaf: &LeafSyntax, patch: &Patch) -> Result<(), DecodeError> {
+    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
+        let node = &info.node;
         self.leaves += 1;
         let clip = Rect::of_size(u32::from(self.header.width), u32::from(self.header.height));
         let width = usize::from(self.header.width);
