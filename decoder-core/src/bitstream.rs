@@ -4,6 +4,7 @@
 //! Payload elements are coded through the [`Coder`] trait, so the decoder, the host encoder's
 //! writer and its rate estimator all run this same code.
 
+use crate::checksum::Crc32;
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::DecodeError;
 use crate::model::{
@@ -17,9 +18,13 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 1;
-/// Size of the fixed part of the header, in bytes.
-pub const FIXED_HEADER_LEN: usize = 13;
+pub const VERSION: u8 = 2;
+/// Size of the fixed part of the header, in bytes (the checksum included).
+pub const FIXED_HEADER_LEN: usize = 17;
+/// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
+pub const CHECKSUM_BYTES: core::ops::Range<usize> = 13..17;
+/// Longest encoding of the payload length (LEB128 of a `u32`).
+pub const MAX_LENGTH_BYTES: usize = 5;
 /// Smallest allowed leaf side, as a power of two.
 pub const MIN_LEAF_LOG2: u8 = 1;
 /// Largest allowed leaf side, as a power of two.
@@ -75,6 +80,40 @@ pub struct Header {
     pub max_leaf_log2: u8,
     /// Lloyd-Max codebooks of the weight classes (line, cell); empty when absent.
     pub codebooks: [Codebook; 2],
+    /// Length of the payload in bytes: the stream ends right after it.
+    pub payload_len: u32,
+    /// CRC-32 of every byte of the stream except the four that hold it
+    /// ([`CHECKSUM_BYTES`]): see [`stream_checksum`].
+    pub checksum: u32,
+}
+
+/// The CRC-32 a stream must carry: over all its bytes (header and payload) except
+/// [`CHECKSUM_BYTES`], in order. `data` is the whole stream.
+pub fn stream_checksum(data: &[u8]) -> u32 {
+    let mut crc = Crc32::default();
+    crc.update(data.get(..CHECKSUM_BYTES.start).unwrap_or(data));
+    crc.update(data.get(CHECKSUM_BYTES.end..).unwrap_or(&[]));
+    crc.value()
+}
+
+/// Writes the checksum of the complete stream `data` (header and payload) into its header
+/// field; streams shorter than the fixed header are left alone.
+pub fn seal(data: &mut [u8]) {
+    let checksum = stream_checksum(data);
+    if let Some(field) = data.get_mut(CHECKSUM_BYTES) {
+        field.copy_from_slice(&checksum.to_le_bytes());
+    }
+}
+
+/// Bytes of the LEB128 encoding of `v`.
+fn leb128_len(v: u32) -> usize {
+    let mut n = 1;
+    let mut v = v >> 7;
+    while v != 0 {
+        n += 1;
+        v >>= 7;
+    }
+    n
 }
 
 impl Header {
@@ -109,7 +148,12 @@ impl Header {
         } else {
             0
         };
-        FIXED_HEADER_LEN + books
+        FIXED_HEADER_LEN + leb128_len(self.payload_len) + books
+    }
+
+    /// Length of the whole stream: header and payload.
+    pub fn stream_len(&self) -> u64 {
+        self.encoded_len() as u64 + u64::from(self.payload_len)
     }
 
     /// Parses the header at the start of `data`; returns it and the offset of the payload.
@@ -161,8 +205,28 @@ impl Header {
             min_leaf_log2,
             max_leaf_log2,
             codebooks: [Codebook::EMPTY; 2],
+            payload_len: 0,
+            checksum: u32::from_le_bytes([fixed[13], fixed[14], fixed[15], fixed[16]]),
         };
         let mut pos = FIXED_HEADER_LEN;
+        // Payload length: LEB128, at most five bytes, no redundant trailing zero group.
+        let mut len = 0u64;
+        for k in 0..MAX_LENGTH_BYTES {
+            let b = *data.get(pos).ok_or(DecodeError::Truncated)?;
+            pos += 1;
+            len |= u64::from(b & 0x7F) << (7 * k);
+            if b & 0x80 == 0 {
+                if k > 0 && b == 0 {
+                    return Err(DecodeError::InvalidHeader("payload length"));
+                }
+                break;
+            }
+            if k == MAX_LENGTH_BYTES - 1 {
+                return Err(DecodeError::InvalidHeader("payload length"));
+            }
+        }
+        header.payload_len =
+            u32::try_from(len).map_err(|_| DecodeError::InvalidHeader("payload length"))?;
         if flags & FLAG_CODEBOOKS != 0 {
             for book in header.codebooks.iter_mut() {
                 let len = *data.get(pos).ok_or(DecodeError::Truncated)?;
@@ -212,8 +276,19 @@ impl Header {
             h[1],
             (self.max_leaf_log2 << 4) | self.min_leaf_log2,
         ];
-        out[..FIXED_HEADER_LEN].copy_from_slice(&fixed);
+        out[..CHECKSUM_BYTES.start].copy_from_slice(&fixed);
+        out[CHECKSUM_BYTES].copy_from_slice(&self.checksum.to_le_bytes());
         let mut pos = FIXED_HEADER_LEN;
+        let mut len = self.payload_len;
+        loop {
+            let low = (len & 0x7F) as u8;
+            len >>= 7;
+            out[pos] = low | if len != 0 { 0x80 } else { 0 };
+            pos += 1;
+            if len == 0 {
+                break;
+            }
+        }
         if self.has_codebooks() {
             for book in &self.codebooks {
                 out[pos] = book.len;

@@ -23,6 +23,20 @@ pub enum DecodeError {
     /// The payload decoded to a value the syntax forbids (the arithmetic decoder lost
     /// synchronisation, or the stream was damaged); the text names the element.
     InvalidData(&'static str),
+    /// The stream's CRC-32 does not match its bytes: it was damaged on the way.
+    ChecksumMismatch {
+        /// The checksum the header carries.
+        stored: u32,
+        /// The checksum of the bytes received.
+        computed: u32,
+    },
+    /// The image is larger than the caller's [`crate::Limits`] allow.
+    TooLarge {
+        /// Width in the header.
+        width: u16,
+        /// Height in the header.
+        height: u16,
+    },
     /// The caller's output buffer is smaller than `width * height * channels` bytes.
     BufferTooSmall,
 }
@@ -43,6 +57,16 @@ impl fmt::Display for DecodeError {
             DecodeError::UnsupportedBitDepth(b) => write!(f, "unsupported bit depth {b}"),
             DecodeError::InvalidHeader(what) => write!(f, "invalid header: {what}"),
             DecodeError::InvalidData(what) => write!(f, "corrupt payload: invalid {what}"),
+            DecodeError::ChecksumMismatch { stored, computed } => write!(
+                f,
+                "the stream is damaged: its CRC-32 is {computed:08x}, the header says {stored:08x}"
+            ),
+            DecodeError::TooLarge { width, height } => {
+                write!(
+                    f,
+                    "the image ({width}x{height}) exceeds the decoder's size limit"
+                )
+            }
             DecodeError::BufferTooSmall => write!(f, "output buffer too small for the image"),
         }
     }

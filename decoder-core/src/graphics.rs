@@ -56,10 +56,10 @@ use embedded_graphics_core::pixelcolor::{
 use embedded_graphics_core::primitives::Rectangle;
 
 use crate::bitstream::Header;
-use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
+use crate::entropy::{ByteSource, SliceSource};
 use crate::error::DecodeError;
 use crate::patch::{PixelSink, Rect};
-use crate::stream::{read_header_from, walk_payload};
+use crate::stream::{read_header_checksummed, walk_payload, Payload, StreamPayload};
 
 /// A colour type that decoded 8-bit luma can be drawn as.
 pub trait FromGray: PixelColor {
@@ -129,12 +129,10 @@ pub struct PifsImage<'a, C = Gray8> {
 }
 
 impl<'a, C> PifsImage<'a, C> {
-    /// Wraps the stream `data`, after checking its header (and that the payload can start).
+    /// Wraps the stream `data`, after checking its header, its length and its checksum (so a
+    /// damaged stream is refused here, before anything is drawn).
     pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
-        let (header, offset) = Header::parse(data)?;
-        let payload = data.get(offset..).ok_or(DecodeError::Truncated)?;
-        // The range decoder's start (the first four payload bytes) is part of the validation.
-        RangeDecoder::new(SliceSource::new(payload))?;
+        let (header, payload) = crate::stream::open(data)?;
         Ok(PifsImage {
             data,
             payload,
@@ -260,18 +258,19 @@ fn ignore_decode_errors<E>(r: Result<(), DrawError<E>>) -> Result<(), E> {
 /// `target`, with the image's top-left corner at the target's origin. Returns the header.
 ///
 /// Unlike [`PifsImage`], the stream cannot be replayed, so everything is read even when only a
-/// part of the image is visible.
+/// part of the image is visible, and the checksum is checked at the end, after drawing (see
+/// [`crate::stream::decode_stream`]).
 pub fn draw_stream<B, D>(mut source: B, target: &mut D) -> Result<Header, DrawError<D::Error>>
 where
     B: ByteSource,
     D: DrawTarget,
     D::Color: FromGray,
 {
-    let header = read_header_from(&mut source)?;
+    let (header, crc) = read_header_checksummed(&mut source)?;
     let size = Size::new(header.width.into(), header.height.into());
     draw_area(
         &header,
-        source,
+        StreamPayload::new(source, &header, crc),
         target,
         &Rectangle::new(Point::zero(), size),
     )?;
@@ -279,15 +278,16 @@ where
 }
 
 /// Draws `area` (image coordinates) of the image whose payload `source` holds, with `area`'s
-/// top-left corner at the target's origin.
-fn draw_area<B, D>(
+/// top-left corner at the target's origin. A payload whose checksum is still to be verified is
+/// read to its end even when nothing of it is visible.
+fn draw_area<P, D>(
     header: &Header,
-    source: B,
+    source: P,
     target: &mut D,
     area: &Rectangle,
 ) -> Result<(), DrawError<D::Error>>
 where
-    B: ByteSource,
+    P: Payload,
     D: DrawTarget,
     D::Color: FromGray,
 {
@@ -300,14 +300,18 @@ where
     let visible = target.bounding_box();
     let visible = Rectangle::new(visible.top_left + offset, visible.size);
     let clip = area.intersection(&image).intersection(&visible);
-    if clip.is_zero_sized() || clip.top_left.x < 0 || clip.top_left.y < 0 {
-        return Ok(());
-    }
-    let clip = Rect {
-        x: clip.top_left.x as u32,
-        y: clip.top_left.y as u32,
-        w: clip.size.width,
-        h: clip.size.height,
+    let clip = if clip.is_zero_sized() || clip.top_left.x < 0 || clip.top_left.y < 0 {
+        if !P::CHECKS_CHECKSUM {
+            return Ok(());
+        }
+        Rect::of_size(0, 0)
+    } else {
+        Rect {
+            x: clip.top_left.x as u32,
+            y: clip.top_left.y as u32,
+            w: clip.size.width,
+            h: clip.size.height,
+        }
     };
     let mut sink = TargetSink {
         target,

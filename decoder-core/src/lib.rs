@@ -29,6 +29,7 @@
 #![warn(missing_docs)]
 
 pub mod bitstream;
+pub mod checksum;
 pub mod entropy;
 mod error;
 pub mod model;
@@ -52,6 +53,52 @@ use quadtree::{Node, TreeVisitor};
 /// Reads and validates the header of a stream.
 pub fn read_header(data: &[u8]) -> Result<Header, DecodeError> {
     Header::parse(data).map(|(h, _)| h)
+}
+
+/// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
+/// is drawn or allocated (a host decoding into a buffer it allocates should always set them:
+/// a 17-byte header can announce a 65535 x 65535 image).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Largest accepted width.
+    pub max_width: u16,
+    /// Largest accepted height.
+    pub max_height: u16,
+    /// Largest accepted `width * height`.
+    pub max_pixels: u64,
+}
+
+impl Limits {
+    /// No bound beyond the format's own (65535 x 65535).
+    pub const NONE: Limits = Limits {
+        max_width: u16::MAX,
+        max_height: u16::MAX,
+        max_pixels: u64::MAX,
+    };
+
+    /// At most `max_pixels` pixels, any shape.
+    pub const fn pixels(max_pixels: u64) -> Limits {
+        Limits {
+            max_pixels,
+            ..Limits::NONE
+        }
+    }
+
+    /// `Ok` when `header` describes an image within these bounds, else
+    /// [`DecodeError::TooLarge`].
+    pub fn check(&self, header: &Header) -> Result<(), DecodeError> {
+        let pixels = u64::from(header.width) * u64::from(header.height);
+        if header.width > self.max_width
+            || header.height > self.max_height
+            || pixels > self.max_pixels
+        {
+            return Err(DecodeError::TooLarge {
+                width: header.width,
+                height: header.height,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// A [`PixelSink`] that also hears about every leaf (for inspection tools).
@@ -99,8 +146,7 @@ pub fn decode_observed<S: PixelSink, O: LeafObserver>(
     sink: &mut S,
     observer: O,
 ) -> Result<(Header, O), DecodeError> {
-    let (header, offset) = Header::parse(data)?;
-    let payload = data.get(offset..).ok_or(DecodeError::Truncated)?;
+    let (header, payload) = stream::open(data)?;
     let mut coder = RangeDecoder::new(SliceSource::new(payload))?;
     let clip = Rect::of_size(u32::from(header.width), u32::from(header.height));
     let mut drawer = Drawer {
@@ -109,6 +155,7 @@ pub fn decode_observed<S: PixelSink, O: LeafObserver>(
         observer,
     };
     stream::run_walk(&header, &mut coder, &mut drawer)?;
+    stream::Payload::finish(coder.into_source(), &header)?;
     Ok((header, drawer.observer))
 }
 

@@ -10,24 +10,36 @@
 //! contexts must see every bit), but leaves outside the clip produce no pixels and cost no
 //! synthesis.
 
-use crate::bitstream::{Header, LeafSyntax, FIXED_HEADER_LEN, MAX_CODEBOOK};
+use crate::bitstream::LeafSyntax;
+use crate::bitstream::{
+    stream_checksum, Header, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_CODEBOOK, MAX_LENGTH_BYTES,
+};
+use crate::checksum::Crc32;
 use crate::entropy::{ByteSource, Coder, RangeDecoder, SliceSource};
 use crate::error::DecodeError;
 use crate::patch::{Patch, PixelSink, Rect};
 use crate::quadtree::{self, LeafInfo, Node, TreeVisitor};
 
-/// Longest possible header: the fixed part and two codebooks of [`MAX_CODEBOOK`] levels
-/// (`13 + 2 * (1 + 2 * 16) = 79` bytes in version 1). [`decode_stream`] never buffers more.
-pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + 2 * (1 + 2 * MAX_CODEBOOK);
+/// Longest possible header: the fixed part, the longest payload length and two codebooks of
+/// [`MAX_CODEBOOK`] levels (`17 + 5 + 2 * (1 + 2 * 16) = 88` bytes in version 2).
+/// [`decode_stream`] never buffers more.
+pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES + 2 * (1 + 2 * MAX_CODEBOOK);
 
 /// Reads exactly the header's bytes from `source` and parses them.
 ///
-/// The fixed part is read first; further bytes (the optional codebooks) are pulled one at a time
-/// only while [`Header::parse`] reports the header as truncated, so the source is left at the
-/// first payload byte. Errors are those of [`Header::parse`] on the same bytes; a source that
-/// ends early gives [`DecodeError::Truncated`] (or [`DecodeError::BadMagic`], like a short slice
-/// would).
+/// The fixed part is read first; further bytes (the payload length and the optional codebooks)
+/// are pulled one at a time only while [`Header::parse`] reports the header as truncated, so the
+/// source is left at the first payload byte. Errors are those of [`Header::parse`] on the same
+/// bytes; a source that ends early gives [`DecodeError::Truncated`] (or
+/// [`DecodeError::BadMagic`], like a short slice would).
 pub fn read_header_from<B: ByteSource>(source: &mut B) -> Result<Header, DecodeError> {
+    read_header_checksummed(source).map(|(header, _)| header)
+}
+
+/// [`read_header_from`], also returning the CRC-32 state after the header's checksummed bytes.
+pub(crate) fn read_header_checksummed<B: ByteSource>(
+    source: &mut B,
+) -> Result<(Header, Crc32), DecodeError> {
     let mut buf = [0u8; MAX_HEADER_LEN];
     let mut len = 0;
     while len < FIXED_HEADER_LEN {
@@ -41,7 +53,12 @@ pub fn read_header_from<B: ByteSource>(source: &mut B) -> Result<Header, DecodeE
     }
     loop {
         match Header::parse(&buf[..len]) {
-            Ok((header, _)) => return Ok(header),
+            Ok((header, _)) => {
+                let mut crc = Crc32::default();
+                crc.update(&buf[..CHECKSUM_BYTES.start]);
+                crc.update(&buf[CHECKSUM_BYTES.end..len]);
+                return Ok((header, crc));
+            }
             Err(DecodeError::Truncated) if (FIXED_HEADER_LEN..MAX_HEADER_LEN).contains(&len) => {
                 buf[len] = source.next_byte().ok_or(DecodeError::Truncated)?;
                 len += 1;
@@ -53,8 +70,11 @@ pub fn read_header_from<B: ByteSource>(source: &mut B) -> Result<Header, DecodeE
 
 /// Decodes a stream read sequentially from `source`, handing pixels to `sink` tile by tile.
 ///
-/// Produces exactly the tiles (same order, same pixels) and the result of [`crate::decode`] on
-/// the same bytes, while holding at most [`MAX_HEADER_LEN`] bytes of the stream at a time.
+/// Produces the tiles (same order, same pixels) of [`crate::decode`] on the same bytes, while
+/// holding at most [`MAX_HEADER_LEN`] bytes of the stream at a time. Because nothing is held,
+/// the stream's checksum can only be checked at the end: a damaged stream may draw damaged
+/// pixels before [`DecodeError::ChecksumMismatch`] (or the error it caused) is returned. Exactly
+/// the header's and the payload's bytes are pulled from `source`, never one more.
 pub fn decode_stream<B: ByteSource, S: PixelSink>(
     source: B,
     sink: &mut S,
@@ -69,9 +89,35 @@ pub fn decode_stream_region<B: ByteSource, S: PixelSink>(
     clip: Rect,
     sink: &mut S,
 ) -> Result<Header, DecodeError> {
-    let header = read_header_from(&mut source)?;
-    walk_payload(&header, source, clip, sink, |_| false)?;
+    let (header, crc) = read_header_checksummed(&mut source)?;
+    let payload = StreamPayload::new(source, &header, crc);
+    walk_payload(&header, payload, clip, sink, |_| false)?;
     Ok(header)
+}
+
+/// Parses the header of the whole stream `data`, checks that the stream is exactly as long as
+/// the header says and that its checksum matches, and returns the header and the payload.
+/// Every decoding path over a slice starts here, so a damaged stream is refused before
+/// anything is drawn.
+pub fn open(data: &[u8]) -> Result<(Header, &[u8]), DecodeError> {
+    let (header, offset) = Header::parse(data)?;
+    let end = offset as u64 + u64::from(header.payload_len);
+    if (data.len() as u64) < end {
+        return Err(DecodeError::Truncated);
+    }
+    if data.len() as u64 > end {
+        return Err(DecodeError::InvalidHeader(
+            "payload length (bytes follow the payload)",
+        ));
+    }
+    let computed = stream_checksum(data);
+    if computed != header.checksum {
+        return Err(DecodeError::ChecksumMismatch {
+            stored: header.checksum,
+            computed,
+        });
+    }
+    Ok((header, &data[offset..]))
 }
 
 /// Decodes the stream in `data`, synthesising only the pixels inside `clip` (image
@@ -82,8 +128,7 @@ pub fn decode_region<S: PixelSink>(
     clip: Rect,
     sink: &mut S,
 ) -> Result<Header, DecodeError> {
-    let (header, offset) = Header::parse(data)?;
-    let payload = data.get(offset..).ok_or(DecodeError::Truncated)?;
+    let (header, payload) = open(data)?;
     walk_payload(&header, SliceSource::new(payload), clip, sink, |_| false)?;
     Ok(header)
 }
@@ -91,18 +136,101 @@ pub fn decode_region<S: PixelSink>(
 /// The error [`walk_payload`] returns when its `stop` predicate ended the walk.
 pub(crate) const STOPPED: DecodeError = DecodeError::InvalidData("walk stopped by the pixel sink");
 
-/// Runs the quadtree walk over the payload in `source` (positioned at the first payload byte),
-/// rendering leaves into `sink` cut to `clip` (itself cut to the image). After every leaf,
-/// `stop(sink)` may end the walk early: it then returns [`STOPPED`].
-pub(crate) fn walk_payload<B, S, F>(
+/// A source of exactly one stream's payload, which knows how to check, once the walk is done,
+/// that the payload was whole and (for a stream not verified beforehand) undamaged.
+pub(crate) trait Payload: ByteSource {
+    /// Whether [`Payload::finish`] checks the stream's checksum: the payload must then be read
+    /// to its end even when no pixel of it is wanted.
+    #[cfg_attr(not(feature = "embedded-graphics"), allow(dead_code))]
+    const CHECKS_CHECKSUM: bool;
+
+    /// After the walk: `Ok` when the walk used exactly the payload (and the checksum matches).
+    fn finish(self, header: &Header) -> Result<(), DecodeError>;
+}
+
+/// A payload in memory, already verified by [`open`] (exactly `payload_len` bytes, checksum
+/// matched).
+impl Payload for SliceSource<'_> {
+    const CHECKS_CHECKSUM: bool = false;
+
+    fn finish(mut self, _header: &Header) -> Result<(), DecodeError> {
+        match self.next_byte() {
+            None => Ok(()),
+            Some(_) => Err(DecodeError::InvalidData("payload length")),
+        }
+    }
+}
+
+/// The payload of a sequential source: at most the header's payload length is pulled, and
+/// every byte goes through the stream's CRC, checked at the end.
+pub(crate) struct StreamPayload<B> {
+    inner: B,
+    remaining: u32,
+    crc: Crc32,
+}
+
+impl<B: ByteSource> StreamPayload<B> {
+    /// The payload of a stream with `header`; `crc` is the checksum state after the header.
+    pub(crate) fn new(inner: B, header: &Header, crc: Crc32) -> Self {
+        StreamPayload {
+            inner,
+            remaining: header.payload_len,
+            crc,
+        }
+    }
+}
+
+impl<B: ByteSource> ByteSource for StreamPayload<B> {
+    #[inline]
+    fn next_byte(&mut self) -> Option<u8> {
+        if self.remaining == 0 {
+            return None;
+        }
+        let b = self.inner.next_byte()?;
+        self.remaining -= 1;
+        self.crc.update_byte(b);
+        Some(b)
+    }
+}
+
+impl<B: ByteSource> Payload for StreamPayload<B> {
+    const CHECKS_CHECKSUM: bool = true;
+
+    /// The rest of the payload (which a valid stream does not have) goes into the checksum,
+    /// which must match (damage is the likeliest cause of a short walk); then the walk must
+    /// have used the whole payload.
+    fn finish(mut self, header: &Header) -> Result<(), DecodeError> {
+        let unread = self.remaining;
+        while self.next_byte().is_some() {}
+        if self.remaining != 0 {
+            return Err(DecodeError::Truncated);
+        }
+        let computed = self.crc.value();
+        if computed != header.checksum {
+            return Err(DecodeError::ChecksumMismatch {
+                stored: header.checksum,
+                computed,
+            });
+        }
+        if unread != 0 {
+            return Err(DecodeError::InvalidData("payload length"));
+        }
+        Ok(())
+    }
+}
+
+/// Runs the quadtree walk over the payload in `source`, rendering leaves into `sink` cut to
+/// `clip` (itself cut to the image), then checks the payload ([`Payload::finish`]). After every
+/// leaf, `stop(sink)` may end the walk early: it then returns [`STOPPED`].
+pub(crate) fn walk_payload<P, S, F>(
     header: &Header,
-    source: B,
+    source: P,
     clip: Rect,
     sink: &mut S,
     stop: F,
 ) -> Result<(), DecodeError>
 where
-    B: ByteSource,
+    P: Payload,
     S: PixelSink,
     F: Fn(&S) -> bool,
 {
@@ -115,7 +243,8 @@ where
         sink,
         stop,
     };
-    run_walk(header, &mut coder, &mut visitor)
+    run_walk(header, &mut coder, &mut visitor)?;
+    coder.into_source().finish(header)
 }
 
 /// The walk, its final state dropped: every decoding path goes through here. Not inlined, so
@@ -242,6 +371,9 @@ mod tests {
     fn header_with_codebooks() -> Vec<u8> {
         let mut h = Vec::from(*b"PIFS");
         h.extend_from_slice(&[crate::bitstream::VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42]);
+        // Checksum (not checked by the header parser), then a payload length of 300 (two
+        // LEB128 bytes).
+        h.extend_from_slice(&[1, 2, 3, 4, 0xAC, 0x02]);
         for len in [3u8, 16] {
             h.push(len);
             for i in 0..i16::from(len) {
@@ -299,14 +431,24 @@ mod tests {
             let r_stream = decode_stream(src, &mut streamed);
             assert_eq!(r_stream, r_slice, "{name}");
             assert_eq!(streamed, sliced, "{name}: tiles differ");
-            // Truncated streams fail identically, after the same tiles.
+            // Truncated streams fail identically; the slice decoder refuses them before
+            // drawing, the streaming one after drawing a prefix of the image's tiles.
             for cut in (0..data.len()).step_by(1 + data.len() / 64) {
                 let mut a = Recorder::default();
                 let mut b = Recorder::default();
                 let ra = crate::decode(&data[..cut], &mut a);
                 let rb = decode_stream(SliceSource::new(&data[..cut]), &mut b);
+                assert_eq!(ra, Err(DecodeError::Truncated), "{name} cut at {cut}");
                 assert_eq!(ra, rb, "{name} cut at {cut}");
-                assert_eq!(a, b, "{name} cut at {cut}");
+                assert!(
+                    a.tiles.is_empty(),
+                    "{name} cut at {cut}: drew a truncated stream"
+                );
+                assert_eq!(
+                    b.tiles[..],
+                    sliced.tiles[..b.tiles.len()],
+                    "{name} cut at {cut}"
+                );
             }
         }
     }

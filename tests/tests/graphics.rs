@@ -17,7 +17,7 @@
 mod common;
 
 use common::{decode_all, golden_dir, golden_list};
-use decoder_core::entropy::ByteSource;
+use decoder_core::entropy::{ByteSource, SliceSource};
 use decoder_core::graphics::{draw_stream, DrawError, FromGray, PifsImage};
 use decoder_core::patch::TILE;
 use decoder_core::DecodeError;
@@ -342,35 +342,50 @@ fn sub_image_and_off_screen_parts_synthesise_only_visible_tiles() {
 fn damaged_streams_never_panic_and_draw_checked_reports_them() {
     for d in golden() {
         let header_len = decoder_core::read_header(&d.stream).unwrap().encoded_len();
-        // Truncated payload: the header is fine, decoding runs out of bytes.
+        // Truncated payload: refused before anything is drawn.
         let cut = &d.stream[..(header_len + 4).max(d.stream.len() * 2 / 3)];
-        let img = PifsImage::<Gray8>::new(cut).unwrap();
-        let mut t = Recorder::new(d.width, d.height);
-        assert_eq!(img.draw(&mut t), Ok(()), "{}", d.name);
+        assert_eq!(
+            PifsImage::<Gray8>::new(cut).err(),
+            Some(DecodeError::Truncated),
+            "{}",
+            d.name
+        );
+        // Streamed, the same bytes draw a correct prefix of the image, then report the error.
         let mut t = Recorder::new(d.width, d.height);
         assert_eq!(
-            img.draw_checked(&mut t),
+            draw_stream(SliceSource::new(cut), &mut t),
             Err(DrawError::Decode(DecodeError::Truncated)),
             "{}",
             d.name
         );
-        assert_eq!(img.verify(), Err(DecodeError::Truncated), "{}", d.name);
-        // What was drawn before the error is right.
         for (i, p) in t.pixels.iter().enumerate() {
             if let Some(v) = p {
                 assert_eq!(*v, d.pixels[i], "{}", d.name);
             }
         }
-        // Flipped payload bytes: any outcome but a panic.
+        // Flipped payload bytes: the checksum refuses the stream before drawing; streamed, no
+        // panic and an error at the latest at the end.
         for k in 0..16 {
             let mut bad = d.stream.clone();
             let i = header_len + (k * 7919) % (bad.len() - header_len);
             bad[i] ^= 0x5A;
-            if let Ok(img) = PifsImage::<Gray8>::new(&bad) {
-                let _ = img.draw_checked(&mut Recorder::new(d.width, d.height));
-                let _ = img.draw(&mut Recorder::new(d.width, d.height));
-                let _ = img.verify();
-            }
+            assert!(
+                matches!(
+                    PifsImage::<Gray8>::new(&bad),
+                    Err(DecodeError::ChecksumMismatch { .. })
+                ),
+                "{}: byte {i} flipped",
+                d.name
+            );
+            let streamed = draw_stream(
+                SliceSource::new(&bad),
+                &mut Recorder::new(d.width, d.height),
+            );
+            assert!(
+                matches!(streamed, Err(DrawError::Decode(_))),
+                "{}: byte {i} flipped",
+                d.name
+            );
         }
         assert_eq!(PifsImage::<Gray8>::new(&d.stream).unwrap().verify(), Ok(()));
     }

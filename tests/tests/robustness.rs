@@ -5,9 +5,9 @@
 
 mod common;
 
-use common::{golden_streams, CoverageSink};
-use decoder_core::bitstream::{FIXED_HEADER_LEN, FLAG_CODEBOOKS, MAGIC, VERSION};
-use decoder_core::DecodeError;
+use common::{golden_streams, sealed_stream, CoverageSink};
+use decoder_core::bitstream::{seal, Codebook, Header, CHECKSUM_BYTES, FLAG_CODEBOOKS, MAGIC};
+use decoder_core::{DecodeError, Limits};
 use proptest::prelude::*;
 use std::sync::OnceLock;
 
@@ -71,15 +71,31 @@ fn decode_checked(data: &[u8]) -> Result<(), DecodeError> {
     result.map(|_| ())
 }
 
-/// A valid fixed header (no codebooks) for a `width x height` image.
-fn header_bytes(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Vec<u8> {
-    let mut h = MAGIC.to_vec();
-    h.extend_from_slice(&[VERSION, 1, 8, 0]);
-    h.extend_from_slice(&width.to_le_bytes());
-    h.extend_from_slice(&height.to_le_bytes());
-    h.push((max_leaf << 4) | min_leaf);
-    assert_eq!(h.len(), FIXED_HEADER_LEN);
-    h
+/// A header (no codebooks) for a `width x height` image.
+fn header(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Header {
+    Header {
+        width,
+        height,
+        channels: 1,
+        bit_depth: 8,
+        min_leaf_log2: min_leaf,
+        max_leaf_log2: max_leaf,
+        codebooks: [Codebook::EMPTY; 2],
+        payload_len: 0,
+        checksum: 0,
+    }
+}
+
+/// The header bytes of a `width x height` image whose payload is `payload_len` bytes (the
+/// checksum field left at zero).
+fn header_bytes(width: u16, height: u16, payload_len: u32) -> Vec<u8> {
+    let h = Header {
+        payload_len,
+        ..header(width, height, 2, 4)
+    };
+    let mut bytes = vec![0; h.encoded_len()];
+    h.write(&mut bytes);
+    bytes
 }
 
 #[test]
@@ -109,11 +125,17 @@ fn truncation_at_every_length_is_detected() {
 
 #[test]
 fn header_errors_are_typed() {
-    let good = header_bytes(16, 16, 2, 4);
+    let good = header_bytes(16, 16, 8);
     let with = |i: usize, v: u8| {
         let mut h = good.clone();
         h[i] = v;
         h.extend_from_slice(&[0; 8]);
+        h
+    };
+    let sealed = |payload_len: u32, payload: &[u8]| {
+        let mut h = header_bytes(16, 16, payload_len);
+        h.extend_from_slice(payload);
+        seal(&mut h);
         h
     };
     let cases: Vec<(&str, Vec<u8>, DecodeError)> = vec![
@@ -132,7 +154,8 @@ fn header_errors_are_typed() {
         ("bad magic", with(0, b'Q'), DecodeError::BadMagic),
         ("bad magic, last byte", with(3, b's'), DecodeError::BadMagic),
         ("version 0", with(4, 0), DecodeError::UnsupportedVersion(0)),
-        ("version 2", with(4, 2), DecodeError::UnsupportedVersion(2)),
+        ("version 1", with(4, 1), DecodeError::UnsupportedVersion(1)),
+        ("version 3", with(4, 3), DecodeError::UnsupportedVersion(3)),
         (
             "version 255",
             with(4, 255),
@@ -261,13 +284,65 @@ fn header_errors_are_typed() {
         ),
         (
             "payload shorter than the coder's first four bytes",
+            sealed(3, &[0; 3]),
+            DecodeError::Truncated,
+        ),
+        (
+            "payload shorter than its length says",
+            sealed(9, &[0; 8]),
+            DecodeError::Truncated,
+        ),
+        (
+            "bytes after the payload",
+            sealed(7, &[0; 8]),
+            DecodeError::InvalidHeader("payload length (bytes follow the payload)"),
+        ),
+        (
+            "payload length in six bytes",
             {
-                let mut h = good.clone();
-                h.extend_from_slice(&[0; 3]);
+                let mut h = good[..17].to_vec();
+                h.extend_from_slice(&[0x80, 0x80, 0x80, 0x80, 0x80, 0]);
+                h
+            },
+            DecodeError::InvalidHeader("payload length"),
+        ),
+        (
+            "payload length above 2^32 - 1",
+            {
+                let mut h = good[..17].to_vec();
+                h.extend_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF, 0x10]);
+                h
+            },
+            DecodeError::InvalidHeader("payload length"),
+        ),
+        (
+            "payload length with a redundant zero group",
+            {
+                let mut h = good[..17].to_vec();
+                h.extend_from_slice(&[0x88, 0x00]);
+                h.extend_from_slice(&[0; 8]);
+                h
+            },
+            DecodeError::InvalidHeader("payload length"),
+        ),
+        (
+            "payload length cut short",
+            {
+                let mut h = good[..17].to_vec();
+                h.push(0x88);
                 h
             },
             DecodeError::Truncated,
         ),
+        ("checksum field zero", with(13, 0), {
+            let mut h = with(13, 0);
+            h[CHECKSUM_BYTES].fill(0);
+            let computed = decoder_core::bitstream::stream_checksum(&h);
+            DecodeError::ChecksumMismatch {
+                stored: 0,
+                computed,
+            }
+        }),
     ];
     for (what, bytes, expected) in cases {
         assert_eq!(
@@ -285,7 +360,7 @@ fn header_errors_are_typed() {
     let (name, golden) = &streams()[0];
     for (i, v, expected) in [
         (0, b'X', DecodeError::BadMagic),
-        (4, 2, DecodeError::UnsupportedVersion(2)),
+        (4, 1, DecodeError::UnsupportedVersion(1)),
         (5, 3, DecodeError::UnsupportedChannels(3)),
     ] {
         let mut b = golden.clone();
@@ -305,9 +380,21 @@ fn header_errors_are_typed() {
 
 #[test]
 fn header_claiming_a_huge_image_needs_a_huge_buffer() {
-    let mut data = header_bytes(65535, 65535, 2, 9);
-    data.extend_from_slice(&[0x55; 64]);
+    let data = sealed_stream(&header(65535, 65535, 2, 9), &[0x55; 64]);
     let header = decoder_core::read_header(&data).unwrap();
+    assert_eq!(
+        Limits::pixels(1 << 24).check(&header),
+        Err(DecodeError::TooLarge {
+            width: 65535,
+            height: 65535
+        })
+    );
+    assert_eq!(Limits::NONE.check(&header), Ok(()));
+    let narrow = Limits {
+        max_width: 65534,
+        ..Limits::NONE
+    };
+    assert!(narrow.check(&header).is_err());
     assert_eq!(header.pixel_count(), 65535 * 65535);
     assert_eq!(header.root_log2(), 16);
     let mut small = vec![0u8; 1 << 16];
@@ -352,8 +439,7 @@ proptest! {
         payload in proptest::collection::vec(any::<u8>(), 0..1024),
     ) {
         let max_leaf = (min_leaf + extra).min(9);
-        let mut data = header_bytes(width, height, min_leaf, max_leaf);
-        data.extend_from_slice(&payload);
+        let data = sealed_stream(&header(width, height, min_leaf, max_leaf), &payload);
         let result = decode_checked(&data);
         if payload.len() < 4 {
             prop_assert_eq!(result, Err(DecodeError::Truncated));
@@ -381,6 +467,10 @@ proptest! {
             bytes[i] ^= 1 << bit;
         }
         let _ = decode_checked(&bytes);
+        // And with the checksum made to match, so that the damage reaches the header and
+        // payload checks behind it.
+        seal(&mut bytes);
+        let _ = decode_checked(&bytes);
     }
 
     #[test]
@@ -396,6 +486,14 @@ proptest! {
             let i = start + at.index(bytes.len() - start);
             bytes[i] ^= 1 << bit;
         }
+        // CRC-32 detects every error of up to 3 flipped bits (flips of the same bit cancel).
+        if bytes != streams()[which].1 {
+            prop_assert!(
+                matches!(decode_checked(&bytes), Err(DecodeError::ChecksumMismatch { .. })),
+                "payload damage not detected"
+            );
+        }
+        seal(&mut bytes);
         let _ = decode_checked(&bytes);
     }
 
@@ -409,6 +507,8 @@ proptest! {
             let i = at.index(bytes.len());
             bytes[i] = *v;
         }
+        let _ = decode_checked(&bytes);
+        seal(&mut bytes);
         let _ = decode_checked(&bytes);
     }
 
@@ -437,6 +537,7 @@ proptest! {
         bytes[8..10].copy_from_slice(&width.to_le_bytes());
         bytes[10..12].copy_from_slice(&height.to_le_bytes());
         bytes[12] = leaves;
+        seal(&mut bytes);
         let result = decode_checked(&bytes);
         if width == 0 || height == 0 {
             prop_assert!(matches!(result, Err(DecodeError::InvalidHeader(_))), "{:?}", result);

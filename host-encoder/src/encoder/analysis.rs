@@ -87,6 +87,9 @@ impl Analysis {
             min_leaf_log2: config.min_leaf_log2,
             max_leaf_log2: config.max_leaf_log2.max(config.min_leaf_log2),
             codebooks: [Codebook::EMPTY; 2],
+            // Set by the writer.
+            payload_len: 0,
+            checksum: 0,
         };
         let root = header.root_log2();
         let done = std::sync::atomic::AtomicU64::new(0);

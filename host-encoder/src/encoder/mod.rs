@@ -198,7 +198,7 @@ impl Analysis {
         best.ok_or_else(|| last_err.unwrap_or_else(|| EncodeError::Internal("no variant".into())))
     }
 
-    fn finish(&self, plan: &rate::Plan, written: writer::Written, header: &Header) -> Encoded {
+    fn finish(&self, plan: &rate::Plan, written: writer::Written) -> Encoded {
         let pixels = self.header.pixel_count();
         let sse: f64 = written
             .reconstruction
@@ -209,7 +209,7 @@ impl Analysis {
                 d * d
             })
             .sum();
-        let actual = (written.bytes.len() - header.encoded_len()) as f64 * 8.0;
+        let actual = written.payload_bits;
         Encoded {
             psnr: psnr(sse, pixels),
             sse,
@@ -227,8 +227,13 @@ impl Analysis {
 
     /// Best stream of at most `budget` bytes.
     fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
-        // The range coder's flush adds four bytes to the payload.
-        let overhead = (header.encoded_len() + 4) as f64 * 8.0;
+        // The header (its payload length at most as long as for a payload of `budget` bytes)
+        // and the four bytes of the range coder's flush.
+        let longest_header = Header {
+            payload_len: u32::try_from(budget).unwrap_or(u32::MAX),
+            ..*header
+        };
+        let overhead = (longest_header.encoded_len() + 4) as f64 * 8.0;
         let mut snapshot = Contexts::default();
         let mut target_bits = budget as f64 * 8.0 - overhead;
         let mut rates = RateTable::new(self, header, &snapshot);
@@ -259,7 +264,7 @@ impl Analysis {
             plan = smaller;
             written = smaller_written;
         }
-        Ok(self.finish(&plan, written, header))
+        Ok(self.finish(&plan, written))
     }
 
     /// Smallest stream whose PSNR reaches `db`.
@@ -281,7 +286,7 @@ impl Analysis {
             plan.expect("at least one pass"),
             written.expect("at least one pass"),
         );
-        let encoded = self.finish(&plan, written, header);
+        let encoded = self.finish(&plan, written);
         if encoded.sse > max_sse {
             return Err(EncodeError::QualityUnreachable {
                 requested: db,

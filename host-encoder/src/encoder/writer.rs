@@ -5,7 +5,7 @@ use super::analysis::Analysis;
 use super::quantise::quantise;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
-use decoder_core::bitstream::{Contexts, Header, LeafSyntax};
+use decoder_core::bitstream::{seal, Contexts, Header, LeafSyntax};
 use decoder_core::patch::{Patch, PixelSink, Rect};
 use decoder_core::quadtree::{walk, LeafInfo, Node, TreeVisitor};
 use decoder_core::DecodeError;
@@ -15,6 +15,8 @@ use decoder_core::DecodeError;
 pub struct Written {
     /// The complete stream (header and payload).
     pub bytes: Vec<u8>,
+    /// Size of the payload alone, in bits.
+    pub payload_bits: f64,
     /// Decoded pixels as the encoder reconstructed them, row-major.
     pub reconstruction: Vec<u8>,
     /// Context state at the end of the payload (seeds the next rate estimate).
@@ -99,10 +101,17 @@ pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Writte
     let mut coder = RangeEncoder::new();
     let state = walk(header, &mut coder, &mut visitor)?;
     let payload = coder.finish();
+    let header = Header {
+        payload_len: u32::try_from(payload.len())
+            .map_err(|_| DecodeError::InvalidHeader("payload length"))?,
+        ..*header
+    };
     let mut bytes = vec![0u8; header.encoded_len()];
     header.write(&mut bytes);
     bytes.extend_from_slice(&payload);
+    seal(&mut bytes);
     Ok(Written {
+        payload_bits: payload.len() as f64 * 8.0,
         bytes,
         reconstruction: visitor.image,
         final_contexts: state.contexts,

@@ -252,3 +252,17 @@ pub fn golden_streams() -> Vec<(String, Vec<u8>)> {
         })
         .collect()
 }
+
+/// A complete, correctly checksummed stream: `header` (its payload length set to fit) and
+/// `payload`, so that tests reach the payload syntax behind the checksum.
+pub fn sealed_stream(header: &decoder_core::Header, payload: &[u8]) -> Vec<u8> {
+    let header = decoder_core::Header {
+        payload_len: payload.len() as u32,
+        ..*header
+    };
+    let mut bytes = vec![0u8; header.encoded_len()];
+    header.write(&mut bytes);
+    bytes.extend_from_slice(payload);
+    decoder_core::bitstream::seal(&mut bytes);
+    bytes
+}
