@@ -67,6 +67,14 @@ pub trait ByteSource {
     fn next_byte(&mut self) -> Option<u8>;
 }
 
+/// A borrowed source, so that the caller keeps it (and can see how far it was read).
+impl<B: ByteSource + ?Sized> ByteSource for &mut B {
+    #[inline]
+    fn next_byte(&mut self) -> Option<u8> {
+        (**self).next_byte()
+    }
+}
+
 /// A [`ByteSource`] over a borrowed slice.
 #[derive(Debug, Clone)]
 pub struct SliceSource<'a> {
@@ -107,10 +115,18 @@ pub struct RangeDecoder<S: ByteSource> {
 
 impl<S: ByteSource> RangeDecoder<S> {
     /// Starts decoding: reads the first four payload bytes.
-    pub fn new(mut source: S) -> Result<Self, DecodeError> {
+    pub fn new(source: S) -> Result<Self, DecodeError> {
+        Self::start(source).map_err(|(_, e)| e)
+    }
+
+    /// Like [`RangeDecoder::new`], but gives the source back on failure.
+    pub fn start(mut source: S) -> Result<Self, (S, DecodeError)> {
         let mut code = 0u32;
         for _ in 0..4 {
-            code = (code << 8) | u32::from(source.next_byte().ok_or(DecodeError::Truncated)?);
+            match source.next_byte() {
+                Some(b) => code = (code << 8) | u32::from(b),
+                None => return Err((source, DecodeError::Truncated)),
+            }
         }
         Ok(RangeDecoder {
             source,

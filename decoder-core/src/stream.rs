@@ -146,6 +146,12 @@ pub(crate) trait Payload: ByteSource {
 
     /// After the walk: `Ok` when the walk used exactly the payload (and the checksum matches).
     fn finish(self, header: &Header) -> Result<(), DecodeError>;
+
+    /// After a walk that failed with `error`: the error to report. A payload not verified
+    /// beforehand reads the rest of its declared length, so that damage is reported as such
+    /// ([`DecodeError::ChecksumMismatch`]) whichever syntax check it happened to trip first,
+    /// exactly as the in-memory decoder reports it.
+    fn after_error(self, header: &Header, error: DecodeError) -> DecodeError;
 }
 
 /// A payload in memory, already verified by [`open`] (exactly `payload_len` bytes, checksum
@@ -158,6 +164,10 @@ impl Payload for SliceSource<'_> {
             None => Ok(()),
             Some(_) => Err(DecodeError::InvalidData("payload length")),
         }
+    }
+
+    fn after_error(self, _header: &Header, error: DecodeError) -> DecodeError {
+        error
     }
 }
 
@@ -199,8 +209,23 @@ impl<B: ByteSource> Payload for StreamPayload<B> {
     /// The rest of the payload (which a valid stream does not have) goes into the checksum,
     /// which must match (damage is the likeliest cause of a short walk); then the walk must
     /// have used the whole payload.
-    fn finish(mut self, header: &Header) -> Result<(), DecodeError> {
-        let unread = self.remaining;
+    fn finish(self, header: &Header) -> Result<(), DecodeError> {
+        let unread = self.remaining != 0;
+        self.drain_and_check(header)?;
+        if unread {
+            return Err(DecodeError::InvalidData("payload length"));
+        }
+        Ok(())
+    }
+
+    fn after_error(self, header: &Header, error: DecodeError) -> DecodeError {
+        self.drain_and_check(header).err().unwrap_or(error)
+    }
+}
+
+impl<B: ByteSource> StreamPayload<B> {
+    /// Reads the rest of the declared payload into the checksum and compares it.
+    fn drain_and_check(mut self, header: &Header) -> Result<(), DecodeError> {
         while self.next_byte().is_some() {}
         if self.remaining != 0 {
             return Err(DecodeError::Truncated);
@@ -211,9 +236,6 @@ impl<B: ByteSource> Payload for StreamPayload<B> {
                 stored: header.checksum,
                 computed,
             });
-        }
-        if unread != 0 {
-            return Err(DecodeError::InvalidData("payload length"));
         }
         Ok(())
     }
@@ -234,7 +256,8 @@ where
     S: PixelSink,
     F: Fn(&S) -> bool,
 {
-    let mut coder = RangeDecoder::new(source)?;
+    let mut coder =
+        RangeDecoder::start(source).map_err(|(source, e)| source.after_error(header, e))?;
     let mut visitor = ClipVisitor {
         clip: intersect(
             clip,
@@ -243,8 +266,12 @@ where
         sink,
         stop,
     };
-    run_walk(header, &mut coder, &mut visitor)?;
-    coder.into_source().finish(header)
+    match run_walk(header, &mut coder, &mut visitor) {
+        Ok(()) => coder.into_source().finish(header),
+        // The sink asked to stop: nothing is wrong with the stream.
+        Err(STOPPED) => Err(STOPPED),
+        Err(e) => Err(coder.into_source().after_error(header, e)),
+    }
 }
 
 /// The walk, its final state dropped: every decoding path goes through here. Not inlined, so

@@ -1,1 +1,84 @@
+//! Support shared by the integration tests and the fuzz targets (`fuzz/`): a pixel sink that
+//! checks the sink contract, and the fuzz checks themselves, so that the corpus replay under
+//! `cargo test` and `cargo fuzz` run the very same assertions.
 
+pub mod fuzz;
+
+/// A [`decoder_core::PixelSink`] that records how often every pixel of a `width x height` image
+/// is written, the last value written, and any tile that breaks the sink contract (out of the
+/// image, larger than [`decoder_core::patch::TILE`], or `pixels.len() != w * h`).
+pub struct CoverageSink {
+    pub width: u32,
+    pub height: u32,
+    pub counts: Vec<u32>,
+    pub pixels: Vec<u8>,
+    pub tiles: usize,
+    pub violations: Vec<String>,
+}
+
+impl CoverageSink {
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        CoverageSink {
+            width,
+            height,
+            counts: vec![0; n],
+            pixels: vec![0; n],
+            tiles: 0,
+            violations: Vec::new(),
+        }
+    }
+
+    /// Pixels written a number of times other than once: `(x, y, count)`, at most `limit`.
+    pub fn not_once(&self, limit: usize) -> Vec<(u32, u32, u32)> {
+        self.counts
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| c != 1)
+            .take(limit)
+            .map(|(i, &c)| {
+                (
+                    (i % self.width as usize) as u32,
+                    (i / self.width as usize) as u32,
+                    c,
+                )
+            })
+            .collect()
+    }
+}
+
+impl decoder_core::PixelSink for CoverageSink {
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        self.tiles += 1;
+        let tile = decoder_core::patch::TILE as u32;
+        if w == 0 || h == 0 || w > tile || h > tile {
+            self.violations
+                .push(format!("tile {w}x{h} at ({x}, {y}): bad tile size"));
+        }
+        if pixels.len() != w as usize * h as usize {
+            self.violations.push(format!(
+                "tile {w}x{h} at ({x}, {y}): {} pixels",
+                pixels.len()
+            ));
+            return;
+        }
+        if u64::from(x) + u64::from(w) > u64::from(self.width)
+            || u64::from(y) + u64::from(h) > u64::from(self.height)
+        {
+            self.violations.push(format!(
+                "tile {w}x{h} at ({x}, {y}) outside the {}x{} image",
+                self.width, self.height
+            ));
+            return;
+        }
+        let mut k = 0;
+        for py in y..y + h {
+            for px in x..x + w {
+                let i = py as usize * self.width as usize + px as usize;
+                self.counts[i] += 1;
+                self.pixels[i] = pixels[k];
+                k += 1;
+            }
+        }
+    }
+}
