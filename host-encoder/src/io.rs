@@ -3,16 +3,29 @@
 use crate::encoder::Plane;
 use std::path::Path;
 
-/// Loads an image file as 8-bit luma. Colour is converted with the BT.601 weights
-/// (`Y = 0.299 R + 0.587 G + 0.114 B`); 16-bit samples are scaled to 8 bits; an alpha channel is
-/// ignored (the colour is used as if opaque).
+/// Loads an image file as 8-bit luma, by the rule of [`to_luma`].
 pub fn load_luma(path: &Path) -> Result<Plane, String> {
+    if path.is_dir() {
+        return Err(format!("{} is a directory, not an image", path.display()));
+    }
     let reader = image::ImageReader::open(path)
         .map_err(|e| format!("cannot open {}: {e}", path.display()))?
         .with_guessed_format()
         .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     if reader.format().is_none() {
-        return Err(format!("{}: not a supported image format", path.display()));
+        let mut magic = [0u8; 4];
+        let is_pifs = std::fs::File::open(path)
+            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+            .is_ok()
+            && magic == decoder_core::bitstream::MAGIC;
+        return Err(if is_pifs {
+            format!(
+                "{} is already a PIFS stream (use 'pifs decode' to turn it into an image)",
+                path.display()
+            )
+        } else {
+            format!("{}: not a supported image format", path.display())
+        });
     }
     let img = reader
         .decode()
@@ -20,14 +33,22 @@ pub fn load_luma(path: &Path) -> Result<Plane, String> {
     Ok(to_luma(&img))
 }
 
-/// Converts a decoded image to 8-bit BT.601 luma.
+/// Converts a decoded image to 8-bit luma:
+/// - colour by the BT.601 weights, `Y = 0.299 R + 0.587 G + 0.114 B` (grey stays grey);
+/// - any bit depth (16-bit, float) from its full range to 0..=255, rounded;
+/// - palette images through their palette;
+/// - transparency composited over white, `Y' = a Y + (1 - a)` with `a` the alpha in 0..=1, as
+///   an image viewer shows it on a white page (a fully transparent pixel becomes white,
+///   whatever colour it carries).
 pub fn to_luma(img: &image::DynamicImage) -> Plane {
-    let rgb = img.to_rgb32f();
-    let (w, h) = rgb.dimensions();
-    let data = rgb
+    let rgba = img.to_rgba32f();
+    let (w, h) = rgba.dimensions();
+    let data = rgba
         .pixels()
         .map(|p| {
             let y = 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+            let a = p[3].clamp(0.0, 1.0);
+            let y = a * y + (1.0 - a);
             (y * 255.0).round().clamp(0.0, 255.0) as u8
         })
         .collect();
@@ -72,10 +93,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => std::path::PathBuf::from("."),
     };
+    // The temporary file's random name stays out of the message: the user named `path`.
     let mut tmp = tempfile::Builder::new()
         .prefix(".pifs-tmp-")
         .tempfile_in(&dir)
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        .map_err(|e| {
+            let text = e.to_string();
+            let cause = text.split(" at path ").next().unwrap_or(&text);
+            format!("cannot write {}: {cause}", path.display())
+        })?;
     tmp.write_all(bytes)
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     tmp.as_file()

@@ -6,6 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+/// Largest image `pifs decode` accepts unless told otherwise: 2^28 pixels (256 MiB of output).
+const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+
 /// Fractal (projected-IFS quadtree) image codec for low-bandwidth links and small displays.
 #[derive(Parser, Debug)]
 #[command(name = "pifs", version, about)]
@@ -25,6 +28,10 @@ enum Command {
         /// Output image (.png or .pgm).
         #[arg(short, long)]
         output: PathBuf,
+        /// Refuse streams of more pixels than this (checked on the header, before anything is
+        /// allocated).
+        #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
+        max_pixels: u64,
     },
     /// Describe a .pifs stream: dimensions, size, quadtree and model usage.
     Info {
@@ -72,18 +79,29 @@ fn main() -> ExitCode {
             }
             // One line, like every other error of this tool; `--help` has the details.
             let text = e.to_string();
-            let first = text
-                .lines()
+            let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+            let mut first = lines
                 .next()
                 .unwrap_or("invalid arguments")
-                .trim_start_matches("error: ");
+                .trim_start_matches("error: ")
+                .to_string();
+            // "the following required arguments were not provided:" names them on the next line.
+            if first.ends_with(':') {
+                if let Some(next) = lines.next() {
+                    first = format!("{first} {next}");
+                }
+            }
             eprintln!("pifs: {first} (see pifs --help)");
             return ExitCode::from(2);
         }
     };
     let result = match cli.command {
         Some(Command::Encode(args)) => encode(&args),
-        Some(Command::Decode { input, output }) => decode(&input, &output),
+        Some(Command::Decode {
+            input,
+            output,
+            max_pixels,
+        }) => decode(&input, &output, decoder_core::Limits::pixels(max_pixels)),
         Some(Command::Info { input }) => info(&input),
         None => demo(),
     };
@@ -121,6 +139,7 @@ fn progress_bar(total: u64) -> Option<indicatif::ProgressBar> {
 fn encode(args: &EncodeArgs) -> Result<(), String> {
     let target = target_of(args);
     validate_target(target)?;
+    check_output(&args.output, Some(&args.input))?;
     let config = EncoderConfig {
         min_leaf_log2: args.min_leaf_log2,
         max_leaf_log2: args.max_leaf_log2.max(args.min_leaf_log2),
@@ -168,6 +187,43 @@ fn encode_targets(
     Ok(())
 }
 
+/// Refuses, before any work, an output path that cannot be written or that would replace the
+/// input.
+fn check_output(output: &Path, input: Option<&Path>) -> Result<(), String> {
+    if output.is_dir() {
+        return Err(format!("output {} is a directory", output.display()));
+    }
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        let why = if dir.exists() {
+            "is not a directory"
+        } else {
+            "does not exist"
+        };
+        return Err(format!(
+            "cannot write {}: {} {why}",
+            output.display(),
+            dir.display()
+        ));
+    }
+    if let Some(input) = input {
+        let same = match (input.canonicalize(), output.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        if same {
+            return Err(format!(
+                "output {} is the input file: refusing to overwrite it",
+                output.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn validate_target(target: Target) -> Result<(), String> {
     match target {
         Target::Bpp(b) if !(b.is_finite() && b > 0.0) => {
@@ -189,14 +245,26 @@ fn node_count(w: u32, h: u32, config: &EncoderConfig) -> u64 {
 }
 
 fn read_stream(input: &Path) -> Result<Vec<u8>, String> {
+    if input.is_dir() {
+        return Err(format!(
+            "{} is a directory, not a .pifs stream",
+            input.display()
+        ));
+    }
     std::fs::read(input).map_err(|e| format!("cannot read {}: {e}", input.display()))
 }
 
-fn decode(input: &Path, output: &Path) -> Result<(), String> {
+fn decode(input: &Path, output: &Path, limits: decoder_core::Limits) -> Result<(), String> {
     let start = Instant::now();
+    check_output(output, Some(input))?;
+    // The output format is known from the name: refuse a bad one before decoding.
+    io::encode_gray(output, 1, 1, &[0])?;
     let data = read_stream(input)?;
     let header =
         decoder_core::read_header(&data).map_err(|e| format!("{}: {e}", input.display()))?;
+    limits
+        .check(&header)
+        .map_err(|e| format!("{}: {e} (see --max-pixels)", input.display()))?;
     let mut pixels = vec![0u8; header.pixel_count()];
     decoder_core::decode_into(&data, &mut pixels)
         .map_err(|e| format!("{}: {e}", input.display()))?;
@@ -311,7 +379,11 @@ fn demo() -> Result<(), String> {
         .collect();
     encode_targets(&sample, &EncoderConfig::default(), &jobs)?;
     for (_, stream) in &jobs {
-        decode(stream, &stream.with_extension("png"))?;
+        decode(
+            stream,
+            &stream.with_extension("png"),
+            decoder_core::Limits::NONE,
+        )?;
     }
     println!("streams and decoded images are in {}", out.display());
     Ok(())

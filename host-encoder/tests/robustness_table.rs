@@ -1,0 +1,793 @@
+//! The `pifs` command line against malformed, unusual and hostile inputs. Every case runs the
+//! real binary; the test asserts, for every refused input: a non-zero exit (never a panic), a
+//! single line on stderr starting with `pifs: `, and no output left behind (a file that existed
+//! before is untouched); for every accepted one: success and a valid output. It then renders the
+//! outcomes as the table of `docs/robustness.md` and fails if the committed table differs, so the
+//! document stays true. Regenerate it with `bash scripts/robustness-table.sh`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// What a case must do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Expect {
+    /// Refused: non-zero exit, one line, no output.
+    Refused,
+    /// Accepted: exit 0 and a valid output file.
+    Accepted,
+}
+
+struct Case {
+    /// What the input is, for the table.
+    what: &'static str,
+    /// Arguments; `{dir}` is the scratch directory.
+    args: Vec<String>,
+    /// The output path the command would write (checked for leftovers or validity).
+    output: Option<PathBuf>,
+    /// Put a file at the output path before running, which a refused command must not touch.
+    existing_output: bool,
+    expect: Expect,
+}
+
+fn pifs() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pifs"))
+}
+
+fn scratch() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pifs-robustness-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn gray_png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> u8) {
+    image::GrayImage::from_fn(w, h, |x, y| image::Luma([f(x, y)]))
+        .save(path)
+        .unwrap();
+}
+
+/// Deterministic noise.
+fn noise(x: u32, y: u32) -> u8 {
+    let v =
+        (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(2_246_822_519)).wrapping_mul(747_796_405);
+    (v >> 24) as u8
+}
+
+/// Writes every input file the cases use.
+fn make_inputs(dir: &Path) {
+    let p = |n: &str| dir.join(n);
+    gray_png(&p("good.png"), 64, 48, |x, y| (x * 3 + y * 2) as u8);
+    std::fs::write(p("empty.png"), b"").unwrap();
+    let good = std::fs::read(p("good.png")).unwrap();
+    std::fs::write(p("truncated.png"), &good[..good.len() / 2]).unwrap();
+    let mut corrupt = good.clone();
+    let mid = corrupt.len() / 2;
+    for b in &mut corrupt[mid..mid + 16] {
+        *b ^= 0xA5;
+    }
+    std::fs::write(p("corrupt-data.png"), &corrupt).unwrap();
+    let rgb = image::RgbImage::from_fn(32, 32, |x, y| image::Rgb([x as u8 * 8, y as u8 * 8, 90]));
+    let mut jpeg = Vec::new();
+    image::DynamicImage::ImageRgb8(rgb)
+        .write_to(
+            &mut std::io::Cursor::new(&mut jpeg),
+            image::ImageFormat::Jpeg,
+        )
+        .unwrap();
+    std::fs::write(p("truncated.jpg"), &jpeg[..jpeg.len() / 2]).unwrap();
+    std::fs::write(p("text.png"), b"this is not an image\n").unwrap();
+    let random: Vec<u8> = (0..4096u32).map(|i| noise(i, 7)).collect();
+    std::fs::write(p("random.jpg"), &random).unwrap();
+    std::fs::create_dir_all(p("a-directory")).unwrap();
+    std::fs::write(p("a-file"), b"x").unwrap();
+    // Unusual but valid images.
+    image::ImageBuffer::<image::Luma<u16>, _>::from_fn(40, 30, |x, y| {
+        image::Luma([(x * 1500 + y * 700) as u16])
+    })
+    .save(p("gray16.png"))
+    .unwrap();
+    image::ImageBuffer::<image::Rgba<u16>, _>::from_fn(40, 30, |x, y| {
+        image::Rgba([(x * 1500) as u16, (y * 2000) as u16, 30000, 65535])
+    })
+    .save(p("rgba16.png"))
+    .unwrap();
+    image::RgbaImage::from_fn(40, 30, |x, y| {
+        image::Rgba([200, (x * 6) as u8, 40, (y * 8) as u8])
+    })
+    .save(p("rgba.png"))
+    .unwrap();
+    image::GrayAlphaImage::from_fn(40, 30, |x, y| image::LumaA([(x * 6) as u8, (y * 8) as u8]))
+        .save(p("gray-alpha.png"))
+        .unwrap();
+    write_palette_png(&p("palette.png"));
+    gray_png(&p("one-pixel.png"), 1, 1, |_, _| 77);
+    gray_png(&p("flat.png"), 64, 64, |_, _| 128);
+    gray_png(&p("noise.png"), 64, 64, noise);
+    gray_png(&p("wide-65535x1.png"), 65535, 1, |x, _| (x % 251) as u8);
+    gray_png(&p("too-wide-65536x1.png"), 65536, 1, |x, _| x as u8);
+    // Streams.
+    let stream = p("good.pifs");
+    let out = pifs()
+        .args(["encode", "--bytes", "300", "-o"])
+        .arg(&stream)
+        .arg(p("good.png"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&stream).unwrap();
+    std::fs::write(p("empty.pifs"), b"").unwrap();
+    std::fs::write(p("truncated.pifs"), &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let mut flipped = bytes.clone();
+    let at = bytes.len() - 10;
+    flipped[at] ^= 0x10;
+    std::fs::write(p("bit-flip.pifs"), &flipped).unwrap();
+    let mut newer = bytes.clone();
+    newer[4] = 9;
+    std::fs::write(p("version-9.pifs"), &newer).unwrap();
+    let mut longer = bytes.clone();
+    longer.extend_from_slice(b"trailing");
+    std::fs::write(p("trailing-bytes.pifs"), &longer).unwrap();
+    // A valid, checksummed header announcing 65535 x 65535 pixels, with a tiny payload.
+    let mut huge = bytes.clone();
+    huge[8..12].copy_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF]);
+    decoder_core::bitstream::seal(&mut huge);
+    std::fs::write(p("huge-header.pifs"), &huge).unwrap();
+}
+
+/// A 4-colour indexed PNG, 32x32 pixels, written by hand (colour type 3, bit depth 8, the image
+/// data in one stored zlib block): the `image` crate does not write palette images.
+fn write_palette_png(path: &Path) {
+    fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        out.extend_from_slice(&body);
+        out.extend_from_slice(&decoder_core::checksum::crc32(&body).to_be_bytes());
+    }
+    let (w, h) = (32u32, 32u32);
+    let mut raw = Vec::new();
+    for y in 0..h {
+        raw.push(0); // filter: none
+        for x in 0..w {
+            raw.push(((x / 2 + y / 4) % 4) as u8);
+        }
+    }
+    // zlib: header, one stored block, Adler-32.
+    let mut z = vec![0x78, 0x01, 0x01];
+    z.extend_from_slice(&(raw.len() as u16).to_le_bytes());
+    z.extend_from_slice(&(!(raw.len() as u16)).to_le_bytes());
+    z.extend_from_slice(&raw);
+    let (mut a, mut b) = (1u32, 0u32);
+    for &v in &raw {
+        a = (a + u32::from(v)) % 65521;
+        b = (b + a) % 65521;
+    }
+    z.extend_from_slice(&((b << 16) | a).to_be_bytes());
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 3, 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    chunk(
+        &mut png,
+        b"PLTE",
+        &[255, 0, 0, 0, 255, 0, 0, 0, 255, 250, 250, 250],
+    );
+    chunk(&mut png, b"IDAT", &z);
+    chunk(&mut png, b"IEND", &[]);
+    std::fs::write(path, png).unwrap();
+}
+
+fn cases(dir: &Path) -> Vec<Case> {
+    let refuse = |what: &'static str, args: &[&str], output: Option<&str>| Case {
+        what,
+        args: args
+            .iter()
+            .map(|a| a.replace("{dir}", &dir.to_string_lossy()))
+            .collect(),
+        output: output.map(|o| PathBuf::from(o.replace("{dir}", &dir.to_string_lossy()))),
+        existing_output: false,
+        expect: Expect::Refused,
+    };
+    let accept = |what: &'static str, args: &[&str], output: &str| Case {
+        expect: Expect::Accepted,
+        ..refuse(what, args, Some(output))
+    };
+    let keep = |mut c: Case| {
+        c.existing_output = true;
+        c
+    };
+    vec![
+        // encode: unreadable inputs
+        refuse(
+            "missing input file",
+            &["encode", "{dir}/nope.png", "-o", "{dir}/o1.pifs"],
+            Some("{dir}/o1.pifs"),
+        ),
+        refuse(
+            "input is a directory",
+            &["encode", "{dir}/a-directory", "-o", "{dir}/o2.pifs"],
+            Some("{dir}/o2.pifs"),
+        ),
+        refuse(
+            "empty file",
+            &["encode", "{dir}/empty.png", "-o", "{dir}/o3.pifs"],
+            Some("{dir}/o3.pifs"),
+        ),
+        refuse(
+            "truncated PNG",
+            &["encode", "{dir}/truncated.png", "-o", "{dir}/o4.pifs"],
+            Some("{dir}/o4.pifs"),
+        ),
+        keep(refuse(
+            "PNG with damaged image data (existing output kept)",
+            &["encode", "{dir}/corrupt-data.png", "-o", "{dir}/o5.pifs"],
+            Some("{dir}/o5.pifs"),
+        )),
+        refuse(
+            "truncated JPEG",
+            &["encode", "{dir}/truncated.jpg", "-o", "{dir}/o6.pifs"],
+            Some("{dir}/o6.pifs"),
+        ),
+        refuse(
+            "text file named .png",
+            &["encode", "{dir}/text.png", "-o", "{dir}/o7.pifs"],
+            Some("{dir}/o7.pifs"),
+        ),
+        refuse(
+            "random bytes named .jpg",
+            &["encode", "{dir}/random.jpg", "-o", "{dir}/o8.pifs"],
+            Some("{dir}/o8.pifs"),
+        ),
+        refuse(
+            "a .pifs stream given to encode",
+            &["encode", "{dir}/good.pifs", "-o", "{dir}/o9.pifs"],
+            Some("{dir}/o9.pifs"),
+        ),
+        refuse(
+            "image wider than 65535 pixels",
+            &[
+                "encode",
+                "{dir}/too-wide-65536x1.png",
+                "-o",
+                "{dir}/o10.pifs",
+            ],
+            Some("{dir}/o10.pifs"),
+        ),
+        // encode: outputs
+        refuse(
+            "output in a missing directory",
+            &["encode", "{dir}/good.png", "-o", "{dir}/missing/o.pifs"],
+            Some("{dir}/missing/o.pifs"),
+        ),
+        refuse(
+            "output is a directory",
+            &["encode", "{dir}/good.png", "-o", "{dir}/a-directory"],
+            None,
+        ),
+        refuse(
+            "output below a regular file",
+            &["encode", "{dir}/good.png", "-o", "{dir}/a-file/o.pifs"],
+            None,
+        ),
+        refuse(
+            "output is the input file",
+            &["encode", "{dir}/good.png", "-o", "{dir}/good.png"],
+            None,
+        ),
+        refuse(
+            "output on a read-only file system",
+            &["encode", "{dir}/good.png", "-o", "/proc/pifs-out.pifs"],
+            Some("/proc/pifs-out.pifs"),
+        ),
+        // encode: targets and flags
+        keep(refuse(
+            "impossible budget --bytes 3 (existing output kept)",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o11.pifs",
+                "--bytes",
+                "3",
+            ],
+            Some("{dir}/o11.pifs"),
+        )),
+        refuse(
+            "--bytes 0",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o12.pifs",
+                "--bytes",
+                "0",
+            ],
+            Some("{dir}/o12.pifs"),
+        ),
+        refuse(
+            "--bpp 0",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o13.pifs",
+                "--bpp",
+                "0",
+            ],
+            Some("{dir}/o13.pifs"),
+        ),
+        refuse(
+            "--bpp -1",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o14.pifs",
+                "--bpp=-1",
+            ],
+            Some("{dir}/o14.pifs"),
+        ),
+        refuse(
+            "--bpp NaN",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o15.pifs",
+                "--bpp",
+                "NaN",
+            ],
+            Some("{dir}/o15.pifs"),
+        ),
+        refuse(
+            "--bpp not a number",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o16.pifs",
+                "--bpp",
+                "lots",
+            ],
+            Some("{dir}/o16.pifs"),
+        ),
+        keep(refuse(
+            "unreachable quality --psnr 200 (existing output kept)",
+            &[
+                "encode",
+                "{dir}/noise.png",
+                "-o",
+                "{dir}/o17.pifs",
+                "--psnr",
+                "200",
+            ],
+            Some("{dir}/o17.pifs"),
+        )),
+        refuse(
+            "--psnr 0",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o18.pifs",
+                "--psnr",
+                "0",
+            ],
+            Some("{dir}/o18.pifs"),
+        ),
+        refuse(
+            "conflicting targets --bpp and --bytes",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o19.pifs",
+                "--bpp",
+                "0.5",
+                "--bytes",
+                "100",
+            ],
+            Some("{dir}/o19.pifs"),
+        ),
+        refuse(
+            "--min-leaf-log2 0",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o20.pifs",
+                "--min-leaf-log2",
+                "0",
+            ],
+            Some("{dir}/o20.pifs"),
+        ),
+        refuse(
+            "--max-leaf-log2 10",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o21.pifs",
+                "--max-leaf-log2",
+                "10",
+            ],
+            Some("{dir}/o21.pifs"),
+        ),
+        refuse(
+            "unknown flag",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o22.pifs",
+                "--quality",
+                "9",
+            ],
+            Some("{dir}/o22.pifs"),
+        ),
+        refuse("no output given", &["encode", "{dir}/good.png"], None),
+        refuse("unknown subcommand", &["compress", "{dir}/good.png"], None),
+        // decode and info
+        refuse(
+            "decode: missing file",
+            &["decode", "{dir}/nope.pifs", "-o", "{dir}/d1.png"],
+            Some("{dir}/d1.png"),
+        ),
+        refuse(
+            "decode: input is a directory",
+            &["decode", "{dir}/a-directory", "-o", "{dir}/d2.png"],
+            Some("{dir}/d2.png"),
+        ),
+        refuse(
+            "decode: a PNG given to decode",
+            &["decode", "{dir}/good.png", "-o", "{dir}/d3.png"],
+            Some("{dir}/d3.png"),
+        ),
+        refuse(
+            "decode: empty file",
+            &["decode", "{dir}/empty.pifs", "-o", "{dir}/d4.png"],
+            Some("{dir}/d4.png"),
+        ),
+        keep(refuse(
+            "decode: truncated stream (existing output kept)",
+            &["decode", "{dir}/truncated.pifs", "-o", "{dir}/d5.png"],
+            Some("{dir}/d5.png"),
+        )),
+        refuse(
+            "decode: one flipped bit in the payload",
+            &["decode", "{dir}/bit-flip.pifs", "-o", "{dir}/d6.png"],
+            Some("{dir}/d6.png"),
+        ),
+        refuse(
+            "decode: stream from a newer format version",
+            &["decode", "{dir}/version-9.pifs", "-o", "{dir}/d7.png"],
+            Some("{dir}/d7.png"),
+        ),
+        refuse(
+            "decode: bytes after the stream",
+            &["decode", "{dir}/trailing-bytes.pifs", "-o", "{dir}/d8.png"],
+            Some("{dir}/d8.png"),
+        ),
+        refuse(
+            "decode: header announcing 65535x65535 pixels",
+            &["decode", "{dir}/huge-header.pifs", "-o", "{dir}/d9.png"],
+            Some("{dir}/d9.png"),
+        ),
+        refuse(
+            "decode: image above --max-pixels",
+            &[
+                "decode",
+                "{dir}/good.pifs",
+                "-o",
+                "{dir}/d10.png",
+                "--max-pixels",
+                "1000",
+            ],
+            Some("{dir}/d10.png"),
+        ),
+        refuse(
+            "decode: unsupported output format .jpg",
+            &["decode", "{dir}/good.pifs", "-o", "{dir}/d11.jpg"],
+            Some("{dir}/d11.jpg"),
+        ),
+        refuse(
+            "decode: output in a missing directory",
+            &["decode", "{dir}/good.pifs", "-o", "{dir}/missing/d.png"],
+            Some("{dir}/missing/d.png"),
+        ),
+        refuse("info: a PNG", &["info", "{dir}/good.png"], None),
+        refuse(
+            "info: truncated stream",
+            &["info", "{dir}/truncated.pifs"],
+            None,
+        ),
+        // unusual but valid images
+        accept(
+            "16-bit grayscale PNG",
+            &[
+                "encode",
+                "{dir}/gray16.png",
+                "-o",
+                "{dir}/a1.pifs",
+                "--bytes",
+                "200",
+            ],
+            "{dir}/a1.pifs",
+        ),
+        accept(
+            "16-bit RGBA PNG",
+            &[
+                "encode",
+                "{dir}/rgba16.png",
+                "-o",
+                "{dir}/a2.pifs",
+                "--bytes",
+                "200",
+            ],
+            "{dir}/a2.pifs",
+        ),
+        accept(
+            "RGBA PNG (composited over white)",
+            &[
+                "encode",
+                "{dir}/rgba.png",
+                "-o",
+                "{dir}/a3.pifs",
+                "--bytes",
+                "200",
+            ],
+            "{dir}/a3.pifs",
+        ),
+        accept(
+            "grayscale + alpha PNG",
+            &[
+                "encode",
+                "{dir}/gray-alpha.png",
+                "-o",
+                "{dir}/a4.pifs",
+                "--bytes",
+                "200",
+            ],
+            "{dir}/a4.pifs",
+        ),
+        accept(
+            "palette PNG",
+            &[
+                "encode",
+                "{dir}/palette.png",
+                "-o",
+                "{dir}/a5.pifs",
+                "--bytes",
+                "200",
+            ],
+            "{dir}/a5.pifs",
+        ),
+        accept(
+            "1x1 image",
+            &[
+                "encode",
+                "{dir}/one-pixel.png",
+                "-o",
+                "{dir}/a6.pifs",
+                "--bytes",
+                "200",
+            ],
+            "{dir}/a6.pifs",
+        ),
+        accept(
+            "flat image",
+            &["encode", "{dir}/flat.png", "-o", "{dir}/a7.pifs"],
+            "{dir}/a7.pifs",
+        ),
+        accept(
+            "pure noise",
+            &[
+                "encode",
+                "{dir}/noise.png",
+                "-o",
+                "{dir}/a8.pifs",
+                "--bpp",
+                "1",
+            ],
+            "{dir}/a8.pifs",
+        ),
+        accept(
+            "65535x1 image",
+            &[
+                "encode",
+                "{dir}/wide-65535x1.png",
+                "-o",
+                "{dir}/a9.pifs",
+                "--bpp",
+                "0.5",
+            ],
+            "{dir}/a9.pifs",
+        ),
+        accept(
+            "decode of a valid stream",
+            &["decode", "{dir}/good.pifs", "-o", "{dir}/a10.png"],
+            "{dir}/a10.png",
+        ),
+    ]
+}
+
+const SENTINEL: &[u8] = b"an earlier file that must survive\n";
+
+/// Runs one case and returns its table row.
+fn run(case: &Case, dir: &Path) -> String {
+    if let Some(out) = &case.output {
+        if case.existing_output {
+            std::fs::write(out, SENTINEL).unwrap();
+        } else {
+            let _ = std::fs::remove_file(out);
+        }
+    }
+    let out = pifs().args(&case.args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let code = out.status.code();
+    let label = &case.what;
+    assert!(!stderr.contains("panicked"), "{label}: panic: {stderr}");
+    assert_ne!(code, Some(101), "{label}: exit 101");
+    assert!(code.is_some(), "{label}: killed by a signal");
+    let output_state = match &case.output {
+        None => "none".to_string(),
+        Some(p) => match std::fs::read(p) {
+            Err(_) => "none".to_string(),
+            Ok(b) if b == SENTINEL => "earlier file untouched".to_string(),
+            Ok(b) => format!("{} bytes", b.len()),
+        },
+    };
+    match case.expect {
+        Expect::Refused => {
+            assert_ne!(code, Some(0), "{label}: accepted");
+            assert_eq!(stderr.trim_end().lines().count(), 1, "{label}: {stderr:?}");
+            assert!(stderr.starts_with("pifs: "), "{label}: {stderr:?}");
+            let expected = if case.existing_output {
+                "earlier file untouched"
+            } else {
+                "none"
+            };
+            assert_eq!(output_state, expected, "{label}: output left behind");
+            let leftovers = std::fs::read_dir(dir)
+                .unwrap()
+                .filter_map(Result::ok)
+                .filter(|e| e.file_name().to_string_lossy().starts_with(".pifs-tmp"))
+                .count();
+            assert_eq!(leftovers, 0, "{label}: temporary file left behind");
+        }
+        Expect::Accepted => {
+            assert_eq!(code, Some(0), "{label}: {stderr}");
+            let path = case.output.as_ref().unwrap();
+            let bytes = std::fs::read(path).unwrap();
+            if path.extension().is_some_and(|e| e == "pifs") {
+                let header = decoder_core::read_header(&bytes).unwrap();
+                let mut px = vec![0u8; header.pixel_count()];
+                decoder_core::decode_into(&bytes, &mut px)
+                    .unwrap_or_else(|e| panic!("{label}: {e}"));
+            } else {
+                image::open(path).unwrap_or_else(|e| panic!("{label}: {e}"));
+            }
+        }
+    }
+    let message = stderr.trim_end().replace(&*dir.to_string_lossy(), "DIR");
+    let message = if message.is_empty() {
+        "—".into()
+    } else {
+        format!("`{}`", message.replace('|', "\\|"))
+    };
+    let command = case
+        .args
+        .iter()
+        .map(|a| a.replace(&*dir.to_string_lossy(), "DIR"))
+        .collect::<Vec<_>>()
+        .join(" ");
+    let outcome = match case.expect {
+        Expect::Refused => format!("refused, exit {}", code.unwrap()),
+        Expect::Accepted => "accepted, exit 0".into(),
+    };
+    format!("| {label} | `pifs {command}` | {outcome} | {message} | {output_state} |")
+}
+
+/// Kills an encode mid-way (SIGKILL during the analysis) and checks the output path: absent
+/// when there was none, and an earlier file there intact.
+fn interrupted_encode(dir: &Path) -> Vec<String> {
+    let input = dir.join("big-noise.png");
+    gray_png(&input, 768, 512, noise);
+    let mut rows = Vec::new();
+    for existing in [false, true] {
+        let output = dir.join(format!("killed-{existing}.pifs"));
+        if existing {
+            std::fs::write(&output, SENTINEL).unwrap();
+        }
+        let mut child = pifs()
+            .args(["encode", "--bpp", "0.5", "-o"])
+            .arg(&output)
+            .arg(&input)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(700));
+        let still_running = child.try_wait().unwrap().is_none();
+        assert!(still_running, "the encode ended before it could be killed");
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let state = match std::fs::read(&output) {
+            Err(_) => "none",
+            Ok(b) if b == SENTINEL => "earlier file untouched",
+            Ok(_) => panic!("a killed encode left a file at its output path"),
+        };
+        assert_eq!(
+            state,
+            if existing {
+                "earlier file untouched"
+            } else {
+                "none"
+            }
+        );
+        let what = if existing {
+            "encode killed (SIGKILL) mid-way, output existed"
+        } else {
+            "encode killed (SIGKILL) mid-way"
+        };
+        rows.push(format!(
+            "| {what} | `pifs encode --bpp 0.5 -o DIR/{} DIR/big-noise.png` | killed after 0.7 s | — | {state} |",
+            output.file_name().unwrap().to_string_lossy()
+        ));
+    }
+    rows
+}
+
+#[test]
+fn malformed_inputs_are_refused_cleanly_and_the_table_is_current() {
+    let dir = scratch();
+    make_inputs(&dir);
+    let cases = cases(&dir);
+    let refused = cases.iter().filter(|c| c.expect == Expect::Refused).count();
+    assert!(refused >= 30, "only {refused} kinds of bad input");
+    let mut rows: Vec<String> = cases.iter().map(|c| run(c, &dir)).collect();
+    rows.extend(interrupted_encode(&dir));
+    let doc = render(&rows, refused);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/robustness.md");
+    if std::env::var_os("PIFS_WRITE_ROBUSTNESS_TABLE").is_some() {
+        std::fs::write(&path, &doc).unwrap();
+    } else {
+        let committed = std::fs::read_to_string(&path).unwrap_or_default();
+        assert!(
+            committed == doc,
+            "docs/robustness.md is out of date: run `bash scripts/robustness-table.sh`"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn render(rows: &[String], refused: usize) -> String {
+    format!(
+        "# Robustness of the `pifs` command line\n\
+         \n\
+         Generated by `bash scripts/robustness-table.sh` (the test\n\
+         `host-encoder/tests/robustness_table.rs`, which also fails when this file is out of date).\n\
+         Every row ran the real binary. For every refused input the test asserts a non-zero exit\n\
+         that is not a panic, exactly one line on stderr, and no output left behind (where a file\n\
+         existed at the output path before, it is byte for byte the same after). Accepted inputs\n\
+         must produce an output that decodes. `DIR` stands for the test's scratch directory.\n\
+         \n\
+         {refused} kinds of bad input are refused; {} unusual but valid inputs are accepted.\n\
+         \n\
+         Conversion rule for images that are not 8-bit grayscale: colour to luma with the BT.601\n\
+         weights; any bit depth scaled from its full range to 8 bits; palettes expanded;\n\
+         transparency composited over white.\n\
+         \n\
+         | input | command | outcome | message (stderr) | file at the output path afterwards |\n\
+         |---|---|---|---|---|\n\
+         {}\n",
+        rows.iter().filter(|r| r.contains("accepted, exit 0")).count(),
+        rows.join("\n")
+    )
+}
