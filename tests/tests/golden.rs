@@ -46,6 +46,7 @@ fn specs() -> Vec<Spec> {
         min_leaf_log2,
         max_leaf_log2,
         codebook_levels,
+        fit_weights: true,
     };
     let image64 = common::synthetic(64, 64, 7, 6);
     let plain = |file, plane, config, target| Spec {

@@ -14,6 +14,7 @@ fn large_config() -> EncoderConfig {
         min_leaf_log2: 3,
         max_leaf_log2: 3,
         codebook_levels: 8,
+        fit_weights: true,
     }
 }
 
@@ -78,6 +79,7 @@ fn one_pixel_smallest_leaves() {
         min_leaf_log2: 1,
         max_leaf_log2: 1,
         codebook_levels: 0,
+        fit_weights: false,
     };
     check_size(1, 1, &config, Target::Bytes(64));
 }
@@ -125,6 +127,7 @@ fn widest_strip_65535x2() {
         min_leaf_log2: 2,
         max_leaf_log2: 2,
         codebook_levels: 0,
+        fit_weights: false,
     };
     check_size(65535, 2, &config, Target::Psnr(25.0));
 }

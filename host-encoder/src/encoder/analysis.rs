@@ -2,7 +2,7 @@
 //! quadtree node down to the smallest leaf, then quantised with every quantiser, and each
 //! candidate's distortion is measured through decoder-core's own reconstruction (closed loop).
 
-use super::fit::{fit_block, Fit};
+use super::fit::{fit_default, fit_weighted, Fit};
 use super::quantise::{lloyd_max, quantise, weight_classes};
 use super::rate::RateTable;
 use super::{EncoderConfig, Plane};
@@ -14,10 +14,11 @@ use decoder_core::model::{
 use decoder_core::model::{WeightQuantiser, SAMPLE_ONE};
 use decoder_core::patch::{PixelSink, Rect};
 use decoder_core::quadtree::Node;
+use decoder_core::LeafSyntax;
 use rayon::prelude::*;
 
 /// One way of coding a node as a leaf.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
     /// Index into the node's fits.
     pub fit: u8,
@@ -25,8 +26,30 @@ pub struct Candidate {
     pub cq: u8,
     /// Weight quantiser.
     pub wq: u8,
-    /// Closed-loop squared error over the node's in-image pixels.
+    /// Squared error over the node's in-image pixels.
     pub sse: f64,
+    /// The quantised control indices then weight indices (kept: every rate table and the
+    /// writer need them again).
+    pub indices: Box<[i16]>,
+}
+
+impl Candidate {
+    /// The leaf's syntax elements.
+    pub fn leaf(&self, model: u8) -> LeafSyntax {
+        let m = MODELS[usize::from(model)];
+        let (nc, nw) = (m.control_count(), m.weight_count());
+        let mut leaf = LeafSyntax {
+            model,
+            cquant: self.cq,
+            wquant: self.wq,
+            ..LeafSyntax::default()
+        };
+        leaf.control[..nc].copy_from_slice(&self.indices[..nc]);
+        if self.indices.len() == nc + nw {
+            leaf.weights[..nw].copy_from_slice(&self.indices[nc..]);
+        }
+        leaf
+    }
 }
 
 /// Everything the analysis knows about one node.
@@ -110,10 +133,20 @@ impl Analysis {
                         return None;
                     }
                     let (models, count) = models_for_block(log2);
-                    let fits = models[..count]
-                        .iter()
-                        .map(|&m| fit_block(&plane, &node, m))
-                        .collect();
+                    // Per model: the default-weight fit, and the joint fit with weights where
+                    // there is one (its control values suit its weights, not the default ones,
+                    // so both are kept).
+                    let mut fits = Vec::with_capacity(2 * count);
+                    for &m in &models[..count] {
+                        let plain = fit_default(&plane, &node, m);
+                        let weighted = if config.fit_weights {
+                            fit_weighted(&plane, &node, &plain)
+                        } else {
+                            None
+                        };
+                        fits.push(plain);
+                        fits.extend(weighted);
+                    }
                     let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     progress(n + 1);
                     Some(NodeAnalysis {
@@ -150,13 +183,13 @@ impl Analysis {
     /// encode then weighs a handful of candidates per node instead of all of them.
     fn prune_candidates(&mut self) {
         let pixels = self.header.pixel_count() as f64;
-        let first = RateTable::new(self, &self.header, &Contexts::default());
+        let first = RateTable::new(self, &Contexts::default());
         let plan = first.plan_for_bits(self, &self.header, 0.2 * pixels);
         let snapshot = match super::writer::write(self, &self.header, &plan) {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };
-        let rates = RateTable::new(self, &self.header, &snapshot);
+        let rates = RateTable::new(self, &snapshot);
         let lambdas: Vec<f64> = (0..64)
             .map(|i| 10f64.powf(-2.0 + 8.0 * f64::from(i) / 63.0))
             .collect();
@@ -166,7 +199,7 @@ impl Analysis {
                 if let Some(na) = na {
                     na.candidates = keep
                         .iter()
-                        .map(|&ci| na.candidates[usize::from(ci)])
+                        .map(|&ci| na.candidates[usize::from(ci)].clone())
                         .collect();
                 }
             }
@@ -182,12 +215,12 @@ impl Analysis {
                 let mut out = Vec::new();
                 for (fi, fit) in na.fits.iter().enumerate() {
                     let model = MODELS[usize::from(fit.model)];
-                    let fitted_weights = fit.weights.iter().any(|&w| w != 0.0);
+                    let fitted_weights = fit.weighted;
                     for cq in 0..CONTROL_QUANTISERS as u8 {
                         for wq in 0..WEIGHT_QUANTISERS as u8 {
                             let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
                             let usable = match kind {
-                                WeightQuantiser::Default => true,
+                                WeightQuantiser::Default => !fitted_weights,
                                 WeightQuantiser::Uniform(_) => fitted_weights,
                                 WeightQuantiser::Codebook => {
                                     fitted_weights && header.has_codebooks()
@@ -199,13 +232,20 @@ impl Analysis {
                             if !usable || (wq > 0 && (model.weight_count() == 0 || cq % 2 == 1)) {
                                 continue;
                             }
-                            let leaf = quantise(fit, cq, wq, &header.codebooks);
-                            let sse = closed_loop_sse(plane, header, &na.node, &leaf);
+                            let (leaf, values) = quantise(fit, cq, wq, &header.codebooks);
+                            let sse = quantised_sse(plane, header, &na.node, fit, &leaf, &values);
+                            let (nc, nw) = (model.control_count(), model.weight_count());
+                            let mut indices = Vec::with_capacity(nc + nw);
+                            indices.extend_from_slice(&leaf.control[..nc]);
+                            if wq > 0 {
+                                indices.extend_from_slice(&leaf.weights[..nw]);
+                            }
                             out.push(Candidate {
                                 fit: fi as u8,
                                 cq,
                                 wq,
                                 sse,
+                                indices: indices.into_boxed_slice(),
                             });
                         }
                     }
@@ -239,6 +279,31 @@ impl SamplePrediction for ImagePrediction<'_> {
     fn predict(&self, x: u32, y: u32) -> (i32, bool) {
         (self.sample(x, y), x > 0 || y > 0)
     }
+}
+
+/// Squared error of a quantised leaf: by the quadratic form of an exact fit where there is one
+/// ([`Fit::error_of`]: the reconstructed control values exactly, the synthesis in real
+/// arithmetic, so it differs from the closed loop only by the integer synthesis's rounding
+/// and clamping), else by [`closed_loop_sse`].
+fn quantised_sse(
+    plane: &Plane,
+    header: &Header,
+    node: &Node,
+    fit: &Fit,
+    leaf: &decoder_core::LeafSyntax,
+    values: &[i16; decoder_core::model::MAX_CONTROL],
+) -> f64 {
+    if fit.residual.is_some() {
+        let n = MODELS[usize::from(fit.model)].control_count();
+        let mut control = [0.0f64; decoder_core::model::MAX_CONTROL];
+        for (c, &v) in control.iter_mut().zip(&values[..n]) {
+            *c = f64::from(v) / f64::from(SAMPLE_ONE);
+        }
+        if let Some(sse) = fit.error_of(node.log2, &control[..n]) {
+            return sse;
+        }
+    }
+    closed_loop_sse(plane, header, node, leaf)
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.

@@ -15,6 +15,9 @@ use nalgebra::{DMatrix, DVector};
 /// Largest number of samples used to fit one block: bigger blocks are fitted on a regular
 /// sub-lattice of their pixels (the closed-loop distortion still counts every pixel).
 pub const MAX_FIT_SAMPLES: u32 = 32 * 32;
+/// Largest block fitted by a [`Projection`] (its matrices grow with the block's pixels: 42 MB
+/// for the 9x9 model at 256 x 256); larger blocks are fitted on a lattice.
+const MAX_PROJECTION_LOG2: u8 = 8;
 /// Levenberg-Marquardt iterations per fit.
 pub const MAX_ITERATIONS: usize = 5;
 /// Whether fits include the row and column shared with the right and lower neighbours.
@@ -27,8 +30,39 @@ pub struct Fit {
     pub model: u8,
     /// Control values, grey levels, row-major.
     pub control: Vec<f64>,
+    /// For a [`Projection`] fit: the unclamped least-squares control values (the centre of
+    /// [`Fit::error_of`]'s quadratic form); else empty.
+    pub exact: Vec<f64>,
     /// Deviations of the free weights from the default scheme (1.0 = one).
     pub weights: Vec<f64>,
+    /// Whether the weights were fitted (else they are all zero: the default scheme).
+    pub weighted: bool,
+    /// For an exact least-squares fit over every pixel of an interior block (a
+    /// [`Projection`]): its squared error (before clamping the control values). Then the error
+    /// of any other control values `c` is this plus `(c - control)^T G (c - control)`, with `G`
+    /// the projection's Gram matrix ([`Fit::error_of`]), without rendering anything.
+    pub residual: Option<f64>,
+}
+
+impl Fit {
+    /// Squared error over the block's pixels of the patch with control values `control` (grey
+    /// levels) and the default weights, by the quadratic form of an exact fit; `None` when this
+    /// fit is not one (weights fitted, or a block at the image's edge).
+    pub fn error_of(&self, log2: u8, control: &[f64]) -> Option<f64> {
+        let residual = self.residual?;
+        let gram = &Projection::of(self.model, log2).gram;
+        let n = gram.nrows();
+        let mut d = [0.0f64; decoder_core::model::MAX_CONTROL];
+        for (k, dk) in d.iter_mut().enumerate().take(n) {
+            *dk = control[k] - self.exact[k];
+        }
+        let mut quad = 0.0;
+        for i in 0..n {
+            let row: f64 = (0..n).map(|j| gram[(i, j)] * d[j]).sum();
+            quad += d[i] * row;
+        }
+        Some(residual + quad)
+    }
 }
 
 /// The samples of a block the fit looks at: in-image pixels on a lattice of stride `stride`.
@@ -57,6 +91,23 @@ impl Lattice {
         }
     }
 
+    /// Number of lattice samples of the block.
+    fn sample_count(&self) -> usize {
+        let mut count = 0;
+        for dy in 0..self.size {
+            for dx in 0..self.size {
+                count += usize::from(self.wants(dx, dy));
+            }
+        }
+        count
+    }
+
+    /// Whether every lattice sample of the block is in the image.
+    fn is_interior(&self) -> bool {
+        u64::from(self.x0) + u64::from(self.size) <= u64::from(self.width)
+            && u64::from(self.y0) + u64::from(self.size) <= u64::from(self.height)
+    }
+
     /// Whether the square of side `ext` at block offset `(dx, dy)` holds a lattice sample.
     fn any_in(&self, dx: u32, dy: u32, ext: u32) -> bool {
         let first = |d: u32| d.div_ceil(self.stride) * self.stride;
@@ -76,37 +127,138 @@ impl Lattice {
     }
 }
 
-/// Fits model `model_index` to the block `node` of `plane`.
+/// Fits model `model_index` to the block `node` of `plane`: its weights too where the block
+/// has enough samples for them ([`fit_weighted`]), else its control values alone.
 pub fn fit_block(plane: &Plane, node: &Node, model_index: u8) -> Fit {
+    let plain = fit_default(plane, node, model_index);
+    fit_weighted(plane, node, &plain).unwrap_or(plain)
+}
+
+/// The least-squares control values of model `model_index` on `node`, with the default
+/// subdivision weights. The patch is linear in its control values, so this is exact: inside
+/// the image one precomputed [`Projection`] of the block's samples, at the image's edges one
+/// Gauss-Newton step.
+pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
     let model = decoder_core::model::MODELS[usize::from(model_index)];
     let lattice = Lattice::new(plane, node);
-    let control = initial_control(plane, node, model);
+    let (mut control, exact, residual) =
+        if lattice.is_interior() && node.log2 <= MAX_PROJECTION_LOG2 {
+            let (c, residual) = Projection::of(model_index, node.log2).apply(plane, node);
+            (c.clone(), c, Some(residual))
+        } else {
+            let mut c = initial_control(plane, node, model);
+            let nc = c.len();
+            levenberg_marquardt(plane, node, model, &lattice, &mut c, nc);
+            (c, Vec::new(), None)
+        };
     let nc = control.len();
-    let mut count = 0usize;
-    for dy in 0..=node.size() {
-        for dx in 0..=node.size() {
-            count += usize::from(lattice.wants(dx, dy));
-        }
-    }
-    // Weights are only fitted where the block has clearly more samples than parameters
-    // (thesis III.2.3: otherwise the problem is singular).
-    let nw = if count >= 3 * (nc + model.weight_count()) {
-        model.weight_count()
-    } else {
-        0
-    };
-    let mut theta = control;
-    theta.resize(nc + nw, 0.0);
-    levenberg_marquardt(plane, node, model, &lattice, &mut theta, nc);
-    let weights = {
-        let mut w = theta.split_off(nc);
-        w.resize(model.weight_count(), 0.0);
-        w
-    };
+    clamp_params(&mut control, nc);
     Fit {
         model: model_index,
+        control,
+        exact,
+        weights: vec![0.0; model.weight_count()],
+        weighted: false,
+        residual,
+    }
+}
+
+/// Control values and free weights fitted together by Levenberg-Marquardt, starting from the
+/// default-weight fit `plain`; `None` when the model has no free weights or the block has too
+/// few samples for them (fewer than three per parameter: thesis III.2.3, otherwise the problem
+/// is singular).
+pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
+    let model = decoder_core::model::MODELS[usize::from(plain.model)];
+    let lattice = Lattice::new(plane, node);
+    let nc = plain.control.len();
+    let nw = model.weight_count();
+    let count = lattice.sample_count();
+    if nw == 0 || count < 3 * (nc + nw) {
+        return None;
+    }
+    let mut theta = plain.control.clone();
+    theta.resize(nc + nw, 0.0);
+    levenberg_marquardt(plane, node, model, &lattice, &mut theta, nc);
+    let weights = theta.split_off(nc);
+    Some(Fit {
+        model: plain.model,
         control: theta,
+        exact: Vec::new(),
         weights,
+        weighted: true,
+        residual: None,
+    })
+}
+
+/// The least-squares projection of an interior block's pixels onto the control values of a
+/// model with its default weights. With `B` the matrix whose row `k` is the patch's derivative
+/// with respect to the control values at pixel `offsets[k]` (the patch is linear in them, so
+/// that is also its value for unit control values), `gram = B^T B` and
+/// `pinv = (B^T B)^-1 B^T`. Every pixel of the block counts, whatever its size. One per model
+/// and block size, built on first use.
+struct Projection {
+    offsets: Vec<(u32, u32)>,
+    pinv: DMatrix<f64>,
+    gram: DMatrix<f64>,
+}
+
+impl Projection {
+    fn of(model_index: u8, log2: u8) -> &'static Projection {
+        use std::sync::OnceLock;
+        const SIZES: usize = decoder_core::bitstream::MAX_LEAF_LOG2 as usize + 1;
+        static TABLE: [[OnceLock<Projection>; SIZES]; decoder_core::model::MODEL_COUNT] =
+            [const { [const { OnceLock::new() }; SIZES] }; decoder_core::model::MODEL_COUNT];
+        TABLE[usize::from(model_index)][usize::from(log2)]
+            .get_or_init(|| Projection::build(model_index, log2))
+    }
+
+    fn build(model_index: u8, log2: u8) -> Projection {
+        let model = decoder_core::model::MODELS[usize::from(model_index)];
+        let nc = model.control_count();
+        let size = 1u32 << log2;
+        let mut offsets = Vec::with_capacity((size * size) as usize);
+        let mut rows: Vec<f64> = Vec::with_capacity((size * size) as usize * nc);
+        let mut tab = Tabulator::new(model, &[], true);
+        tab.run(
+            &vec![0.0; nc],
+            log2,
+            &|dx, dy| dx < size && dy < size,
+            &|dx, dy, _| dx < size && dy < size,
+            &mut |dx, dy, s| {
+                offsets.push((dx, dy));
+                rows.extend_from_slice(&s[1..1 + nc]);
+            },
+        );
+        // Stored transposed: column k is the derivative vector of sample k.
+        let bt = DMatrix::from_column_slice(nc, offsets.len(), &rows);
+        let gram = &bt * bt.transpose();
+        let pinv = match gram.clone().cholesky() {
+            Some(chol) => chol.solve(&bt),
+            // Fewer independent pixels than control values: the minimum-norm solution.
+            None => bt
+                .transpose()
+                .pseudo_inverse(1e-9)
+                .unwrap_or_else(|_| DMatrix::zeros(nc, offsets.len())),
+        };
+        Projection {
+            offsets,
+            pinv,
+            gram,
+        }
+    }
+
+    /// The least-squares control values of the interior block `node` and their squared error.
+    fn apply(&self, plane: &Plane, node: &Node) -> (Vec<f64>, f64) {
+        let y = DVector::from_iterator(
+            self.offsets.len(),
+            self.offsets
+                .iter()
+                .map(|&(dx, dy)| f64::from(plane.get(node.x + dx, node.y + dy))),
+        );
+        let c = &self.pinv * &y;
+        // |y - Bc|^2 = |y|^2 - c^T G c at the least-squares optimum.
+        let residual = (y.norm_squared() - c.dot(&(&self.gram * &c))).max(0.0);
+        (c.iter().copied().collect(), residual)
     }
 }
 

@@ -10,8 +10,15 @@ use decoder_core::model::{
     SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
 };
 
-/// Quantises `fit` with control quantiser `cq` and weight quantiser `wq`.
-pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyntax {
+/// Quantises `fit` with control quantiser `cq` and weight quantiser `wq`; also returns the
+/// control values the decoder will reconstruct (sample units, row-major), which the DPCM
+/// computes anyway.
+pub fn quantise(
+    fit: &Fit,
+    cq: u8,
+    wq: u8,
+    codebooks: &[Codebook; 2],
+) -> (LeafSyntax, [i16; MAX_CONTROL]) {
     let model = MODELS[usize::from(fit.model)];
     let mut leaf = LeafSyntax {
         model: fit.model,
@@ -53,7 +60,7 @@ pub fn quantise(fit: &Fit, cq: u8, wq: u8, codebooks: &[Codebook; 2]) -> LeafSyn
         };
         i += 1;
     });
-    leaf
+    (leaf, values)
 }
 
 /// Rounding offset of the control quantisers: values are rounded towards zero unless they are

@@ -55,7 +55,7 @@ impl Plan {
 
 impl RateTable {
     /// Rates of every candidate, coded from the context state `snapshot`.
-    pub fn new(analysis: &Analysis, header: &Header, snapshot: &Contexts) -> RateTable {
+    pub fn new(analysis: &Analysis, snapshot: &Contexts) -> RateTable {
         let bits = analysis
             .levels
             .iter()
@@ -68,12 +68,7 @@ impl RateTable {
                         na.candidates
                             .iter()
                             .map(|c| {
-                                let mut leaf = super::quantise::quantise(
-                                    &na.fits[usize::from(c.fit)],
-                                    c.cq,
-                                    c.wq,
-                                    &header.codebooks,
-                                );
+                                let mut leaf = c.leaf(na.fits[usize::from(c.fit)].model);
                                 let mut counter = BitCounter::default();
                                 let mut ctx = snapshot.clone();
                                 let prediction = super::analysis::ImagePrediction {

@@ -2,7 +2,6 @@
 //! encoder as its coder.
 
 use super::analysis::Analysis;
-use super::quantise::quantise;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
 use decoder_core::bitstream::{seal, Contexts, Header, LeafSyntax};
@@ -48,13 +47,8 @@ impl TreeVisitor for PlanVisitor<'_> {
             .and_then(|l| l.get(node.x, node.y));
         if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.analysis, node))
         {
-            let c = na.candidates[usize::from(ci)];
-            *leaf = quantise(
-                &na.fits[usize::from(c.fit)],
-                c.cq,
-                c.wq,
-                &self.header.codebooks,
-            );
+            let c = &na.candidates[usize::from(ci)];
+            *leaf = c.leaf(na.fits[usize::from(c.fit)].model);
         }
     }
 

@@ -82,6 +82,7 @@ pub fn small_config() -> EncoderConfig {
         min_leaf_log2: 2,
         max_leaf_log2: 5,
         codebook_levels: 8,
+        fit_weights: true,
     }
 }
 
