@@ -281,6 +281,10 @@ impl SamplePrediction for ImagePrediction<'_> {
     }
 }
 
+/// Below this mean squared error per pixel, a candidate's error is measured in the closed loop
+/// rather than estimated ([`quantised_sse`]).
+const MIN_ESTIMATED_MSE: f64 = 2.0;
+
 /// Squared error of a quantised leaf: by the quadratic form of an exact fit where there is one
 /// ([`Fit::error_of`]: the reconstructed control values exactly, the synthesis in real
 /// arithmetic, so it differs from the closed loop only by the integer synthesis's rounding
@@ -300,7 +304,13 @@ fn quantised_sse(
             *c = f64::from(v) / f64::from(SAMPLE_ONE);
         }
         if let Some(sse) = fit.error_of(node.log2, &control[..n]) {
-            return sse;
+            // The integer synthesis's rounding adds about 1/12 per pixel and its clamping can
+            // remove error; both matter only when the error itself is that small, where the
+            // closed loop decides.
+            let pixels = f64::from(node.size()) * f64::from(node.size());
+            if sse > MIN_ESTIMATED_MSE * pixels {
+                return sse;
+            }
         }
     }
     closed_loop_sse(plane, header, node, leaf)

@@ -56,11 +56,14 @@ impl Fit {
         for (k, dk) in d.iter_mut().enumerate().take(n) {
             *dk = control[k] - self.exact[k];
         }
-        let mut quad = 0.0;
-        for i in 0..n {
-            let row: f64 = (0..n).map(|j| gram[(i, j)] * d[j]).sum();
-            quad += d[i] * row;
-        }
+        // G is symmetric: d^T G d = sum over columns j of d_j (G_j . d), on contiguous columns.
+        let d = &d[..n];
+        let quad: f64 = gram
+            .as_slice()
+            .chunks_exact(n)
+            .zip(d)
+            .map(|(col, &dj)| dj * col.iter().zip(d).map(|(g, x)| g * x).sum::<f64>())
+            .sum();
         Some(residual + quad)
     }
 }
@@ -233,7 +236,8 @@ impl Projection {
         let bt = DMatrix::from_column_slice(nc, offsets.len(), &rows);
         let gram = &bt * bt.transpose();
         let pinv = match gram.clone().cholesky() {
-            Some(chol) => chol.solve(&bt),
+            // G^-1 B^T as one matrix product (fast) rather than a triangular solve per pixel.
+            Some(chol) => chol.inverse() * &bt,
             // Fewer independent pixels than control values: the minimum-norm solution.
             None => bt
                 .transpose()

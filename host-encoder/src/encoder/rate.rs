@@ -157,65 +157,70 @@ impl RateTable {
         let mut below_rows = 0u32;
         for (li, level) in analysis.levels.iter().enumerate() {
             let rows = (u32::from(header.height) + (1 << level.log2) - 1) >> level.log2;
-            let mut here = Vec::with_capacity(level.nodes.len());
-            let mut dec = Vec::with_capacity(level.nodes.len());
-            for i in 0..level.cols * rows {
-                let (cx, cy) = (i % level.cols, i / level.cols);
-                let node = Node {
-                    x: cx << level.log2,
-                    y: cy << level.log2,
-                    log2: level.log2,
-                };
-                let kind = node_kind(header, &node);
-                let leaf = level.nodes[i as usize].as_ref().and_then(|na| {
-                    let mut best: Option<(f64, f64, f64, u16)> = None;
-                    for (ci, c) in na.candidates.iter().enumerate() {
-                        if WEIGHT_QUANTISER_KINDS[usize::from(c.wq)] == WeightQuantiser::Codebook
-                            && !header.has_codebooks()
-                        {
-                            continue;
+            // Nodes of a level are independent given the level below.
+            let below_ref = &below;
+            let (here, dec): (Vec<(f64, f64, f64)>, Vec<Decision>) = (0..level.cols * rows)
+                .into_par_iter()
+                .map(|i| {
+                    let (cx, cy) = (i % level.cols, i / level.cols);
+                    let node = Node {
+                        x: cx << level.log2,
+                        y: cy << level.log2,
+                        log2: level.log2,
+                    };
+                    let kind = node_kind(header, &node);
+                    let leaf = level.nodes[i as usize].as_ref().and_then(|na| {
+                        let mut best: Option<(f64, f64, f64, u16)> = None;
+                        for (ci, c) in na.candidates.iter().enumerate() {
+                            if WEIGHT_QUANTISER_KINDS[usize::from(c.wq)]
+                                == WeightQuantiser::Codebook
+                                && !header.has_codebooks()
+                            {
+                                continue;
+                            }
+                            let bits = f64::from(self.bits[li][i as usize][ci]);
+                            let j = c.sse + lambda * bits;
+                            if best.is_none_or(|b| j < b.0) {
+                                best = Some((j, c.sse, bits, ci as u16));
+                            }
                         }
-                        let bits = f64::from(self.bits[li][i as usize][ci]);
-                        let j = c.sse + lambda * bits;
-                        if best.is_none_or(|b| j < b.0) {
-                            best = Some((j, c.sse, bits, ci as u16));
+                        best
+                    });
+                    let split = (level.log2 > min).then(|| {
+                        let mut acc = (0.0, 0.0, 0.0);
+                        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                            let (bx, by) = (2 * cx + dx, 2 * cy + dy);
+                            if bx < below_cols && by < below_rows {
+                                let b = below_ref[(by * below_cols + bx) as usize];
+                                acc = (acc.0 + b.0, acc.1 + b.1, acc.2 + b.2);
+                            }
                         }
+                        acc
+                    });
+                    let flag =
+                        &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
+                    match (kind, leaf, split) {
+                        (NodeKind::ForcedLeaf, Some(l), _) => {
+                            ((l.0, l.1, l.2), Decision::Leaf(l.3))
+                        }
+                        (NodeKind::Flagged, Some(l), Some(s)) => {
+                            let jl = l.0 + lambda * flag[0];
+                            let js = s.0 + lambda * flag[1];
+                            if jl <= js {
+                                ((jl, l.1, l.2 + flag[0]), Decision::Leaf(l.3))
+                            } else {
+                                ((js, s.1, s.2 + flag[1]), Decision::Split)
+                            }
+                        }
+                        (_, _, Some(s)) => (s, Decision::Split),
+                        (_, Some(l), None) => ((l.0, l.1, l.2), Decision::Leaf(l.3)),
+                        (_, None, None) => (
+                            (f64::INFINITY, f64::INFINITY, f64::INFINITY),
+                            Decision::Split,
+                        ),
                     }
-                    best
-                });
-                let split = (level.log2 > min).then(|| {
-                    let mut acc = (0.0, 0.0, 0.0);
-                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                        let (bx, by) = (2 * cx + dx, 2 * cy + dy);
-                        if bx < below_cols && by < below_rows {
-                            let b = below[(by * below_cols + bx) as usize];
-                            acc = (acc.0 + b.0, acc.1 + b.1, acc.2 + b.2);
-                        }
-                    }
-                    acc
-                });
-                let flag = &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
-                let (cost, d) = match (kind, leaf, split) {
-                    (NodeKind::ForcedLeaf, Some(l), _) => ((l.0, l.1, l.2), Decision::Leaf(l.3)),
-                    (NodeKind::Flagged, Some(l), Some(s)) => {
-                        let jl = l.0 + lambda * flag[0];
-                        let js = s.0 + lambda * flag[1];
-                        if jl <= js {
-                            ((jl, l.1, l.2 + flag[0]), Decision::Leaf(l.3))
-                        } else {
-                            ((js, s.1, s.2 + flag[1]), Decision::Split)
-                        }
-                    }
-                    (_, _, Some(s)) => (s, Decision::Split),
-                    (_, Some(l), None) => ((l.0, l.1, l.2), Decision::Leaf(l.3)),
-                    (_, None, None) => (
-                        (f64::INFINITY, f64::INFINITY, f64::INFINITY),
-                        Decision::Split,
-                    ),
-                };
-                here.push(cost);
-                dec.push(d);
-            }
+                })
+                .unzip();
             below = here;
             below_cols = level.cols;
             below_rows = rows;

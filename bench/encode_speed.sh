@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Encoder speed on the grayscale Kodak set, whole process, on this machine:
+#   1. `pifs encode --bpp 0.25` per image, wall time (median of REPEATS runs per image), then
+#      the median over the images: the "one target, analysis included" figure;
+#   2. extra targets from one analysis: the per-target encode time of `rd_sweep` (0.05, 0.1,
+#      0.25 and 0.5 bpp), median over images and rates;
+#   3. scaling: the wall time of (1) on THREADS_IMAGES images with 1 and with 2 threads
+#      (RAYON_NUM_THREADS), and the speed-up.
+# Prints a markdown summary. Needs python3 (standard library) and GNU time (/usr/bin/time).
+#
+#   bash bench/encode_speed.sh [IMAGES...]   (default: ../shared/images/kodak/*.png)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+images=("$@")
+[ ${#images[@]} -gt 0 ] || images=(../shared/images/kodak/kodim*.png)
+REPEATS=${REPEATS:-3}
+THREADS_IMAGES=${THREADS_IMAGES:-3}
+cargo build --release -q -p host-encoder --bin pifs --example rd_sweep
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+wall() { # command... -> wall seconds on stdout
+    /usr/bin/time -f "%e" -o "$out/t" "$@" >/dev/null 2>&1
+    cat "$out/t"
+}
+median() { python3 -c 'import sys,statistics; print(f"{statistics.median(float(x) for x in sys.argv[1:]):.3f}")' "$@"; }
+
+per_image=()
+for img in "${images[@]}"; do
+    runs=()
+    for _ in $(seq "$REPEATS"); do
+        runs+=("$(wall ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)")
+    done
+    m=$(median "${runs[@]}")
+    per_image+=("$m")
+    echo "$(basename "$img"): ${m} s (runs: ${runs[*]})" >&2
+done
+one_target=$(median "${per_image[@]}")
+
+./target/release/examples/rd_sweep "${images[@]}" >"$out/sweep.csv"
+extra=$(python3 - "$out/sweep.csv" <<'PY'
+import csv, statistics, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+print(f"{statistics.median(float(r['encode_s']) for r in rows):.3f}")
+PY
+)
+
+subset=("${images[@]:0:$THREADS_IMAGES}")
+t1=(); t2=()
+for img in "${subset[@]}"; do
+    t1+=("$(RAYON_NUM_THREADS=1 wall ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)")
+    t2+=("$(RAYON_NUM_THREADS=2 wall ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)")
+done
+s1=$(median "${t1[@]}"); s2=$(median "${t2[@]}")
+speedup=$(python3 -c "print(f'{$s1/$s2:.2f}')")
+
+echo
+echo "| measure | value |"
+echo "|---|---:|"
+echo "| images | ${#images[@]} |"
+echo "| one target (--bpp 0.25), whole process, median wall | ${one_target} s |"
+echo "| each extra target from the same analysis, median | ${extra} s |"
+echo "| 1 thread / 2 threads (${#subset[@]} images, median wall) | ${s1} s / ${s2} s = ${speedup}x |"
