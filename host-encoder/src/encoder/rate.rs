@@ -271,7 +271,9 @@ impl RateTable {
         if fallback {
             return best;
         }
-        for _ in 0..40 {
+        // Down to 0.1% in the multiplier: the plans between two multipliers that close differ by
+        // a few leaves at most, and each step costs a whole optimisation.
+        while hi - lo > 1e-3 {
             let mid = 0.5 * (lo + hi);
             let p = self.optimise(analysis, header, mid.exp());
             let good = ok(&p);
