@@ -183,17 +183,16 @@ impl Analysis {
     /// encode then weighs a handful of candidates per node instead of all of them.
     fn prune_candidates(&mut self) {
         let pixels = self.header.pixel_count() as f64;
+        // A rough plan only gathers coding statistics (from half the candidates it cost 0.04 dB
+        // on kodim01: all are rated).
         let first = RateTable::new(self, &Contexts::default());
-        let plan = first.plan_for_bits(self, &self.header, 0.2 * pixels);
+        let plan = first.rough_plan_for_bits(self, &self.header, 0.2 * pixels);
         let snapshot = match super::writer::write(self, &self.header, &plan) {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };
         let rates = RateTable::new(self, &snapshot);
-        let lambdas: Vec<f64> = (0..64)
-            .map(|i| 10f64.powf(-2.0 + 8.0 * f64::from(i) / 63.0))
-            .collect();
-        let keep = rates.lambda_optimal(self, &lambdas);
+        let keep = rates.lambda_optimal(self, 1e-2..=1e6);
         for (level, keep) in self.levels.iter_mut().zip(keep) {
             for (na, keep) in level.nodes.iter_mut().zip(keep) {
                 if let Some(na) = na {

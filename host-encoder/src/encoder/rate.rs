@@ -107,9 +107,14 @@ impl RateTable {
         RateTable { bits, split_bits }
     }
 
-    /// For every analysed node, the candidates that are the node's best leaf for at least one
-    /// of `lambdas` (indices into its candidate list, ascending).
-    pub fn lambda_optimal(&self, analysis: &Analysis, lambdas: &[f64]) -> Vec<Vec<Vec<u16>>> {
+    /// For every analysed node, the candidates that are the node's best leaf for some
+    /// multiplier in `lambdas` (indices into its candidate list, ascending): the vertices of
+    /// the lower convex hull of its (rate, error) points whose multipliers meet the range.
+    pub fn lambda_optimal(
+        &self,
+        analysis: &Analysis,
+        lambdas: std::ops::RangeInclusive<f64>,
+    ) -> Vec<Vec<Vec<u16>>> {
         analysis
             .levels
             .iter()
@@ -121,25 +126,13 @@ impl RateTable {
                     .enumerate()
                     .map(|(i, na)| {
                         let Some(na) = na else { return Vec::new() };
-                        let mut keep: Vec<u16> = lambdas
+                        let points: Vec<(f64, f64)> = na
+                            .candidates
                             .iter()
-                            .filter_map(|&lambda| {
-                                na.candidates
-                                    .iter()
-                                    .enumerate()
-                                    .map(|(ci, c)| {
-                                        (
-                                            c.sse + lambda * f64::from(self.bits[li][i][ci]),
-                                            ci as u16,
-                                        )
-                                    })
-                                    .min_by(|a, b| a.0.total_cmp(&b.0))
-                                    .map(|(_, ci)| ci)
-                            })
+                            .enumerate()
+                            .map(|(ci, c)| (f64::from(self.bits[li][i][ci]), c.sse))
                             .collect();
-                        keep.sort_unstable();
-                        keep.dedup();
-                        keep
+                        lower_hull_in(&points, &lambdas)
                     })
                     .collect()
             })
@@ -234,17 +227,30 @@ impl RateTable {
         }
     }
 
+    /// A plan of roughly `budget_bits` (within about 10% in the multiplier), cheaply: enough
+    /// to gather coding statistics.
+    pub fn rough_plan_for_bits(
+        &self,
+        analysis: &Analysis,
+        header: &Header,
+        budget_bits: f64,
+    ) -> Plan {
+        self.bisect(analysis, header, Constraint::Rate, 0.1, |p| {
+            p.bits <= budget_bits
+        })
+    }
+
     /// The plan with the least distortion whose estimated payload fits in `budget_bits`
     /// (the cheapest plan if none fits), by bisection on the multiplier.
     pub fn plan_for_bits(&self, analysis: &Analysis, header: &Header, budget_bits: f64) -> Plan {
-        self.bisect(analysis, header, Constraint::Rate, |p| {
+        self.bisect(analysis, header, Constraint::Rate, 1e-3, |p| {
             p.bits <= budget_bits
         })
     }
 
     /// The cheapest plan whose squared error is at most `max_sse` (the best plan if none is).
     pub fn plan_for_sse(&self, analysis: &Analysis, header: &Header, max_sse: f64) -> Plan {
-        self.bisect(analysis, header, Constraint::Distortion, |p| {
+        self.bisect(analysis, header, Constraint::Distortion, 1e-3, |p| {
             p.sse <= max_sse
         })
     }
@@ -257,6 +263,7 @@ impl RateTable {
         analysis: &Analysis,
         header: &Header,
         constraint: Constraint,
+        tolerance: f64,
         ok: impl Fn(&Plan) -> bool,
     ) -> Plan {
         let (mut lo, mut hi) = (1e-4f64.ln(), 1e9f64.ln());
@@ -271,9 +278,10 @@ impl RateTable {
         if fallback {
             return best;
         }
-        // Down to 0.1% in the multiplier: the plans between two multipliers that close differ by
-        // a few leaves at most, and each step costs a whole optimisation.
-        while hi - lo > 1e-3 {
+        // Down to `tolerance` in the log of the multiplier (1e-3: 0.1%): the plans between two
+        // multipliers that close differ by a few leaves at most, and each step costs a whole
+        // optimisation.
+        while hi - lo > tolerance {
             let mid = 0.5 * (lo + hi);
             let p = self.optimise(analysis, header, mid.exp());
             let good = ok(&p);
@@ -289,8 +297,107 @@ impl RateTable {
     }
 }
 
+/// Indices of the points `(bits, sse)` that minimise `sse + lambda * bits` for some `lambda` in
+/// `lambdas`: the vertices of the lower convex hull whose range of multipliers meets it.
+fn lower_hull_in(points: &[(f64, f64)], lambdas: &std::ops::RangeInclusive<f64>) -> Vec<u16> {
+    let mut order: Vec<usize> = (0..points.len())
+        .filter(|&k| points[k].0.is_finite() && points[k].1.is_finite())
+        .collect();
+    // By rate, then error: among equal rates only the least error can be on the hull.
+    order.sort_by(|&a, &b| {
+        points[a]
+            .0
+            .total_cmp(&points[b].0)
+            .then(points[a].1.total_cmp(&points[b].1))
+    });
+    order.dedup_by(|b, a| points[*a].0 == points[*b].0);
+    // Monotone chain, keeping only strictly decreasing error (the lower-left hull).
+    let mut hull: Vec<usize> = Vec::new();
+    for k in order {
+        let p = points[k];
+        if hull.last().is_some_and(|&h| points[h].1 <= p.1) {
+            continue;
+        }
+        while hull.len() >= 2 {
+            let (a, b) = (points[hull[hull.len() - 2]], points[hull[hull.len() - 1]]);
+            // b is above the segment a-p: not a vertex.
+            if (b.1 - a.1) * (p.0 - a.0) >= (p.1 - a.1) * (b.0 - a.0) {
+                hull.pop();
+            } else {
+                break;
+            }
+        }
+        hull.push(k);
+    }
+    // Vertex j is optimal for multipliers between the slopes of its two edges.
+    let slope = |a: usize, b: usize| (points[a].1 - points[b].1) / (points[b].0 - points[a].0);
+    let mut keep: Vec<u16> = (0..hull.len())
+        .filter(|&j| {
+            let hi = if j == 0 {
+                f64::INFINITY
+            } else {
+                slope(hull[j - 1], hull[j])
+            };
+            let lo = if j + 1 == hull.len() {
+                0.0
+            } else {
+                slope(hull[j], hull[j + 1])
+            };
+            lo <= *lambdas.end() && hi >= *lambdas.start()
+        })
+        .map(|j| hull[j] as u16)
+        .collect();
+    keep.sort_unstable();
+    keep
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Constraint {
     Rate,
     Distortion,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lower_hull_in;
+
+    /// The hull keeps exactly the points that are best for some multiplier in the range, as a
+    /// dense sweep of multipliers finds them.
+    #[test]
+    fn hull_matches_a_sweep_of_multipliers() {
+        let mut seed = 12345u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            f64::from(seed >> 8) / f64::from(1u32 << 24)
+        };
+        for _ in 0..200 {
+            let points: Vec<(f64, f64)> = (0..12)
+                .map(|_| ((next() * 40.0).round(), (next() * 1000.0).round()))
+                .collect();
+            let range = 0.5..=200.0;
+            let hull = lower_hull_in(&points, &range);
+            let mut swept: Vec<u16> = (0..4000)
+                .map(|i| 0.5 * (400f64).powf(f64::from(i) / 3999.0))
+                .map(|l| {
+                    let j = |k: usize| points[k].1 + l * points[k].0;
+                    (0..points.len())
+                        .min_by(|&a, &b| {
+                            j(a).total_cmp(&j(b))
+                                .then(points[a].0.total_cmp(&points[b].0))
+                        })
+                        .unwrap() as u16
+                })
+                .collect();
+            swept.sort_unstable();
+            swept.dedup();
+            // Every swept optimum is on the hull (up to ties between equal points).
+            for s in &swept {
+                assert!(
+                    hull.iter()
+                        .any(|&h| points[usize::from(h)] == points[usize::from(*s)]),
+                    "{points:?}: {s} missing from {hull:?}"
+                );
+            }
+        }
+    }
 }
