@@ -240,14 +240,14 @@ impl Analysis {
             ..*header
         };
         let overhead = (longest_header.encoded_len() + 4) as f64 * 8.0;
-        let mut snapshot = Contexts::default();
         let mut target_bits = budget as f64 * 8.0 - overhead;
-        let mut rates = RateTable::new(self, &snapshot);
+        // First pass: the analysis's rates (contexts of a trial encode); later passes: the
+        // contexts this target's own stream ends with.
+        let mut rates = self.rates.clone();
         let mut plan = rates.plan_for_bits(self, header, target_bits);
         let mut written = self.write(header, &plan)?;
         for _ in 1..RATE_PASSES {
-            snapshot = written.final_contexts.clone();
-            rates = RateTable::new(self, &snapshot);
+            rates = RateTable::new(self, &written.final_contexts);
             plan = rates.plan_for_bits(self, header, target_bits);
             written = self.write(header, &plan)?;
         }
@@ -280,8 +280,12 @@ impl Analysis {
         let mut snapshot = Contexts::default();
         let mut plan = None;
         let mut written = None;
-        for _ in 0..RATE_PASSES {
-            let rates = RateTable::new(self, &snapshot);
+        for pass in 0..RATE_PASSES {
+            let rates = if pass == 0 {
+                self.rates.clone()
+            } else {
+                RateTable::new(self, &snapshot)
+            };
             let p = rates.plan_for_sse(self, header, max_sse);
             let w = self.write(header, &p)?;
             snapshot = w.final_contexts.clone();

@@ -21,6 +21,37 @@ pub struct RateTable {
     split_bits: Vec<[f64; 2]>,
 }
 
+impl RateTable {
+    /// An empty table (no node rated).
+    pub fn empty() -> RateTable {
+        RateTable {
+            bits: Vec::new(),
+            split_bits: Vec::new(),
+        }
+    }
+
+    /// This table restricted to the candidates `keep` lists per node (as
+    /// [`RateTable::lambda_optimal`] returns them), for the candidate lists pruned to them.
+    pub fn select(&self, keep: &[Vec<Vec<u16>>]) -> RateTable {
+        let bits = self
+            .bits
+            .iter()
+            .zip(keep)
+            .map(|(level, keep)| {
+                level
+                    .iter()
+                    .zip(keep)
+                    .map(|(node, keep)| keep.iter().map(|&ci| node[usize::from(ci)]).collect())
+                    .collect()
+            })
+            .collect();
+        RateTable {
+            bits,
+            split_bits: self.split_bits.clone(),
+        }
+    }
+}
+
 /// What the optimiser decided for one node.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Decision {
