@@ -270,6 +270,19 @@ impl Analysis {
             plan = smaller;
             written = smaller_written;
         }
+        // The estimate is a little pessimistic at higher rates: spend what the stream left
+        // unused, once, keeping the larger stream only if it still fits.
+        let unused = budget.saturating_sub(written.bytes.len()) as f64 * 8.0;
+        if unused > 0.01 * budget as f64 * 8.0 {
+            let larger = rates.plan_for_bits(self, header, target_bits + 0.9 * unused);
+            if larger.bits > plan.bits {
+                let larger_written = self.write(header, &larger)?;
+                if larger_written.bytes.len() <= budget {
+                    plan = larger;
+                    written = larger_written;
+                }
+            }
+        }
         Ok(self.finish(&plan, written))
     }
 
