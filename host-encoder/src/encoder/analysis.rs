@@ -118,6 +118,7 @@ impl Analysis {
             checksum: 0,
         };
         let root = header.root_log2();
+        super::fit::prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
         let done = std::sync::atomic::AtomicU64::new(0);
         let mut levels = Vec::new();
         for log2 in header.min_leaf_log2..=root {

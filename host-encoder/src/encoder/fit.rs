@@ -205,6 +205,22 @@ struct Projection {
     gram: DMatrix<f64>,
 }
 
+/// Builds, in parallel, the projections of every model usable at the block sizes
+/// `log2s` (otherwise each is built by the first block that needs it, while the others wait).
+pub fn prepare_projections(log2s: impl Iterator<Item = u8>) {
+    use rayon::prelude::*;
+    let mut pairs = Vec::new();
+    for log2 in log2s.filter(|&l| l <= MAX_PROJECTION_LOG2) {
+        let (models, count) = decoder_core::bitstream::models_for_block(log2);
+        pairs.extend(models[..count].iter().map(|&m| (m, log2)));
+    }
+    // Largest first: they take longest.
+    pairs.sort_by_key(|&(m, l)| std::cmp::Reverse((l, m)));
+    pairs.par_iter().for_each(|&(m, l)| {
+        Projection::of(m, l);
+    });
+}
+
 impl Projection {
     fn of(model_index: u8, log2: u8) -> &'static Projection {
         use std::sync::OnceLock;
