@@ -631,15 +631,21 @@ pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeEr
     Ok(patch)
 }
 
+/// The model type a leaf names.
+fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, DecodeError> {
+    MODELS
+        .get(usize::from(leaf.model))
+        .copied()
+        .ok_or(DecodeError::InvalidData("model type"))
+}
+
 /// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack).
 pub fn reconstruct_into(
     header: &Header,
     leaf: &LeafSyntax,
     patch: &mut Patch,
 ) -> Result<(), DecodeError> {
-    let model = *MODELS
-        .get(usize::from(leaf.model))
-        .ok_or(DecodeError::InvalidData("model type"))?;
+    let model = leaf_model(leaf)?;
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
@@ -658,9 +664,7 @@ pub fn reconstruct_weights(
     leaf: &LeafSyntax,
     patch: &mut Patch,
 ) -> Result<(), DecodeError> {
-    let model = *MODELS
-        .get(usize::from(leaf.model))
-        .ok_or(DecodeError::InvalidData("model type"))?;
+    let model = leaf_model(leaf)?;
     patch.model = model;
     let kind = *WEIGHT_QUANTISER_KINDS
         .get(usize::from(leaf.wquant))
