@@ -521,6 +521,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
 /// Intra-leaf prediction of control value `(r, c)` (not the first) from the leaf's values
 /// reconstructed so far (row-major, side `side`): left on the first row, above on the first
 /// column, the LOCO-I median elsewhere.
+#[inline]
 pub fn intra_prediction(values: &[i16], side: usize, r: usize, c: usize) -> i32 {
     let i = r * side + c;
     let at = |k: usize| i32::from(values[k]);
@@ -534,6 +535,7 @@ pub fn intra_prediction(values: &[i16], side: usize, r: usize, c: usize) -> i32 
 
 /// Reconstructs control value `i` of a leaf from its index: the first value is `index * step`,
 /// every other one `intra prediction + index * step`, clamped to the sample range.
+#[inline]
 pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i32) -> i16 {
     let base = if i == 0 {
         0
@@ -587,6 +589,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
 }
 
 /// Median edge detector (LOCO-I): the median of `left`, `up` and `left + up - up_left`.
+#[inline]
 fn med(left: i32, up: i32, up_left: i32) -> i32 {
     let (lo, hi) = if left < up { (left, up) } else { (up, left) };
     if up_left >= hi {

@@ -50,21 +50,13 @@ impl Fit {
     /// fit is not one (weights fitted, or a block at the image's edge).
     pub fn error_of(&self, log2: u8, control: &[f64]) -> Option<f64> {
         let residual = self.residual?;
-        let gram = &Projection::of(self.model, log2).gram;
-        let n = gram.nrows();
+        let projection = Projection::of(self.model, log2);
+        let n = projection.gram.nrows();
         let mut d = [0.0f64; decoder_core::model::MAX_CONTROL];
         for (k, dk) in d.iter_mut().enumerate().take(n) {
             *dk = control[k] - self.exact[k];
         }
-        // G is symmetric: d^T G d = sum over columns j of d_j (G_j . d), on contiguous columns.
-        let d = &d[..n];
-        let quad: f64 = gram
-            .as_slice()
-            .chunks_exact(n)
-            .zip(d)
-            .map(|(col, &dj)| dj * col.iter().zip(d).map(|(g, x)| g * x).sum::<f64>())
-            .sum();
-        Some(residual + quad)
+        Some(residual + projection.quadratic_form(&d[..n]))
     }
 }
 
@@ -203,6 +195,9 @@ struct Projection {
     offsets: Vec<(u32, u32)>,
     pinv: DMatrix<f64>,
     gram: DMatrix<f64>,
+    /// `U` with `G = U^T U` (the transposed Cholesky factor), its upper triangle packed by
+    /// rows; `None` when `G` is singular.
+    factor: Option<Vec<f64>>,
 }
 
 /// Builds, in parallel, the projections of every model usable at the block sizes
@@ -251,20 +246,56 @@ impl Projection {
         // Stored transposed: column k is the derivative vector of sample k.
         let bt = DMatrix::from_column_slice(nc, offsets.len(), &rows);
         let gram = &bt * bt.transpose();
-        let pinv = match gram.clone().cholesky() {
+        let (pinv, factor) = match gram.clone().cholesky() {
             // G^-1 B^T as one matrix product (fast) rather than a triangular solve per pixel.
-            Some(chol) => chol.inverse() * &bt,
+            Some(chol) => {
+                let l = chol.l();
+                let upper = (0..nc).flat_map(|i| (i..nc).map(move |j| (i, j)));
+                let factor = upper.map(|(i, j)| l[(j, i)]).collect();
+                (chol.inverse() * &bt, Some(factor))
+            }
             // Fewer independent pixels than control values: the minimum-norm solution.
-            None => bt
-                .transpose()
-                .pseudo_inverse(1e-9)
-                .unwrap_or_else(|_| DMatrix::zeros(nc, offsets.len())),
+            None => (
+                bt.transpose()
+                    .pseudo_inverse(1e-9)
+                    .unwrap_or_else(|_| DMatrix::zeros(nc, offsets.len())),
+                None,
+            ),
         };
         Projection {
             offsets,
             pinv,
             gram,
+            factor,
         }
+    }
+
+    /// `d^T G d`: the squared error that moving the control values by `d` adds.
+    fn quadratic_form(&self, d: &[f64]) -> f64 {
+        let Some(upper) = &self.factor else {
+            return self.quadratic_form_full(d);
+        };
+        // |U d|^2 with U upper triangular: half the work of the full form.
+        let n = d.len();
+        let mut at = 0;
+        (0..n)
+            .map(|i| {
+                let row = &upper[at..at + n - i];
+                at += n - i;
+                let v: f64 = row.iter().zip(&d[i..]).map(|(u, x)| u * x).sum();
+                v * v
+            })
+            .sum()
+    }
+
+    /// `d^T G d` from `G` itself (symmetric: the sum over columns j of `d_j (G_j . d)`).
+    fn quadratic_form_full(&self, d: &[f64]) -> f64 {
+        self.gram
+            .as_slice()
+            .chunks_exact(d.len())
+            .zip(d)
+            .map(|(col, &dj)| dj * col.iter().zip(d).map(|(g, x)| g * x).sum::<f64>())
+            .sum()
     }
 
     /// The least-squares control values of the interior block `node` and their squared error.
@@ -452,5 +483,36 @@ fn levenberg_marquardt(
         } else {
             mu = (mu * 8.0).max(1e-4);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Projection;
+
+    /// The factored quadratic form equals the Gram matrix's, for every model and block size
+    /// that has a projection.
+    #[test]
+    fn factored_form_equals_the_gram_form() {
+        let mut seed = 99u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            f64::from(seed >> 8) / f64::from(1u32 << 24) - 0.5
+        };
+        let mut factored = 0;
+        for log2 in 1..=6u8 {
+            let (models, count) = decoder_core::bitstream::models_for_block(log2);
+            for &m in &models[..count] {
+                let p = Projection::of(m, log2);
+                factored += usize::from(p.factor.is_some());
+                let d: Vec<f64> = (0..p.gram.nrows()).map(|_| 40.0 * next()).collect();
+                let (a, b) = (p.quadratic_form(&d), p.quadratic_form_full(&d));
+                assert!(
+                    (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                    "model {m} at {log2}: {a} vs {b}"
+                );
+            }
+        }
+        assert!(factored > 10, "only {factored} projections have a factor");
     }
 }

@@ -9,8 +9,7 @@ pub mod synthesis;
 pub mod writer;
 
 use analysis::Analysis;
-use decoder_core::bitstream::{Codebook, Contexts, Header};
-use rate::RateTable;
+use decoder_core::bitstream::{Codebook, Header};
 use std::fmt;
 
 /// An 8-bit grayscale image.
@@ -149,8 +148,8 @@ pub struct Encoded {
     pub leaves: usize,
 }
 
-/// Number of estimate/encode passes that let the rate model follow the real coder.
-const RATE_PASSES: usize = 2;
+/// Most passes that spend the bytes a budget's stream left unused.
+const SPEND_PASSES: usize = 2;
 
 /// PSNR (peak 255) of a squared error over `pixels` pixels.
 pub fn psnr(sse: f64, pixels: usize) -> f64 {
@@ -204,7 +203,9 @@ impl Analysis {
         best.ok_or_else(|| last_err.unwrap_or_else(|| EncodeError::Internal("no variant".into())))
     }
 
-    fn finish(&self, plan: &rate::Plan, written: writer::Written) -> Encoded {
+    /// Writes `plan` with its reconstruction, and measures it.
+    fn finish(&self, header: &Header, plan: &rate::Plan) -> Result<Encoded, EncodeError> {
+        let written = self.write(header, plan, true)?;
         let pixels = self.header.pixel_count();
         let sse: f64 = written
             .reconstruction
@@ -215,23 +216,30 @@ impl Analysis {
                 d * d
             })
             .sum();
-        let actual = written.payload_bits;
-        Encoded {
+        Ok(Encoded {
             psnr: psnr(sse, pixels),
             sse,
             estimated_payload_bits: plan.bits,
-            actual_payload_bits: actual,
+            actual_payload_bits: written.payload_bits,
             leaves: written.leaves,
             bytes: written.bytes,
             reconstruction: written.reconstruction,
-        }
+        })
     }
 
-    fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
-        writer::write(self, header, plan).map_err(|e| EncodeError::Internal(e.to_string()))
+    /// Writes `plan`; with its reconstruction only if `render` (else it is empty).
+    fn write(
+        &self,
+        header: &Header,
+        plan: &rate::Plan,
+        render: bool,
+    ) -> Result<writer::Written, EncodeError> {
+        writer::write(self, header, plan, render).map_err(|e| EncodeError::Internal(e.to_string()))
     }
 
-    /// Best stream of at most `budget` bytes.
+    /// Best stream of at most `budget` bytes. The analysis's rates ([`Analysis::rates`], from
+    /// a trial encode's contexts) plan it; the real coder's size then corrects the plan's aim:
+    /// down until the stream fits, then up to spend what it left unused.
     fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
         // The header (its payload length at most as long as for a payload of `budget` bytes)
         // and the four bytes of the range coder's flush.
@@ -240,28 +248,18 @@ impl Analysis {
             ..*header
         };
         let overhead = (longest_header.encoded_len() + 4) as f64 * 8.0;
-        let mut target_bits = budget as f64 * 8.0 - overhead;
-        // First pass: the analysis's rates (contexts of a trial encode); later passes: the
-        // contexts this target's own stream ends with.
-        let mut rates = self.rates.clone();
-        let mut plan = rates.plan_for_bits(self, header, target_bits);
-        let mut written = self.write(header, &plan)?;
-        for _ in 1..RATE_PASSES {
-            rates = RateTable::new(self, &written.final_contexts);
-            plan = rates.plan_for_bits(self, header, target_bits);
-            written = self.write(header, &plan)?;
-        }
-        // Tighten the estimate's target until the real stream fits.
+        let mut aim = budget as f64 * 8.0 - overhead;
+        let mut plan = self.rates.plan_for_bits(self, header, aim);
+        let mut written = self.write(header, &plan, false)?;
+        // Tighten the aim until the real stream fits.
         let mut tries = 0;
         while written.bytes.len() > budget {
             tries += 1;
             let excess = (written.bytes.len() - budget) as f64 * 8.0;
-            target_bits -= excess.max(8.0) * if tries > 4 { 2.0 } else { 1.0 };
-            let smaller = rates.plan_for_bits(self, header, target_bits);
-            let smaller_written = self.write(header, &smaller)?;
-            if smaller_written.bytes.len() >= written.bytes.len() && target_bits < -overhead
-                || tries > 40
-            {
+            aim -= excess.max(8.0) * if tries > 4 { 2.0 } else { 1.0 };
+            let smaller = self.rates.plan_for_bits(self, header, aim);
+            let smaller_written = self.write(header, &smaller, false)?;
+            if smaller_written.bytes.len() >= written.bytes.len() && aim < -overhead || tries > 40 {
                 return Err(EncodeError::BudgetTooSmall {
                     budget,
                     smallest: smaller_written.bytes.len(),
@@ -270,46 +268,37 @@ impl Analysis {
             plan = smaller;
             written = smaller_written;
         }
-        // The estimate is a little pessimistic at higher rates: spend what the stream left
-        // unused, once, keeping the larger stream only if it still fits.
-        let unused = budget.saturating_sub(written.bytes.len()) as f64 * 8.0;
-        if unused > 0.01 * budget as f64 * 8.0 {
-            let larger = rates.plan_for_bits(self, header, target_bits + 0.9 * unused);
-            if larger.bits > plan.bits {
-                let larger_written = self.write(header, &larger)?;
-                if larger_written.bytes.len() <= budget {
-                    plan = larger;
-                    written = larger_written;
-                }
+        // The estimate runs a little pessimistic at higher rates: spend what the stream left
+        // unused (scaled by the estimate's error), keeping a larger stream only if it fits.
+        for _ in 0..SPEND_PASSES {
+            let unused = budget.saturating_sub(written.bytes.len()) as f64 * 8.0;
+            if unused <= 0.01 * budget as f64 * 8.0 {
+                break;
             }
+            let scale = (plan.bits / written.payload_bits.max(1.0)).clamp(0.5, 2.0);
+            let larger = self
+                .rates
+                .plan_for_bits(self, header, aim + 0.9 * scale * unused);
+            if larger.bits <= plan.bits {
+                break;
+            }
+            let larger_written = self.write(header, &larger, false)?;
+            if larger_written.bytes.len() > budget {
+                break;
+            }
+            aim += 0.9 * scale * unused;
+            plan = larger;
+            written = larger_written;
         }
-        Ok(self.finish(&plan, written))
+        self.finish(header, &plan)
     }
 
     /// Smallest stream whose PSNR reaches `db`.
     fn encode_quality(&self, header: &Header, db: f64) -> Result<Encoded, EncodeError> {
         let pixels = self.header.pixel_count() as f64;
         let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
-        let mut snapshot = Contexts::default();
-        let mut plan = None;
-        let mut written = None;
-        for pass in 0..RATE_PASSES {
-            let rates = if pass == 0 {
-                self.rates.clone()
-            } else {
-                RateTable::new(self, &snapshot)
-            };
-            let p = rates.plan_for_sse(self, header, max_sse);
-            let w = self.write(header, &p)?;
-            snapshot = w.final_contexts.clone();
-            plan = Some(p);
-            written = Some(w);
-        }
-        let (plan, written) = (
-            plan.expect("at least one pass"),
-            written.expect("at least one pass"),
-        );
-        let encoded = self.finish(&plan, written);
+        let plan = self.rates.plan_for_sse(self, header, max_sse);
+        let encoded = self.finish(header, &plan)?;
         if encoded.sse > max_sse {
             return Err(EncodeError::QualityUnreachable {
                 requested: db,

@@ -68,7 +68,13 @@ pub fn quantise(
 const ROUNDING_OFFSET: f64 = 0.35;
 
 fn deadzone_round(v: f64) -> i32 {
-    (v.signum() * (v.abs() + ROUNDING_OFFSET).floor()) as i32
+    // The truncating cast floors the non-negative magnitude (no libm call).
+    let magnitude = (v.abs() + ROUNDING_OFFSET) as i32;
+    if v < 0.0 {
+        -magnitude
+    } else {
+        magnitude
+    }
 }
 
 fn nearest_level(book: &Codebook, v: f64) -> i32 {

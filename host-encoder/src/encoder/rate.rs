@@ -2,8 +2,8 @@
 //! the multiplier that meets a target (thesis III.3.6.3).
 //!
 //! Rates come from decoder-core's own syntax code run on a [`BitCounter`] whose contexts start
-//! from a snapshot of the real coder's state (the previous pass's final contexts), so the
-//! estimate follows the real coder.
+//! from a snapshot of the real coder's state (the contexts a trial encode ended with), so the
+//! estimate follows the real coder; each target then corrects its aim by the real coder's size.
 
 use super::analysis::Analysis;
 use crate::entropy::BitCounter;
@@ -14,18 +14,55 @@ use decoder_core::model::WEIGHT_QUANTISER_KINDS;
 use decoder_core::quadtree::{node_kind, Node, NodeKind};
 use rayon::prelude::*;
 
-/// Per-candidate rates (bits) under one context snapshot, laid out like the analysis.
+/// Per-candidate rates (bits) under one context snapshot, with the candidates' errors, laid
+/// out flat per level so that the optimiser's inner loop reads three contiguous arrays.
 #[derive(Debug, Clone)]
 pub struct RateTable {
-    bits: Vec<Vec<Vec<f32>>>,
+    levels: Vec<LevelRates>,
     split_bits: Vec<[f64; 2]>,
+}
+
+/// The candidates of one level's nodes: node `i`'s are `first[i]..first[i + 1]`, in the order
+/// of its candidate list.
+#[derive(Debug, Clone, Default)]
+struct LevelRates {
+    first: Vec<u32>,
+    bits: Vec<f32>,
+    sse: Vec<f64>,
+    /// Whether the candidate needs the Lloyd-Max codebooks.
+    codebook: Vec<bool>,
+}
+
+impl LevelRates {
+    fn range(&self, node: usize) -> std::ops::Range<usize> {
+        self.first[node] as usize..self.first[node + 1] as usize
+    }
+
+    /// The level's candidates `keep` lists per node (indices into each node's list).
+    fn select(&self, keep: &[Vec<u16>]) -> LevelRates {
+        let mut out = LevelRates {
+            first: vec![0],
+            ..LevelRates::default()
+        };
+        for (i, keep) in keep.iter().enumerate() {
+            let start = self.first[i] as usize;
+            for &ci in keep {
+                let k = start + usize::from(ci);
+                out.bits.push(self.bits[k]);
+                out.sse.push(self.sse[k]);
+                out.codebook.push(self.codebook[k]);
+            }
+            out.first.push(out.bits.len() as u32);
+        }
+        out
+    }
 }
 
 impl RateTable {
     /// An empty table (no node rated).
     pub fn empty() -> RateTable {
         RateTable {
-            bits: Vec::new(),
+            levels: Vec::new(),
             split_bits: Vec::new(),
         }
     }
@@ -33,20 +70,13 @@ impl RateTable {
     /// This table restricted to the candidates `keep` lists per node (as
     /// [`RateTable::lambda_optimal`] returns them), for the candidate lists pruned to them.
     pub fn select(&self, keep: &[Vec<Vec<u16>>]) -> RateTable {
-        let bits = self
-            .bits
-            .iter()
-            .zip(keep)
-            .map(|(level, keep)| {
-                level
-                    .iter()
-                    .zip(keep)
-                    .map(|(node, keep)| keep.iter().map(|&ci| node[usize::from(ci)]).collect())
-                    .collect()
-            })
-            .collect();
         RateTable {
-            bits,
+            levels: self
+                .levels
+                .iter()
+                .zip(keep)
+                .map(|(level, keep)| level.select(keep))
+                .collect(),
             split_bits: self.split_bits.clone(),
         }
     }
@@ -87,25 +117,25 @@ impl Plan {
 impl RateTable {
     /// Rates of every candidate, coded from the context state `snapshot`.
     pub fn new(analysis: &Analysis, snapshot: &Contexts) -> RateTable {
-        let bits = analysis
+        let levels = analysis
             .levels
             .iter()
             .map(|level| {
-                level
+                let per_node: Vec<Vec<f32>> = level
                     .nodes
                     .par_iter()
                     .map(|na| {
                         let Some(na) = na else { return Vec::new() };
+                        let prediction = super::analysis::ImagePrediction {
+                            plane: &analysis.plane,
+                            node: na.node,
+                        };
                         na.candidates
                             .iter()
                             .map(|c| {
                                 let mut leaf = c.leaf(na.fits[usize::from(c.fit)].model);
                                 let mut counter = BitCounter::default();
                                 let mut ctx = snapshot.clone();
-                                let prediction = super::analysis::ImagePrediction {
-                                    plane: &analysis.plane,
-                                    node: na.node,
-                                };
                                 match code_leaf(
                                     &mut counter,
                                     &mut ctx,
@@ -120,7 +150,25 @@ impl RateTable {
                             })
                             .collect()
                     })
-                    .collect()
+                    .collect();
+                let mut rates = LevelRates {
+                    first: vec![0],
+                    ..LevelRates::default()
+                };
+                for (na, bits) in level.nodes.iter().zip(per_node) {
+                    if let Some(na) = na {
+                        rates.bits.extend_from_slice(&bits);
+                        for c in &na.candidates {
+                            rates.sse.push(c.sse);
+                            rates.codebook.push(
+                                WEIGHT_QUANTISER_KINDS[usize::from(c.wq)]
+                                    == WeightQuantiser::Codebook,
+                            );
+                        }
+                    }
+                    rates.first.push(rates.bits.len() as u32);
+                }
+                rates
             })
             .collect();
         let split_bits = (0..=decoder_core::bitstream::MAX_LEAF_LOG2)
@@ -135,16 +183,19 @@ impl RateTable {
                 out
             })
             .collect();
-        RateTable { bits, split_bits }
+        RateTable { levels, split_bits }
     }
 
     /// For every analysed node, the candidates that are the node's best leaf for some
     /// multiplier in `lambdas` (indices into its candidate list, ascending): the vertices of
     /// the lower convex hull of its (rate, error) points whose multipliers meet the range.
+    /// With `layers` above one, also those of the hulls of what is left, layer by layer
+    /// (candidates that come close to being best).
     pub fn lambda_optimal(
         &self,
         analysis: &Analysis,
         lambdas: std::ops::RangeInclusive<f64>,
+        layers: usize,
     ) -> Vec<Vec<Vec<u16>>> {
         analysis
             .levels
@@ -156,14 +207,25 @@ impl RateTable {
                     .par_iter()
                     .enumerate()
                     .map(|(i, na)| {
-                        let Some(na) = na else { return Vec::new() };
-                        let points: Vec<(f64, f64)> = na
-                            .candidates
-                            .iter()
-                            .enumerate()
-                            .map(|(ci, c)| (f64::from(self.bits[li][i][ci]), c.sse))
+                        if na.is_none() {
+                            return Vec::new();
+                        }
+                        let rates = &self.levels[li];
+                        let mut points: Vec<(f64, f64)> = rates
+                            .range(i)
+                            .map(|k| (f64::from(rates.bits[k]), rates.sse[k]))
                             .collect();
-                        lower_hull_in(&points, &lambdas)
+                        let mut keep = Vec::new();
+                        for _ in 0..layers {
+                            let layer = lower_hull_in(&points, &lambdas);
+                            for &k in &layer {
+                                // Out of the next layer's way.
+                                points[usize::from(k)] = (f64::INFINITY, f64::INFINITY);
+                            }
+                            keep.extend(layer);
+                        }
+                        keep.sort_unstable();
+                        keep
                     })
                     .collect()
             })
@@ -183,6 +245,8 @@ impl RateTable {
             let rows = (u32::from(header.height) + (1 << level.log2) - 1) >> level.log2;
             // Nodes of a level are independent given the level below.
             let below_ref = &below;
+            let rates = &self.levels[li];
+            let codebooks = header.has_codebooks();
             let (here, dec): (Vec<(f64, f64, f64)>, Vec<Decision>) = (0..level.cols * rows)
                 .into_par_iter()
                 .map(|i| {
@@ -193,23 +257,22 @@ impl RateTable {
                         log2: level.log2,
                     };
                     let kind = node_kind(header, &node);
-                    let leaf = level.nodes[i as usize].as_ref().and_then(|na| {
+                    let leaf = {
+                        let range = rates.range(i as usize);
+                        let start = range.start;
                         let mut best: Option<(f64, f64, f64, u16)> = None;
-                        for (ci, c) in na.candidates.iter().enumerate() {
-                            if WEIGHT_QUANTISER_KINDS[usize::from(c.wq)]
-                                == WeightQuantiser::Codebook
-                                && !header.has_codebooks()
-                            {
+                        for k in range {
+                            if rates.codebook[k] && !codebooks {
                                 continue;
                             }
-                            let bits = f64::from(self.bits[li][i as usize][ci]);
-                            let j = c.sse + lambda * bits;
+                            let bits = f64::from(rates.bits[k]);
+                            let j = rates.sse[k] + lambda * bits;
                             if best.is_none_or(|b| j < b.0) {
-                                best = Some((j, c.sse, bits, ci as u16));
+                                best = Some((j, rates.sse[k], bits, (k - start) as u16));
                             }
                         }
                         best
-                    });
+                    };
                     let split = (level.log2 > min).then(|| {
                         let mut acc = (0.0, 0.0, 0.0);
                         for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
@@ -266,37 +329,39 @@ impl RateTable {
         header: &Header,
         budget_bits: f64,
     ) -> Plan {
-        self.bisect(analysis, header, Constraint::Rate, 0.1, |p| {
-            p.bits <= budget_bits
-        })
+        self.bisect(analysis, header, Constraint::Rate, 0.1, budget_bits)
     }
 
     /// The plan with the least distortion whose estimated payload fits in `budget_bits`
     /// (the cheapest plan if none fits), by bisection on the multiplier.
     pub fn plan_for_bits(&self, analysis: &Analysis, header: &Header, budget_bits: f64) -> Plan {
-        self.bisect(analysis, header, Constraint::Rate, 1e-3, |p| {
-            p.bits <= budget_bits
-        })
+        self.bisect(analysis, header, Constraint::Rate, 1e-3, budget_bits)
     }
 
     /// The cheapest plan whose squared error is at most `max_sse` (the best plan if none is).
     pub fn plan_for_sse(&self, analysis: &Analysis, header: &Header, max_sse: f64) -> Plan {
-        self.bisect(analysis, header, Constraint::Distortion, 1e-3, |p| {
-            p.sse <= max_sse
-        })
+        self.bisect(analysis, header, Constraint::Distortion, 1e-3, max_sse)
     }
 
-    /// Bisection on the logarithm of the multiplier. Plans get cheaper and worse as it grows,
-    /// so a rate constraint holds from some multiplier on (we want the smallest such), and a
-    /// distortion constraint holds up to some multiplier (we want the largest).
+    /// Search on the logarithm of the multiplier. Plans get cheaper and worse as it grows, so a
+    /// rate constraint holds from some multiplier on (we want the smallest such), and a
+    /// distortion constraint holds up to some multiplier (we want the largest). The constrained
+    /// quantity is close to a power of the multiplier, so the next multiplier is interpolated
+    /// in log-log (false position, Illinois variant); a step that fails to halve the bracket is
+    /// followed by a bisection, which bounds the search by twice bisection's.
     fn bisect(
         &self,
         analysis: &Analysis,
         header: &Header,
         constraint: Constraint,
         tolerance: f64,
-        ok: impl Fn(&Plan) -> bool,
+        limit: f64,
     ) -> Plan {
+        let measure = |p: &Plan| match constraint {
+            Constraint::Rate => p.bits,
+            Constraint::Distortion => p.sse,
+        };
+        let ok = |p: &Plan| measure(p) <= limit;
         let (mut lo, mut hi) = (1e-4f64.ln(), 1e9f64.ln());
         let plan_lo = self.optimise(analysis, header, lo.exp());
         let plan_hi = self.optimise(analysis, header, hi.exp());
@@ -309,19 +374,60 @@ impl RateTable {
         if fallback {
             return best;
         }
-        // Down to `tolerance` in the log of the multiplier (1e-3: 0.1%): the plans between two
-        // multipliers that close differ by a few leaves at most, and each step costs a whole
-        // optimisation.
+        // ln of the constrained quantity at the ends; only its differences matter.
+        let log_of = |p: &Plan| measure(p).max(1e-9).ln();
+        let (mut f_lo, mut f_hi) = (log_of(&plan_lo), log_of(&plan_hi));
+        let target = limit.max(1e-9).ln();
+        // Which end the last interpolation replaced (true: the upper; for the Illinois
+        // halving), and whether the
+        // next step must bisect.
+        let mut kept: Option<bool> = None;
+        let mut bisect_next = false;
+        // Down to `tolerance` in the log of the multiplier (1e-3: 0.1%; the plans between two
+        // multipliers that close differ by a few leaves at most), or in the constrained
+        // quantity.
         while hi - lo > tolerance {
-            let mid = 0.5 * (lo + hi);
+            let width = hi - lo;
+            let mid = if bisect_next || !(f_lo - f_hi).is_normal() {
+                0.5 * (lo + hi)
+            } else {
+                let t = (f_lo - target) / (f_lo - f_hi);
+                // Strictly inside, so that the bracket always shrinks.
+                lo + width * t.clamp(0.02, 0.98)
+            };
             let p = self.optimise(analysis, header, mid.exp());
             let good = ok(&p);
-            match (constraint, good) {
-                (Constraint::Rate, true) | (Constraint::Distortion, false) => hi = mid,
-                (Constraint::Rate, false) | (Constraint::Distortion, true) => lo = mid,
+            let f = log_of(&p);
+            let moves_hi = matches!(
+                (constraint, good),
+                (Constraint::Rate, true) | (Constraint::Distortion, false)
+            );
+            if moves_hi {
+                (hi, f_hi) = (mid, f);
+            } else {
+                (lo, f_lo) = (mid, f);
             }
+            if !bisect_next {
+                // The same end kept by two interpolations in a row: pull its value halfway
+                // to the target (Illinois), or false position creeps up on one side.
+                if kept == Some(moves_hi) {
+                    if moves_hi {
+                        f_lo = target + 0.5 * (f_lo - target);
+                    } else {
+                        f_hi = target + 0.5 * (f_hi - target);
+                    }
+                }
+                kept = Some(moves_hi);
+            }
+            bisect_next = !bisect_next && hi - lo > 0.5 * width;
             if good {
+                // Close enough in the constrained quantity too: no multiplier in between
+                // can do better by more than the tolerance.
+                let done = measure(&p) >= limit * (1.0 - tolerance);
                 best = p;
+                if done {
+                    break;
+                }
             }
         }
         best

@@ -16,7 +16,7 @@ pub struct Written {
     pub bytes: Vec<u8>,
     /// Size of the payload alone, in bits.
     pub payload_bits: f64,
-    /// Decoded pixels as the encoder reconstructed them, row-major.
+    /// Decoded pixels as the encoder reconstructed them, row-major (empty unless asked for).
     pub reconstruction: Vec<u8>,
     /// Context state at the end of the payload (seeds the next rate estimate).
     pub final_contexts: Contexts,
@@ -28,7 +28,8 @@ struct PlanVisitor<'a> {
     analysis: &'a Analysis,
     header: &'a Header,
     plan: &'a Plan,
-    image: Vec<u8>,
+    /// The reconstruction, if one is wanted.
+    image: Option<Vec<u8>>,
     leaves: usize,
 }
 
@@ -55,6 +56,9 @@ impl TreeVisitor for PlanVisitor<'_> {
     fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
         let node = &info.node;
         self.leaves += 1;
+        let Some(image) = self.image.as_mut() else {
+            return Ok(());
+        };
         let clip = Rect::of_size(u32::from(self.header.width), u32::from(self.header.height));
         let width = usize::from(self.header.width);
         struct Into<'b> {
@@ -69,27 +73,23 @@ impl TreeVisitor for PlanVisitor<'_> {
                 }
             }
         }
-        patch.render(
-            node.x,
-            node.y,
-            node.log2,
-            clip,
-            &mut Into {
-                image: &mut self.image,
-                width,
-            },
-        );
+        patch.render(node.x, node.y, node.log2, clip, &mut Into { image, width });
         Ok(())
     }
 }
 
-/// Writes the stream for `plan` with `header`.
-pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Written, DecodeError> {
+/// Writes the stream for `plan` with `header`, and its reconstruction if `render`.
+pub fn write(
+    analysis: &Analysis,
+    header: &Header,
+    plan: &Plan,
+    render: bool,
+) -> Result<Written, DecodeError> {
     let mut visitor = PlanVisitor {
         analysis,
         header,
         plan,
-        image: vec![0; header.pixel_count()],
+        image: render.then(|| vec![0; header.pixel_count()]),
         leaves: 0,
     };
     let mut coder = RangeEncoder::new();
@@ -107,7 +107,7 @@ pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Writte
     Ok(Written {
         payload_bits: payload.len() as f64 * 8.0,
         bytes,
-        reconstruction: visitor.image,
+        reconstruction: visitor.image.unwrap_or_default(),
         final_contexts: state.contexts,
         leaves: visitor.leaves,
     })
