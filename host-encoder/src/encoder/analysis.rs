@@ -94,6 +94,8 @@ pub struct Analysis {
     /// Rates of the kept candidates under the contexts of a trial encode (about 0.2 bpp): the
     /// first pass of every target starts from them.
     pub rates: RateTable,
+    /// The multiplier of that trial encode: where the searches of targets start.
+    pub trial_lambda: f64,
 }
 
 impl Analysis {
@@ -118,6 +120,7 @@ impl Analysis {
             checksum: 0,
         };
         let root = header.root_log2();
+        let t_fit = std::time::Instant::now();
         super::fit::prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
         let done = std::sync::atomic::AtomicU64::new(0);
         let mut levels = Vec::new();
@@ -162,12 +165,16 @@ impl Analysis {
                 .collect();
             levels.push(Level { log2, cols, nodes });
         }
+        if std::env::var_os("PIFS_TIMING").is_some() {
+            eprintln!("fits: {:.2} s", t_fit.elapsed().as_secs_f64());
+        }
         header.codebooks = design_codebooks(&levels, config.codebook_levels);
         let mut analysis = Analysis {
             plane,
             header,
             levels,
             rates: RateTable::empty(),
+            trial_lambda: 1.0,
         };
         let timing = std::env::var_os("PIFS_TIMING").is_some();
         let t = std::time::Instant::now();
@@ -188,18 +195,19 @@ impl Analysis {
     /// encode then weighs a handful of candidates per node instead of all of them.
     fn prune_candidates(&mut self) {
         let pixels = self.header.pixel_count() as f64;
-        // A rough plan only gathers coding statistics (from half the candidates it cost 0.04 dB
-        // on kodim01: all are rated).
         let first = RateTable::new(self, &Contexts::default());
+        // The trained contexts change the rates only a little: what is far from the hull under
+        // the first rates does not reach it under the trained ones, and need not be rated again.
+        let near = first.lambda_optimal(self, 1e-2..=1e6, HULL_LAYERS);
+        let first = first.select(&near);
+        self.retain_candidates(&near);
+        // A rough plan only gathers coding statistics.
         let plan = first.rough_plan_for_bits(self, &self.header, 0.2 * pixels);
+        self.trial_lambda = plan.lambda;
         let snapshot = match super::writer::write(self, &self.header, &plan, false) {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };
-        // The trained contexts change the rates only a little: what is far from the hull under
-        // the first rates does not reach it under the trained ones, and need not be rated again.
-        let near = first.lambda_optimal(self, 1e-2..=1e6, HULL_LAYERS);
-        self.retain_candidates(&near);
         let rates = RateTable::new(self, &snapshot);
         let keep = rates.lambda_optimal(self, 1e-2..=1e6, 1);
         self.rates = rates.select(&keep);

@@ -65,7 +65,7 @@ impl Default for EncoderConfig {
     fn default() -> Self {
         EncoderConfig {
             min_leaf_log2: 2,
-            max_leaf_log2: 8,
+            max_leaf_log2: 7,
             codebook_levels: 8,
             fit_weights: false,
         }
@@ -249,7 +249,9 @@ impl Analysis {
         };
         let overhead = (longest_header.encoded_len() + 4) as f64 * 8.0;
         let mut aim = budget as f64 * 8.0 - overhead;
-        let mut plan = self.rates.plan_for_bits(self, header, aim);
+        let mut plan = self
+            .rates
+            .plan_for_bits(self, header, aim, Some(self.trial_lambda));
         let mut written = self.write(header, &plan, false)?;
         // Tighten the aim until the real stream fits.
         let mut tries = 0;
@@ -257,7 +259,9 @@ impl Analysis {
             tries += 1;
             let excess = (written.bytes.len() - budget) as f64 * 8.0;
             aim -= excess.max(8.0) * if tries > 4 { 2.0 } else { 1.0 };
-            let smaller = self.rates.plan_for_bits(self, header, aim);
+            let smaller = self
+                .rates
+                .plan_for_bits(self, header, aim, Some(plan.lambda));
             let smaller_written = self.write(header, &smaller, false)?;
             if smaller_written.bytes.len() >= written.bytes.len() && aim < -overhead || tries > 40 {
                 return Err(EncodeError::BudgetTooSmall {
@@ -276,9 +280,12 @@ impl Analysis {
                 break;
             }
             let scale = (plan.bits / written.payload_bits.max(1.0)).clamp(0.5, 2.0);
-            let larger = self
-                .rates
-                .plan_for_bits(self, header, aim + 0.9 * scale * unused);
+            let larger = self.rates.plan_for_bits(
+                self,
+                header,
+                aim + 0.9 * scale * unused,
+                Some(plan.lambda),
+            );
             if larger.bits <= plan.bits {
                 break;
             }
@@ -297,7 +304,9 @@ impl Analysis {
     fn encode_quality(&self, header: &Header, db: f64) -> Result<Encoded, EncodeError> {
         let pixels = self.header.pixel_count() as f64;
         let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
-        let plan = self.rates.plan_for_sse(self, header, max_sse);
+        let plan = self
+            .rates
+            .plan_for_sse(self, header, max_sse, Some(self.trial_lambda));
         let encoded = self.finish(header, &plan)?;
         if encoded.sse > max_sse {
             return Err(EncodeError::QualityUnreachable {

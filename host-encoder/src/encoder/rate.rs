@@ -100,6 +100,8 @@ pub struct Plan {
     pub sse: f64,
     /// Estimated payload bits.
     pub bits: f64,
+    /// The multiplier it was optimised for.
+    pub lambda: f64,
 }
 
 impl Plan {
@@ -318,6 +320,7 @@ impl RateTable {
             decisions,
             sse: root.1,
             bits: root.2,
+            lambda,
         }
     }
 
@@ -329,58 +332,110 @@ impl RateTable {
         header: &Header,
         budget_bits: f64,
     ) -> Plan {
-        self.bisect(analysis, header, Constraint::Rate, 0.1, budget_bits)
+        let search = Search::new(Constraint::Rate, budget_bits, 0.1);
+        self.search(analysis, header, search, None)
     }
 
     /// The plan with the least distortion whose estimated payload fits in `budget_bits`
-    /// (the cheapest plan if none fits), by bisection on the multiplier.
-    pub fn plan_for_bits(&self, analysis: &Analysis, header: &Header, budget_bits: f64) -> Plan {
-        self.bisect(analysis, header, Constraint::Rate, 1e-3, budget_bits)
+    /// (the cheapest plan if none fits). `hint`: a multiplier near the answer, if known.
+    pub fn plan_for_bits(
+        &self,
+        analysis: &Analysis,
+        header: &Header,
+        budget_bits: f64,
+        hint: Option<f64>,
+    ) -> Plan {
+        let search = Search::new(Constraint::Rate, budget_bits, 1e-3);
+        self.search(analysis, header, search, hint)
     }
 
     /// The cheapest plan whose squared error is at most `max_sse` (the best plan if none is).
-    pub fn plan_for_sse(&self, analysis: &Analysis, header: &Header, max_sse: f64) -> Plan {
-        self.bisect(analysis, header, Constraint::Distortion, 1e-3, max_sse)
+    /// `hint`: a multiplier near the answer, if known.
+    pub fn plan_for_sse(
+        &self,
+        analysis: &Analysis,
+        header: &Header,
+        max_sse: f64,
+        hint: Option<f64>,
+    ) -> Plan {
+        let search = Search::new(Constraint::Distortion, max_sse, 1e-3);
+        self.search(analysis, header, search, hint)
     }
 
     /// Search on the logarithm of the multiplier. Plans get cheaper and worse as it grows, so a
     /// rate constraint holds from some multiplier on (we want the smallest such), and a
-    /// distortion constraint holds up to some multiplier (we want the largest). The constrained
-    /// quantity is close to a power of the multiplier, so the next multiplier is interpolated
-    /// in log-log (false position, Illinois variant); a step that fails to halve the bracket is
-    /// followed by a bisection, which bounds the search by twice bisection's.
-    fn bisect(
+    /// distortion constraint holds up to some multiplier (we want the largest). The search
+    /// brackets the answer (around `hint` when there is one, widening as needed), then
+    /// interpolates in log-log, where the constrained quantity is close to a straight line
+    /// (false position, Illinois variant); a step that fails to halve the bracket is followed
+    /// by a bisection, which bounds the search by twice bisection's.
+    fn search(
         &self,
         analysis: &Analysis,
         header: &Header,
-        constraint: Constraint,
-        tolerance: f64,
-        limit: f64,
+        search: Search,
+        hint: Option<f64>,
     ) -> Plan {
+        let Search {
+            constraint,
+            limit,
+            tolerance,
+        } = search;
         let measure = |p: &Plan| match constraint {
             Constraint::Rate => p.bits,
             Constraint::Distortion => p.sse,
         };
         let ok = |p: &Plan| measure(p) <= limit;
-        let (mut lo, mut hi) = (1e-4f64.ln(), 1e9f64.ln());
-        let plan_lo = self.optimise(analysis, header, lo.exp());
-        let plan_hi = self.optimise(analysis, header, hi.exp());
-        let (mut best, fallback) = match constraint {
-            Constraint::Rate if ok(&plan_lo) => return plan_lo,
-            Constraint::Rate => (plan_hi.clone(), !ok(&plan_hi)),
-            Constraint::Distortion if ok(&plan_hi) => return plan_hi,
-            Constraint::Distortion => (plan_lo.clone(), !ok(&plan_lo)),
+        // Whether a plan lies above the answer's multiplier.
+        let above = |p: &Plan| {
+            matches!(
+                (constraint, ok(p)),
+                (Constraint::Rate, true) | (Constraint::Distortion, false)
+            )
         };
-        if fallback {
-            return best;
+        let (floor, ceiling) = (LAMBDA_RANGE.start().ln(), LAMBDA_RANGE.end().ln());
+        let (mut lo, mut hi) = match hint {
+            Some(h) if h > 0.0 => {
+                let c = h.ln().clamp(floor, ceiling);
+                ((c - 0.5).max(floor), (c + 0.5).min(ceiling))
+            }
+            _ => (floor, ceiling),
+        };
+        let mut plan_lo = self.optimise(analysis, header, lo.exp());
+        let mut plan_hi = self.optimise(analysis, header, hi.exp());
+        let mut widen = 1.0;
+        loop {
+            if above(&plan_lo) && lo > floor {
+                (hi, plan_hi) = (lo, plan_lo);
+                lo = (lo - widen).max(floor);
+                plan_lo = self.optimise(analysis, header, lo.exp());
+            } else if !above(&plan_hi) && hi < ceiling {
+                (lo, plan_lo) = (hi, plan_hi);
+                hi = (hi + widen).min(ceiling);
+                plan_hi = self.optimise(analysis, header, hi.exp());
+            } else {
+                break;
+            }
+            widen *= 2.0;
         }
+        // No answer inside the range: the end nearest to one (the smallest multiplier when even
+        // it meets the constraint or misses it, the largest likewise).
+        if above(&plan_lo) {
+            return plan_lo;
+        }
+        if !above(&plan_hi) {
+            return plan_hi;
+        }
+        let mut best = match constraint {
+            Constraint::Rate => plan_hi.clone(),
+            Constraint::Distortion => plan_lo.clone(),
+        };
         // ln of the constrained quantity at the ends; only its differences matter.
         let log_of = |p: &Plan| measure(p).max(1e-9).ln();
         let (mut f_lo, mut f_hi) = (log_of(&plan_lo), log_of(&plan_hi));
         let target = limit.max(1e-9).ln();
         // Which end the last interpolation replaced (true: the upper; for the Illinois
-        // halving), and whether the
-        // next step must bisect.
+        // halving), and whether the next step must bisect.
         let mut kept: Option<bool> = None;
         let mut bisect_next = false;
         // Down to `tolerance` in the log of the multiplier (1e-3: 0.1%; the plans between two
@@ -398,10 +453,7 @@ impl RateTable {
             let p = self.optimise(analysis, header, mid.exp());
             let good = ok(&p);
             let f = log_of(&p);
-            let moves_hi = matches!(
-                (constraint, good),
-                (Constraint::Rate, true) | (Constraint::Distortion, false)
-            );
+            let moves_hi = above(&p);
             if moves_hi {
                 (hi, f_hi) = (mid, f);
             } else {
@@ -487,6 +539,28 @@ fn lower_hull_in(points: &[(f64, f64)], lambdas: &std::ops::RangeInclusive<f64>)
     keep.sort_unstable();
     keep
 }
+
+/// What a multiplier search looks for: the plan whose `constraint` quantity is at most
+/// `limit`, down to `tolerance` in the log of the multiplier or relative to `limit`.
+#[derive(Debug, Clone, Copy)]
+struct Search {
+    constraint: Constraint,
+    limit: f64,
+    tolerance: f64,
+}
+
+impl Search {
+    fn new(constraint: Constraint, limit: f64, tolerance: f64) -> Search {
+        Search {
+            constraint,
+            limit,
+            tolerance,
+        }
+    }
+}
+
+/// The multipliers searched (squared error per bit).
+const LAMBDA_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Constraint {
