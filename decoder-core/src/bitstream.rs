@@ -465,16 +465,14 @@ pub fn models_for_block(log2: u8) -> ([u8; MODEL_COUNT], usize) {
     (list, n)
 }
 
-/// Codes a leaf: model type, quantisers, control values, weights. `prediction` supplies the
-/// values of earlier leaves; `control` receives the leaf's reconstructed control values
-/// (row-major, as in [`Patch::control`]), which the DPCM needs anyway.
+/// Codes a leaf: model type, quantisers, control values, weights (syntax only:
+/// [`reconstruct_into`] makes the patch). `prediction` supplies the values of earlier leaves.
 pub fn code_leaf<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
     node: &Node,
     prediction: &P,
     leaf: &mut LeafSyntax,
-    control: &mut [i16; MAX_CONTROL],
 ) -> Result<(), DecodeError> {
     let log2 = node.log2;
     let (models, count) = models_for_block(log2);
@@ -509,7 +507,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     }
     leaf.wquant = wq as u8;
 
-    code_control(c, ctx, model, node, prediction, leaf, control)?;
+    code_control(c, ctx, model, node, prediction, leaf)?;
     if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
         code_weights(c, ctx, model, leaf)?;
     } else {
@@ -550,7 +548,7 @@ pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i3
 /// Control values: raster order, DPCM within the leaf (see [`control_value`]). The first index
 /// is coded as its difference from a prediction by earlier leaves ([`SamplePrediction`]: the
 /// nearest remembered corner, with its own contexts when it sits exactly at the leaf's corner);
-/// the others as they are. Reconstructed values go to `values`.
+/// the others as they are.
 fn code_control<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
@@ -558,14 +556,12 @@ fn code_control<C: Coder, P: SamplePrediction>(
     node: &Node,
     prediction: &P,
     leaf: &mut LeafSyntax,
-    values: &mut [i16; MAX_CONTROL],
 ) -> Result<(), DecodeError> {
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.grid();
-    *values = [0; MAX_CONTROL];
     let mut prev_mag = 0usize;
     for r in 0..side {
         for col in 0..side {
@@ -578,10 +574,8 @@ fn code_control<C: Coder, P: SamplePrediction>(
             };
             let mut residual = i32::from(leaf.control[i]) - pred_index;
             contexts[class].code(c, prev_mag, &mut residual)?;
-            let index = i16::try_from(pred_index + residual)
+            leaf.control[i] = i16::try_from(pred_index + residual)
                 .map_err(|_| DecodeError::InvalidData("control value"))?;
-            leaf.control[i] = index;
-            values[i] = control_value(&values[..], side, i, step, i32::from(index));
             prev_mag = residual.unsigned_abs().min(2) as usize;
         }
     }
@@ -661,8 +655,8 @@ pub fn reconstruct_into(
 }
 
 /// Sets the model and subdivision weights of `patch` from a leaf's syntax (its control values
-/// are left alone: [`code_leaf`] already produced them).
-pub fn reconstruct_weights(
+/// are left alone).
+fn reconstruct_weights(
     header: &Header,
     leaf: &LeafSyntax,
     patch: &mut Patch,

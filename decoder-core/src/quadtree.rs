@@ -9,7 +9,7 @@
 //! leaf size is a leaf without a flag; every other node codes a split flag.
 
 use crate::bitstream::{
-    code_leaf, code_split, reconstruct_weights, Contexts, Header, LeafSyntax, Predictor,
+    code_leaf, code_split, reconstruct_into, Contexts, Header, LeafSyntax, Predictor,
 };
 use crate::entropy::Coder;
 use crate::error::DecodeError;
@@ -247,9 +247,8 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor>(
         &node,
         &state.predictor,
         &mut leaf,
-        &mut patch.control,
     )?;
-    reconstruct_weights(header, &leaf, patch)?;
+    reconstruct_into(header, &leaf, patch)?;
     Ok(LeafInfo {
         node,
         model: leaf.model,

@@ -28,28 +28,10 @@ pub struct Candidate {
     pub wq: u8,
     /// Squared error over the node's in-image pixels.
     pub sse: f64,
-    /// The quantised control indices then weight indices (kept: every rate table and the
-    /// writer need them again).
-    pub indices: Box<[i16]>,
-}
-
-impl Candidate {
-    /// The leaf's syntax elements.
-    pub fn leaf(&self, model: u8) -> LeafSyntax {
-        let m = MODELS[usize::from(model)];
-        let (nc, nw) = (m.control_count(), m.weight_count());
-        let mut leaf = LeafSyntax {
-            model,
-            cquant: self.cq,
-            wquant: self.wq,
-            ..LeafSyntax::default()
-        };
-        leaf.control[..nc].copy_from_slice(&self.indices[..nc]);
-        if self.indices.len() == nc + nw {
-            leaf.weights[..nw].copy_from_slice(&self.indices[nc..]);
-        }
-        leaf
-    }
+    /// Where its quantised control indices, then weight indices (when `wq` is not the
+    /// default), start in [`NodeAnalysis::indices`]: kept, as every rate table and the writer
+    /// need them again.
+    pub at: u32,
 }
 
 /// Everything the analysis knows about one node.
@@ -61,6 +43,29 @@ pub struct NodeAnalysis {
     pub fits: Vec<Fit>,
     /// Every (fit, quantiser) pair with its distortion.
     pub candidates: Vec<Candidate>,
+    /// The candidates' indices, one after the other (one allocation per node).
+    pub indices: Vec<i16>,
+}
+
+impl NodeAnalysis {
+    /// The leaf syntax of candidate `c`.
+    pub fn leaf(&self, c: &Candidate) -> LeafSyntax {
+        let model = self.fits[usize::from(c.fit)].model;
+        let m = MODELS[usize::from(model)];
+        let (nc, nw) = (m.control_count(), m.weight_count());
+        let mut leaf = LeafSyntax {
+            model,
+            cquant: c.cq,
+            wquant: c.wq,
+            ..LeafSyntax::default()
+        };
+        let at = c.at as usize;
+        leaf.control[..nc].copy_from_slice(&self.indices[at..at + nc]);
+        if WEIGHT_QUANTISER_KINDS[usize::from(c.wq)] != WeightQuantiser::Default {
+            leaf.weights[..nw].copy_from_slice(&self.indices[at + nc..at + nc + nw]);
+        }
+        leaf
+    }
 }
 
 /// The nodes of one quadtree level.
@@ -160,6 +165,7 @@ impl Analysis {
                         node,
                         fits,
                         candidates: Vec::new(),
+                        indices: Vec::new(),
                     })
                 })
                 .collect();
@@ -241,6 +247,7 @@ impl Analysis {
         for level in &mut self.levels {
             level.nodes.par_iter_mut().flatten().for_each(|na| {
                 let mut out = Vec::new();
+                let mut indices = Vec::new();
                 for (fi, fit) in na.fits.iter().enumerate() {
                     let model = MODELS[usize::from(fit.model)];
                     let fitted_weights = fit.weighted;
@@ -263,9 +270,9 @@ impl Analysis {
                             let (leaf, values) = quantise(fit, cq, wq, &header.codebooks);
                             let sse = quantised_sse(plane, header, &na.node, fit, &leaf, &values);
                             let (nc, nw) = (model.control_count(), model.weight_count());
-                            let mut indices = Vec::with_capacity(nc + nw);
+                            let at = indices.len() as u32;
                             indices.extend_from_slice(&leaf.control[..nc]);
-                            if wq > 0 {
+                            if kind != WeightQuantiser::Default {
                                 indices.extend_from_slice(&leaf.weights[..nw]);
                             }
                             out.push(Candidate {
@@ -273,12 +280,13 @@ impl Analysis {
                                 cq,
                                 wq,
                                 sse,
-                                indices: indices.into_boxed_slice(),
+                                at,
                             });
                         }
                     }
                 }
                 na.candidates = out;
+                na.indices = indices;
             });
         }
     }

@@ -9,7 +9,6 @@ use super::analysis::Analysis;
 use crate::entropy::BitCounter;
 use decoder_core::bitstream::{code_leaf, code_split, Contexts, Header};
 use decoder_core::model::WeightQuantiser;
-use decoder_core::model::MAX_CONTROL;
 use decoder_core::model::WEIGHT_QUANTISER_KINDS;
 use decoder_core::quadtree::{node_kind, Node, NodeKind};
 use rayon::prelude::*;
@@ -135,7 +134,7 @@ impl RateTable {
                         na.candidates
                             .iter()
                             .map(|c| {
-                                let mut leaf = c.leaf(na.fits[usize::from(c.fit)].model);
+                                let mut leaf = na.leaf(c);
                                 let mut counter = BitCounter::default();
                                 let mut ctx = snapshot.clone();
                                 match code_leaf(
@@ -144,7 +143,6 @@ impl RateTable {
                                     &na.node,
                                     &prediction,
                                     &mut leaf,
-                                    &mut [0; MAX_CONTROL],
                                 ) {
                                     Ok(()) => counter.bits() as f32,
                                     Err(_) => f32::INFINITY,

@@ -49,7 +49,7 @@ impl TreeVisitor for PlanVisitor<'_> {
         if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.analysis, node))
         {
             let c = &na.candidates[usize::from(ci)];
-            *leaf = c.leaf(na.fits[usize::from(c.fit)].model);
+            *leaf = na.leaf(c);
         }
     }
 
