@@ -540,6 +540,12 @@ pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i3
     } else {
         intra_prediction(values, side, i / side, i % side)
     };
+    dequantise_control(base, step, index)
+}
+
+/// A control value from its prediction `base` (see [`control_value`]), step and index.
+#[inline]
+pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
     // The sample range fits in an i16.
     base.saturating_add(index.saturating_mul(step))
         .clamp(SAMPLE_MIN, SAMPLE_MAX) as i16

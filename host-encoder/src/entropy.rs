@@ -114,10 +114,21 @@ fn cost_table() -> &'static [u32; 256] {
 
 /// A [`Coder`] that writes nothing and adds up the cost of what it is given (in
 /// 1/[`COST_SCALE`] bits), adapting its contexts exactly as the real coder does.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct BitCounter {
     /// Accumulated cost, in 1/256 bit.
     pub cost: u64,
+    /// The cost table (looked up once, not per bit).
+    table: &'static [u32; 256],
+}
+
+impl Default for BitCounter {
+    fn default() -> Self {
+        BitCounter {
+            cost: 0,
+            table: cost_table(),
+        }
+    }
 }
 
 impl BitCounter {
@@ -131,7 +142,7 @@ impl Coder for BitCounter {
     fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
         let p0 = u32::from(p.0) >> (PROB_BITS - 8);
         let idx = if *bit { 255 - p0.min(255) } else { p0.min(255) };
-        self.cost += u64::from(cost_table()[idx as usize]);
+        self.cost += u64::from(self.table[idx as usize]);
         p.update(*bit);
         Ok(())
     }

@@ -3,7 +3,7 @@
 
 use super::fit::Fit;
 use decoder_core::bitstream::{
-    control_value, intra_prediction, Codebook, LeafSyntax, MAX_CODEBOOK,
+    dequantise_control, intra_prediction, Codebook, LeafSyntax, MAX_CODEBOOK,
 };
 use decoder_core::model::{
     for_each_free_tap, WeightClass, WeightQuantiser, CONTROL_STEPS, MAX_CONTROL, MODELS,
@@ -34,15 +34,20 @@ pub fn quantise(
         let target =
             (c * f64::from(SAMPLE_ONE)).clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX));
         let base = if i == 0 {
-            0.0
+            0
         } else {
-            f64::from(intra_prediction(&values, side, i / side, i % side))
+            intra_prediction(&values, side, i / side, i % side)
         };
         // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
-        leaf.control[i] = deadzone_round((target - base) / f64::from(step)) as i16;
-        values[i] = control_value(&values, side, i, step, i32::from(leaf.control[i]));
+        let index = deadzone_round((target - f64::from(base)) / f64::from(step));
+        leaf.control[i] = index as i16;
+        values[i] = dequantise_control(base, step, index);
     }
     let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
+    if kind == WeightQuantiser::Default {
+        // The default weights: every index stays zero.
+        return (leaf, values);
+    }
     let mut i = 0;
     for_each_free_tap(model, |slot| {
         let dev = fit.weights.get(i).copied().unwrap_or(0.0) * f64::from(WEIGHT_ONE);
