@@ -4,7 +4,7 @@
 
 use super::fit::{fit_default, fit_weighted, Fit};
 use super::quantise::{lloyd_max, quantise, weight_classes};
-use super::rate::RateTable;
+use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
 use decoder_core::bitstream::Contexts;
 use decoder_core::bitstream::{models_for_block, Codebook, Header, SamplePrediction};
@@ -99,8 +99,9 @@ pub struct Analysis {
     /// Rates of the kept candidates under the contexts of a trial encode (about 0.2 bpp): the
     /// first pass of every target starts from them.
     pub rates: RateTable,
-    /// The multiplier of that trial encode: where the searches of targets start.
-    pub trial_lambda: f64,
+    /// The trial encode's plan (its multiplier and estimates): where the searches of targets
+    /// start.
+    pub trial: Anchor,
 }
 
 impl Analysis {
@@ -180,7 +181,11 @@ impl Analysis {
             header,
             levels,
             rates: RateTable::empty(),
-            trial_lambda: 1.0,
+            trial: Anchor {
+                lambda: 1.0,
+                bits: 1.0,
+                sse: 1.0,
+            },
         };
         let timing = std::env::var_os("PIFS_TIMING").is_some();
         let t = std::time::Instant::now();
@@ -209,8 +214,8 @@ impl Analysis {
         self.retain_candidates(&near);
         // A rough plan only gathers coding statistics.
         let plan = first.rough_plan_for_bits(self, &self.header, 0.2 * pixels);
-        self.trial_lambda = plan.lambda;
-        let snapshot = match super::writer::write(self, &self.header, &plan, false) {
+        self.trial = plan.anchor();
+        let snapshot = match super::writer::write(self, &self.header, &plan) {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };

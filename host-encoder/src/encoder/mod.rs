@@ -203,12 +203,17 @@ impl Analysis {
         best.ok_or_else(|| last_err.unwrap_or_else(|| EncodeError::Internal("no variant".into())))
     }
 
-    /// Writes `plan` with its reconstruction, and measures it.
-    fn finish(&self, header: &Header, plan: &rate::Plan) -> Result<Encoded, EncodeError> {
-        let written = self.write(header, plan, true)?;
+    /// The encoded stream `written` of `plan`, with its reconstruction and figures.
+    fn finish(
+        &self,
+        header: &Header,
+        plan: &rate::Plan,
+        written: writer::Written,
+    ) -> Result<Encoded, EncodeError> {
+        let reconstruction = writer::reconstruct(self, header, plan)
+            .map_err(|e| EncodeError::Internal(e.to_string()))?;
         let pixels = self.header.pixel_count();
-        let sse: f64 = written
-            .reconstruction
+        let sse: f64 = reconstruction
             .iter()
             .zip(&self.plane.data)
             .map(|(&a, &b)| {
@@ -223,18 +228,12 @@ impl Analysis {
             actual_payload_bits: written.payload_bits,
             leaves: written.leaves,
             bytes: written.bytes,
-            reconstruction: written.reconstruction,
+            reconstruction,
         })
     }
 
-    /// Writes `plan`; with its reconstruction only if `render` (else it is empty).
-    fn write(
-        &self,
-        header: &Header,
-        plan: &rate::Plan,
-        render: bool,
-    ) -> Result<writer::Written, EncodeError> {
-        writer::write(self, header, plan, render).map_err(|e| EncodeError::Internal(e.to_string()))
+    fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
+        writer::write(self, header, plan).map_err(|e| EncodeError::Internal(e.to_string()))
     }
 
     /// Best stream of at most `budget` bytes. The analysis's rates ([`Analysis::rates`], from
@@ -251,8 +250,8 @@ impl Analysis {
         let mut aim = budget as f64 * 8.0 - overhead;
         let mut plan = self
             .rates
-            .plan_for_bits(self, header, aim, Some(self.trial_lambda));
-        let mut written = self.write(header, &plan, false)?;
+            .plan_for_bits(self, header, aim, Some(self.trial));
+        let mut written = self.write(header, &plan)?;
         // Tighten the aim until the real stream fits.
         let mut tries = 0;
         while written.bytes.len() > budget {
@@ -261,8 +260,8 @@ impl Analysis {
             aim -= excess.max(8.0) * if tries > 4 { 2.0 } else { 1.0 };
             let smaller = self
                 .rates
-                .plan_for_bits(self, header, aim, Some(plan.lambda));
-            let smaller_written = self.write(header, &smaller, false)?;
+                .plan_for_bits(self, header, aim, Some(plan.anchor()));
+            let smaller_written = self.write(header, &smaller)?;
             if smaller_written.bytes.len() >= written.bytes.len() && aim < -overhead || tries > 40 {
                 return Err(EncodeError::BudgetTooSmall {
                     budget,
@@ -284,12 +283,12 @@ impl Analysis {
                 self,
                 header,
                 aim + 0.9 * scale * unused,
-                Some(plan.lambda),
+                Some(plan.anchor()),
             );
             if larger.bits <= plan.bits {
                 break;
             }
-            let larger_written = self.write(header, &larger, false)?;
+            let larger_written = self.write(header, &larger)?;
             if larger_written.bytes.len() > budget {
                 break;
             }
@@ -297,7 +296,7 @@ impl Analysis {
             plan = larger;
             written = larger_written;
         }
-        self.finish(header, &plan)
+        self.finish(header, &plan, written)
     }
 
     /// Smallest stream whose PSNR reaches `db`.
@@ -306,8 +305,9 @@ impl Analysis {
         let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
         let plan = self
             .rates
-            .plan_for_sse(self, header, max_sse, Some(self.trial_lambda));
-        let encoded = self.finish(header, &plan)?;
+            .plan_for_sse(self, header, max_sse, Some(self.trial));
+        let written = self.write(header, &plan)?;
+        let encoded = self.finish(header, &plan, written)?;
         if encoded.sse > max_sse {
             return Err(EncodeError::QualityUnreachable {
                 requested: db,

@@ -103,7 +103,28 @@ pub struct Plan {
     pub lambda: f64,
 }
 
+/// A known point of the rate/distortion curve (a plan's multiplier and figures): where a
+/// multiplier search starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Anchor {
+    /// The multiplier.
+    pub lambda: f64,
+    /// Estimated payload bits at it.
+    pub bits: f64,
+    /// Squared error at it.
+    pub sse: f64,
+}
+
 impl Plan {
+    /// This plan as a starting point for searches.
+    pub fn anchor(&self) -> Anchor {
+        Anchor {
+            lambda: self.lambda,
+            bits: self.bits,
+            sse: self.sse,
+        }
+    }
+
     /// The decision for `node`, if it was analysed.
     pub fn decision(&self, analysis: &Analysis, node: &Node) -> Option<Decision> {
         let level = analysis.level(node.log2)?;
@@ -249,6 +270,8 @@ impl RateTable {
             let codebooks = header.has_codebooks();
             let (here, dec): (Vec<(f64, f64, f64)>, Vec<Decision>) = (0..level.cols * rows)
                 .into_par_iter()
+                // A node is a few nanoseconds of work: hand them out in chunks.
+                .with_min_len(1024)
                 .map(|i| {
                     let (cx, cy) = (i % level.cols, i / level.cols);
                     let node = Node {
@@ -335,26 +358,26 @@ impl RateTable {
     }
 
     /// The plan with the least distortion whose estimated payload fits in `budget_bits`
-    /// (the cheapest plan if none fits). `hint`: a multiplier near the answer, if known.
+    /// (the cheapest plan if none fits). `hint`: a plan near the answer, if known.
     pub fn plan_for_bits(
         &self,
         analysis: &Analysis,
         header: &Header,
         budget_bits: f64,
-        hint: Option<f64>,
+        hint: Option<Anchor>,
     ) -> Plan {
         let search = Search::new(Constraint::Rate, budget_bits, 1e-3);
         self.search(analysis, header, search, hint)
     }
 
     /// The cheapest plan whose squared error is at most `max_sse` (the best plan if none is).
-    /// `hint`: a multiplier near the answer, if known.
+    /// `hint`: a plan near the answer, if known.
     pub fn plan_for_sse(
         &self,
         analysis: &Analysis,
         header: &Header,
         max_sse: f64,
-        hint: Option<f64>,
+        hint: Option<Anchor>,
     ) -> Plan {
         let search = Search::new(Constraint::Distortion, max_sse, 1e-3);
         self.search(analysis, header, search, hint)
@@ -372,7 +395,7 @@ impl RateTable {
         analysis: &Analysis,
         header: &Header,
         search: Search,
-        hint: Option<f64>,
+        hint: Option<Anchor>,
     ) -> Plan {
         let Search {
             constraint,
@@ -393,15 +416,22 @@ impl RateTable {
         };
         let (floor, ceiling) = (LAMBDA_RANGE.start().ln(), LAMBDA_RANGE.end().ln());
         let (mut lo, mut hi) = match hint {
-            Some(h) if h > 0.0 => {
-                let c = h.ln().clamp(floor, ceiling);
-                ((c - 0.5).max(floor), (c + 0.5).min(ceiling))
+            Some(a) if a.lambda > 0.0 => {
+                // Locally, ln(rate) falls and ln(error) rises by about as much as ln(lambda)
+                // rises: a first guess, the bracket widens when it is off.
+                let (known, slope) = match constraint {
+                    Constraint::Rate => (a.bits, -1.0),
+                    Constraint::Distortion => (a.sse, 1.0),
+                };
+                let guess = a.lambda.ln() + (limit.max(1e-9).ln() - known.max(1e-9).ln()) / slope;
+                let c = guess.clamp(floor, ceiling);
+                ((c - 0.1).max(floor), (c + 0.1).min(ceiling))
             }
             _ => (floor, ceiling),
         };
         let mut plan_lo = self.optimise(analysis, header, lo.exp());
         let mut plan_hi = self.optimise(analysis, header, hi.exp());
-        let mut widen = 1.0;
+        let mut widen = 0.2;
         loop {
             if above(&plan_lo) && lo > floor {
                 (hi, plan_hi) = (lo, plan_lo);

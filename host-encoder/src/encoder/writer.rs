@@ -4,10 +4,13 @@
 use super::analysis::Analysis;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
-use decoder_core::bitstream::{seal, Contexts, Header, LeafSyntax};
+use decoder_core::bitstream::{
+    reconstruct as reconstruct_patch, seal, Contexts, Header, LeafSyntax,
+};
 use decoder_core::patch::{Patch, PixelSink, Rect};
-use decoder_core::quadtree::{walk, LeafInfo, Node, TreeVisitor};
+use decoder_core::quadtree::{node_kind, walk, LeafInfo, Node, NodeKind, TreeVisitor};
 use decoder_core::DecodeError;
+use rayon::prelude::*;
 
 /// A written stream and the encoder's own reconstruction of it.
 #[derive(Debug, Clone)]
@@ -16,8 +19,6 @@ pub struct Written {
     pub bytes: Vec<u8>,
     /// Size of the payload alone, in bits.
     pub payload_bits: f64,
-    /// Decoded pixels as the encoder reconstructed them, row-major (empty unless asked for).
-    pub reconstruction: Vec<u8>,
     /// Context state at the end of the payload (seeds the next rate estimate).
     pub final_contexts: Contexts,
     /// Leaves coded.
@@ -26,10 +27,7 @@ pub struct Written {
 
 struct PlanVisitor<'a> {
     analysis: &'a Analysis,
-    header: &'a Header,
     plan: &'a Plan,
-    /// The reconstruction, if one is wanted.
-    image: Option<Vec<u8>>,
     leaves: usize,
 }
 
@@ -53,43 +51,17 @@ impl TreeVisitor for PlanVisitor<'_> {
         }
     }
 
-    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
-        let node = &info.node;
+    fn leaf(&mut self, _info: &LeafInfo, _patch: &Patch) -> Result<(), DecodeError> {
         self.leaves += 1;
-        let Some(image) = self.image.as_mut() else {
-            return Ok(());
-        };
-        let clip = Rect::of_size(u32::from(self.header.width), u32::from(self.header.height));
-        let width = usize::from(self.header.width);
-        struct Into<'b> {
-            image: &'b mut [u8],
-            width: usize,
-        }
-        impl PixelSink for Into<'_> {
-            fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
-                for (row, src) in pixels.chunks_exact(w as usize).take(h as usize).enumerate() {
-                    let at = (y as usize + row) * self.width + x as usize;
-                    self.image[at..at + w as usize].copy_from_slice(src);
-                }
-            }
-        }
-        patch.render(node.x, node.y, node.log2, clip, &mut Into { image, width });
         Ok(())
     }
 }
 
-/// Writes the stream for `plan` with `header`, and its reconstruction if `render`.
-pub fn write(
-    analysis: &Analysis,
-    header: &Header,
-    plan: &Plan,
-    render: bool,
-) -> Result<Written, DecodeError> {
+/// Writes the stream for `plan` with `header`.
+pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Written, DecodeError> {
     let mut visitor = PlanVisitor {
         analysis,
-        header,
         plan,
-        image: render.then(|| vec![0; header.pixel_count()]),
         leaves: 0,
     };
     let mut coder = RangeEncoder::new();
@@ -107,8 +79,97 @@ pub fn write(
     Ok(Written {
         payload_bits: payload.len() as f64 * 8.0,
         bytes,
-        reconstruction: visitor.image.unwrap_or_default(),
         final_contexts: state.contexts,
         leaves: visitor.leaves,
     })
+}
+
+/// The image a stream written for `plan` decodes to, rendered straight from the analysis: a
+/// leaf's patch depends on its syntax alone (its first control index is coded against a
+/// prediction, but reconstructed from the index), so the leaves are rendered in parallel.
+pub fn reconstruct(
+    analysis: &Analysis,
+    header: &Header,
+    plan: &Plan,
+) -> Result<Vec<u8>, DecodeError> {
+    let (width, height) = (u32::from(header.width), u32::from(header.height));
+    // The plan's leaves, found as the walk finds them.
+    let mut leaves = Vec::new();
+    let mut stack = vec![Node {
+        x: 0,
+        y: 0,
+        log2: header.root_log2(),
+    }];
+    while let Some(node) = stack.pop() {
+        let leaf = match node_kind(header, &node) {
+            NodeKind::Outside => continue,
+            NodeKind::ForcedSplit => false,
+            NodeKind::ForcedLeaf | NodeKind::Flagged => {
+                matches!(plan.decision(analysis, &node), Some(Decision::Leaf(_)))
+            }
+        };
+        if leaf {
+            leaves.push(node);
+        } else if node.log2 > header.min_leaf_log2 {
+            let (half, log2) = (1 << (node.log2 - 1), node.log2 - 1);
+            for (dx, dy) in [(0, 0), (half, 0), (0, half), (half, half)] {
+                stack.push(Node {
+                    x: node.x + dx,
+                    y: node.y + dy,
+                    log2,
+                });
+            }
+        } else {
+            return Err(DecodeError::InvalidData("plan without a leaf"));
+        }
+    }
+    let tiles: Vec<Tiles> = leaves
+        .par_iter()
+        .map(|node| {
+            let na = analysis
+                .level(node.log2)
+                .and_then(|l| l.get(node.x, node.y))
+                .ok_or(DecodeError::InvalidData("leaf not analysed"))?;
+            let Some(Decision::Leaf(ci)) = plan.decision(analysis, node) else {
+                return Err(DecodeError::InvalidData("leaf without a candidate"));
+            };
+            let patch = reconstruct_patch(header, &na.leaf(&na.candidates[usize::from(ci)]))?;
+            let mut tiles = Tiles::default();
+            patch.render(
+                node.x,
+                node.y,
+                node.log2,
+                Rect::of_size(width, height),
+                &mut tiles,
+            );
+            Ok(tiles)
+        })
+        .collect::<Result<_, _>>()?;
+    let mut image = vec![0u8; header.pixel_count()];
+    let row_len = width as usize;
+    for t in &tiles {
+        for &(x, y, w, h, start) in &t.rects {
+            let (x, w) = (x as usize, w as usize);
+            for row in 0..h as usize {
+                let at = (y as usize + row) * row_len + x;
+                let from = start + row * w;
+                image[at..at + w].copy_from_slice(&t.pixels[from..from + w]);
+            }
+        }
+    }
+    Ok(image)
+}
+
+/// The tiles one leaf renders: `(x, y, w, h, start in pixels)` each.
+#[derive(Default)]
+struct Tiles {
+    rects: Vec<(u32, u32, u32, u32, usize)>,
+    pixels: Vec<u8>,
+}
+
+impl PixelSink for Tiles {
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        self.rects.push((x, y, w, h, self.pixels.len()));
+        self.pixels.extend_from_slice(&pixels[..(w * h) as usize]);
+    }
 }
