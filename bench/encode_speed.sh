@@ -3,7 +3,8 @@
 #   1. `pifs encode --bpp 0.25` per image, wall time (median of REPEATS runs per image), then
 #      the median over the images: the "one target, analysis included" figure;
 #   2. extra targets from one analysis: the per-target encode time of `rd_sweep` (0.05, 0.1,
-#      0.25 and 0.5 bpp), median over images and rates;
+#      0.25 and 0.5 bpp), median over images and rates, apart for each leaf depth (0.5 bpp gets
+#      its own analysis with 2 px leaves, as `pifs` chooses);
 #   3. scaling: the wall time of (1) on THREADS_IMAGES images with 1 and with 2 threads
 #      (RAYON_NUM_THREADS), and the speed-up.
 # Prints a markdown summary. Needs python3 (standard library) and GNU time (/usr/bin/time).
@@ -39,8 +40,17 @@ one_target=$(median "${per_image[@]}")
 ./target/release/examples/rd_sweep "${images[@]}" >"$out/sweep.csv"
 extra=$(python3 - "$out/sweep.csv" <<'PY'
 import csv, statistics, sys
-rows = list(csv.DictReader(open(sys.argv[1])))
-print(f"{statistics.median(float(r['encode_s']) for r in rows):.3f}")
+from collections import defaultdict
+groups = defaultdict(list)
+for r in csv.DictReader(open(sys.argv[1])):
+    if r["encode_s"]:
+        groups[int(r["min_leaf_px"])].append(r)
+parts = []
+for leaf, rows in sorted(groups.items(), reverse=True):
+    rates = sorted({r["target_bpp"] for r in rows}, key=float)
+    median = statistics.median(float(r["encode_s"]) for r in rows)
+    parts.append(f"{median:.3f} s ({'/'.join(rates)} bpp, leaves from {leaf} px)")
+print("; ".join(parts))
 PY
 )
 
@@ -58,5 +68,5 @@ echo "| measure | value |"
 echo "|---|---:|"
 echo "| images | ${#images[@]} |"
 echo "| one target (--bpp 0.25), whole process, median wall | ${one_target} s |"
-echo "| each extra target from the same analysis, median | ${extra} s |"
+echo "| each extra target from the same analysis, median | ${extra} |"
 echo "| 1 thread / 2 threads (${#subset[@]} images, median wall) | ${s1} s / ${s2} s = ${speedup}x |"

@@ -35,9 +35,16 @@ by_rate = defaultdict(list)
 for r in rows:
     by_rate[float(r["target_bpp"])].append(r)
 images = {r["image"] for r in rows}
-analysis = {r["image"]: float(r["analysis_s"]) for r in rows}
-print(f"\n{len(images)} images; analysis median {statistics.median(analysis.values()):.1f} s "
-      f"(min {min(analysis.values()):.1f}, max {max(analysis.values()):.1f})\n")
+# One analysis per image and leaf depth (rd_sweep analyses the rates that want 2 px leaves apart).
+analysis = defaultdict(dict)
+for r in rows:
+    analysis[r.get("min_leaf_px", "?")][r["image"]] = float(r["analysis_s"])
+print(f"\n{len(images)} images")
+for leaf, times in sorted(analysis.items()):
+    rates = sorted({float(r["target_bpp"]) for r in rows if r.get("min_leaf_px", "?") == leaf})
+    print(f"analysis with leaves from {leaf} px (for {', '.join(map(str, rates))} bpp): median "
+          f"{statistics.median(times.values()):.2f} s (min {min(times.values()):.2f}, max {max(times.values()):.2f})")
+print()
 head = "| target bpp | PIFS mean PSNR (dB) | PIFS mean bpp | reached |" + "".join(f" {c} |" for c in codecs)
 print(head)
 print("|---:" * (4 + len(codecs)) + "|")

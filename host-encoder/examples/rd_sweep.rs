@@ -1,9 +1,12 @@
-//! Rate/distortion sweep: analyses each image once, encodes it at every target rate, decodes
-//! every stream with decoder-core and prints one CSV row per (image, rate).
+//! Rate/distortion sweep: analyses each image, encodes it at every target rate from that
+//! analysis, decodes every stream with decoder-core and prints one CSV row per (image, rate).
 //!
 //! `cargo run --release -p host-encoder --example rd_sweep -- [--bpp 0.05,0.1] [--min-leaf-log2 N] IMAGE...`
+//!
+//! Without `--min-leaf-log2`, the leaf depth follows the rate as `pifs` chooses it (2 px leaves
+//! from [`host_encoder::FINE_LEAVES_BPP`] on): one analysis per depth.
 
-use host_encoder::{analyse, io, psnr, EncoderConfig, Target};
+use host_encoder::{analyse, io, psnr, Analysis, EncoderConfig, Target};
 use std::time::Instant;
 
 fn main() {
@@ -16,50 +19,78 @@ fn main() {
             .collect();
         args.drain(i..i + 2);
     }
-    let mut config = EncoderConfig::default();
+    let mut min_leaf_log2 = None;
     if let Some(i) = args.iter().position(|a| a == "--min-leaf-log2") {
-        config.min_leaf_log2 = args[i + 1].parse().expect("--min-leaf-log2 takes a number");
+        min_leaf_log2 = Some(args[i + 1].parse().expect("--min-leaf-log2 takes a number"));
         args.drain(i..i + 2);
     }
-    println!("image,width,height,target_bpp,bytes,bpp,psnr_db,analysis_s,encode_s,decode_ms,leaves,rate_gap_pct");
+    println!("image,width,height,target_bpp,bytes,bpp,psnr_db,analysis_s,encode_s,decode_ms,leaves,rate_gap_pct,min_leaf_px");
     for path in &args {
         let plane = io::load_luma(std::path::Path::new(path)).expect("readable image");
-        let (w, h) = (plane.width, plane.height);
-        let original = plane.data.clone();
-        let t = Instant::now();
-        let analysis = analyse(plane, &config, &|_| {}).expect("analysis");
-        let analysis_s = t.elapsed().as_secs_f64();
-        for &bpp in &rates {
+        let name = std::path::Path::new(path)
+            .file_name()
+            .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
+        // One analysis per leaf depth: the rates that want 2 px leaves share one, the others
+        // another (as `pifs` would choose for them), unless the depth is given.
+        let pixels = plane.data.len();
+        let depth = |bpp: f64| {
+            min_leaf_log2.unwrap_or(if Target::Bpp(bpp).wants_fine_leaves(pixels) {
+                1
+            } else {
+                2
+            })
+        };
+        let mut depths: Vec<u8> = rates.iter().map(|&r| depth(r)).collect();
+        depths.sort_unstable();
+        depths.dedup();
+        // The coarser depth first: rows keep the order of ascending rates.
+        for d in depths.into_iter().rev() {
+            let config = EncoderConfig {
+                min_leaf_log2: d,
+                ..EncoderConfig::default()
+            };
             let t = Instant::now();
-            let name = std::path::Path::new(path)
-                .file_name()
-                .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
-            match analysis.encode(Target::Bpp(bpp)) {
-                Ok(e) => {
-                    let encode_s = t.elapsed().as_secs_f64();
-                    let t = Instant::now();
-                    let mut pixels = vec![0u8; original.len()];
-                    decoder_core::decode_into(&e.bytes, &mut pixels).expect("own stream decodes");
-                    let decode_ms = t.elapsed().as_secs_f64() * 1e3;
-                    let sse: f64 = pixels
-                        .iter()
-                        .zip(&original)
-                        .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
-                        .sum();
-                    let gap = 100.0 * (e.estimated_payload_bits - e.actual_payload_bits)
-                        / e.actual_payload_bits.max(1.0);
-                    println!(
-                        "{name},{w},{h},{bpp},{},{:.5},{:.3},{analysis_s:.2},{encode_s:.2},{decode_ms:.1},{},{gap:.2}",
-                        e.bytes.len(),
-                        e.bytes.len() as f64 * 8.0 / f64::from(w * h),
-                        psnr(sse, original.len()),
-                        e.leaves
-                    );
-                }
-                Err(err) => {
-                    println!("{name},{w},{h},{bpp},,,,{analysis_s:.2},,,,unreachable: {err}")
-                }
+            let analysis = analyse(plane.clone(), &config, &|_| {}).expect("analysis");
+            let analysis_s = t.elapsed().as_secs_f64();
+            for &bpp in rates.iter().filter(|&&r| depth(r) == d) {
+                sweep_one(&analysis, &name, &plane.data, bpp, analysis_s);
             }
+        }
+    }
+}
+
+/// Encodes `analysis` at `bpp`, decodes it with decoder-core and prints the CSV row.
+fn sweep_one(analysis: &Analysis, name: &str, original: &[u8], bpp: f64, analysis_s: f64) {
+    let (w, h) = (
+        u32::from(analysis.header.width),
+        u32::from(analysis.header.height),
+    );
+    let min_leaf = 1u32 << analysis.header.min_leaf_log2;
+    let t = Instant::now();
+    match analysis.encode(Target::Bpp(bpp)) {
+        Ok(e) => {
+            let encode_s = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let mut pixels = vec![0u8; original.len()];
+            decoder_core::decode_into(&e.bytes, &mut pixels).expect("own stream decodes");
+            let decode_ms = t.elapsed().as_secs_f64() * 1e3;
+            let sse: f64 = pixels
+                .iter()
+                .zip(original)
+                .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+                .sum();
+            let gap = 100.0 * (e.estimated_payload_bits - e.actual_payload_bits)
+                / e.actual_payload_bits.max(1.0);
+            println!(
+                "{name},{w},{h},{bpp},{},{:.5},{:.3},{analysis_s:.2},{encode_s:.2},{decode_ms:.1},{},{gap:.2},{min_leaf}",
+                e.bytes.len(),
+                e.bytes.len() as f64 * 8.0 / f64::from(w * h),
+                psnr(sse, original.len()),
+                e.leaves
+            );
+        }
+        Err(err) => {
+            println!("{name},{w},{h},{bpp},,,,{analysis_s:.2},,,,unreachable: {err},{min_leaf}")
         }
     }
 }

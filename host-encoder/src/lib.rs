@@ -18,4 +18,6 @@ pub mod entropy;
 pub mod io;
 
 pub use encoder::analysis::Analysis;
-pub use encoder::{analyse, psnr, EncodeError, Encoded, EncoderConfig, Plane, Target};
+pub use encoder::{
+    analyse, psnr, EncodeError, Encoded, EncoderConfig, Plane, Target, FINE_LEAVES_BPP,
+};
