@@ -45,8 +45,14 @@ fn main() {
         depths.dedup();
         // The coarser depth first: rows keep the order of ascending rates.
         for d in depths.into_iter().rev() {
+            let group: Vec<Target> = rates
+                .iter()
+                .filter(|&&r| depth(r) == d)
+                .map(|&r| Target::Bpp(r))
+                .collect();
             let config = EncoderConfig {
                 min_leaf_log2: d,
+                trial_bpp: Target::trial_bpp(&group, pixels),
                 ..EncoderConfig::default()
             };
             let t = Instant::now();

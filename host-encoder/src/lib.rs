@@ -20,4 +20,5 @@ pub mod io;
 pub use encoder::analysis::Analysis;
 pub use encoder::{
     analyse, psnr, EncodeError, Encoded, EncoderConfig, Plane, Target, FINE_LEAVES_BPP,
+    MIN_TRIAL_BPP,
 };

@@ -47,6 +47,7 @@ fn specs() -> Vec<Spec> {
         max_leaf_log2,
         codebook_levels,
         fit_weights: true,
+        ..EncoderConfig::default()
     };
     let image64 = common::synthetic(64, 64, 7, 6);
     let plain = |file, plane, config, target| Spec {

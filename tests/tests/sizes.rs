@@ -15,6 +15,7 @@ fn large_config() -> EncoderConfig {
         max_leaf_log2: 3,
         codebook_levels: 8,
         fit_weights: true,
+        ..EncoderConfig::default()
     }
 }
 
@@ -80,6 +81,7 @@ fn one_pixel_smallest_leaves() {
         max_leaf_log2: 1,
         codebook_levels: 0,
         fit_weights: false,
+        ..EncoderConfig::default()
     };
     check_size(1, 1, &config, Target::Bytes(64));
 }
@@ -128,6 +130,7 @@ fn widest_strip_65535x2() {
         max_leaf_log2: 2,
         codebook_levels: 0,
         fit_weights: false,
+        ..EncoderConfig::default()
     };
     check_size(65535, 2, &config, Target::Psnr(25.0));
 }

@@ -194,7 +194,7 @@ impl Analysis {
             eprintln!("closed-loop candidates: {:.2} s", t.elapsed().as_secs_f64());
         }
         let t = std::time::Instant::now();
-        analysis.prune_candidates();
+        analysis.prune_candidates(config.trial_bpp);
         if timing {
             eprintln!("candidate pruning: {:.2} s", t.elapsed().as_secs_f64());
         }
@@ -204,7 +204,7 @@ impl Analysis {
     /// Keeps, at every node, only the candidates that are its best leaf for some multiplier of
     /// interest, under rates measured from a trial encode's adapted contexts. Every later
     /// encode then weighs a handful of candidates per node instead of all of them.
-    fn prune_candidates(&mut self) {
+    fn prune_candidates(&mut self, trial_bpp: f64) {
         let pixels = self.header.pixel_count() as f64;
         let first = RateTable::new(self, &Contexts::default());
         // The trained contexts change the rates only a little: what is far from the hull under
@@ -213,7 +213,7 @@ impl Analysis {
         let first = first.select(&near);
         self.retain_candidates(&near);
         // A rough plan only gathers coding statistics.
-        let plan = first.rough_plan_for_bits(self, &self.header, 0.2 * pixels);
+        let plan = first.rough_plan_for_bits(self, &self.header, trial_bpp * pixels);
         self.trial = plan.anchor();
         let snapshot = match super::writer::write(self, &self.header, &plan) {
             Ok(w) => w.final_contexts,

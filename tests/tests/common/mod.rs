@@ -83,6 +83,7 @@ pub fn small_config() -> EncoderConfig {
         max_leaf_log2: 5,
         codebook_levels: 8,
         fit_weights: true,
+        ..EncoderConfig::default()
     }
 }
 
