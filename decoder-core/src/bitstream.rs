@@ -657,17 +657,17 @@ pub fn reconstruct_into(
     for i in 0..model.control_count() {
         patch.control[i] = control_value(&patch.control, side, i, step, i32::from(leaf.control[i]));
     }
-    reconstruct_weights(header, leaf, patch)
+    reconstruct_weights(header, leaf, model, patch)
 }
 
-/// Sets the model and subdivision weights of `patch` from a leaf's syntax (its control values
-/// are left alone).
+/// Sets the model (`model`, the one the leaf names) and subdivision weights of `patch` from a
+/// leaf's syntax (its control values are left alone).
 fn reconstruct_weights(
     header: &Header,
     leaf: &LeafSyntax,
+    model: ModelType,
     patch: &mut Patch,
 ) -> Result<(), DecodeError> {
-    let model = leaf_model(leaf)?;
     patch.model = model;
     let kind = *WEIGHT_QUANTISER_KINDS
         .get(usize::from(leaf.wquant))
