@@ -1,4 +1,4 @@
-//! The bitstream syntax, version 1: the header, and every syntax element of the payload in the
+//! The bitstream syntax ([`VERSION`]): the header, and every syntax element of the payload in the
 //! order it is coded. `docs/bitstream.md` is the prose form of this module.
 //!
 //! Payload elements are coded through the [`Coder`] trait, so the decoder, the host encoder's
@@ -8,9 +8,10 @@ use crate::checksum::Crc32;
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::DecodeError;
 use crate::model::{
-    div_round, for_each_free_tap, ModelType, WeightQuantiser, Weights, CONTROL_QUANTISERS,
-    CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN,
-    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+    coefficient_step, div_round, for_each_free_tap, grid_sizes, inverse_grid_transform, ModelType,
+    WeightQuantiser, Weights, CONTROL_QUANTISERS, CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS,
+    MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS,
+    WEIGHT_QUANTISER_KINDS,
 };
 use crate::patch::Patch;
 use crate::quadtree::Node;
@@ -18,7 +19,7 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -70,9 +71,9 @@ pub struct Header {
     pub width: u16,
     /// Image height in pixels (1..=65535).
     pub height: u16,
-    /// Channels per pixel (1 in version 1: grayscale).
+    /// Channels per pixel (1: grayscale).
     pub channels: u8,
-    /// Bits per sample (8 in version 1).
+    /// Bits per sample (8).
     pub bit_depth: u8,
     /// Smallest leaf side, as a power of two.
     pub min_leaf_log2: u8,
@@ -303,6 +304,15 @@ impl Header {
     }
 }
 
+/// How a leaf's control values are coded (the 'transform' flag).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ControlCoding {
+    /// DPCM within the leaf: suits edges.
+    Dpcm,
+    /// The 5/3 wavelet of the control grid: suits texture and smooth shading.
+    Transform,
+}
+
 /// The syntax elements of one leaf, as coded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LeafSyntax {
@@ -312,7 +322,10 @@ pub struct LeafSyntax {
     pub cquant: u8,
     /// Weight quantiser index into [`WEIGHT_QUANTISER_KINDS`] (0 when the model has no weights).
     pub wquant: u8,
-    /// Control values as DPCM quantiser indices (see [`control_value`]), row-major.
+    /// How the control values are coded.
+    pub coding: ControlCoding,
+    /// Control values as quantiser indices, row-major: DPCM indices (see [`control_value`]) or
+    /// grid-transform coefficient indices (see [`transform_control_values`]), by `coding`.
     pub control: [i16; MAX_CONTROL],
     /// Free weights as signed quantiser indices, in [`for_each_free_tap`] order.
     pub weights: [i16; MAX_WEIGHTS],
@@ -324,16 +337,29 @@ impl Default for LeafSyntax {
             model: 0,
             cquant: 0,
             wquant: 0,
+            coding: ControlCoding::Dpcm,
             control: [0; MAX_CONTROL],
             weights: [0; MAX_WEIGHTS],
         }
     }
 }
 
-/// Number of residual classes of control values: the leaf's first value, the rest of its first
-/// row and column, its interior, and first values predicted by a corner at exactly their
-/// position.
-const CONTROL_CLASSES: usize = 4;
+/// Control class: a leaf's first value (DPCM) or low band (transform), predicted by a corner
+/// elsewhere.
+const CLASS_FIRST: usize = 0;
+/// Control class: a leaf's first value or low band, predicted by a corner at exactly the
+/// leaf's.
+const CLASS_SHARED: usize = 1;
+/// Control class (DPCM): the rest of the first row and column.
+const CLASS_EDGE: usize = 2;
+/// Control class (DPCM): the interior of the grid.
+const CLASS_INTERIOR: usize = 3;
+/// Control classes from here (transform): detail bands by level, finest first.
+const CLASS_DETAIL: usize = 4;
+/// Detail levels with contexts of their own (coarser levels share the last).
+const DETAIL_CLASSES: usize = 3;
+/// Number of residual classes of control coefficients.
+const CONTROL_CLASSES: usize = CLASS_DETAIL + DETAIL_CLASSES;
 /// Control residuals have separate contexts for fine, medium and coarse steps.
 const STEP_GROUPS: usize = 3;
 
@@ -353,21 +379,29 @@ pub struct Contexts {
     model: [[Prob; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
     cquant: [[Prob; 16]; MODEL_COUNT],
     wquant: [[Prob; WEIGHT_QUANTISERS]; MODEL_COUNT],
+    coding: [Prob; MODEL_COUNT],
     control: [[IntContexts; CONTROL_CLASSES]; STEP_GROUPS],
     weights: [[IntContexts; 2]; 2],
 }
 
 impl Default for Contexts {
     fn default() -> Self {
-        Contexts {
-            split: [Prob::default(); MAX_LEAF_LOG2 as usize + 1],
-            model: [[Prob::default(); MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
-            cquant: [[Prob::default(); 16]; MODEL_COUNT],
-            wquant: [[Prob::default(); WEIGHT_QUANTISERS]; MODEL_COUNT],
-            control: [[IntContexts::default(); CONTROL_CLASSES]; STEP_GROUPS],
-            weights: [[IntContexts::default(); 2]; 2],
-        }
+        Contexts::FRESH
     }
+}
+
+impl Contexts {
+    /// The contexts at the start of every stream. All zero bits, so that a decoder clears them
+    /// in place rather than building a copy on its stack.
+    pub const FRESH: Contexts = Contexts {
+        split: [Prob::FRESH; MAX_LEAF_LOG2 as usize + 1],
+        model: [[Prob::FRESH; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
+        cquant: [[Prob::FRESH; 16]; MODEL_COUNT],
+        wquant: [[Prob::FRESH; WEIGHT_QUANTISERS]; MODEL_COUNT],
+        coding: [Prob::FRESH; MODEL_COUNT],
+        control: [[IntContexts::FRESH; CONTROL_CLASSES]; STEP_GROUPS],
+        weights: [[IntContexts::FRESH; 2]; 2],
+    };
 }
 
 /// Number of leaf corners remembered for predicting a leaf's first control value.
@@ -390,12 +424,17 @@ pub struct Predictor {
 
 impl Default for Predictor {
     fn default() -> Self {
-        Predictor {
-            corners: [(0, 0, 0); CORNER_MEMORY],
-            len: 0,
-            next: 0,
-        }
+        Predictor::EMPTY
     }
+}
+
+impl Predictor {
+    /// No corner remembered (all zero bits, like [`Contexts::FRESH`]).
+    pub const EMPTY: Predictor = Predictor {
+        corners: [(0, 0, 0); CORNER_MEMORY],
+        len: 0,
+        next: 0,
+    };
 }
 
 impl SamplePrediction for Predictor {
@@ -507,7 +546,19 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     }
     leaf.wquant = wq as u8;
 
-    code_control(c, ctx, model, node, prediction, leaf)?;
+    let mut transform = leaf.coding == ControlCoding::Transform;
+    if model.has_coding_choice() {
+        c.bit(&mut ctx.coding[mi], &mut transform)?;
+    } else {
+        transform = false;
+    }
+    leaf.coding = if transform {
+        code_transform(c, ctx, model, node, prediction, leaf)?;
+        ControlCoding::Transform
+    } else {
+        code_dpcm(c, ctx, model, node, prediction, leaf)?;
+        ControlCoding::Dpcm
+    };
     if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
         code_weights(c, ctx, model, leaf)?;
     } else {
@@ -551,11 +602,12 @@ pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
         .clamp(SAMPLE_MIN, SAMPLE_MAX) as i16
 }
 
-/// Control values: raster order, DPCM within the leaf (see [`control_value`]). The first index
-/// is coded as its difference from a prediction by earlier leaves ([`SamplePrediction`]: the
-/// nearest remembered corner, with its own contexts when it sits exactly at the leaf's corner);
-/// the others as they are.
-fn code_control<C: Coder, P: SamplePrediction>(
+/// Control values in [`ControlCoding::Dpcm`]: raster order, DPCM within the leaf (see
+/// [`control_value`]). The first index is coded as its difference from a prediction by earlier
+/// leaves ([`SamplePrediction`]: the nearest remembered corner, with its own contexts when it
+/// sits exactly at the leaf's corner); the others as they are.
+#[inline(never)]
+fn code_dpcm<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
     model: ModelType,
@@ -574,9 +626,19 @@ fn code_control<C: Coder, P: SamplePrediction>(
             let i = r * side + col;
             let (pred_index, class) = if i == 0 {
                 let (p, exact) = prediction.predict(node.x, node.y);
-                (div_round(p, step), if exact { 3 } else { 0 })
+                (
+                    div_round(p, step),
+                    if exact { CLASS_SHARED } else { CLASS_FIRST },
+                )
             } else {
-                (0, if r == 0 || col == 0 { 1 } else { 2 })
+                (
+                    0,
+                    if r == 0 || col == 0 {
+                        CLASS_EDGE
+                    } else {
+                        CLASS_INTERIOR
+                    },
+                )
             };
             let mut residual = i32::from(leaf.control[i]) - pred_index;
             contexts[class].code(c, prev_mag, &mut residual)?;
@@ -599,6 +661,80 @@ fn med(left: i32, up: i32, up_left: i32) -> i32 {
     } else {
         left + up - up_left
     }
+}
+
+/// The control values of a leaf from its coefficient indices (row-major, side `side`) and its
+/// control step, into `out`: every index times its coefficient's step ([`coefficient_step`],
+/// saturated to 16 bits), through the inverse grid transform ([`inverse_grid_transform`]),
+/// clamped to the sample range.
+#[inline(never)]
+pub fn transform_control_values(
+    side: usize,
+    step: i32,
+    indices: &[i16],
+    out: &mut [i16; MAX_CONTROL],
+) {
+    *out = [0; MAX_CONTROL];
+    for (i, (v, &k)) in out.iter_mut().zip(indices).take(side * side).enumerate() {
+        let c = i32::from(k).saturating_mul(coefficient_step(side, i, step));
+        *v = c.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
+    }
+    inverse_grid_transform(out, side);
+    for v in out.iter_mut().take(side * side) {
+        *v = (*v).clamp(SAMPLE_MIN as i16, SAMPLE_MAX as i16);
+    }
+}
+
+/// Control values in [`ControlCoding::Transform`]: the coefficient indices of the leaf's grid
+/// transform, coarsest level first
+/// (the single low-band value, then each level's detail positions in raster order). The
+/// low-band index is coded as its difference from a prediction by earlier leaves
+/// ([`SamplePrediction`]: the nearest remembered corner, with its own contexts when it sits
+/// exactly at the leaf's corner); the others as they are, with contexts by level.
+#[inline(never)]
+fn code_transform<C: Coder, P: SamplePrediction>(
+    c: &mut C,
+    ctx: &mut Contexts,
+    model: ModelType,
+    node: &Node,
+    prediction: &P,
+    leaf: &mut LeafSyntax,
+) -> Result<(), DecodeError> {
+    let step = *CONTROL_STEPS
+        .get(usize::from(leaf.cquant))
+        .ok_or(DecodeError::InvalidData("control quantiser"))?;
+    let contexts = &mut ctx.control[step_group(leaf.cquant)];
+    let side = model.grid();
+    let (sizes, levels) = grid_sizes(side);
+    let mut prev_mag = 0usize;
+    for k in (0..=levels).rev() {
+        let (outer, inner) = if k == levels {
+            (1, 0)
+        } else {
+            (sizes[k], sizes[k + 1])
+        };
+        for r in 0..outer {
+            for col in 0..outer {
+                if r < inner && col < inner {
+                    continue;
+                }
+                let i = r * side + col;
+                let (pred_index, class) = if k == levels {
+                    let (p, exact) = prediction.predict(node.x, node.y);
+                    let first = if exact { CLASS_SHARED } else { CLASS_FIRST };
+                    (div_round(p, coefficient_step(side, i, step)), first)
+                } else {
+                    (0, CLASS_DETAIL + k.min(DETAIL_CLASSES - 1))
+                };
+                let mut residual = i32::from(leaf.control[i]) - pred_index;
+                contexts[class].code(c, prev_mag, &mut residual)?;
+                leaf.control[i] = i16::try_from(pred_index + residual)
+                    .map_err(|_| DecodeError::InvalidData("control value"))?;
+                prev_mag = residual.unsigned_abs().min(2) as usize;
+            }
+        }
+    }
+    Ok(())
 }
 
 fn code_weights<C: Coder>(
@@ -653,9 +789,17 @@ pub fn reconstruct_into(
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let side = model.grid();
-    patch.control = [0; MAX_CONTROL];
-    for i in 0..model.control_count() {
-        patch.control[i] = control_value(&patch.control, side, i, step, i32::from(leaf.control[i]));
+    match leaf.coding {
+        ControlCoding::Transform => {
+            transform_control_values(side, step, &leaf.control, &mut patch.control)
+        }
+        ControlCoding::Dpcm => {
+            patch.control = [0; MAX_CONTROL];
+            for i in 0..model.control_count() {
+                let index = i32::from(leaf.control[i]);
+                patch.control[i] = control_value(&patch.control, side, i, step, index);
+            }
+        }
     }
     reconstruct_weights(header, leaf, model, patch)
 }

@@ -7,7 +7,8 @@
 //! context.
 //!
 //! The coder is the classic carry-propagating binary range coder: 32-bit range, 12-bit
-//! probabilities, adaptation by a shift of [`ADAPT_SHIFT`].
+//! probabilities, adaptation by a shift that grows with the number of bits a context has coded
+//! ([`ADAPT_SHIFTS`]): fast while a context learns, steadier once it has.
 
 use crate::error::DecodeError;
 
@@ -15,37 +16,56 @@ use crate::error::DecodeError;
 pub const PROB_BITS: u32 = 12;
 /// Probability scale: a [`Prob`] holds `P(bit = 0) * PROB_ONE`.
 pub const PROB_ONE: u16 = 1 << PROB_BITS;
-/// Adaptation speed: after each coded bit, a probability moves by `1 / 2^ADAPT_SHIFT` of its
-/// distance to the observed outcome.
-pub const ADAPT_SHIFT: u32 = 4;
 /// The range is renormalised (one byte shifted) whenever it falls below this value.
 pub const RANGE_TOP: u32 = 1 << 24;
 
-/// An adaptive binary context: the probability that the next bit coded with it is `0`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Prob(pub u16);
+/// An adaptive binary context: the probability that the next bit coded with it is `0`
+/// ([`PROB_BITS`] bits, the high ones) and how many bits it has coded (the low
+/// [`COUNT_BITS`] bits, saturating), which sets how fast it adapts ([`ADAPT_SHIFTS`]). The
+/// probability is stored exclusive-or'ed with one half, so that a fresh context (`p` one half,
+/// no bits coded) is all zero bits: a decoder then clears its contexts in place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Prob(u16);
 
-impl Default for Prob {
-    fn default() -> Self {
-        Prob(PROB_ONE / 2)
-    }
-}
+/// What a stored probability is exclusive-or'ed with.
+const HALF: u16 = PROB_ONE / 2;
+
+/// Bits of a [`Prob`] that count the bits coded with it.
+pub const COUNT_BITS: u32 = 4;
+const COUNT_MAX: u16 = (1 << COUNT_BITS) - 1;
+
+/// Adaptation speed by the number of bits a context has coded: after each bit, its
+/// probability moves by `1 / 2^shift` of the distance to the observed outcome.
+pub const ADAPT_SHIFTS: [u32; 1 << COUNT_BITS] = [2, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5];
 
 impl Prob {
+    /// A fresh context: probability one half, no bits coded.
+    pub const FRESH: Prob = Prob(0);
+
+    /// `P(bit = 0) * PROB_ONE`.
+    #[inline]
+    pub fn probability(self) -> u16 {
+        (self.0 >> COUNT_BITS) ^ HALF
+    }
+
     /// The split point of `range` for this probability (the size of the `0` sub-interval).
     #[inline]
     pub fn bound(self, range: u32) -> u32 {
-        (range >> PROB_BITS) * u32::from(self.0)
+        (range >> PROB_BITS) * u32::from(self.probability())
     }
 
     /// Moves the probability towards the bit just coded.
     #[inline]
     pub fn update(&mut self, bit: bool) {
+        let n = self.0 & COUNT_MAX;
+        let shift = ADAPT_SHIFTS[usize::from(n)];
+        let mut p = self.probability();
         if bit {
-            self.0 -= self.0 >> ADAPT_SHIFT;
+            p -= p >> shift;
         } else {
-            self.0 += (PROB_ONE - self.0) >> ADAPT_SHIFT;
+            p += (PROB_ONE - p) >> shift;
         }
+        self.0 = ((p ^ HALF) << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
     }
 }
 
@@ -184,23 +204,29 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
 pub struct IntContexts {
     zero: [Prob; 3],
     sign: Prob,
-    prefix: [Prob; MAX_PREFIX],
+    prefix: [Prob; PREFIX_CONTEXTS],
 }
 
 /// Longest Exp-Golomb prefix: magnitudes are below `2^MAX_PREFIX`.
 pub const MAX_PREFIX: usize = 12;
+/// Prefix bits with a context of their own; later prefix bits (magnitudes of `2^5` and more,
+/// rare) share the last one.
+pub const PREFIX_CONTEXTS: usize = 6;
 
 impl Default for IntContexts {
     fn default() -> Self {
-        IntContexts {
-            zero: [Prob::default(); 3],
-            sign: Prob::default(),
-            prefix: [Prob::default(); MAX_PREFIX],
-        }
+        IntContexts::FRESH
     }
 }
 
 impl IntContexts {
+    /// Fresh contexts ([`Prob::FRESH`]).
+    pub const FRESH: IntContexts = IntContexts {
+        zero: [Prob::FRESH; 3],
+        sign: Prob::FRESH,
+        prefix: [Prob::FRESH; PREFIX_CONTEXTS],
+    };
+
     /// Codes a signed integer `v` with `|v| < 2^MAX_PREFIX`. `ctx` (0..=2) selects the
     /// neighbourhood class, usually from the size of the previous value of the same kind.
     pub fn code<C: Coder>(
@@ -228,7 +254,7 @@ impl IntContexts {
                 return Err(DecodeError::InvalidData("integer magnitude"));
             }
             let mut more = k < k_in;
-            c.bit(&mut prefix[k], &mut more)?;
+            c.bit(&mut prefix[k.min(PREFIX_CONTEXTS - 1)], &mut more)?;
             if !more {
                 break;
             }

@@ -107,6 +107,12 @@ impl ModelType {
         self.line_weight_count() + self.cell_weight_count()
     }
 
+    /// Whether leaves of this model choose their control coding (the 'transform' flag): all
+    /// but the bilinear model, whose four values the transform does not help.
+    pub const fn has_coding_choice(self) -> bool {
+        self.intervals >= 2
+    }
+
     /// Whether this model may code a block of side `2^log2`: the block must be at least two
     /// control intervals wide per control interval, so that at least one subdivision happens.
     pub const fn fits_block(self, log2: u8) -> bool {
@@ -114,11 +120,183 @@ impl ModelType {
     }
 }
 
+/// Largest number of transform levels of a control grid (a side of 9: 9, 5, 3, 2, 1).
+pub const MAX_GRID_LEVELS: usize = 4;
+
+/// The sides of a control grid's low band after each transform level, from the grid's side
+/// down to 1, and the number of levels: `n, ceil(n/2), ...`.
+pub const fn grid_sizes(side: usize) -> ([usize; MAX_GRID_LEVELS + 1], usize) {
+    let mut sizes = [1usize; MAX_GRID_LEVELS + 1];
+    sizes[0] = side;
+    let mut k = 0;
+    while sizes[k] > 1 && k < MAX_GRID_LEVELS {
+        sizes[k + 1] = sizes[k].div_ceil(2);
+        k += 1;
+    }
+    (sizes, k)
+}
+
+/// The transform level of position `(r, c)` of a control grid of side `side`: 0 for the
+/// finest detail band, up to the number of levels for the single low-band value at `(0, 0)`.
+pub const fn band_level(side: usize, r: usize, c: usize) -> usize {
+    let (sizes, levels) = grid_sizes(side);
+    let mut k = 0;
+    while k < levels {
+        if r >= sizes[k + 1] || c >= sizes[k + 1] {
+            return k;
+        }
+        k += 1;
+    }
+    levels
+}
+
+/// One inverse lifting step of the reversible 5/3 wavelet (LeGall, as in JPEG 2000's
+/// lossless path, with symmetric extension) on the `m` values of `g` at `start`, `start +
+/// stride`, ...: low-band values first, then high-band values; replaced by the signal, each
+/// value saturated to the `i16` range it is stored in.
+const fn inverse_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, m: usize) {
+    let nl = m.div_ceil(2);
+    let nh = m / 2;
+    let mut y = [0i32; MAX_GRID];
+    let mut i = 0;
+    while i < m {
+        y[i] = g[start + i * stride] as i32;
+        i += 1;
+    }
+    let mut x = [0i32; MAX_GRID];
+    // Even samples: low band minus the update from the neighbouring details.
+    i = 0;
+    while i < nl {
+        let (left, right) = if nh == 0 {
+            (0, 0)
+        } else {
+            let l = if i == 0 { 0 } else { i - 1 };
+            let r = if i < nh { i } else { nh - 1 };
+            (y[nl + l], y[nl + r])
+        };
+        x[2 * i] = y[i].saturating_sub(left.saturating_add(right).saturating_add(2) >> 2);
+        i += 1;
+    }
+    // Odd samples: detail plus the prediction from the neighbouring even samples.
+    i = 0;
+    while i < nh {
+        let right = if 2 * i + 2 < m {
+            x[2 * i + 2]
+        } else {
+            x[2 * i]
+        };
+        x[2 * i + 1] =
+            y[nl + i].saturating_add(x[2 * i].saturating_add(right).saturating_add(1) >> 1);
+        i += 1;
+    }
+    i = 0;
+    while i < m {
+        let v = x[i];
+        g[start + i * stride] = if v > i16::MAX as i32 {
+            i16::MAX
+        } else if v < i16::MIN as i32 {
+            i16::MIN
+        } else {
+            v as i16
+        };
+        i += 1;
+    }
+}
+
+/// Inverse transform of a control grid of side `side` (row-major): the coefficients of every
+/// level, coarsest first, are turned back into control values. Level `k` works on the top-left
+/// square of side `grid_sizes(side).0[k]`: columns first, then rows. Works in place on 16-bit
+/// values (saturating), so that a decoder needs no wider copy of the grid.
+pub const fn inverse_grid_transform(g: &mut [i16; MAX_CONTROL], side: usize) {
+    let (sizes, levels) = grid_sizes(side);
+    let mut k = levels;
+    while k > 0 {
+        k -= 1;
+        let m = sizes[k];
+        let mut j = 0;
+        while j < m {
+            inverse_line(g, j, side, m);
+            j += 1;
+        }
+        j = 0;
+        while j < m {
+            inverse_line(g, j * side, 1, m);
+            j += 1;
+        }
+    }
+}
+
+/// Fixed-point scale of band multipliers: a multiplier `b` scales a step by `b / 64`.
+pub const BAND_ONE: i32 = 64;
+
+/// Integer square root (floor).
+const fn isqrt(v: u64) -> u64 {
+    let mut lo = 0u64;
+    let mut hi = 1u64 << 32;
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if mid * mid <= v {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// The step multipliers of the coefficients of a control grid of side `side`, in units of
+/// [`BAND_ONE`]: `64 / sqrt(E)`, rounded, with `E` the energy of the control values that a unit
+/// coefficient at that position makes (computed with [`inverse_grid_transform`] on an impulse
+/// of `2^12`). Every coefficient then adds the same error to the control values per step.
+const fn band_multipliers(side: usize) -> [u8; MAX_CONTROL] {
+    const UNIT: i16 = 1 << 12;
+    let mut out = [0u8; MAX_CONTROL];
+    let mut i = 0;
+    while i < side * side {
+        let mut g = [0i16; MAX_CONTROL];
+        g[i] = UNIT;
+        inverse_grid_transform(&mut g, side);
+        let mut energy = 0u64;
+        let mut j = 0;
+        while j < side * side {
+            energy += (g[j] as i64 * g[j] as i64) as u64;
+            j += 1;
+        }
+        let root = isqrt(energy);
+        let scaled = (BAND_ONE as u64 * UNIT as u64 * 2 + root) / (2 * root);
+        out[i] = if scaled > 255 { 255 } else { scaled as u8 };
+        i += 1;
+    }
+    out
+}
+
+/// [`band_multipliers`] of the grid sides of the models (2, 3, 5, 9).
+const BAND_MULTIPLIERS: [[u8; MAX_CONTROL]; 4] = [
+    band_multipliers(2),
+    band_multipliers(3),
+    band_multipliers(5),
+    band_multipliers(9),
+];
+
+/// The quantiser step of coefficient `i` (row-major) of a control grid of side `side` for the
+/// control step `step`: `max(1, (step * multiplier + 32) >> 6)`.
+pub fn coefficient_step(side: usize, i: usize, step: i32) -> i32 {
+    let table = match side {
+        2 => &BAND_MULTIPLIERS[0],
+        3 => &BAND_MULTIPLIERS[1],
+        5 => &BAND_MULTIPLIERS[2],
+        _ => &BAND_MULTIPLIERS[3],
+    };
+    let mult = i32::from(table.get(i).copied().unwrap_or(0));
+    ((step * mult + BAND_ONE / 2) >> 6).max(1)
+}
+
 /// Number of control-value quantisers (the 'cquant' element, coded on 4 bits).
-pub const CONTROL_QUANTISERS: usize = 12;
+pub const CONTROL_QUANTISERS: usize = 14;
 /// Control step of each control quantiser, in sample units (1/16 grey level).
-pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] =
-    [24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024];
+pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] = [
+    24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048,
+];
 
 /// Number of weight quantisers (the 'wquant' element, 2 bits).
 pub const WEIGHT_QUANTISERS: usize = 4;

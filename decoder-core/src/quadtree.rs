@@ -9,7 +9,7 @@
 //! leaf size is a leaf without a flag; every other node codes a split flag.
 
 use crate::bitstream::{
-    code_leaf, code_split, reconstruct_into, Contexts, Header, LeafSyntax, Predictor,
+    code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax, Predictor,
 };
 use crate::entropy::Coder;
 use crate::error::DecodeError;
@@ -109,6 +109,8 @@ pub struct LeafInfo {
     pub cquant: u8,
     /// Weight quantiser index.
     pub wquant: u8,
+    /// How the control values were coded.
+    pub coding: ControlCoding,
 }
 
 /// The adaptive state of the walk: contexts and prediction memory.
@@ -118,6 +120,14 @@ pub struct WalkState {
     pub contexts: Contexts,
     /// Prediction memory.
     pub predictor: Predictor,
+}
+
+impl WalkState {
+    /// The state at the start of every stream.
+    pub const FRESH: WalkState = WalkState {
+        contexts: Contexts::FRESH,
+        predictor: Predictor::EMPTY,
+    };
 }
 
 /// Codes the whole quadtree of a stream with `header`.
@@ -254,5 +264,6 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor>(
         model: leaf.model,
         cquant: leaf.cquant,
         wquant: leaf.wquant,
+        coding: leaf.coding,
     })
 }

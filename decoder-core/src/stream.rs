@@ -21,7 +21,7 @@ use crate::patch::{Patch, PixelSink, Rect};
 use crate::quadtree::{self, LeafInfo, Node, TreeVisitor};
 
 /// Longest possible header: the fixed part, the longest payload length and two codebooks of
-/// [`MAX_CODEBOOK`] levels (`17 + 5 + 2 * (1 + 2 * 16) = 88` bytes in version 2).
+/// [`MAX_CODEBOOK`] levels (`17 + 5 + 2 * (1 + 2 * 16) = 88` bytes).
 /// [`decode_stream`] never buffers more.
 pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES + 2 * (1 + 2 * MAX_CODEBOOK);
 
@@ -283,7 +283,7 @@ pub(crate) fn run_walk<C: Coder, V: TreeVisitor>(
     coder: &mut C,
     visitor: &mut V,
 ) -> Result<(), DecodeError> {
-    let mut state = fresh_state();
+    let mut state = quadtree::WalkState::FRESH;
     quadtree::walk_with(header, coder, visitor, &mut state)
 }
 
@@ -305,11 +305,6 @@ pub fn intersect(a: Rect, b: Rect) -> Rect {
         w: (x1 - u64::from(x0)) as u32,
         h: (y1 - u64::from(y0)) as u32,
     }
-}
-
-#[inline(never)]
-fn fresh_state() -> quadtree::WalkState {
-    quadtree::WalkState::default()
 }
 
 struct ClipVisitor<'s, S, F> {

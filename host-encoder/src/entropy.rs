@@ -113,13 +113,16 @@ fn cost_table() -> &'static [u32; 256] {
 }
 
 /// A [`Coder`] that writes nothing and adds up the cost of what it is given (in
-/// 1/[`COST_SCALE`] bits), adapting its contexts exactly as the real coder does.
+/// 1/[`COST_SCALE`] bits), adapting its contexts exactly as the real coder does, or, when
+/// [`BitCounter::frozen`], leaving them as they are.
 #[derive(Debug, Clone)]
 pub struct BitCounter {
     /// Accumulated cost, in 1/256 bit.
     pub cost: u64,
     /// The cost table (looked up once, not per bit).
     table: &'static [u32; 256],
+    /// Whether contexts adapt to the bits counted.
+    adapt: bool,
 }
 
 impl Default for BitCounter {
@@ -127,11 +130,22 @@ impl Default for BitCounter {
         BitCounter {
             cost: 0,
             table: cost_table(),
+            adapt: true,
         }
     }
 }
 
 impl BitCounter {
+    /// A counter that prices every bit with its context's current probability and does not
+    /// change the context: many alternatives can then be priced from one context state
+    /// without copying it for each.
+    pub fn frozen() -> Self {
+        BitCounter {
+            adapt: false,
+            ..BitCounter::default()
+        }
+    }
+
     /// Accumulated cost in bits.
     pub fn bits(&self) -> f64 {
         self.cost as f64 / COST_SCALE
@@ -140,10 +154,12 @@ impl BitCounter {
 
 impl Coder for BitCounter {
     fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
-        let p0 = u32::from(p.0) >> (PROB_BITS - 8);
+        let p0 = u32::from(p.probability()) >> (PROB_BITS - 8);
         let idx = if *bit { 255 - p0.min(255) } else { p0.min(255) };
         self.cost += u64::from(self.table[idx as usize]);
-        p.update(*bit);
+        if self.adapt {
+            p.update(*bit);
+        }
         Ok(())
     }
 

@@ -319,6 +319,8 @@ fn info(input: &Path) -> Result<(), String> {
     struct Stats {
         per_depth: std::collections::BTreeMap<u8, usize>,
         models: [usize; decoder_core::model::MODEL_COUNT],
+        /// Leaves per model coded with DPCM, then with the grid transform.
+        codings: [[usize; decoder_core::model::MODEL_COUNT]; 2],
         cquant: [usize; decoder_core::model::CONTROL_QUANTISERS],
         wquant: [usize; 4],
     }
@@ -326,6 +328,9 @@ fn info(input: &Path) -> Result<(), String> {
         fn leaf(&mut self, info: &decoder_core::LeafInfo) {
             *self.per_depth.entry(info.node.log2).or_default() += 1;
             self.models[usize::from(info.model)] += 1;
+            let coding =
+                usize::from(info.coding == decoder_core::bitstream::ControlCoding::Transform);
+            self.codings[coding][usize::from(info.model)] += 1;
             self.cquant[usize::from(info.cquant)] += 1;
             self.wquant[usize::from(info.wquant)] += 1;
         }
@@ -338,6 +343,7 @@ fn info(input: &Path) -> Result<(), String> {
     let stats = Stats {
         per_depth: Default::default(),
         models: [0; 5],
+        codings: [[0; 5]; 2],
         cquant: [0; decoder_core::model::CONTROL_QUANTISERS],
         wquant: [0; 4],
     };
@@ -375,9 +381,10 @@ fn info(input: &Path) -> Result<(), String> {
         println!("    {:>3}x{:<3}       {n}", 1 << log2, 1 << log2);
     }
     let names = ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"];
-    println!("  models");
-    for (name, n) in names.iter().zip(stats.models) {
-        println!("    {name:<14} {n}");
+    println!("  models           leaves (DPCM + transform)");
+    for (i, (name, n)) in names.iter().zip(stats.models).enumerate() {
+        let (dpcm, transform) = (stats.codings[0][i], stats.codings[1][i]);
+        println!("    {name:<14} {n} ({dpcm} + {transform})");
     }
     println!(
         "  control quantiser use (steps {:?} /16 grey): {:?}",

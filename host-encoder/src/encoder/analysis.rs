@@ -3,11 +3,11 @@
 //! candidate's distortion is measured through decoder-core's own reconstruction (closed loop).
 
 use super::fit::{fit_default, fit_weighted, Fit};
-use super::quantise::{lloyd_max, quantise, weight_classes};
+use super::quantise::{lloyd_max, quantise, weight_classes, ControlTargets};
 use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
-use decoder_core::bitstream::Contexts;
 use decoder_core::bitstream::{models_for_block, Codebook, Header, SamplePrediction};
+use decoder_core::bitstream::{Contexts, ControlCoding};
 use decoder_core::model::{
     WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
@@ -26,6 +26,8 @@ pub struct Candidate {
     pub cq: u8,
     /// Weight quantiser.
     pub wq: u8,
+    /// Control coding.
+    pub coding: ControlCoding,
     /// Squared error over the node's in-image pixels.
     pub sse: f64,
     /// Where its quantised control indices, then weight indices (when `wq` is not the
@@ -57,6 +59,7 @@ impl NodeAnalysis {
             model,
             cquant: c.cq,
             wquant: c.wq,
+            coding: c.coding,
             ..LeafSyntax::default()
         };
         let at = c.at as usize;
@@ -151,6 +154,9 @@ impl Analysis {
                     // so both are kept).
                     let mut fits = Vec::with_capacity(2 * count);
                     for &m in &models[..count] {
+                        if !config.fit_weights && !searched_with_default_weights(m) {
+                            continue;
+                        }
                         let plain = fit_default(&plane, &node, m);
                         let weighted = if config.fit_weights {
                             fit_weighted(&plane, &node, &plain)
@@ -255,6 +261,7 @@ impl Analysis {
                 let mut indices = Vec::new();
                 for (fi, fit) in na.fits.iter().enumerate() {
                     let model = MODELS[usize::from(fit.model)];
+                    let targets = ControlTargets::of(fit);
                     let fitted_weights = fit.weighted;
                     for cq in 0..CONTROL_QUANTISERS as u8 {
                         for wq in 0..WEIGHT_QUANTISERS as u8 {
@@ -272,21 +279,34 @@ impl Analysis {
                             if !usable || (wq > 0 && (model.weight_count() == 0 || cq % 2 == 1)) {
                                 continue;
                             }
-                            let (leaf, values) = quantise(fit, cq, wq, &header.codebooks);
-                            let sse = quantised_sse(plane, header, &na.node, fit, &leaf, &values);
-                            let (nc, nw) = (model.control_count(), model.weight_count());
-                            let at = indices.len() as u32;
-                            indices.extend_from_slice(&leaf.control[..nc]);
-                            if kind != WeightQuantiser::Default {
-                                indices.extend_from_slice(&leaf.weights[..nw]);
+                            // Both control codings where the syntax allows a choice, for the
+                            // default weights; weighted variants (rare) with DPCM only.
+                            let codings: &[ControlCoding] = if wq == 0 && model.has_coding_choice()
+                            {
+                                &[ControlCoding::Dpcm, ControlCoding::Transform]
+                            } else {
+                                &[ControlCoding::Dpcm]
+                            };
+                            for &coding in codings {
+                                let (leaf, values) =
+                                    quantise(fit, &targets, cq, wq, coding, &header.codebooks);
+                                let sse =
+                                    quantised_sse(plane, header, &na.node, fit, &leaf, &values);
+                                let (nc, nw) = (model.control_count(), model.weight_count());
+                                let at = indices.len() as u32;
+                                indices.extend_from_slice(&leaf.control[..nc]);
+                                if kind != WeightQuantiser::Default {
+                                    indices.extend_from_slice(&leaf.weights[..nw]);
+                                }
+                                out.push(Candidate {
+                                    fit: fi as u8,
+                                    cq,
+                                    wq,
+                                    coding,
+                                    sse,
+                                    at,
+                                });
                             }
-                            out.push(Candidate {
-                                fit: fi as u8,
-                                cq,
-                                wq,
-                                sse,
-                                at,
-                            });
                         }
                     }
                 }
@@ -320,6 +340,14 @@ impl SamplePrediction for ImagePrediction<'_> {
     fn predict(&self, x: u32, y: u32) -> (i32, bool) {
         (self.sample(x, y), x > 0 || y > 0)
     }
+}
+
+/// Whether the analysis fits model `m` when weights are not fitted. The 5x5/4x4 model's default
+/// scheme makes nearly the same surface as the 5x5/2x2 model's: on six Kodak images it was
+/// chosen for under 1% of leaves, and leaving it out changed PSNR by less than 0.01 dB at every
+/// rate while saving about a tenth of the analysis.
+fn searched_with_default_weights(m: u8) -> bool {
+    m != 3
 }
 
 /// Layers of the lower convex hull (rate, error) that are kept from the first, untrained rates
@@ -461,8 +489,13 @@ mod tests {
             let (models, count) = models_for_block(log2);
             for &m in &models[..count] {
                 let fit = fit_default(&plane, &node, m);
-                for cq in [0u8, 5, 11] {
-                    let (leaf, values) = quantise(&fit, cq, 0, &header.codebooks);
+                let targets = ControlTargets::of(&fit);
+                let codings = [ControlCoding::Dpcm, ControlCoding::Transform];
+                for (cq, coding) in [0u8, 5, 11]
+                    .into_iter()
+                    .flat_map(|c| codings.map(|d| (c, d)))
+                {
+                    let (leaf, values) = quantise(&fit, &targets, cq, 0, coding, &header.codebooks);
                     let n = MODELS[usize::from(m)].control_count();
                     let control: Vec<f64> = values[..n]
                         .iter()
@@ -474,12 +507,12 @@ mod tests {
                     let bound = (pixels * estimate).sqrt() + 0.25 * pixels;
                     assert!(
                         (estimate - closed).abs() <= bound,
-                        "model {m} at {log2}, cq {cq}: estimate {estimate}, closed loop {closed}"
+                        "model {m} at {log2}, cq {cq}, {coding:?}: estimate {estimate}, closed loop {closed}"
                     );
                     checked += 1;
                 }
             }
         }
-        assert!(checked >= 30, "only {checked} leaves checked");
+        assert!(checked >= 60, "only {checked} leaves checked");
     }
 }

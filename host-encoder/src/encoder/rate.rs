@@ -152,12 +152,13 @@ impl RateTable {
                             plane: &analysis.plane,
                             node: na.node,
                         };
+                        // Frozen counters leave the contexts alone: one copy per node.
+                        let mut ctx = snapshot.clone();
                         na.candidates
                             .iter()
                             .map(|c| {
                                 let mut leaf = na.leaf(c);
-                                let mut counter = BitCounter::default();
-                                let mut ctx = snapshot.clone();
+                                let mut counter = BitCounter::frozen();
                                 match code_leaf(
                                     &mut counter,
                                     &mut ctx,
