@@ -8,10 +8,10 @@ use crate::checksum::Crc32;
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::DecodeError;
 use crate::model::{
-    coefficient_step, div_round, for_each_free_tap, grid_sizes, inverse_grid_transform, ModelType,
-    WeightQuantiser, Weights, CONTROL_QUANTISERS, CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS,
-    MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS,
-    WEIGHT_QUANTISER_KINDS,
+    band_level, coefficient_step, div_round, for_each_free_tap, inverse_grid_transform,
+    transform_order, ModelType, WeightQuantiser, Weights, CONTROL_QUANTISERS, CONTROL_STEPS,
+    MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, RASTER_ORDER, SAMPLE_MAX, SAMPLE_MIN,
+    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use crate::patch::Patch;
 use crate::quadtree::Node;
@@ -553,12 +553,11 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
         transform = false;
     }
     leaf.coding = if transform {
-        code_transform(c, ctx, model, node, prediction, leaf)?;
         ControlCoding::Transform
     } else {
-        code_dpcm(c, ctx, model, node, prediction, leaf)?;
         ControlCoding::Dpcm
     };
+    code_control(c, ctx, model, node, prediction, leaf)?;
     if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
         code_weights(c, ctx, model, leaf)?;
     } else {
@@ -602,54 +601,6 @@ pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
         .clamp(SAMPLE_MIN, SAMPLE_MAX) as i16
 }
 
-/// Control values in [`ControlCoding::Dpcm`]: raster order, DPCM within the leaf (see
-/// [`control_value`]). The first index is coded as its difference from a prediction by earlier
-/// leaves ([`SamplePrediction`]: the nearest remembered corner, with its own contexts when it
-/// sits exactly at the leaf's corner); the others as they are.
-#[inline(never)]
-fn code_dpcm<C: Coder, P: SamplePrediction>(
-    c: &mut C,
-    ctx: &mut Contexts,
-    model: ModelType,
-    node: &Node,
-    prediction: &P,
-    leaf: &mut LeafSyntax,
-) -> Result<(), DecodeError> {
-    let step = *CONTROL_STEPS
-        .get(usize::from(leaf.cquant))
-        .ok_or(DecodeError::InvalidData("control quantiser"))?;
-    let contexts = &mut ctx.control[step_group(leaf.cquant)];
-    let side = model.grid();
-    let mut prev_mag = 0usize;
-    for r in 0..side {
-        for col in 0..side {
-            let i = r * side + col;
-            let (pred_index, class) = if i == 0 {
-                let (p, exact) = prediction.predict(node.x, node.y);
-                (
-                    div_round(p, step),
-                    if exact { CLASS_SHARED } else { CLASS_FIRST },
-                )
-            } else {
-                (
-                    0,
-                    if r == 0 || col == 0 {
-                        CLASS_EDGE
-                    } else {
-                        CLASS_INTERIOR
-                    },
-                )
-            };
-            let mut residual = i32::from(leaf.control[i]) - pred_index;
-            contexts[class].code(c, prev_mag, &mut residual)?;
-            leaf.control[i] = i16::try_from(pred_index + residual)
-                .map_err(|_| DecodeError::InvalidData("control value"))?;
-            prev_mag = residual.unsigned_abs().min(2) as usize;
-        }
-    }
-    Ok(())
-}
-
 /// Median edge detector (LOCO-I): the median of `left`, `up` and `left + up - up_left`.
 #[inline]
 fn med(left: i32, up: i32, up_left: i32) -> i32 {
@@ -685,14 +636,13 @@ pub fn transform_control_values(
     }
 }
 
-/// Control values in [`ControlCoding::Transform`]: the coefficient indices of the leaf's grid
-/// transform, coarsest level first
-/// (the single low-band value, then each level's detail positions in raster order). The
-/// low-band index is coded as its difference from a prediction by earlier leaves
-/// ([`SamplePrediction`]: the nearest remembered corner, with its own contexts when it sits
-/// exactly at the leaf's corner); the others as they are, with contexts by level.
-#[inline(never)]
-fn code_transform<C: Coder, P: SamplePrediction>(
+/// Control values: `(m+1)^2` indices in the coding order of the leaf's control coding (raster
+/// for DPCM, [`transform_order`] for the grid transform). The first coded index is coded as its
+/// difference from a prediction by earlier leaves ([`SamplePrediction`]: the nearest remembered
+/// corner, with its own contexts when it sits exactly at the leaf's corner), in units of its own
+/// step; the others as they are, with contexts by position (DPCM: first row and column or
+/// interior) or by transform level.
+fn code_control<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
     model: ModelType,
@@ -705,34 +655,38 @@ fn code_transform<C: Coder, P: SamplePrediction>(
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.grid();
-    let (sizes, levels) = grid_sizes(side);
+    let transform = leaf.coding == ControlCoding::Transform;
+    let order = if transform {
+        transform_order(side)
+    } else {
+        &RASTER_ORDER[..side * side]
+    };
     let mut prev_mag = 0usize;
-    for k in (0..=levels).rev() {
-        let (outer, inner) = if k == levels {
-            (1, 0)
+    for (n, &i) in order.iter().enumerate() {
+        let i = usize::from(i);
+        let (r, col) = (i / side, i % side);
+        let (pred_index, class) = if n == 0 {
+            let (p, exact) = prediction.predict(node.x, node.y);
+            let q = if transform {
+                coefficient_step(side, i, step)
+            } else {
+                step
+            };
+            let class = if exact { CLASS_SHARED } else { CLASS_FIRST };
+            (div_round(p, q), class)
+        } else if transform {
+            let level = band_level(side, r, col);
+            (0, CLASS_DETAIL + level.min(DETAIL_CLASSES - 1))
+        } else if r == 0 || col == 0 {
+            (0, CLASS_EDGE)
         } else {
-            (sizes[k], sizes[k + 1])
+            (0, CLASS_INTERIOR)
         };
-        for r in 0..outer {
-            for col in 0..outer {
-                if r < inner && col < inner {
-                    continue;
-                }
-                let i = r * side + col;
-                let (pred_index, class) = if k == levels {
-                    let (p, exact) = prediction.predict(node.x, node.y);
-                    let first = if exact { CLASS_SHARED } else { CLASS_FIRST };
-                    (div_round(p, coefficient_step(side, i, step)), first)
-                } else {
-                    (0, CLASS_DETAIL + k.min(DETAIL_CLASSES - 1))
-                };
-                let mut residual = i32::from(leaf.control[i]) - pred_index;
-                contexts[class].code(c, prev_mag, &mut residual)?;
-                leaf.control[i] = i16::try_from(pred_index + residual)
-                    .map_err(|_| DecodeError::InvalidData("control value"))?;
-                prev_mag = residual.unsigned_abs().min(2) as usize;
-            }
-        }
+        let mut residual = i32::from(leaf.control[i]) - pred_index;
+        contexts[class].code(c, prev_mag, &mut residual)?;
+        leaf.control[i] = i16::try_from(pred_index + residual)
+            .map_err(|_| DecodeError::InvalidData("control value"))?;
+        prev_mag = residual.unsigned_abs().min(2) as usize;
     }
     Ok(())
 }

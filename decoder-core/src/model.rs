@@ -150,6 +150,62 @@ pub const fn band_level(side: usize, r: usize, c: usize) -> usize {
     levels
 }
 
+/// The coding order of a control grid of side `side` under the grid transform: the low-band
+/// value `(0, 0)` first, then for each level from the coarsest to the finest the positions that
+/// become detail at that level, in raster order. Entries are row-major grid indices; entries
+/// past `side * side` are unused.
+const fn transform_scan(side: usize) -> [u8; MAX_CONTROL] {
+    let mut out = [0u8; MAX_CONTROL];
+    let mut n = 0;
+    let (_, levels) = grid_sizes(side);
+    let mut k = levels + 1;
+    while k > 0 {
+        k -= 1;
+        let mut i = 0;
+        while i < side * side {
+            if band_level(side, i / side, i % side) == k {
+                out[n] = i as u8;
+                n += 1;
+            }
+            i += 1;
+        }
+    }
+    out
+}
+
+/// [`transform_scan`] of the grid sides 2, 3, 5 and 9.
+const TRANSFORM_SCANS: [[u8; MAX_CONTROL]; 4] = [
+    transform_scan(2),
+    transform_scan(3),
+    transform_scan(5),
+    transform_scan(9),
+];
+
+/// The coding order of the coefficients of a control grid of side `side` under the grid
+/// transform (see [`band_level`]): its first `side * side` entries are the row-major indices.
+pub fn transform_order(side: usize) -> &'static [u8] {
+    let scan = match side {
+        2 => &TRANSFORM_SCANS[0],
+        3 => &TRANSFORM_SCANS[1],
+        5 => &TRANSFORM_SCANS[2],
+        _ => &TRANSFORM_SCANS[3],
+    };
+    &scan[..(side * side).min(MAX_CONTROL)]
+}
+
+/// Row-major order: the coding order of DPCM control values.
+pub const RASTER_ORDER: [u8; MAX_CONTROL] = raster_order();
+
+const fn raster_order() -> [u8; MAX_CONTROL] {
+    let mut out = [0u8; MAX_CONTROL];
+    let mut i = 0;
+    while i < MAX_CONTROL {
+        out[i] = i as u8;
+        i += 1;
+    }
+    out
+}
+
 /// One inverse lifting step of the reversible 5/3 wavelet (LeGall, as in JPEG 2000's
 /// lossless path, with symmetric extension) on the `m` values of `g` at `start`, `start +
 /// stride`, ...: low-band values first, then high-band values; replaced by the signal, each
