@@ -173,6 +173,17 @@ const fn transform_scan(side: usize) -> [u8; MAX_CONTROL] {
     out
 }
 
+/// The grid sides of the models, in the order of the per-side tables below.
+const GRID_SIDES: [usize; 4] = [2, 3, 5, 9];
+
+/// The slot of grid side `side` in the per-side tables (the largest grid for any other side).
+fn grid_slot(side: usize) -> usize {
+    GRID_SIDES
+        .iter()
+        .position(|&s| s == side)
+        .unwrap_or(GRID_SIDES.len() - 1)
+}
+
 /// [`transform_scan`] of the grid sides 2, 3, 5 and 9.
 const TRANSFORM_SCANS: [[u8; MAX_CONTROL]; 4] = [
     transform_scan(2),
@@ -184,12 +195,7 @@ const TRANSFORM_SCANS: [[u8; MAX_CONTROL]; 4] = [
 /// The coding order of the coefficients of a control grid of side `side` under the grid
 /// transform (see [`band_level`]): its first `side * side` entries are the row-major indices.
 pub fn transform_order(side: usize) -> &'static [u8] {
-    let scan = match side {
-        2 => &TRANSFORM_SCANS[0],
-        3 => &TRANSFORM_SCANS[1],
-        5 => &TRANSFORM_SCANS[2],
-        _ => &TRANSFORM_SCANS[3],
-    };
+    let scan = &TRANSFORM_SCANS[grid_slot(side)];
     &scan[..(side * side).min(MAX_CONTROL)]
 }
 
@@ -337,12 +343,7 @@ const BAND_MULTIPLIERS: [[u8; MAX_CONTROL]; 4] = [
 /// The quantiser step of coefficient `i` (row-major) of a control grid of side `side` for the
 /// control step `step`: `max(1, (step * multiplier + 32) >> 6)`.
 pub fn coefficient_step(side: usize, i: usize, step: i32) -> i32 {
-    let table = match side {
-        2 => &BAND_MULTIPLIERS[0],
-        3 => &BAND_MULTIPLIERS[1],
-        5 => &BAND_MULTIPLIERS[2],
-        _ => &BAND_MULTIPLIERS[3],
-    };
+    let table = &BAND_MULTIPLIERS[grid_slot(side)];
     let mult = i32::from(table.get(i).copied().unwrap_or(0));
     ((step * mult + BAND_ONE / 2) >> 6).max(1)
 }
