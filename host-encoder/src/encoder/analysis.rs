@@ -261,7 +261,7 @@ impl Analysis {
                 let mut indices = Vec::new();
                 for (fi, fit) in na.fits.iter().enumerate() {
                     let model = MODELS[usize::from(fit.model)];
-                    let targets = ControlTargets::of(fit);
+                    let targets = ControlTargets::of(fit, na.node.log2);
                     let fitted_weights = fit.weighted;
                     for cq in 0..CONTROL_QUANTISERS as u8 {
                         for wq in 0..WEIGHT_QUANTISERS as u8 {
@@ -489,7 +489,7 @@ mod tests {
             let (models, count) = models_for_block(log2);
             for &m in &models[..count] {
                 let fit = fit_default(&plane, &node, m);
-                let targets = ControlTargets::of(&fit);
+                let targets = ControlTargets::of(&fit, log2);
                 let codings = [ControlCoding::Dpcm, ControlCoding::Transform];
                 for (cq, coding) in [0u8, 5, 11]
                     .into_iter()

@@ -60,6 +60,13 @@ impl Fit {
     }
 }
 
+/// The Gram matrix `G` of model `model_index`'s default-weight patch on interior blocks of side
+/// `2^log2` (grey levels): the squared error of control values `c` is an exact fit's residual
+/// plus `(c - exact)^T G (c - exact)` ([`Fit::error_of`]). `None` where there is no projection.
+pub fn gram(model_index: u8, log2: u8) -> Option<&'static DMatrix<f64>> {
+    (log2 <= MAX_PROJECTION_LOG2).then(|| &Projection::of(model_index, log2).gram)
+}
+
 /// The samples of a block the fit looks at: in-image pixels on a lattice of stride `stride`.
 struct Lattice {
     size: u32,

@@ -1,38 +1,153 @@
 //! Quantisation of fitted parameters into syntax elements: uniform quantisers for control values
 //! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4).
 
-use super::fit::Fit;
+use super::fit::{gram, Fit};
 use decoder_core::bitstream::{
     dequantise_control, intra_prediction, transform_control_values, Codebook, ControlCoding,
     LeafSyntax, MAX_CODEBOOK,
 };
 use decoder_core::model::{
-    coefficient_step, for_each_free_tap, grid_sizes, WeightClass, WeightQuantiser, CONTROL_STEPS,
-    MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE,
-    WEIGHT_QUANTISER_KINDS,
+    coefficient_step, for_each_free_tap, grid_sizes, transform_order, WeightClass, WeightQuantiser,
+    CONTROL_STEPS, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT,
+    WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
 };
+use nalgebra::DMatrix;
 
 /// A fit's control values prepared for quantisation, once for all quantisers: in sample units,
 /// and as grid-transform coefficients.
 pub struct ControlTargets {
     samples: [f64; MAX_CONTROL],
     coefficients: [f64; MAX_CONTROL],
+    /// For an exact least-squares fit: what error feedback needs.
+    exact: Option<ExactTargets>,
+}
+
+/// The unclamped least-squares control values of an exact fit, as samples and coefficients,
+/// with the factors of their error's quadratic form.
+struct ExactTargets {
+    samples: [f64; MAX_CONTROL],
+    coefficients: [f64; MAX_CONTROL],
+    feedback: &'static ErrorFeedback,
 }
 
 impl ControlTargets {
-    /// The targets of `fit`'s control values.
-    pub fn of(fit: &Fit) -> Self {
+    /// The targets of `fit`'s control values, on a block of side `2^log2`.
+    pub fn of(fit: &Fit, log2: u8) -> Self {
         let side = MODELS[usize::from(fit.model)].grid();
-        let mut samples = [0.0f64; MAX_CONTROL];
-        for (g, &c) in samples.iter_mut().zip(&fit.control).take(side * side) {
-            *g = (c * f64::from(SAMPLE_ONE)).clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX));
-        }
-        let mut coefficients = samples;
-        forward_grid_transform(&mut coefficients, side);
+        let in_samples = |control: &[f64], clamp: bool| {
+            let mut samples = [0.0f64; MAX_CONTROL];
+            for (g, &c) in samples.iter_mut().zip(control).take(side * side) {
+                *g = c * f64::from(SAMPLE_ONE);
+                if clamp {
+                    *g = g.clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX));
+                }
+            }
+            let mut coefficients = samples;
+            forward_grid_transform(&mut coefficients, side);
+            (samples, coefficients)
+        };
+        let (samples, coefficients) = in_samples(&fit.control, true);
+        let exact = match (fit.residual, ErrorFeedback::of(fit.model, log2)) {
+            (Some(_), Some(feedback)) => {
+                let (samples, coefficients) = in_samples(&fit.exact, false);
+                Some(ExactTargets {
+                    samples,
+                    coefficients,
+                    feedback,
+                })
+            }
+            _ => None,
+        };
         ControlTargets {
             samples,
             coefficients,
+            exact,
         }
+    }
+}
+
+/// A factor `V` of a quadratic form `d^T G d` over variables taken in a given order, lower
+/// triangular in that order: `d^T G d = sum_k (V_k . d[..=k])^2`. Once the errors of the first
+/// `k` variables are made, row `k` alone says which error of variable `k` keeps the form
+/// smallest (the later rows can still be zeroed by the later variables).
+struct SequentialFactor {
+    /// Row `k` holds `k + 1` values, from offset `k (k + 1) / 2`.
+    rows: Vec<f64>,
+    /// The diagonal of the form, in the same order: each variable's weight in it when no other
+    /// variable makes up for its error.
+    weights: Vec<f64>,
+}
+
+impl SequentialFactor {
+    /// The factor of `g` (symmetric positive definite), or `None` if it is singular.
+    fn new(g: &DMatrix<f64>) -> Option<Self> {
+        // Reversing the variables turns the usual Cholesky factor (`G = L L^T`, whose transpose
+        // has rows over the variables from `k` on) into rows over the variables up to `k`.
+        let n = g.nrows();
+        let reversed = DMatrix::from_fn(n, n, |i, j| g[(n - 1 - i, n - 1 - j)]);
+        let l = reversed.cholesky()?.l();
+        let mut rows = Vec::with_capacity(n * (n + 1) / 2);
+        for k in 0..n {
+            // Row k of V is row n-1-k of L^T (column n-1-k of L), read backwards.
+            let col = n - 1 - k;
+            rows.extend((0..=k).map(|j| l[(n - 1 - j, col)]));
+        }
+        let weights = (0..n).map(|k| g[(k, k)]).collect();
+        Some(SequentialFactor { rows, weights })
+    }
+
+    /// The error of variable `k` that keeps the form smallest, given the errors `done` of the
+    /// variables before it.
+    fn compensation(&self, k: usize, done: &[f64]) -> f64 {
+        let row = &self.rows[k * (k + 1) / 2..][..=k];
+        let s: f64 = row[..k].iter().zip(done).map(|(v, e)| v * e).sum();
+        -s / row[k]
+    }
+}
+
+/// Error feedback for one model and block size: the sequential factors of the squared error over
+/// the control values in raster order (DPCM's order) and over the grid-transform coefficients in
+/// coding order. Quantising the variables one by one, each towards the value that best makes up
+/// for the errors already made, lowers the patch's error at the same rate (the patch error is a
+/// quadratic form with strong couplings between neighbouring control values).
+struct ErrorFeedback {
+    values: SequentialFactor,
+    coefficients: SequentialFactor,
+}
+
+impl ErrorFeedback {
+    fn of(model_index: u8, log2: u8) -> Option<&'static ErrorFeedback> {
+        use std::sync::OnceLock;
+        const SIZES: usize = decoder_core::bitstream::MAX_LEAF_LOG2 as usize + 1;
+        static TABLE: [[OnceLock<Option<ErrorFeedback>>; SIZES]; decoder_core::model::MODEL_COUNT] =
+            [const { [const { OnceLock::new() }; SIZES] }; decoder_core::model::MODEL_COUNT];
+        TABLE[usize::from(model_index)][usize::from(log2)]
+            .get_or_init(|| ErrorFeedback::build(model_index, log2))
+            .as_ref()
+    }
+
+    fn build(model_index: u8, log2: u8) -> Option<ErrorFeedback> {
+        let g = gram(model_index, log2)?;
+        let side = MODELS[usize::from(model_index)].grid();
+        let n = side * side;
+        // The real-valued inverse transform M (column j: the values of coefficient j alone), as
+        // the inverse of the forward transform's matrix; the coefficients' form is M^T G M.
+        let forward = DMatrix::from_fn(n, n, |i, j| {
+            let mut unit = [0.0f64; MAX_CONTROL];
+            unit[j] = 1.0;
+            forward_grid_transform(&mut unit, side);
+            unit[i]
+        });
+        let inverse = forward.try_inverse()?;
+        let gc = inverse.transpose() * g * &inverse;
+        let order = transform_order(side);
+        let permuted = DMatrix::from_fn(n, n, |i, j| {
+            gc[(usize::from(order[i]), usize::from(order[j]))]
+        });
+        Some(ErrorFeedback {
+            values: SequentialFactor::new(g)?,
+            coefficients: SequentialFactor::new(&permuted)?,
+        })
     }
 }
 
@@ -58,14 +173,9 @@ pub fn quantise(
     let step = CONTROL_STEPS[usize::from(cq)];
     let side = model.grid();
     let values = match coding {
-        ControlCoding::Dpcm => quantise_dpcm(&targets.samples, side, step, &mut leaf.control),
+        ControlCoding::Dpcm => quantise_dpcm(targets, side, step, &mut leaf.control),
         ControlCoding::Transform => {
-            // Each coefficient of the grid transform is quantised with its own step.
-            for (i, &v) in targets.coefficients.iter().enumerate().take(side * side) {
-                // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-                let index = deadzone_round(v / f64::from(coefficient_step(side, i, step)));
-                leaf.control[i] = index as i16;
-            }
+            quantise_coefficients(targets, side, step, &mut leaf.control);
             let mut values = [0i16; MAX_CONTROL];
             transform_control_values(side, step, &leaf.control, &mut values);
             values
@@ -97,26 +207,83 @@ pub fn quantise(
 }
 
 /// DPCM within the leaf, against the values the decoder will reconstruct: writes the indices
-/// and returns those values.
+/// and returns those values. With error feedback, each value aims at what best makes up for the
+/// errors of the values before it, with a dead zone by its weight in the patch's error.
 fn quantise_dpcm(
-    grid: &[f64; MAX_CONTROL],
+    targets: &ControlTargets,
     side: usize,
     step: i32,
     indices: &mut [i16; MAX_CONTROL],
 ) -> [i16; MAX_CONTROL] {
+    let n = side * side;
     let mut values = [0i16; MAX_CONTROL];
-    for (i, &target) in grid.iter().enumerate().take(side * side) {
+    let mut errors = [0.0f64; MAX_CONTROL];
+    let factor = targets.exact.as_ref().map(|e| &e.feedback.values);
+    let mean_weight = factor.map_or(1.0, |f| f.weights[..n].iter().sum::<f64>() / n as f64);
+    for i in 0..n {
+        let (target, relative_weight) = match (&targets.exact, factor) {
+            (Some(exact), Some(f)) => (
+                (exact.samples[i] + f.compensation(i, &errors[..i]))
+                    .clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX)),
+                f.weights[i] / mean_weight,
+            ),
+            _ => (targets.samples[i], 1.0),
+        };
         let base = if i == 0 {
             0
         } else {
             intra_prediction(&values, side, i / side, i % side)
         };
         // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
-        let index = deadzone_round((target - f64::from(base)) / f64::from(step));
+        let index = deadzone_round(
+            (target - f64::from(base)) / f64::from(step),
+            relative_weight,
+        );
         indices[i] = index as i16;
         values[i] = dequantise_control(base, step, index);
+        if let Some(exact) = &targets.exact {
+            errors[i] = f64::from(values[i]) - exact.samples[i];
+        }
     }
     values
+}
+
+/// Grid-transform coefficients, each with its band's step, in coding order (with error feedback
+/// and weighted dead zones as in [`quantise_dpcm`]).
+fn quantise_coefficients(
+    targets: &ControlTargets,
+    side: usize,
+    step: i32,
+    indices: &mut [i16; MAX_CONTROL],
+) {
+    let order = transform_order(side);
+    let mut steps = [0.0f64; MAX_CONTROL];
+    for (s, &i) in steps.iter_mut().zip(order) {
+        *s = f64::from(coefficient_step(side, usize::from(i), step));
+    }
+    let factor = targets.exact.as_ref().map(|e| &e.feedback.coefficients);
+    // A coefficient's weight in the patch's error, per step.
+    let weight = |f: &SequentialFactor, k: usize| f.weights[k] * steps[k] * steps[k];
+    let mean_weight = factor.map_or(1.0, |f| {
+        (0..order.len()).map(|k| weight(f, k)).sum::<f64>() / order.len() as f64
+    });
+    let mut errors = [0.0f64; MAX_CONTROL];
+    for (k, &i) in order.iter().enumerate() {
+        let i = usize::from(i);
+        let (target, relative_weight) = match (&targets.exact, factor) {
+            (Some(exact), Some(f)) => (
+                exact.coefficients[i] + f.compensation(k, &errors[..k]),
+                weight(f, k) / mean_weight,
+            ),
+            _ => (targets.coefficients[i], 1.0),
+        };
+        // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
+        let index = deadzone_round(target / steps[k], relative_weight);
+        indices[i] = index as i16;
+        if let Some(exact) = &targets.exact {
+            errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
+        }
+    }
 }
 
 /// The forward grid transform of control values (row-major, side `side`), in real arithmetic:
@@ -163,13 +330,20 @@ fn forward_line(g: &mut [f64; MAX_CONTROL], start: usize, stride: usize, m: usiz
     }
 }
 
-/// Rounding offset of the control quantisers: values are rounded towards zero unless they are
-/// at least this far past a step, so that small residuals cost nothing (a dead zone).
+/// Rounding offset of the control quantisers for a value of average weight in the patch's
+/// error: values are rounded towards zero unless they are at least this far past a step, so that
+/// small residuals cost nothing (a dead zone).
 const ROUNDING_OFFSET: f64 = 0.35;
 
-fn deadzone_round(v: f64) -> i32 {
+/// Rounds `v` (in steps) with a dead zone that widens as the value's weight in the patch's error,
+/// relative to the leaf's mean (`relative_weight`), falls: the rounding offset is
+/// `0.5 - (0.5 - ROUNDING_OFFSET) / relative_weight`, at least 0. Rounding a value up costs
+/// about the same bits whatever its weight, but buys an error reduction in proportion to it
+/// (on six Kodak images this gained 0.04 to 0.06 dB over one dead zone for all).
+fn deadzone_round(v: f64, relative_weight: f64) -> i32 {
+    let offset = (0.5 - (0.5 - ROUNDING_OFFSET) / relative_weight.max(1e-9)).max(0.0);
     // The truncating cast floors the non-negative magnitude (no libm call).
-    let magnitude = (v.abs() + ROUNDING_OFFSET) as i32;
+    let magnitude = (v.abs() + offset) as i32;
     if v < 0.0 {
         -magnitude
     } else {
@@ -246,6 +420,7 @@ pub fn weight_classes(model: u8) -> Vec<WeightClass> {
 mod tests {
     use super::*;
     use decoder_core::model::inverse_grid_transform;
+    use nalgebra::DVector;
 
     const SIDES: [usize; 4] = [2, 3, 5, 9];
 
@@ -281,6 +456,112 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A pseudo-random symmetric positive definite matrix (`A^T A + I`).
+    fn random_form(n: usize, seed: u64) -> DMatrix<f64> {
+        let mut seed = seed;
+        let a = DMatrix::from_fn(n, n, |_, _| {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((seed >> 33) as f64 / f64::from(1u32 << 31)) - 0.5
+        });
+        a.transpose() * a + DMatrix::identity(n, n)
+    }
+
+    /// The sequential factor reproduces the form, and its compensation is the error of the next
+    /// variable that minimises the form when the later variables are free: the conditional
+    /// minimiser `-(G_RR^-1 G_RF d_F)_0`, solved directly.
+    #[test]
+    fn sequential_factor_gives_the_conditional_minimiser() {
+        let n = 9;
+        let g = random_form(n, 3);
+        let f = SequentialFactor::new(&g).expect("positive definite");
+        let d: Vec<f64> = (0..n).map(|i| (i as f64 * 0.7).sin() * 3.0).collect();
+        let form =
+            (DVector::from_vec(d.clone()).transpose() * &g * DVector::from_vec(d.clone()))[(0, 0)];
+        let factored: f64 = (0..n)
+            .map(|k| {
+                let row = &f.rows[k * (k + 1) / 2..][..=k];
+                let v: f64 = row.iter().zip(&d).map(|(a, b)| a * b).sum();
+                v * v
+            })
+            .sum();
+        assert!(
+            (form - factored).abs() <= 1e-9 * form,
+            "{form} vs {factored}"
+        );
+        for k in 1..n {
+            let free = g.view((k, k), (n - k, n - k)).into_owned();
+            let coupling = g.view((k, 0), (n - k, k)).into_owned();
+            let rhs = -(coupling * DVector::from_column_slice(&d[..k]));
+            let best = free.cholesky().expect("positive definite").solve(&rhs);
+            let c = f.compensation(k, &d[..k]);
+            assert!(
+                (c - best[0]).abs() <= 1e-9 * best[0].abs().max(1.0),
+                "variable {k}"
+            );
+        }
+        for k in 0..n {
+            assert_eq!(f.weights[k], g[(k, k)]);
+        }
+    }
+
+    /// On the bundled sample image, error feedback with weighted dead zones lowers the error
+    /// that quantising the 9x9 model's grid transform adds to its exact fits (summed over blocks
+    /// and mid-range steps) by more than a tenth, for under 5% more nonzero indices, against
+    /// rounding each coefficient on its own with the plain dead zone (measured when written:
+    /// 17% less error for 4% more nonzero indices; the rate/distortion gain itself is measured
+    /// on Kodak by `bench/kodak.sh`).
+    #[test]
+    fn error_feedback_lowers_the_added_error() {
+        use super::super::fit::fit_default;
+        use decoder_core::quadtree::Node;
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
+        let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
+        let (model, log2) = (4u8, 4u8);
+        let side = MODELS[usize::from(model)].grid();
+        let n = side * side;
+        let (mut with, mut without) = ((0.0, 0usize), (0.0, 0usize));
+        for by in (0..plane.height >> log2).step_by(2) {
+            for bx in (0..plane.width >> log2).step_by(2) {
+                let node = Node {
+                    x: bx << log2,
+                    y: by << log2,
+                    log2,
+                };
+                let fit = fit_default(&plane, &node, model);
+                let targets = ControlTargets::of(&fit, log2);
+                let mut plain = ControlTargets::of(&fit, log2);
+                plain.exact = None;
+                for step in [192, 384, 768] {
+                    let added = |t: &ControlTargets, sum: &mut (f64, usize)| {
+                        let mut indices = [0i16; MAX_CONTROL];
+                        quantise_coefficients(t, side, step, &mut indices);
+                        let mut values = [0i16; MAX_CONTROL];
+                        transform_control_values(side, step, &indices, &mut values);
+                        let control: Vec<f64> = values[..n]
+                            .iter()
+                            .map(|&v| f64::from(v) / f64::from(SAMPLE_ONE))
+                            .collect();
+                        let error = fit.error_of(log2, &control).expect("an exact fit");
+                        sum.0 += error - fit.residual.expect("an exact fit");
+                        sum.1 += indices[..n].iter().filter(|&&q| q != 0).count();
+                    };
+                    added(&targets, &mut with);
+                    added(&plain, &mut without);
+                }
+            }
+        }
+        assert!(
+            with.0 < 0.9 * without.0 && (with.1 as f64) < 1.05 * without.1 as f64,
+            "added error {} with feedback, {} without; nonzero indices {} and {}",
+            with.0,
+            without.0,
+            with.1,
+            without.1
+        );
     }
 
     /// Every coefficient's step is scaled so that one step adds the same energy to the control
