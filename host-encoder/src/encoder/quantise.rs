@@ -76,6 +76,8 @@ struct SequentialFactor {
     /// The diagonal of the form, in the same order: each variable's weight in it when no other
     /// variable makes up for its error.
     weights: Vec<f64>,
+    /// The form itself, in the same order.
+    form: DMatrix<f64>,
 }
 
 impl SequentialFactor {
@@ -93,7 +95,11 @@ impl SequentialFactor {
             rows.extend((0..=k).map(|j| l[(n - 1 - j, col)]));
         }
         let weights = (0..n).map(|k| g[(k, k)]).collect();
-        Some(SequentialFactor { rows, weights })
+        Some(SequentialFactor {
+            rows,
+            weights,
+            form: g.clone(),
+        })
     }
 
     /// The error of variable `k` that keeps the form smallest, given the errors `done` of the
@@ -249,7 +255,7 @@ fn quantise_dpcm(
 }
 
 /// Grid-transform coefficients, each with its band's step, in coding order (with error feedback
-/// and weighted dead zones as in [`quantise_dpcm`]).
+/// and weighted dead zones as in [`quantise_dpcm`]), then refined ([`refine_coefficients`]).
 fn quantise_coefficients(
     targets: &ControlTargets,
     side: usize,
@@ -261,27 +267,92 @@ fn quantise_coefficients(
     for (s, &i) in steps.iter_mut().zip(order) {
         *s = f64::from(coefficient_step(side, usize::from(i), step));
     }
-    let factor = targets.exact.as_ref().map(|e| &e.feedback.coefficients);
-    // A coefficient's weight in the patch's error, per step.
-    let weight = |f: &SequentialFactor, k: usize| f.weights[k] * steps[k] * steps[k];
-    let mean_weight = factor.map_or(1.0, |f| {
-        (0..order.len()).map(|k| weight(f, k)).sum::<f64>() / order.len() as f64
-    });
+    let Some(exact) = &targets.exact else {
+        for (k, &i) in order.iter().enumerate() {
+            let i = usize::from(i);
+            // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
+            indices[i] = deadzone_round(targets.coefficients[i] / steps[k], 1.0) as i16;
+        }
+        return;
+    };
+    let f = &exact.feedback.coefficients;
+    // Each coefficient's weight in the patch's error per step, relative to the leaf's mean.
+    let mut relative_weights = [0.0f64; MAX_CONTROL];
+    for (k, w) in relative_weights.iter_mut().enumerate().take(order.len()) {
+        *w = f.weights[k] * steps[k] * steps[k];
+    }
+    let mean = relative_weights.iter().sum::<f64>() / order.len() as f64;
+    relative_weights.iter_mut().for_each(|w| *w /= mean);
     let mut errors = [0.0f64; MAX_CONTROL];
     for (k, &i) in order.iter().enumerate() {
         let i = usize::from(i);
-        let (target, relative_weight) = match (&targets.exact, factor) {
-            (Some(exact), Some(f)) => (
-                exact.coefficients[i] + f.compensation(k, &errors[..k]),
-                weight(f, k) / mean_weight,
-            ),
-            _ => (targets.coefficients[i], 1.0),
-        };
-        // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-        let index = deadzone_round(target / steps[k], relative_weight);
+        let target = exact.coefficients[i] + f.compensation(k, &errors[..k]);
+        let index = deadzone_round(target / steps[k], relative_weights[k]);
         indices[i] = index as i16;
-        if let Some(exact) = &targets.exact {
-            errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
+        errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
+    }
+    let quantiser = CoefficientQuantiser {
+        order,
+        steps: &steps,
+        relative_weights: &relative_weights,
+        exact: &exact.coefficients,
+        form: &f.form,
+    };
+    quantiser.refine(&mut errors, indices);
+}
+
+/// Passes of [`CoefficientQuantiser::refine`] at most. On six Kodak images one pass gained
+/// 0.02 to 0.04 dB; going on until a pass changes nothing (capped here, as dead-zone rounding
+/// could cycle) another 0.01 to 0.03 dB, for about a tenth more analysis time.
+const MAX_REFINEMENT_PASSES: usize = 8;
+
+/// What refining the quantised coefficients of one leaf needs, in coding order.
+struct CoefficientQuantiser<'a> {
+    order: &'a [u8],
+    steps: &'a [f64; MAX_CONTROL],
+    relative_weights: &'a [f64; MAX_CONTROL],
+    /// The exact coefficients, by grid position.
+    exact: &'a [f64; MAX_CONTROL],
+    /// The patch error's quadratic form over the coefficients in coding order.
+    form: &'a DMatrix<f64>,
+}
+
+impl CoefficientQuantiser<'_> {
+    /// Coordinate descent on the patch error: each coefficient in turn is quantised again
+    /// towards the value that is best given all the others (the sequential pass only knew the
+    /// earlier ones), until a pass changes nothing. `errors` (coefficient errors in coding order)
+    /// and `indices` are updated together; the gradient `G e` is kept up to date at the cost of
+    /// one column per change.
+    fn refine(&self, errors: &mut [f64; MAX_CONTROL], indices: &mut [i16; MAX_CONTROL]) {
+        let n = self.order.len();
+        let g = self.form.as_slice();
+        let mut gradient = [0.0f64; MAX_CONTROL];
+        for (column, &e) in g.chunks_exact(n).zip(errors.iter()) {
+            for (d, &c) in gradient.iter_mut().zip(column) {
+                *d += c * e;
+            }
+        }
+        for _ in 0..MAX_REFINEMENT_PASSES {
+            let mut changed = false;
+            for (k, &i) in self.order.iter().enumerate() {
+                let i = usize::from(i);
+                let column = &g[k * n..(k + 1) * n];
+                let target = self.exact[i] + errors[k] - gradient[k] / column[k];
+                let index = deadzone_round(target / self.steps[k], self.relative_weights[k]);
+                let error = f64::from(index) * self.steps[k] - self.exact[i];
+                let delta = error - errors[k];
+                if delta != 0.0 {
+                    changed = true;
+                    indices[i] = index as i16;
+                    errors[k] = error;
+                    for (d, &c) in gradient.iter_mut().zip(column) {
+                        *d += c * delta;
+                    }
+                }
+            }
+            if !changed {
+                break;
+            }
         }
     }
 }
@@ -508,12 +579,12 @@ mod tests {
         }
     }
 
-    /// On the bundled sample image, error feedback with weighted dead zones lowers the error
-    /// that quantising the 9x9 model's grid transform adds to its exact fits (summed over blocks
-    /// and mid-range steps) by more than a tenth, for under 5% more nonzero indices, against
-    /// rounding each coefficient on its own with the plain dead zone (measured when written:
-    /// 17% less error for 4% more nonzero indices; the rate/distortion gain itself is measured
-    /// on Kodak by `bench/kodak.sh`).
+    /// On the bundled sample image, error feedback with weighted dead zones and refinement
+    /// lowers the error that quantising the 9x9 model's grid transform adds to its exact fits
+    /// (summed over blocks and mid-range steps) by more than a tenth, with no more nonzero
+    /// indices, against rounding each coefficient on its own with the plain dead zone (measured
+    /// when written: 18% less error, 1% fewer nonzero indices; the rate/distortion gain itself
+    /// is measured on Kodak by `bench/kodak.sh`).
     #[test]
     fn error_feedback_lowers_the_added_error() {
         use super::super::fit::fit_default;
@@ -555,7 +626,7 @@ mod tests {
             }
         }
         assert!(
-            with.0 < 0.9 * without.0 && (with.1 as f64) < 1.05 * without.1 as f64,
+            with.0 < 0.9 * without.0 && with.1 <= without.1,
             "added error {} with feedback, {} without; nonzero indices {} and {}",
             with.0,
             without.0,
