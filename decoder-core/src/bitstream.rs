@@ -19,7 +19,7 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 3;
+pub const VERSION: u8 = 4;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -661,7 +661,9 @@ fn code_control<C: Coder, P: SamplePrediction>(
     } else {
         &RASTER_ORDER[..side * side]
     };
-    let mut prev_mag = 0usize;
+    // The first coded value is grid position 0 in both orders, and the only one coded against
+    // a prediction: its residual's magnitude is kept for its neighbours' contexts.
+    let mut first_magnitude = 0;
     for (n, &i) in order.iter().enumerate() {
         let i = usize::from(i);
         let (r, col) = (i / side, i % side);
@@ -683,12 +685,43 @@ fn code_control<C: Coder, P: SamplePrediction>(
             (0, CLASS_INTERIOR)
         };
         let mut residual = i32::from(leaf.control[i]) - pred_index;
-        contexts[class].code(c, prev_mag, &mut residual)?;
+        let ctx = neighbourhood(&leaf.control, first_magnitude, side, r, col);
+        contexts[class].code(c, ctx, &mut residual)?;
         leaf.control[i] = i16::try_from(pred_index + residual)
             .map_err(|_| DecodeError::InvalidData("control value"))?;
-        prev_mag = residual.unsigned_abs().min(2) as usize;
+        if n == 0 {
+            first_magnitude = residual.unsigned_abs().min(2) as usize;
+        }
     }
     Ok(())
+}
+
+/// The zero-flag context of the control residual at grid position `(r, c)`: the sum of the
+/// magnitudes (each at most 2) of the residuals to its left and above, both coded before it in
+/// either coding order; on the first row or column, twice the one neighbour there is. Every
+/// index but the first (position 0, whose residual magnitude is `first_magnitude`) is its own
+/// residual.
+fn neighbourhood(
+    indices: &[i16; MAX_CONTROL],
+    first_magnitude: usize,
+    side: usize,
+    r: usize,
+    c: usize,
+) -> usize {
+    let magnitude = |p: usize| {
+        if p == 0 {
+            first_magnitude
+        } else {
+            usize::from(indices[p].unsigned_abs().min(2))
+        }
+    };
+    let i = r * side + c;
+    match (c > 0, r > 0) {
+        (true, true) => magnitude(i - 1) + magnitude(i - side),
+        (true, false) => 2 * magnitude(i - 1),
+        (false, true) => 2 * magnitude(i - side),
+        (false, false) => 0,
+    }
 }
 
 fn code_weights<C: Coder>(

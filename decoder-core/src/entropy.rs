@@ -202,11 +202,13 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
 /// bypass coded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IntContexts {
-    zero: [Prob; 3],
+    zero: [Prob; ZERO_CONTEXTS],
     sign: Prob,
     prefix: [Prob; PREFIX_CONTEXTS],
 }
 
+/// Neighbourhood classes of the zero flag (see [`IntContexts::code`]).
+pub const ZERO_CONTEXTS: usize = 5;
 /// Longest Exp-Golomb prefix: magnitudes are below `2^MAX_PREFIX`.
 pub const MAX_PREFIX: usize = 12;
 /// Prefix bits with a context of their own; later prefix bits (magnitudes of `2^5` and more,
@@ -222,20 +224,21 @@ impl Default for IntContexts {
 impl IntContexts {
     /// Fresh contexts ([`Prob::FRESH`]).
     pub const FRESH: IntContexts = IntContexts {
-        zero: [Prob::FRESH; 3],
+        zero: [Prob::FRESH; ZERO_CONTEXTS],
         sign: Prob::FRESH,
         prefix: [Prob::FRESH; PREFIX_CONTEXTS],
     };
 
-    /// Codes a signed integer `v` with `|v| < 2^MAX_PREFIX`. `ctx` (0..=2) selects the
-    /// neighbourhood class, usually from the size of the previous value of the same kind.
+    /// Codes a signed integer `v` with `|v| < 2^MAX_PREFIX`. `ctx` (below [`ZERO_CONTEXTS`];
+    /// larger values count as the last class) selects the neighbourhood class of the zero flag,
+    /// from the sizes of earlier values of the same kind.
     pub fn code<C: Coder>(
         &mut self,
         c: &mut C,
         ctx: usize,
         v: &mut i32,
     ) -> Result<(), DecodeError> {
-        let ctx = ctx.min(2);
+        let ctx = ctx.min(ZERO_CONTEXTS - 1);
         let mut nonzero = *v != 0;
         c.bit(&mut self.zero[ctx], &mut nonzero)?;
         if !nonzero {

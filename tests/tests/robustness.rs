@@ -156,7 +156,8 @@ fn header_errors_are_typed() {
         ("version 0", with(4, 0), DecodeError::UnsupportedVersion(0)),
         ("version 1", with(4, 1), DecodeError::UnsupportedVersion(1)),
         ("version 2", with(4, 2), DecodeError::UnsupportedVersion(2)),
-        ("version 4", with(4, 4), DecodeError::UnsupportedVersion(4)),
+        ("version 3", with(4, 3), DecodeError::UnsupportedVersion(3)),
+        ("version 5", with(4, 5), DecodeError::UnsupportedVersion(5)),
         (
             "version 255",
             with(4, 255),
