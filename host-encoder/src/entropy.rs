@@ -1,6 +1,6 @@
 //! Encoder side of the arithmetic coder: the range encoder that writes streams, and the
 //! counting coder the rate optimiser uses. Both implement decoder-core's
-//! [`Coder`](decoder_core::entropy::Coder), so they run the very syntax code the decoder runs.
+//! [`decoder_core::entropy::Coder`], so they run the very syntax code the decoder runs.
 
 use decoder_core::entropy::{Coder, Prob, PROB_BITS, RANGE_TOP};
 use decoder_core::DecodeError;
