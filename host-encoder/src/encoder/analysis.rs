@@ -3,7 +3,7 @@
 //! candidate's distortion is measured through decoder-core's own reconstruction (closed loop).
 
 use super::fit::{fit_default, fit_weighted, Fit};
-use super::quantise::{lloyd_max, quantise, weight_classes, ControlTargets};
+use super::quantise::{lloyd_max, quantise, weight_classes, ControlTargets, Quantised};
 use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
 use decoder_core::bitstream::{models_for_block, Codebook, Header, SamplePrediction};
@@ -288,10 +288,9 @@ impl Analysis {
                                 &[ControlCoding::Dpcm]
                             };
                             for &coding in codings {
-                                let (leaf, values) =
-                                    quantise(fit, &targets, cq, wq, coding, &header.codebooks);
-                                let sse =
-                                    quantised_sse(plane, header, &na.node, fit, &leaf, &values);
+                                let q = quantise(fit, &targets, cq, wq, coding, &header.codebooks);
+                                let sse = quantised_sse(plane, header, &na.node, fit, &q);
+                                let leaf = q.leaf;
                                 let (nc, nw) = (model.control_count(), model.weight_count());
                                 let at = indices.len() as u32;
                                 indices.extend_from_slice(&leaf.control[..nc]);
@@ -359,24 +358,21 @@ const HULL_LAYERS: usize = 2;
 const MIN_ESTIMATED_MSE: f64 = 2.0;
 
 /// Squared error of a quantised leaf: by the quadratic form of an exact fit where there is one
-/// ([`Fit::error_of`]: the reconstructed control values exactly, the synthesis in real
-/// arithmetic, so it differs from the closed loop only by the integer synthesis's rounding
-/// and clamping), else by [`closed_loop_sse`].
-fn quantised_sse(
-    plane: &Plane,
-    header: &Header,
-    node: &Node,
-    fit: &Fit,
-    leaf: &decoder_core::LeafSyntax,
-    values: &[i16; decoder_core::model::MAX_CONTROL],
-) -> f64 {
-    if fit.residual.is_some() {
-        let n = MODELS[usize::from(fit.model)].control_count();
-        let mut control = [0.0f64; decoder_core::model::MAX_CONTROL];
-        for (c, &v) in control.iter_mut().zip(&values[..n]) {
-            *c = f64::from(v) / f64::from(SAMPLE_ONE);
-        }
-        if let Some(sse) = fit.error_of(node.log2, &control[..n]) {
+/// (the error quantisation added, which error feedback computed, or else [`Fit::error_of`]: the
+/// reconstructed control values, or coefficients, exactly and the synthesis in real arithmetic,
+/// so it differs from the closed loop only by the integer synthesis's rounding and clamping),
+/// else by [`closed_loop_sse`].
+fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
+    if let Some(residual) = fit.residual {
+        let estimate = q.added_error.map(|added| residual + added).or_else(|| {
+            let n = MODELS[usize::from(fit.model)].control_count();
+            let mut control = [0.0f64; decoder_core::model::MAX_CONTROL];
+            for (c, &v) in control.iter_mut().zip(&q.values[..n]) {
+                *c = f64::from(v) / f64::from(SAMPLE_ONE);
+            }
+            fit.error_of(node.log2, &control[..n])
+        });
+        if let Some(sse) = estimate {
             // The integer synthesis's rounding adds about 1/12 per pixel and its clamping can
             // remove error; both matter only when the error itself is that small, where the
             // closed loop decides.
@@ -386,7 +382,7 @@ fn quantised_sse(
             }
         }
     }
-    closed_loop_sse(plane, header, node, leaf)
+    closed_loop_sse(plane, header, node, &q.leaf)
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
@@ -495,14 +491,21 @@ mod tests {
                     .into_iter()
                     .flat_map(|c| codings.map(|d| (c, d)))
                 {
-                    let (leaf, values) = quantise(&fit, &targets, cq, 0, coding, &header.codebooks);
+                    let q = quantise(&fit, &targets, cq, 0, coding, &header.codebooks);
                     let n = MODELS[usize::from(m)].control_count();
-                    let control: Vec<f64> = values[..n]
+                    let control: Vec<f64> = q.values[..n]
                         .iter()
                         .map(|&v| f64::from(v) / f64::from(SAMPLE_ONE))
                         .collect();
                     let estimate = fit.error_of(log2, &control).expect("an interior exact fit");
-                    let closed = closed_loop_sse(&plane, &header, &node, &leaf);
+                    // Error feedback's own figure agrees with the form of the values.
+                    let residual = fit.residual.expect("an interior exact fit");
+                    let fed_back = residual + q.added_error.expect("error feedback");
+                    assert!(
+                        (fed_back - estimate).abs() <= 0.02 * estimate + 1.0,
+                        "model {m} at {log2}, cq {cq}, {coding:?}: feedback {fed_back}, form {estimate}"
+                    );
+                    let closed = closed_loop_sse(&plane, &header, &node, &q.leaf);
                     let pixels = f64::from(node.size() * node.size());
                     let bound = (pixels * estimate).sqrt() + 0.25 * pixels;
                     assert!(

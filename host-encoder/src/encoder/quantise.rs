@@ -102,13 +102,56 @@ impl SequentialFactor {
         })
     }
 
+    /// Row `k` of the factor.
+    fn row(&self, k: usize) -> &[f64] {
+        &self.rows[k * (k + 1) / 2..][..=k]
+    }
+
+    /// Row `k`'s product with the errors `done` of the variables before it: the error of variable
+    /// `k` that keeps the form smallest is minus this over the row's last entry
+    /// ([`SequentialFactor::compensation`]); once that variable's error `e` is made, the row
+    /// adds `(partial + last * e)^2` to the form.
+    fn partial(&self, k: usize, done: &[f64]) -> f64 {
+        dot(&self.row(k)[..k], done)
+    }
+
     /// The error of variable `k` that keeps the form smallest, given the errors `done` of the
     /// variables before it.
+    #[cfg(test)]
     fn compensation(&self, k: usize, done: &[f64]) -> f64 {
-        let row = &self.rows[k * (k + 1) / 2..][..=k];
-        let s: f64 = row[..k].iter().zip(done).map(|(v, e)| v * e).sum();
-        -s / row[k]
+        -self.partial(k, done) / self.row(k)[k]
     }
+
+    /// `V^T r`: with `r = V e`, the gradient `G e` of (half) the form at `e`.
+    fn transposed_product(&self, r: &[f64], out: &mut [f64; MAX_CONTROL]) {
+        *out = [0.0; MAX_CONTROL];
+        for (k, &rk) in r.iter().enumerate() {
+            for (o, &v) in out.iter_mut().zip(self.row(k)) {
+                *o += v * rk;
+            }
+        }
+    }
+}
+
+/// `a . b` over their common length, in four independent sums: a single running sum is one
+/// long chain of dependent additions, which the compiler may not reorder (nor vectorise).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut lanes = [0.0f64; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a4.zip(b4) {
+        for l in 0..4 {
+            lanes[l] += x[l] * y[l];
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
 }
 
 /// Error feedback for one model and block size: the sequential factors of the squared error over
@@ -157,9 +200,22 @@ impl ErrorFeedback {
     }
 }
 
+/// A quantised leaf: its syntax, the control values the decoder will reconstruct (sample units,
+/// row-major), which both codings compute anyway, and for an exact fit the squared error that
+/// quantisation adds to the fit's residual (grey levels squared), which error feedback computes
+/// anyway (for the grid transform through its real-valued inverse, which the decoder's integer
+/// lifting follows to within its roundings).
+pub struct Quantised {
+    /// The leaf's syntax elements.
+    pub leaf: LeafSyntax,
+    /// The reconstructed control values.
+    pub values: [i16; MAX_CONTROL],
+    /// The error quantisation adds to an exact fit's residual.
+    pub added_error: Option<f64>,
+}
+
 /// Quantises `fit` (whose control values `targets` holds) with control quantiser `cq`, control
-/// coding `coding` and weight quantiser `wq`; also returns the control values the decoder will
-/// reconstruct (sample units, row-major), which both codings compute anyway.
+/// coding `coding` and weight quantiser `wq`.
 pub fn quantise(
     fit: &Fit,
     targets: &ControlTargets,
@@ -167,7 +223,7 @@ pub fn quantise(
     wq: u8,
     coding: ControlCoding,
     codebooks: &[Codebook; 2],
-) -> (LeafSyntax, [i16; MAX_CONTROL]) {
+) -> Quantised {
     let model = MODELS[usize::from(fit.model)];
     let mut leaf = LeafSyntax {
         model: fit.model,
@@ -178,19 +234,26 @@ pub fn quantise(
     };
     let step = CONTROL_STEPS[usize::from(cq)];
     let side = model.grid();
-    let values = match coding {
+    let (values, form) = match coding {
         ControlCoding::Dpcm => quantise_dpcm(targets, side, step, &mut leaf.control),
         ControlCoding::Transform => {
-            quantise_coefficients(targets, side, step, &mut leaf.control);
+            let form = quantise_coefficients(targets, side, step, &mut leaf.control);
             let mut values = [0i16; MAX_CONTROL];
             transform_control_values(side, step, &leaf.control, &mut values);
-            values
+            (values, form)
         }
     };
+    // The forms are over errors in sample units.
+    let sample = f64::from(SAMPLE_ONE);
+    let added_error = form.map(|f| f / (sample * sample));
     let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
     if kind == WeightQuantiser::Default {
         // The default weights: every index stays zero.
-        return (leaf, values);
+        return Quantised {
+            leaf,
+            values,
+            added_error,
+        };
     }
     let mut i = 0;
     for_each_free_tap(model, |slot| {
@@ -209,29 +272,41 @@ pub fn quantise(
         };
         i += 1;
     });
-    (leaf, values)
+    Quantised {
+        leaf,
+        values,
+        added_error,
+    }
 }
 
 /// DPCM within the leaf, against the values the decoder will reconstruct: writes the indices
 /// and returns those values. With error feedback, each value aims at what best makes up for the
-/// errors of the values before it, with a dead zone by its weight in the patch's error.
+/// errors of the values before it, with a dead zone by its weight in the patch's error; then the
+/// form of the errors made (sample units) comes with the values.
 fn quantise_dpcm(
     targets: &ControlTargets,
     side: usize,
     step: i32,
     indices: &mut [i16; MAX_CONTROL],
-) -> [i16; MAX_CONTROL] {
+) -> ([i16; MAX_CONTROL], Option<f64>) {
     let n = side * side;
     let mut values = [0i16; MAX_CONTROL];
     let mut errors = [0.0f64; MAX_CONTROL];
-    let factor = targets.exact.as_ref().map(|e| &e.feedback.values);
-    let mean_weight = factor.map_or(1.0, |f| f.weights[..n].iter().sum::<f64>() / n as f64);
+    let exact = targets.exact.as_ref();
+    let mean_weight = exact.map_or(1.0, |e| {
+        e.feedback.values.weights[..n].iter().sum::<f64>() / n as f64
+    });
+    let mut form = 0.0;
     for i in 0..n {
-        let (target, relative_weight) = match (&targets.exact, factor) {
-            (Some(exact), Some(f)) => (
-                (exact.samples[i] + f.compensation(i, &errors[..i]))
-                    .clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX)),
-                f.weights[i] / mean_weight,
+        // With error feedback: the row's partial product and last entry.
+        let feedback = exact.map(|e| {
+            let f = &e.feedback.values;
+            (f.partial(i, &errors[..i]), f.row(i)[i])
+        });
+        let (target, relative_weight) = match (exact, feedback) {
+            (Some(e), Some((partial, last))) => (
+                (e.samples[i] - partial / last).clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX)),
+                e.feedback.values.weights[i] / mean_weight,
             ),
             _ => (targets.samples[i], 1.0),
         };
@@ -247,22 +322,27 @@ fn quantise_dpcm(
         );
         indices[i] = index as i16;
         values[i] = dequantise_control(base, step, index);
-        if let Some(exact) = &targets.exact {
-            errors[i] = f64::from(values[i]) - exact.samples[i];
+        if let (Some(e), Some((partial, last))) = (exact, feedback) {
+            errors[i] = f64::from(values[i]) - e.samples[i];
+            let r = partial + last * errors[i];
+            form += r * r;
         }
     }
-    values
+    (values, exact.map(|_| form))
 }
 
 /// Grid-transform coefficients, each with its band's step, in coding order (with error feedback
-/// and weighted dead zones as in [`quantise_dpcm`]), then refined ([`refine_coefficients`]).
+/// and weighted dead zones as in [`quantise_dpcm`]), then refined
+/// ([`CoefficientQuantiser::refine`]). With error feedback, returns the form of the coefficient
+/// errors made (sample units).
 fn quantise_coefficients(
     targets: &ControlTargets,
     side: usize,
     step: i32,
     indices: &mut [i16; MAX_CONTROL],
-) {
+) -> Option<f64> {
     let order = transform_order(side);
+    let n = order.len();
     let mut steps = [0.0f64; MAX_CONTROL];
     for (s, &i) in steps.iter_mut().zip(order) {
         *s = f64::from(coefficient_step(side, usize::from(i), step));
@@ -273,24 +353,30 @@ fn quantise_coefficients(
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
             indices[i] = deadzone_round(targets.coefficients[i] / steps[k], 1.0) as i16;
         }
-        return;
+        return None;
     };
     let f = &exact.feedback.coefficients;
     // Each coefficient's weight in the patch's error per step, relative to the leaf's mean.
     let mut relative_weights = [0.0f64; MAX_CONTROL];
-    for (k, w) in relative_weights.iter_mut().enumerate().take(order.len()) {
+    for (k, w) in relative_weights.iter_mut().enumerate().take(n) {
         *w = f.weights[k] * steps[k] * steps[k];
     }
-    let mean = relative_weights.iter().sum::<f64>() / order.len() as f64;
+    let mean = relative_weights.iter().sum::<f64>() / n as f64;
     relative_weights.iter_mut().for_each(|w| *w /= mean);
     let mut errors = [0.0f64; MAX_CONTROL];
+    // The rows' products with the errors: `V e`.
+    let mut rows = [0.0f64; MAX_CONTROL];
     for (k, &i) in order.iter().enumerate() {
         let i = usize::from(i);
-        let target = exact.coefficients[i] + f.compensation(k, &errors[..k]);
+        let (partial, last) = (f.partial(k, &errors[..k]), f.row(k)[k]);
+        let target = exact.coefficients[i] - partial / last;
         let index = deadzone_round(target / steps[k], relative_weights[k]);
         indices[i] = index as i16;
         errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
+        rows[k] = partial + last * errors[k];
     }
+    let mut gradient = [0.0f64; MAX_CONTROL];
+    f.transposed_product(&rows[..n], &mut gradient);
     let quantiser = CoefficientQuantiser {
         order,
         steps: &steps,
@@ -298,7 +384,9 @@ fn quantise_coefficients(
         exact: &exact.coefficients,
         form: &f.form,
     };
-    quantiser.refine(&mut errors, indices);
+    quantiser.refine(&mut errors, &mut gradient, indices);
+    // e^T G e, from the gradient kept up to date.
+    Some(errors[..n].iter().zip(&gradient).map(|(e, g)| e * g).sum())
 }
 
 /// Passes of [`CoefficientQuantiser::refine`] at most. On six Kodak images one pass gained
@@ -320,18 +408,17 @@ struct CoefficientQuantiser<'a> {
 impl CoefficientQuantiser<'_> {
     /// Coordinate descent on the patch error: each coefficient in turn is quantised again
     /// towards the value that is best given all the others (the sequential pass only knew the
-    /// earlier ones), until a pass changes nothing. `errors` (coefficient errors in coding order)
-    /// and `indices` are updated together; the gradient `G e` is kept up to date at the cost of
-    /// one column per change.
-    fn refine(&self, errors: &mut [f64; MAX_CONTROL], indices: &mut [i16; MAX_CONTROL]) {
+    /// earlier ones), until a pass changes nothing. `errors` (coefficient errors in coding
+    /// order), their `gradient` `G e` and `indices` are updated together, at the cost of one
+    /// column of `G` per change.
+    fn refine(
+        &self,
+        errors: &mut [f64; MAX_CONTROL],
+        gradient: &mut [f64; MAX_CONTROL],
+        indices: &mut [i16; MAX_CONTROL],
+    ) {
         let n = self.order.len();
         let g = self.form.as_slice();
-        let mut gradient = [0.0f64; MAX_CONTROL];
-        for (column, &e) in g.chunks_exact(n).zip(errors.iter()) {
-            for (d, &c) in gradient.iter_mut().zip(column) {
-                *d += c * e;
-            }
-        }
         for _ in 0..MAX_REFINEMENT_PASSES {
             let mut changed = false;
             for (k, &i) in self.order.iter().enumerate() {
