@@ -7,6 +7,7 @@
 use crate::checksum::Crc32;
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::DecodeError;
+use crate::initial_contexts::INITIAL_PROBABILITIES;
 use crate::model::{
     band_level, coefficient_step, div_round, for_each_free_tap, inverse_grid_transform,
     transform_order, ModelType, WeightQuantiser, Weights, CONTROL_QUANTISERS, CONTROL_STEPS,
@@ -19,7 +20,7 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 4;
+pub const VERSION: u8 = 5;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -385,14 +386,23 @@ pub struct Contexts {
 }
 
 impl Default for Contexts {
+    /// The contexts at the start of every stream ([`Contexts::start`]).
     fn default() -> Self {
-        Contexts::FRESH
+        let mut contexts = Contexts::FRESH;
+        contexts.start();
+        contexts
     }
 }
 
+/// Number of adaptive contexts of a stream ([`Contexts::for_each_prob`]).
+pub const CONTEXT_COUNT: usize = (MAX_LEAF_LOG2 as usize + 1) * (1 + MODEL_COUNT)
+    + MODEL_COUNT * (16 + WEIGHT_QUANTISERS + 1)
+    + (STEP_GROUPS * CONTROL_CLASSES + 4) * IntContexts::COUNT;
+
 impl Contexts {
-    /// The contexts at the start of every stream. All zero bits, so that a decoder clears them
-    /// in place rather than building a copy on its stack.
+    /// Every context at probability one half with no bits coded: all zero bits, so that a
+    /// decoder clears its contexts in place (rather than building a copy on its stack) before
+    /// [`Contexts::start`] sets them.
     pub const FRESH: Contexts = Contexts {
         split: [Prob::FRESH; MAX_LEAF_LOG2 as usize + 1],
         model: [[Prob::FRESH; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
@@ -402,6 +412,34 @@ impl Contexts {
         control: [[IntContexts::FRESH; CONTROL_CLASSES]; STEP_GROUPS],
         weights: [[IntContexts::FRESH; 2]; 2],
     };
+
+    /// Sets every context to its state at the start of a stream: the trained probability of
+    /// [`INITIAL_PROBABILITIES`], in [`Contexts::for_each_prob`] order, as if
+    /// [`crate::entropy::INITIAL_COUNT`] bits had been coded with it. Fresh contexts would
+    /// spend the first bits of every stream learning what every stream looks like.
+    pub fn start(&mut self) {
+        let mut table = INITIAL_PROBABILITIES.iter();
+        self.for_each_prob(|p| *p = Prob::initial(table.next().copied().unwrap_or(128)));
+    }
+
+    /// Calls `f` on every context, in the order of the specification's table of initial
+    /// probabilities: split flags by level, model by level (row-major), cquant by model, wquant
+    /// by model, coding by model, the control integer classes by step group then class, the
+    /// weight integer classes by `N == 4` then weight class (each integer class as
+    /// [`IntContexts::for_each_prob`]).
+    pub fn for_each_prob(&mut self, mut f: impl FnMut(&mut Prob)) {
+        self.split.iter_mut().for_each(&mut f);
+        self.model.iter_mut().flatten().for_each(&mut f);
+        self.cquant.iter_mut().flatten().for_each(&mut f);
+        self.wquant.iter_mut().flatten().for_each(&mut f);
+        self.coding.iter_mut().for_each(&mut f);
+        for class in self.control.iter_mut().flatten() {
+            class.for_each_prob(&mut f);
+        }
+        for class in self.weights.iter_mut().flatten() {
+            class.for_each_prob(&mut f);
+        }
+    }
 }
 
 /// Number of leaf corners remembered for predicting a leaf's first control value.
@@ -830,4 +868,28 @@ fn reconstruct_weights(
     result?;
     patch.weights.balance();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table of initial probabilities covers every context exactly once, in the order
+    /// [`Contexts::start`] reads it.
+    #[test]
+    fn every_context_starts_from_its_table_entry() {
+        let mut contexts = Contexts::FRESH;
+        let mut count = 0;
+        contexts.for_each_prob(|_| count += 1);
+        assert_eq!(count, CONTEXT_COUNT);
+        contexts.start();
+        let mut table = INITIAL_PROBABILITIES.iter();
+        contexts.for_each_prob(|p| {
+            let q = *table.next().expect("an entry per context");
+            assert_eq!(*p, Prob::initial(q));
+            assert_eq!(p.probability(), 16 * u16::from(q.max(1)) + 8);
+            assert_eq!(p.count(), crate::entropy::INITIAL_COUNT);
+        });
+        assert_eq!(contexts, Contexts::default());
+    }
 }

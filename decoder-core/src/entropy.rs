@@ -34,6 +34,9 @@ const HALF: u16 = PROB_ONE / 2;
 pub const COUNT_BITS: u32 = 4;
 const COUNT_MAX: u16 = (1 << COUNT_BITS) - 1;
 
+/// The count a context starts a stream with ([`Prob::initial`]).
+pub const INITIAL_COUNT: u16 = 2;
+
 /// Adaptation speed by the number of bits a context has coded: after each bit, its
 /// probability moves by `1 / 2^shift` of the distance to the observed outcome.
 pub const ADAPT_SHIFTS: [u32; 1 << COUNT_BITS] = [2, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5];
@@ -41,6 +44,22 @@ pub const ADAPT_SHIFTS: [u32; 1 << COUNT_BITS] = [2, 3, 3, 4, 4, 4, 4, 5, 5, 5, 
 impl Prob {
     /// A fresh context: probability one half, no bits coded.
     pub const FRESH: Prob = Prob(0);
+
+    /// A context that starts from probability `p8 / 256` of a `0` (at least 1/256 from either
+    /// end) as if it had already coded [`INITIAL_COUNT`] bits, so that it adapts at that
+    /// count's speed from the start.
+    pub const fn initial(p8: u8) -> Prob {
+        let p8 = if p8 == 0 { 1 } else { p8 as u16 };
+        // The middle of the 1/256 interval, in PROB_BITS bits.
+        let p = (p8 << (PROB_BITS - 8)) | (1 << (PROB_BITS - 9));
+        Prob(((p ^ HALF) << COUNT_BITS) | INITIAL_COUNT)
+    }
+
+    /// How many bits the context has coded (saturating at `2^COUNT_BITS - 1`), counting from
+    /// [`INITIAL_COUNT`] at the start of a stream.
+    pub fn count(self) -> u16 {
+        self.0 & COUNT_MAX
+    }
 
     /// `P(bit = 0) * PROB_ONE`.
     #[inline]
@@ -228,6 +247,16 @@ impl IntContexts {
         sign: Prob::FRESH,
         prefix: [Prob::FRESH; PREFIX_CONTEXTS],
     };
+
+    /// Number of contexts ([`IntContexts::for_each_prob`]).
+    pub const COUNT: usize = ZERO_CONTEXTS + 1 + PREFIX_CONTEXTS;
+
+    /// Calls `f` on every context, in a fixed order: the zero flags, the sign, the prefix bits.
+    pub fn for_each_prob(&mut self, mut f: impl FnMut(&mut Prob)) {
+        self.zero.iter_mut().for_each(&mut f);
+        f(&mut self.sign);
+        self.prefix.iter_mut().for_each(&mut f);
+    }
 
     /// Codes a signed integer `v` with `|v| < 2^MAX_PREFIX`. `ctx` (below [`ZERO_CONTEXTS`];
     /// larger values count as the last class) selects the neighbourhood class of the zero flag,

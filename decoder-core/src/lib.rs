@@ -32,6 +32,7 @@ pub mod bitstream;
 pub mod checksum;
 pub mod entropy;
 mod error;
+pub mod initial_contexts;
 pub mod model;
 pub mod patch;
 pub mod quadtree;

@@ -123,7 +123,9 @@ pub struct WalkState {
 }
 
 impl WalkState {
-    /// The state at the start of every stream.
+    /// Cleared state (fresh contexts, no corner remembered), all zero bits: a decoder clears
+    /// its state in place, then sets the contexts with [`Contexts::start`]. The state at the
+    /// start of a stream is [`WalkState::default`].
     pub const FRESH: WalkState = WalkState {
         contexts: Contexts::FRESH,
         predictor: Predictor::EMPTY,

@@ -284,6 +284,7 @@ pub(crate) fn run_walk<C: Coder, V: TreeVisitor>(
     visitor: &mut V,
 ) -> Result<(), DecodeError> {
     let mut state = quadtree::WalkState::FRESH;
+    state.contexts.start();
     quadtree::walk_with(header, coder, visitor, &mut state)
 }
 

@@ -315,3 +315,24 @@ fn golden_specs_match_golden_list() {
         .collect();
     assert_eq!(from_specs, from_list);
 }
+
+/// The specification's table of initial context probabilities (`docs/initial-contexts.md`) is
+/// the one decoder-core starts every stream from.
+#[test]
+fn initial_context_table_matches_the_specification() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/initial-contexts.md");
+    let text = std::fs::read_to_string(path).expect("docs/initial-contexts.md");
+    let block = text
+        .split("```")
+        .nth(1)
+        .expect("a code block holding the table");
+    let table: Vec<u8> = block
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse().expect("a probability in 1/256"))
+        .collect();
+    assert_eq!(
+        table,
+        decoder_core::initial_contexts::INITIAL_PROBABILITIES.to_vec()
+    );
+}
