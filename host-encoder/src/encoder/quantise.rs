@@ -108,18 +108,11 @@ impl SequentialFactor {
     }
 
     /// Row `k`'s product with the errors `done` of the variables before it: the error of variable
-    /// `k` that keeps the form smallest is minus this over the row's last entry
-    /// ([`SequentialFactor::compensation`]); once that variable's error `e` is made, the row
-    /// adds `(partial + last * e)^2` to the form.
+    /// `k` that keeps the form smallest (the later variables free) is minus this over the row's
+    /// last entry; once that variable's error `e` is made, the row adds
+    /// `(partial + last * e)^2` to the form.
     fn partial(&self, k: usize, done: &[f64]) -> f64 {
         dot(&self.row(k)[..k], done)
-    }
-
-    /// The error of variable `k` that keeps the form smallest, given the errors `done` of the
-    /// variables before it.
-    #[cfg(test)]
-    fn compensation(&self, k: usize, done: &[f64]) -> f64 {
-        -self.partial(k, done) / self.row(k)[k]
     }
 
     /// `V^T r`: with `r = V e`, the gradient `G e` of (half) the form at `e`.
@@ -655,7 +648,7 @@ mod tests {
             let coupling = g.view((k, 0), (n - k, k)).into_owned();
             let rhs = -(coupling * DVector::from_column_slice(&d[..k]));
             let best = free.cholesky().expect("positive definite").solve(&rhs);
-            let c = f.compensation(k, &d[..k]);
+            let c = -f.partial(k, &d[..k]) / f.row(k)[k];
             assert!(
                 (c - best[0]).abs() <= 1e-9 * best[0].abs().max(1.0),
                 "variable {k}"
