@@ -20,7 +20,7 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 5;
+pub const VERSION: u8 = 6;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -443,19 +443,46 @@ impl Contexts {
 }
 
 /// Number of leaf corners remembered for predicting a leaf's first control value.
-pub const CORNER_MEMORY: usize = 16;
+pub const CORNER_MEMORY: usize = 32;
 
 /// Where a leaf's first control value gets its prediction from.
 pub trait SamplePrediction {
     /// A prediction of the sample at pixel position `(x, y)`, and whether an earlier leaf had a
-    /// control point at exactly that position.
+    /// corner at exactly that position.
     fn predict(&self, x: u32, y: u32) -> (i32, bool);
+}
+
+/// Which corner of its leaf a remembered corner is. Each is remembered with the value of the
+/// leaf's own pixel nearest to it, so that a corner shared by several leaves says what each
+/// of them drew next to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+enum CornerRole {
+    /// The leaf's top-left corner: its own first pixel.
+    TopLeft = 0,
+    /// The top-right corner, with the pixel to its left: a later leaf's left neighbour.
+    TopRight = 1,
+    /// The bottom-left corner, with the pixel above it: a later leaf's upper neighbour.
+    BottomLeft = 2,
+    /// The bottom-right corner, with the pixel above and to its left.
+    BottomRight = 3,
+}
+
+/// A remembered corner: half its pixel coordinates (corners lie on even coordinates, and
+/// halves fit in 16 bits for every image size), the value of its leaf's pixel nearest to it,
+/// and its role.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Corner {
+    half_x: u16,
+    half_y: u16,
+    value: i16,
+    role: CornerRole,
 }
 
 /// Prediction state carried from leaf to leaf: the corners of recently decoded leaves.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Predictor {
-    corners: [(u32, u32, i16); CORNER_MEMORY],
+    corners: [Corner; CORNER_MEMORY],
     len: usize,
     next: usize,
 }
@@ -469,45 +496,98 @@ impl Default for Predictor {
 impl Predictor {
     /// No corner remembered (all zero bits, like [`Contexts::FRESH`]).
     pub const EMPTY: Predictor = Predictor {
-        corners: [(0, 0, 0); CORNER_MEMORY],
+        corners: [Corner {
+            half_x: 0,
+            half_y: 0,
+            value: 0,
+            role: CornerRole::TopLeft,
+        }; CORNER_MEMORY],
         len: 0,
         next: 0,
     };
+
+    /// The remembered corners, most recent first.
+    fn recent(&self) -> impl Iterator<Item = &Corner> {
+        (0..self.len).map(|k| &self.corners[(self.next + CORNER_MEMORY - 1 - k) % CORNER_MEMORY])
+    }
 }
 
 impl SamplePrediction for Predictor {
-    /// The remembered corner nearest to `(x, y)` (city-block distance, most recent first on
-    /// ties), else mid-grey.
+    /// The pixel at a leaf's top-left corner `(x, y)` from the pixels its neighbours drew next
+    /// to it: the left neighbour's `(x-1, y)` (a top-right corner at `(x, y)`), the upper
+    /// neighbour's `(x, y-1)` (a bottom-left corner) and the upper-left one's `(x-1, y-1)` (a
+    /// bottom-right corner), the most recent of each. With all three, their LOCO-I median; with
+    /// the left and upper ones, their mean; with one of them, that one. Otherwise the nearest
+    /// remembered corner (city-block distance, most recent first on ties), else mid-grey.
     fn predict(&self, x: u32, y: u32) -> (i32, bool) {
-        let mut best: Option<(u64, i16)> = None;
-        for k in 0..self.len {
-            // Walk from the most recent entry backwards.
-            let idx = (self.next + CORNER_MEMORY - 1 - k) % CORNER_MEMORY;
-            let (cx, cy, v) = self.corners[idx];
-            let d = u64::from(cx.abs_diff(x)) + u64::from(cy.abs_diff(y));
-            if best.is_none_or(|(bd, _)| d < bd) {
-                best = Some((d, v));
+        let (hx, hy) = (x / 2, y / 2);
+        let mut beside = [None::<i32>; 4];
+        let mut nearest: Option<(u32, i32)> = None;
+        for corner in self.recent() {
+            let d = u32::from(corner.half_x).abs_diff(hx) + u32::from(corner.half_y).abs_diff(hy);
+            let value = i32::from(corner.value);
+            if d == 0 {
+                beside[corner.role as usize].get_or_insert(value);
+            }
+            if nearest.is_none_or(|(nd, _)| d < nd) {
+                nearest = Some((d, value));
             }
         }
-        best.map_or((128 * SAMPLE_ONE, false), |(d, v)| (i32::from(v), d == 0))
+        let [_, left, up, up_left] = beside;
+        match (left, up, up_left) {
+            (Some(l), Some(u), Some(d)) => (med(l, u, d), true),
+            (Some(l), Some(u), None) => ((l + u) >> 1, true),
+            (Some(v), None, _) | (None, Some(v), _) => (v, true),
+            _ => nearest.map_or((128 * SAMPLE_ONE, false), |(d, v)| (v, d == 0)),
+        }
     }
 }
 
 impl Predictor {
-    /// Remembers the four corners of a decoded leaf of side `2^log2` at `(x, y)`.
+    /// Remembers the four corners of a decoded leaf of side `2^log2` at `(x, y)`, each with the
+    /// leaf's pixel nearest to it. The pixel one step inside a corner is taken on the straight
+    /// line between the corner's control value and the next one inwards (bilinearly in the
+    /// corner's last cell for the bottom-right one): exact for the bilinear model, and close to
+    /// the subdivision surface for the others.
     pub fn remember(&mut self, x: u32, y: u32, log2: u8, patch: &Patch) {
         let side = patch.model.grid();
         let m = side - 1;
+        // The grid spacing is a power of two: `2^log2 / m`.
+        let spacing_log2 = u32::from(log2).saturating_sub((m as u32).trailing_zeros());
+        let c = |r: usize, k: usize| i32::from(patch.control[r * side + k]);
+        // From control value `inner` towards the corner's `outer`, one pixel short of it.
+        let inside = |inner: i32, outer: i32| {
+            inner + (((outer - inner) * ((1 << spacing_log2) - 1)) >> spacing_log2)
+        };
         let s = 1u32 << log2;
-        let c = &patch.control;
         let corners = [
-            (x, y, c[0]),
-            (x + s, y, c[m]),
-            (x, y + s, c[m * side]),
-            (x + s, y + s, c[side * side - 1]),
+            (x, y, c(0, 0), CornerRole::TopLeft),
+            (x + s, y, inside(c(0, m - 1), c(0, m)), CornerRole::TopRight),
+            (
+                x,
+                y + s,
+                inside(c(m - 1, 0), c(m, 0)),
+                CornerRole::BottomLeft,
+            ),
+            (
+                x + s,
+                y + s,
+                inside(
+                    inside(c(m - 1, m - 1), c(m - 1, m)),
+                    inside(c(m, m - 1), c(m, m)),
+                ),
+                CornerRole::BottomRight,
+            ),
         ];
-        for corner in corners {
-            self.corners[self.next] = corner;
+        for (cx, cy, value, role) in corners {
+            // Leaf corners lie on even coordinates below 2^17; values stay between their
+            // control values, in the sample range.
+            self.corners[self.next] = Corner {
+                half_x: (cx / 2) as u16,
+                half_y: (cy / 2) as u16,
+                value: value as i16,
+                role,
+            };
             self.next = (self.next + 1) % CORNER_MEMORY;
             self.len = (self.len + 1).min(CORNER_MEMORY);
         }
@@ -641,7 +721,7 @@ pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
 
 /// Median edge detector (LOCO-I): the median of `left`, `up` and `left + up - up_left`.
 #[inline]
-fn med(left: i32, up: i32, up_left: i32) -> i32 {
+pub fn med(left: i32, up: i32, up_left: i32) -> i32 {
     let (lo, hi) = if left < up { (left, up) } else { (up, left) };
     if up_left >= hi {
         lo
@@ -873,6 +953,46 @@ fn reconstruct_weights(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bilinear leaf of side `2^log2` with control values `v` (row-major 2 x 2).
+    fn bilinear(v: [i16; 4]) -> Patch {
+        let mut patch = Patch::EMPTY;
+        patch.model = MODELS[0];
+        patch.control[..4].copy_from_slice(&v);
+        patch
+    }
+
+    /// A corner is remembered with its leaf's pixel next to it: exact for the bilinear model.
+    #[test]
+    fn corners_carry_the_pixel_next_to_them() {
+        let mut memory = Predictor::EMPTY;
+        // 4 px wide: pixel 3 of a ramp from 0 to 64 is 48; pixel (3, 3) of the bilinear
+        // surface 0, 64 / 32, 160 is 48 + (150 - 48) * 3/4 with 150 at (3, 4).
+        memory.remember(0, 0, 2, &bilinear([0, 64, 32, 160]));
+        assert_eq!(memory.predict(4, 0), (48, true));
+        assert_eq!(memory.predict(0, 4), (24, true));
+        let at_3_4 = 32 + (160 - 32) * 3 / 4;
+        assert_eq!(memory.predict(4, 4), (48 + (at_3_4 - 48) * 3 / 4, true));
+        // Nowhere near a corner: the nearest entry, not shared.
+        assert_eq!(memory.predict(12, 0), (48, false));
+    }
+
+    /// With left, upper and upper-left neighbours, the LOCO-I median of their pixels; with the
+    /// left and upper ones, their mean.
+    #[test]
+    fn first_value_is_predicted_from_the_neighbours_pixels() {
+        let flat = |v: i16| bilinear([v; 4]);
+        let mut memory = Predictor::EMPTY;
+        memory.remember(2, 0, 1, &flat(800));
+        memory.remember(0, 2, 1, &flat(1600));
+        assert_eq!(memory.predict(2, 2), (1200, true));
+        memory.remember(0, 0, 1, &flat(1120));
+        assert_eq!(memory.predict(2, 2), (1600 + 800 - 1120, true));
+        // Upper-left brighter than both: an edge, the darker side continues.
+        memory.remember(0, 0, 1, &flat(2000));
+        assert_eq!(memory.predict(2, 2), (800, true));
+        assert_eq!(Predictor::EMPTY.predict(0, 0), (128 * SAMPLE_ONE, false));
+    }
 
     /// The table of initial probabilities covers every context exactly once, in the order
     /// [`Contexts::start`] reads it.

@@ -158,7 +158,8 @@ fn header_errors_are_typed() {
         ("version 2", with(4, 2), DecodeError::UnsupportedVersion(2)),
         ("version 3", with(4, 3), DecodeError::UnsupportedVersion(3)),
         ("version 4", with(4, 4), DecodeError::UnsupportedVersion(4)),
-        ("version 6", with(4, 6), DecodeError::UnsupportedVersion(6)),
+        ("version 5", with(4, 5), DecodeError::UnsupportedVersion(5)),
+        ("version 7", with(4, 7), DecodeError::UnsupportedVersion(7)),
         (
             "version 255",
             with(4, 255),

@@ -6,7 +6,7 @@ use super::fit::{fit_default, fit_weighted, Fit};
 use super::quantise::{lloyd_max, quantise, weight_classes, ControlTargets, Quantised};
 use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
-use decoder_core::bitstream::{models_for_block, Codebook, Header, SamplePrediction};
+use decoder_core::bitstream::{med, models_for_block, Codebook, Header, SamplePrediction};
 use decoder_core::bitstream::{Contexts, ControlCoding};
 use decoder_core::model::{
     WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
@@ -317,8 +317,9 @@ impl Analysis {
 }
 
 /// The prediction of a leaf's first control value, estimated before the stream exists: except
-/// at the image's origin, an earlier leaf is taken to have had a control point at the leaf's
-/// corner, with the image's value there.
+/// at the image's origin, earlier leaves are taken to have drawn the image's own pixels next to
+/// the leaf's corner, predicted as the decoder's [`decoder_core::bitstream::Predictor`] does
+/// (LOCO-I median of the pixels to the left, above and above-left, or the one there is).
 pub struct ImagePrediction<'a> {
     /// The image.
     pub plane: &'a Plane,
@@ -337,7 +338,17 @@ impl ImagePrediction<'_> {
 
 impl SamplePrediction for ImagePrediction<'_> {
     fn predict(&self, x: u32, y: u32) -> (i32, bool) {
-        (self.sample(x, y), x > 0 || y > 0)
+        let p = match (x > 0, y > 0) {
+            (true, true) => med(
+                self.sample(x - 1, y),
+                self.sample(x, y - 1),
+                self.sample(x - 1, y - 1),
+            ),
+            (true, false) => self.sample(x - 1, y),
+            (false, true) => self.sample(x, y - 1),
+            (false, false) => self.sample(x, y),
+        };
+        (p, x > 0 || y > 0)
     }
 }
 
