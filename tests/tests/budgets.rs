@@ -212,3 +212,30 @@ fn one_analysis_serves_many_targets_deterministically() {
         *first[0].as_ref().unwrap()
     );
 }
+
+/// On a photograph (the bundled sample), a bit-per-pixel budget's stream fits and leaves less
+/// than 1% of the budget unused: rate control bisects towards the budget rather than stopping
+/// at the first stream that fits.
+#[test]
+fn photograph_budgets_are_spent() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
+    let plane = host_encoder::io::load_luma(std::path::Path::new(path)).expect("the sample");
+    let pixels = plane.data.len();
+    let rates = [0.05, 0.1, 0.25];
+    let targets: Vec<Target> = rates.iter().map(|&b| Target::Bpp(b)).collect();
+    let config = host_encoder::EncoderConfig {
+        trial_bpp: Target::trial_bpp(&targets, pixels),
+        ..host_encoder::EncoderConfig::default()
+    };
+    let analysis = analyse(plane, &config, &|_| {}).expect("analysis");
+    for b in rates {
+        let e = analysis.encode(Target::Bpp(b)).expect("encode");
+        let budget = (b * pixels as f64 / 8.0).floor() as usize;
+        assert!(e.bytes.len() <= budget, "Bpp({b}) overshot");
+        assert!(
+            e.bytes.len() * 100 >= budget * 99,
+            "Bpp({b}) wrote {} of {budget} bytes",
+            e.bytes.len()
+        );
+    }
+}

@@ -205,7 +205,10 @@ pub struct Encoded {
 }
 
 /// Most passes that spend the bytes a budget's stream left unused.
-const SPEND_PASSES: usize = 2;
+const SPEND_PASSES: usize = 6;
+
+/// A budget's stream is left as it is once it uses all but this share of the budget.
+const SPEND_UNTIL: f64 = 0.003;
 
 /// PSNR (peak 255) of a squared error over `pixels` pixels.
 pub fn psnr(sse: f64, pixels: usize) -> f64 {
@@ -327,28 +330,38 @@ impl Analysis {
             plan = smaller;
             written = smaller_written;
         }
-        // The estimate runs a little pessimistic at higher rates: spend what the stream left
-        // unused (scaled by the estimate's error), keeping a larger stream only if it fits.
+        // The estimate is off by a few percent: spend what the stream left unused (scaled by
+        // the estimate's error), keeping a larger stream only if it fits. An aim whose stream
+        // did not fit bounds the next ones: they bisect towards it.
+        let mut too_large: Option<f64> = None;
         for _ in 0..SPEND_PASSES {
             let unused = budget.saturating_sub(written.bytes.len()) as f64 * 8.0;
-            if unused <= 0.01 * budget as f64 * 8.0 {
+            if unused <= SPEND_UNTIL * budget as f64 * 8.0 {
                 break;
             }
             let scale = (plan.bits / written.payload_bits.max(1.0)).clamp(0.5, 2.0);
-            let larger = self.rates.plan_for_bits(
-                self,
-                header,
-                aim + 0.9 * scale * unused,
-                Some(plan.anchor()),
-            );
+            let mut next = aim + 0.9 * scale * unused;
+            if let Some(bound) = too_large {
+                next = next.min(0.5 * (aim + bound));
+            }
+            let larger = self
+                .rates
+                .plan_for_bits(self, header, next, Some(plan.anchor()));
             if larger.bits <= plan.bits {
-                break;
+                // No plan between this one and the bound: the budget falls in a gap of the
+                // lower convex hull.
+                if too_large.is_some() {
+                    break;
+                }
+                aim = next;
+                continue;
             }
             let larger_written = self.write(header, &larger)?;
             if larger_written.bytes.len() > budget {
-                break;
+                too_large = Some(next);
+                continue;
             }
-            aim += 0.9 * scale * unused;
+            aim = next;
             plan = larger;
             written = larger_written;
         }
