@@ -803,7 +803,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
             (0, CLASS_INTERIOR)
         };
         let mut residual = i32::from(leaf.control[i]) - pred_index;
-        let ctx = neighbourhood(&leaf.control, first_magnitude, side, r, col);
+        let ctx = zero_context(&leaf.control, first_magnitude, side, r, col);
         contexts[class].code(c, ctx, &mut residual)?;
         leaf.control[i] = i16::try_from(pred_index + residual)
             .map_err(|_| DecodeError::InvalidData("control value"))?;
@@ -814,12 +814,12 @@ fn code_control<C: Coder, P: SamplePrediction>(
     Ok(())
 }
 
-/// The zero-flag context of the control residual at grid position `(r, c)`: the sum of the
-/// magnitudes (each at most 2) of the residuals to its left and above, both coded before it in
-/// either coding order; on the first row or column, twice the one neighbour there is. Every
-/// index but the first (position 0, whose residual magnitude is `first_magnitude`) is its own
-/// residual.
-fn neighbourhood(
+/// The zero-flag context of the control residual at grid position `(r, c)` (below
+/// [`crate::entropy::ZERO_CONTEXTS`]): the sum of the magnitudes (each at most 2) of the
+/// residuals to its left and above, both coded before it in either coding order; on the first
+/// row or column, twice the one neighbour there is. Every index but the first (position 0,
+/// whose residual magnitude is `first_magnitude`) is its own residual.
+pub fn zero_context(
     indices: &[i16; MAX_CONTROL],
     first_magnitude: usize,
     side: usize,
