@@ -505,11 +505,6 @@ impl Predictor {
         len: 0,
         next: 0,
     };
-
-    /// The remembered corners, most recent first.
-    fn recent(&self) -> impl Iterator<Item = &Corner> {
-        (0..self.len).map(|k| &self.corners[(self.next + CORNER_MEMORY - 1 - k) % CORNER_MEMORY])
-    }
 }
 
 impl SamplePrediction for Predictor {
@@ -519,26 +514,35 @@ impl SamplePrediction for Predictor {
     /// bottom-right corner), the most recent of each. With all three, their LOCO-I median; with
     /// the left and upper ones, their mean; with one of them, that one. Otherwise the nearest
     /// remembered corner (city-block distance, most recent first on ties), else mid-grey.
+    #[inline(never)]
     fn predict(&self, x: u32, y: u32) -> (i32, bool) {
         let (hx, hy) = (x / 2, y / 2);
-        let mut beside = [None::<i32>; 4];
-        let mut nearest: Option<(u32, i32)> = None;
-        for corner in self.recent() {
+        // The values beside `(x, y)` by role, and a bit per role found.
+        let mut beside = [0i32; 4];
+        let mut found = 0u32;
+        let (mut nearest, mut nearest_value) = (u32::MAX, 128 * SAMPLE_ONE);
+        for k in 0..self.len {
+            // From the most recent entry backwards.
+            let corner = &self.corners[(self.next + CORNER_MEMORY - 1 - k) % CORNER_MEMORY];
             let d = u32::from(corner.half_x).abs_diff(hx) + u32::from(corner.half_y).abs_diff(hy);
             let value = i32::from(corner.value);
-            if d == 0 {
-                beside[corner.role as usize].get_or_insert(value);
+            let role = corner.role as usize;
+            if d == 0 && found & (1 << role) == 0 {
+                beside[role] = value;
+                found |= 1 << role;
             }
-            if nearest.is_none_or(|(nd, _)| d < nd) {
-                nearest = Some((d, value));
+            if d < nearest {
+                (nearest, nearest_value) = (d, value);
             }
         }
         let [_, left, up, up_left] = beside;
-        match (left, up, up_left) {
-            (Some(l), Some(u), Some(d)) => (med(l, u, d), true),
-            (Some(l), Some(u), None) => ((l + u) >> 1, true),
-            (Some(v), None, _) | (None, Some(v), _) => (v, true),
-            _ => nearest.map_or((128 * SAMPLE_ONE, false), |(d, v)| (v, d == 0)),
+        // Bit 0: the left neighbour's pixel, bit 1: the upper one's, bit 2: the upper-left one's.
+        match found >> 1 {
+            0b111 => (med(left, up, up_left), true),
+            0b011 => ((left + up) >> 1, true),
+            0b001 | 0b101 => (left, true),
+            0b010 | 0b110 => (up, true),
+            _ => (nearest_value, nearest == 0),
         }
     }
 }
@@ -549,48 +553,39 @@ impl Predictor {
     /// line between the corner's control value and the next one inwards (bilinearly in the
     /// corner's last cell for the bottom-right one): exact for the bilinear model, and close to
     /// the subdivision surface for the others.
+    #[inline(never)]
     pub fn remember(&mut self, x: u32, y: u32, log2: u8, patch: &Patch) {
         let side = patch.model.grid();
         let m = side - 1;
         // The grid spacing is a power of two: `2^log2 / m`.
-        let spacing_log2 = u32::from(log2).saturating_sub((m as u32).trailing_zeros());
-        let c = |r: usize, k: usize| i32::from(patch.control[r * side + k]);
+        let t = u32::from(log2).saturating_sub((m as u32).trailing_zeros());
+        // (Indices are below MAX_CONTROL; the clamp only spares a bounds check.)
+        let at = |i: usize| i32::from(patch.control[i.min(MAX_CONTROL - 1)]);
         // From control value `inner` towards the corner's `outer`, one pixel short of it.
-        let inside = |inner: i32, outer: i32| {
-            inner + (((outer - inner) * ((1 << spacing_log2) - 1)) >> spacing_log2)
-        };
+        let inside = |inner: i32, outer: i32| inner + (((outer - inner) * ((1 << t) - 1)) >> t);
+        let last = side * side - 1;
         let s = 1u32 << log2;
-        let corners = [
-            (x, y, c(0, 0), CornerRole::TopLeft),
-            (x + s, y, inside(c(0, m - 1), c(0, m)), CornerRole::TopRight),
-            (
-                x,
-                y + s,
-                inside(c(m - 1, 0), c(m, 0)),
-                CornerRole::BottomLeft,
-            ),
-            (
-                x + s,
-                y + s,
-                inside(
-                    inside(c(m - 1, m - 1), c(m - 1, m)),
-                    inside(c(m, m - 1), c(m, m)),
-                ),
-                CornerRole::BottomRight,
-            ),
-        ];
-        for (cx, cy, value, role) in corners {
-            // Leaf corners lie on even coordinates below 2^17; values stay between their
-            // control values, in the sample range.
-            self.corners[self.next] = Corner {
-                half_x: (cx / 2) as u16,
-                half_y: (cy / 2) as u16,
-                value: value as i16,
-                role,
-            };
-            self.next = (self.next + 1) % CORNER_MEMORY;
-            self.len = (self.len + 1).min(CORNER_MEMORY);
-        }
+        self.push(x, y, at(0), CornerRole::TopLeft);
+        self.push(x + s, y, inside(at(m - 1), at(m)), CornerRole::TopRight);
+        let bottom_left = inside(at(last - m - side), at(last - m));
+        self.push(x, y + s, bottom_left, CornerRole::BottomLeft);
+        let above = inside(at(last - side - 1), at(last - side));
+        let below = inside(at(last - 1), at(last));
+        self.push(x + s, y + s, inside(above, below), CornerRole::BottomRight);
+    }
+
+    /// Remembers one corner. Leaf corners lie on even coordinates below `2^17`; values stay
+    /// between the control values they come from, in the sample range.
+    #[inline(never)]
+    fn push(&mut self, x: u32, y: u32, value: i32, role: CornerRole) {
+        self.corners[self.next % CORNER_MEMORY] = Corner {
+            half_x: (x / 2) as u16,
+            half_y: (y / 2) as u16,
+            value: value as i16,
+            role,
+        };
+        self.next = (self.next + 1) % CORNER_MEMORY;
+        self.len = (self.len + 1).min(CORNER_MEMORY);
     }
 }
 
