@@ -814,6 +814,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
 /// residuals to its left and above, both coded before it in either coding order; on the first
 /// row or column, twice the one neighbour there is. Every index but the first (position 0,
 /// whose residual magnitude is `first_magnitude`) is its own residual.
+#[inline]
 pub fn zero_context(
     indices: &[i16; MAX_CONTROL],
     first_magnitude: usize,
