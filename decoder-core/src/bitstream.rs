@@ -963,7 +963,7 @@ mod tests {
     fn corners_carry_the_pixel_next_to_them() {
         let mut memory = Predictor::EMPTY;
         // 4 px wide: pixel 3 of a ramp from 0 to 64 is 48; pixel (3, 3) of the bilinear
-        // surface 0, 64 / 32, 160 is 48 + (150 - 48) * 3/4 with 150 at (3, 4).
+        // surface 0, 64 / 32, 160 is 3/4 of the way from 48 (at (3, 0)) to 128 (at (3, 4)).
         memory.remember(0, 0, 2, &bilinear([0, 64, 32, 160]));
         assert_eq!(memory.predict(4, 0), (48, true));
         assert_eq!(memory.predict(0, 4), (24, true));
