@@ -499,7 +499,7 @@ fn forward_line(g: &mut [f64; MAX_CONTROL], start: usize, stride: usize, m: usiz
 const DEADZONE_GAINS: [f64; ZERO_CONTEXTS] = [0.22, 0.17, 0.15, 0.12, 0.08];
 
 /// The dead-zone gain of the first coded index, whose residual depends on a prediction that
-/// is not known when quantising, and of the neighbours' contexts that take its magnitude.
+/// is not known when quantising (its neighbours' contexts take that residual as one step).
 const FIRST_DEADZONE_GAIN: f64 = 0.15;
 
 /// The dead-zone gain of the index at grid position `i` (row-major, side `side`) from the
@@ -742,8 +742,6 @@ mod tests {
         );
     }
 
-    /// Every coefficient's step is scaled so that one step adds the same energy to the control
-    /// values, whatever the coefficient's band: `step^2`, within the multipliers' rounding.
     /// The same value, 0.65 steps past zero, is rounded to zero among zero neighbours (where a
     /// nonzero index costs most) and up among large ones.
     #[test]
@@ -760,6 +758,8 @@ mod tests {
         assert_eq!(deadzone_round(-0.65, 1.0, busy), -1);
     }
 
+    /// Every coefficient's step is scaled so that one step adds the same energy to the control
+    /// values, whatever the coefficient's band: `step^2`, within the multipliers' rounding.
     #[test]
     fn band_steps_equalise_the_error_per_step() {
         let step = 1024;
