@@ -360,12 +360,26 @@ const CLASS_DETAIL: usize = 4;
 /// Detail levels with contexts of their own (coarser levels share the last).
 const DETAIL_CLASSES: usize = 3;
 /// Number of residual classes of control coefficients.
-const CONTROL_CLASSES: usize = CLASS_DETAIL + DETAIL_CLASSES;
+pub const CONTROL_CLASSES: usize = CLASS_DETAIL + DETAIL_CLASSES;
 /// Control residuals have separate contexts for fine, medium and coarse steps.
-const STEP_GROUPS: usize = 3;
+pub const STEP_GROUPS: usize = 3;
+
+/// The residual class of every control index but a leaf's first (grid position `(r, c)`, not
+/// `(0, 0)`): by transform level under the grid transform, first row and column or interior
+/// under DPCM.
+#[inline]
+pub fn control_class(transform: bool, side: usize, r: usize, c: usize) -> usize {
+    if transform {
+        CLASS_DETAIL + band_level(side, r, c).min(DETAIL_CLASSES - 1)
+    } else if r == 0 || c == 0 {
+        CLASS_EDGE
+    } else {
+        CLASS_INTERIOR
+    }
+}
 
 /// The context group of control quantiser `cq`.
-fn step_group(cq: u8) -> usize {
+pub fn step_group(cq: u8) -> usize {
     match cq {
         0..=3 => 0,
         4..=7 => 1,
@@ -412,6 +426,13 @@ impl Contexts {
         control: [[IntContexts::FRESH; CONTROL_CLASSES]; STEP_GROUPS],
         weights: [[IntContexts::FRESH; 2]; 2],
     };
+
+    /// The contexts of control residuals of class `class` (below [`CONTROL_CLASSES`]) in step
+    /// group `group` (below [`STEP_GROUPS`], [`step_group`]), for an encoder that prices
+    /// residuals before coding them.
+    pub fn control_residuals(&self, group: usize, class: usize) -> Option<&IntContexts> {
+        self.control.get(group)?.get(class)
+    }
 
     /// Sets every context to its state at the start of a stream: the trained probability of
     /// [`INITIAL_PROBABILITIES`], in [`Contexts::for_each_prob`] order, as if
@@ -789,13 +810,8 @@ fn code_control<C: Coder, P: SamplePrediction>(
             };
             let class = if exact { CLASS_SHARED } else { CLASS_FIRST };
             (div_round(p, q), class)
-        } else if transform {
-            let level = band_level(side, r, col);
-            (0, CLASS_DETAIL + level.min(DETAIL_CLASSES - 1))
-        } else if r == 0 || col == 0 {
-            (0, CLASS_EDGE)
         } else {
-            (0, CLASS_INTERIOR)
+            (0, control_class(transform, side, r, col))
         };
         let mut residual = i32::from(leaf.control[i]) - pred_index;
         let ctx = zero_context(&leaf.control, first_magnitude, side, r, col);

@@ -2,9 +2,11 @@
 //! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4).
 
 use super::fit::{gram, Fit};
+use crate::entropy::BitCounter;
 use decoder_core::bitstream::{
-    dequantise_control, intra_prediction, transform_control_values, zero_context, Codebook,
-    ControlCoding, LeafSyntax, MAX_CODEBOOK,
+    control_class, dequantise_control, intra_prediction, step_group, transform_control_values,
+    zero_context, Codebook, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES, MAX_CODEBOOK,
+    STEP_GROUPS,
 };
 use decoder_core::entropy::ZERO_CONTEXTS;
 use decoder_core::model::{
@@ -229,9 +231,13 @@ pub fn quantise(
     let step = CONTROL_STEPS[usize::from(cq)];
     let side = model.grid();
     let (values, form) = match coding {
-        ControlCoding::Dpcm => quantise_dpcm(targets, side, step, &mut leaf.control),
+        ControlCoding::Dpcm => {
+            let rounding = IndexRounding::new(cq, false, side);
+            quantise_dpcm(targets, side, step, &rounding, &mut leaf.control)
+        }
         ControlCoding::Transform => {
-            let form = quantise_coefficients(targets, side, step, &mut leaf.control);
+            let rounding = IndexRounding::new(cq, true, side);
+            let form = quantise_coefficients(targets, side, step, &rounding, &mut leaf.control);
             let mut values = [0i16; MAX_CONTROL];
             transform_control_values(side, step, &leaf.control, &mut values);
             (values, form)
@@ -281,6 +287,7 @@ fn quantise_dpcm(
     targets: &ControlTargets,
     side: usize,
     step: i32,
+    rounding: &IndexRounding,
     indices: &mut [i16; MAX_CONTROL],
 ) -> ([i16; MAX_CONTROL], Option<f64>) {
     let n = side * side;
@@ -310,10 +317,11 @@ fn quantise_dpcm(
             intra_prediction(&values, side, i / side, i % side)
         };
         // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
-        let index = deadzone_round(
+        let index = rounding.round(
+            indices,
+            i,
             (target - f64::from(base)) / f64::from(step),
             relative_weight,
-            deadzone_gain(indices, side, i),
         );
         indices[i] = index as i16;
         values[i] = dequantise_control(base, step, index);
@@ -334,6 +342,7 @@ fn quantise_coefficients(
     targets: &ControlTargets,
     side: usize,
     step: i32,
+    rounding: &IndexRounding,
     indices: &mut [i16; MAX_CONTROL],
 ) -> Option<f64> {
     let order = transform_order(side);
@@ -346,8 +355,7 @@ fn quantise_coefficients(
         for (k, &i) in order.iter().enumerate() {
             let i = usize::from(i);
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-            let gain = deadzone_gain(indices, side, i);
-            indices[i] = deadzone_round(targets.coefficients[i] / steps[k], 1.0, gain) as i16;
+            indices[i] = rounding.round(indices, i, targets.coefficients[i] / steps[k], 1.0) as i16;
         }
         return None;
     };
@@ -366,8 +374,7 @@ fn quantise_coefficients(
         let i = usize::from(i);
         let (partial, last) = (f.partial(k, &errors[..k]), f.row(k)[k]);
         let target = exact.coefficients[i] - partial / last;
-        let gain = deadzone_gain(indices, side, i);
-        let index = deadzone_round(target / steps[k], relative_weights[k], gain);
+        let index = rounding.round(indices, i, target / steps[k], relative_weights[k]);
         indices[i] = index as i16;
         errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
         rows[k] = partial + last * errors[k];
@@ -375,7 +382,7 @@ fn quantise_coefficients(
     let mut gradient = [0.0f64; MAX_CONTROL];
     f.transposed_product(&rows[..n], &mut gradient);
     let quantiser = CoefficientQuantiser {
-        side,
+        rounding,
         order,
         steps: &steps,
         relative_weights: &relative_weights,
@@ -394,8 +401,8 @@ const MAX_REFINEMENT_PASSES: usize = 8;
 
 /// What refining the quantised coefficients of one leaf needs, in coding order.
 struct CoefficientQuantiser<'a> {
-    /// The control grid's side.
-    side: usize,
+    /// How indices are rounded.
+    rounding: &'a IndexRounding,
     order: &'a [u8],
     steps: &'a [f64; MAX_CONTROL],
     relative_weights: &'a [f64; MAX_CONTROL],
@@ -425,8 +432,12 @@ impl CoefficientQuantiser<'_> {
                 let i = usize::from(i);
                 let column = &g[k * n..(k + 1) * n];
                 let target = self.exact[i] + errors[k] - gradient[k] / column[k];
-                let gain = deadzone_gain(indices, self.side, i);
-                let index = deadzone_round(target / self.steps[k], self.relative_weights[k], gain);
+                let index = self.rounding.round(
+                    indices,
+                    i,
+                    target / self.steps[k],
+                    self.relative_weights[k],
+                );
                 let error = f64::from(index) * self.steps[k] - self.exact[i];
                 let delta = error - errors[k];
                 if delta != 0.0 {
@@ -489,35 +500,188 @@ fn forward_line(g: &mut [f64; MAX_CONTROL], start: usize, stride: usize, m: usiz
     }
 }
 
-/// Dead-zone gains of the control quantisers by the zero-flag context of the index
-/// ([`zero_context`]: how many of its left and upper neighbours are nonzero, and how large):
-/// for a value of average weight in the patch's error, values are rounded towards zero unless
-/// they are at least `0.5 - gain` past a step, so that small residuals cost nothing. A nonzero
-/// index costs more bits where its neighbours are zero, so the dead zone is wider there (on six
-/// Kodak images, against one gain of 0.15 for all: +0.02 to +0.03 dB at 0.05 to 0.25 bpp,
-/// +0.01 dB at 0.5 bpp).
-const DEADZONE_GAINS: [f64; ZERO_CONTEXTS] = [0.22, 0.17, 0.15, 0.12, 0.08];
-
 /// The dead-zone gain of the first coded index, whose residual depends on a prediction that
-/// is not known when quantising (its neighbours' contexts take that residual as one step).
+/// is not known when quantising: it is rounded towards zero unless it is at least
+/// `0.5 - gain / relative_weight` past a step.
 const FIRST_DEADZONE_GAIN: f64 = 0.15;
 
-/// The dead-zone gain of the index at grid position `i` (row-major, side `side`) from the
-/// indices already chosen around it ([`DEADZONE_GAINS`]).
-fn deadzone_gain(indices: &[i16; MAX_CONTROL], side: usize, i: usize) -> f64 {
-    if i == 0 {
-        return FIRST_DEADZONE_GAIN;
+/// The Lagrange multiplier of index rounding: bits are worth this much of a leaf's mean
+/// patch error per squared step. On six Kodak images 0.12 did best (0.10 and 0.14 within
+/// 0.01 dB); at high rate a uniform quantiser's slope is `2 ln 2 / 12 = 0.116`.
+const ROUNDING_LAMBDA: f64 = 0.12;
+
+/// Targets below this many steps become zero without pricing the alternatives: a nonzero
+/// index there adds at least 0.2 of its weight in error, which its bits hardly ever repay (on
+/// six Kodak images the same streams to within 0.01 dB, for 5% less analysis time).
+const SURE_ZERO: f64 = 0.4;
+
+/// How the control indices of one leaf are rounded: each index but the first is the one next
+/// to its target (or zero) that costs least in patch error plus bits, priced with the
+/// contexts every stream starts from, its own and those of the two indices whose zero-flag
+/// contexts it sets (right of and below it). A nonzero index must pay for itself, more so
+/// among zero neighbours; large indices round to nearest.
+pub struct IndexRounding {
+    /// Bits by class, zero-flag context and magnitude, in the leaf's step group.
+    bits: &'static [PricedClass; CONTROL_CLASSES],
+    /// The class of each grid position.
+    classes: &'static [u8; MAX_CONTROL],
+    side: usize,
+}
+
+impl IndexRounding {
+    /// The rounding of control quantiser `cq` under the grid transform or DPCM, for a grid of
+    /// side `side`.
+    pub fn new(cq: u8, transform: bool, side: usize) -> IndexRounding {
+        let costs = ResidualCosts::get();
+        IndexRounding {
+            bits: &costs.bits[step_group(cq)],
+            classes: &costs.classes[usize::from(transform)][side],
+            side,
+        }
     }
-    // The first index's residual is taken as one step.
-    let context = zero_context(indices, 1, side, i / side, i % side);
-    DEADZONE_GAINS[context.min(ZERO_CONTEXTS - 1)]
+
+    /// The bits of index `k` at grid position `p` in zero-flag context `context`.
+    fn price(&self, p: usize, context: usize, k: i32) -> f64 {
+        let class = &self.bits[usize::from(self.classes[p])][context.min(ZERO_CONTEXTS - 1)];
+        let m = k.unsigned_abs() as usize;
+        if m < PRICED_MAGNITUDES {
+            f64::from(class[m])
+        } else {
+            // Beyond the table, two bits per doubling (Exp-Golomb).
+            let last = PRICED_MAGNITUDES - 1;
+            f64::from(class[last]) + 2.0 * (m as f64 / last as f64).log2()
+        }
+    }
+
+    /// The index at grid position `i` for the target `v` (in steps), whose weight in the patch
+    /// error, relative to the leaf's mean, is `relative_weight`, given the other indices (those
+    /// not chosen yet are zero).
+    fn round(&self, indices: &[i16; MAX_CONTROL], i: usize, v: f64, relative_weight: f64) -> i32 {
+        if i == 0 {
+            return deadzone_round(v, relative_weight, FIRST_DEADZONE_GAIN);
+        }
+        let side = self.side;
+        let (r, c) = (i / side, i % side);
+        // Work on the magnitude: the truncating cast floors it (no libm call).
+        let magnitude = v.abs();
+        let low = magnitude as i32;
+        let fraction = magnitude - f64::from(low);
+        let signed = |k: i32| if v < 0.0 { -k } else { k };
+        // Zero-flag contexts count magnitudes up to 2: from there on, only the index's own
+        // bits tell its two candidates apart.
+        if low >= 2 {
+            let context = zero_context(indices, 1, side, r, c);
+            let up = relative_weight * (1.0 - 2.0 * fraction)
+                + ROUNDING_LAMBDA * (self.price(i, context, low + 1) - self.price(i, context, low));
+            return signed(if up < 0.0 { low + 1 } else { low });
+        }
+        if magnitude < SURE_ZERO {
+            return 0;
+        }
+        // The first index's residual is taken as one step, as in the zero-flag contexts.
+        let neighbour = |p: usize| {
+            if p == 0 {
+                1
+            } else {
+                usize::from(indices[p].unsigned_abs().min(2))
+            }
+        };
+        let context = zero_context(indices, 1, side, r, c);
+        // Bits of the index and of its followers (right of and below it, whose zero-flag
+        // contexts it sets; on the first row or column it counts twice there), by magnitude.
+        let mut bits = [0.0f64; 3];
+        for (m, b) in bits.iter_mut().enumerate().take(low as usize + 2) {
+            *b = self.price(i, context, m as i32);
+            if c + 1 < side {
+                let p = i + 1;
+                let context = if r > 0 {
+                    neighbour(p - side) + m
+                } else {
+                    2 * m
+                };
+                *b += self.price(p, context, i32::from(indices[p]));
+            }
+            if r + 1 < side {
+                let p = i + side;
+                let context = if c > 0 { neighbour(p - 1) + m } else { 2 * m };
+                *b += self.price(p, context, i32::from(indices[p]));
+            }
+        }
+        let cost = |k: i32| {
+            let d = magnitude - f64::from(k);
+            relative_weight * d * d + ROUNDING_LAMBDA * bits[k as usize]
+        };
+        let mut best = (cost(0), 0);
+        for k in [low, low + 1] {
+            let c = cost(k);
+            if c < best.0 {
+                best = (c, k);
+            }
+        }
+        signed(best.1)
+    }
+}
+
+/// Magnitudes priced one by one; larger ones by their Exp-Golomb length.
+const PRICED_MAGNITUDES: usize = 32;
+
+/// The bits of the residuals of one class by zero-flag context and magnitude (sign included).
+/// Single precision keeps all the tables in 13 KiB, in a core's first-level cache.
+type PricedClass = [[f32; PRICED_MAGNITUDES]; ZERO_CONTEXTS];
+
+/// The bits of control residuals under the contexts every stream starts from, by step group,
+/// and the class of every grid position.
+struct ResidualCosts {
+    bits: [[PricedClass; CONTROL_CLASSES]; STEP_GROUPS],
+    /// By DPCM (0) or transform (1) and grid side.
+    classes: [[[u8; MAX_CONTROL]; MAX_GRID + 1]; 2],
+}
+
+impl ResidualCosts {
+    fn get() -> &'static ResidualCosts {
+        use std::sync::OnceLock;
+        static COSTS: OnceLock<Box<ResidualCosts>> = OnceLock::new();
+        COSTS.get_or_init(ResidualCosts::build)
+    }
+
+    fn build() -> Box<ResidualCosts> {
+        let start = Contexts::default();
+        let mut costs = Box::new(ResidualCosts {
+            bits: [[[[0.0; PRICED_MAGNITUDES]; ZERO_CONTEXTS]; CONTROL_CLASSES]; STEP_GROUPS],
+            classes: [[[0; MAX_CONTROL]; MAX_GRID + 1]; 2],
+        });
+        for (group, classes) in costs.bits.iter_mut().enumerate() {
+            for (class, contexts) in classes.iter_mut().enumerate() {
+                let residuals = start
+                    .control_residuals(group, class)
+                    .expect("every group and class has contexts");
+                for (context, magnitudes) in contexts.iter_mut().enumerate() {
+                    for (m, bits) in magnitudes.iter_mut().enumerate() {
+                        let mut counter = BitCounter::frozen();
+                        let mut v = m as i32;
+                        residuals
+                            .clone()
+                            .code(&mut counter, context, &mut v)
+                            .expect("priced magnitudes are codable");
+                        *bits = counter.bits() as f32;
+                    }
+                }
+            }
+        }
+        for (transform, sides) in costs.classes.iter_mut().enumerate() {
+            for (side, classes) in sides.iter_mut().enumerate().skip(1) {
+                for (i, class) in classes.iter_mut().enumerate().take(side * side) {
+                    *class = control_class(transform == 1, side, i / side, i % side) as u8;
+                }
+            }
+        }
+        costs
+    }
 }
 
 /// Rounds `v` (in steps) with a dead zone of gain `gain` that widens as the value's weight in
 /// the patch's error, relative to the leaf's mean (`relative_weight`), falls: the rounding
-/// offset is `0.5 - gain / relative_weight`, at least 0. Rounding a value up costs about the
-/// same bits whatever its weight, but buys an error reduction in proportion to it (on six
-/// Kodak images this gained 0.04 to 0.06 dB over one dead zone for all).
+/// offset is `0.5 - gain / relative_weight`, at least 0.
 fn deadzone_round(v: f64, relative_weight: f64, gain: f64) -> i32 {
     let offset = (0.5 - gain / relative_weight.max(1e-9)).max(0.0);
     // The truncating cast floors the non-negative magnitude (no libm call).
@@ -716,7 +880,9 @@ mod tests {
                 for step in [192, 384, 768] {
                     let added = |t: &ControlTargets, sum: &mut (f64, usize)| {
                         let mut indices = [0i16; MAX_CONTROL];
-                        quantise_coefficients(t, side, step, &mut indices);
+                        let cq = CONTROL_STEPS.iter().position(|&s| s == step).unwrap();
+                        let rounding = IndexRounding::new(cq as u8, true, side);
+                        quantise_coefficients(t, side, step, &rounding, &mut indices);
                         let mut values = [0i16; MAX_CONTROL];
                         transform_control_values(side, step, &indices, &mut values);
                         let control: Vec<f64> = values[..n]
@@ -742,20 +908,38 @@ mod tests {
         );
     }
 
-    /// The same value, 0.65 steps past zero, is rounded to zero among zero neighbours (where a
-    /// nonzero index costs most) and up among large ones.
+    /// A nonzero index must pay for its bits: among zero neighbours (where a nonzero index and
+    /// the contexts it sets cost most) a target of 0.65 step rounds to zero, among large
+    /// neighbours to one, whatever its sign; under either coding.
     #[test]
-    fn dead_zone_is_wider_among_zero_neighbours() {
+    fn rounding_prices_nonzero_indices_by_their_neighbours() {
         let side = 3;
-        let mut indices = [0i16; MAX_CONTROL];
-        let quiet = deadzone_gain(&indices, side, 4);
-        indices[3] = 5;
-        indices[1] = -4;
-        let busy = deadzone_gain(&indices, side, 4);
-        assert!(quiet > busy);
-        assert_eq!(deadzone_round(0.65, 1.0, quiet), 0);
-        assert_eq!(deadzone_round(0.65, 1.0, busy), 1);
-        assert_eq!(deadzone_round(-0.65, 1.0, busy), -1);
+        for transform in [false, true] {
+            let rounding = IndexRounding::new(9, transform, side);
+            let mut indices = [0i16; MAX_CONTROL];
+            assert_eq!(rounding.round(&indices, 4, 0.65, 1.0), 0);
+            assert_eq!(rounding.round(&indices, 4, -0.65, 1.0), 0);
+            indices[3] = 5;
+            indices[1] = -4;
+            indices[5] = 2;
+            indices[7] = 3;
+            assert_eq!(rounding.round(&indices, 4, 0.65, 1.0), 1);
+            assert_eq!(rounding.round(&indices, 4, -0.65, 1.0), -1);
+            // A value that weighs much in the patch error is kept among zeros too.
+            let quiet = [0i16; MAX_CONTROL];
+            assert_eq!(rounding.round(&quiet, 4, 0.65, 20.0), 1);
+        }
+    }
+
+    /// Magnitudes of the same Exp-Golomb length cost the same bits: between them the rounding
+    /// is to nearest.
+    #[test]
+    fn large_indices_round_to_nearest() {
+        let rounding = IndexRounding::new(9, true, 5);
+        let indices = [0i16; MAX_CONTROL];
+        assert_eq!(rounding.round(&indices, 12, 5.45, 1.0), 5);
+        assert_eq!(rounding.round(&indices, 12, 5.55, 1.0), 6);
+        assert_eq!(rounding.round(&indices, 12, -5.55, 1.0), -6);
     }
 
     /// Every coefficient's step is scaled so that one step adds the same energy to the control
