@@ -159,7 +159,8 @@ fn header_errors_are_typed() {
         ("version 3", with(4, 3), DecodeError::UnsupportedVersion(3)),
         ("version 4", with(4, 4), DecodeError::UnsupportedVersion(4)),
         ("version 5", with(4, 5), DecodeError::UnsupportedVersion(5)),
-        ("version 7", with(4, 7), DecodeError::UnsupportedVersion(7)),
+        ("version 6", with(4, 6), DecodeError::UnsupportedVersion(6)),
+        ("version 8", with(4, 8), DecodeError::UnsupportedVersion(8)),
         (
             "version 255",
             with(4, 255),
