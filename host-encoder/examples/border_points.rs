@@ -1,0 +1,118 @@
+//! What shared borders between leaves could save, and what they would cost a decoder: encodes
+//! each image at each rate (as `pifs` does: one analysis per target, 2 px leaves from
+//! [`host_encoder::FINE_LEAVES_BPP`] on), walks the stream in decoding order and counts the
+//! control values that sit exactly where an earlier leaf already has a control point (the
+//! values a shared-border format would not code), and the largest number of such points that
+//! are waiting for a later leaf at any one time (what a decoder would have to remember).
+//!
+//! `cargo run --release -p host-encoder --example border_points -- [--bpp 0.1,0.5] IMAGE...`
+
+use decoder_core::bitstream::{Header, LeafSyntax};
+use decoder_core::entropy::{RangeDecoder, SliceSource};
+use decoder_core::model::MODELS;
+use decoder_core::patch::Patch;
+use decoder_core::quadtree::{walk, LeafInfo, Node, TreeVisitor};
+use decoder_core::DecodeError;
+use host_encoder::{analyse, io, EncoderConfig, Target};
+use std::collections::HashMap;
+
+/// The control points of every leaf, in decoding order.
+#[derive(Default)]
+struct ControlPoints {
+    leaves: Vec<Vec<(u32, u32)>>,
+}
+
+impl TreeVisitor for ControlPoints {
+    fn split(&mut self, _node: &Node) -> bool {
+        false
+    }
+
+    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
+
+    fn leaf(&mut self, info: &LeafInfo, _patch: &Patch) -> Result<(), DecodeError> {
+        let intervals = u32::from(MODELS[usize::from(info.model)].intervals);
+        let spacing = (1u32 << info.node.log2) / intervals;
+        let points = (0..=intervals)
+            .flat_map(|i| (0..=intervals).map(move |j| (j, i)))
+            .map(|(j, i)| (info.node.x + j * spacing, info.node.y + i * spacing))
+            .collect();
+        self.leaves.push(points);
+        Ok(())
+    }
+}
+
+/// Control values, those at an earlier leaf's control point, and the most such points waiting
+/// at once (from the leaf that makes a point to the last leaf that meets it again).
+fn count(points: &ControlPoints) -> (usize, usize, i64) {
+    let mut made: HashMap<(u32, u32), usize> = HashMap::new();
+    let mut last_met: HashMap<(u32, u32), usize> = HashMap::new();
+    let (mut values, mut met) = (0, 0);
+    for (t, leaf) in points.leaves.iter().enumerate() {
+        for &p in leaf {
+            values += 1;
+            if made.contains_key(&p) {
+                met += 1;
+                last_met.insert(p, t);
+            }
+        }
+        for &p in leaf {
+            made.entry(p).or_insert(t);
+        }
+    }
+    let mut change = vec![0i64; points.leaves.len() + 1];
+    for (p, &last) in &last_met {
+        change[made[p]] += 1;
+        change[last] -= 1;
+    }
+    let (mut waiting, mut most) = (0i64, 0i64);
+    for c in change {
+        waiting += c;
+        most = most.max(waiting);
+    }
+    (values, met, most)
+}
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut rates = vec![0.1, 0.5];
+    if let Some(i) = args.iter().position(|a| a == "--bpp") {
+        rates = args[i + 1]
+            .split(',')
+            .map(|r| r.parse().expect("--bpp takes numbers"))
+            .collect();
+        args.drain(i..i + 2);
+    }
+    println!("image,target_bpp,leaves,control_values,at_earlier_points,share_pct,most_waiting");
+    for path in &args {
+        let plane = io::load_luma(path.as_ref()).expect("readable image");
+        let pixels = plane.data.len();
+        for &bpp in &rates {
+            let target = Target::Bpp(bpp);
+            let config = EncoderConfig {
+                min_leaf_log2: if target.wants_fine_leaves(pixels) {
+                    1
+                } else {
+                    2
+                },
+                trial_bpp: Target::trial_bpp(&[target], pixels),
+                ..EncoderConfig::default()
+            };
+            let analysis = analyse(plane.clone(), &config, &|_| {}).expect("analysable image");
+            let encoded = analysis.encode(target).expect("reachable rate");
+            let (header, at) = Header::parse(&encoded.bytes).expect("own stream");
+            let payload = &encoded.bytes[at..at + header.payload_len as usize];
+            let mut decoder = RangeDecoder::new(SliceSource::new(payload)).expect("own stream");
+            let mut points = ControlPoints::default();
+            walk(&header, &mut decoder, &mut points).expect("own stream");
+            let (values, met, most) = count(&points);
+            let name = std::path::Path::new(path)
+                .file_name()
+                .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
+            println!(
+                "{name},{bpp},{},{values},{met},{:.1},{most}",
+                points.leaves.len(),
+                100.0 * met as f64 / values as f64
+            );
+        }
+    }
+}
