@@ -526,6 +526,9 @@ struct IndexRounding {
     bits: &'static [PricedClass; CONTROL_CLASSES],
     /// The class of each grid position.
     classes: &'static [u8; MAX_CONTROL],
+    /// The row and column of each grid position (a lookup: dividing by the side is among the
+    /// slowest instructions of this hot path).
+    positions: &'static [(u8, u8); MAX_CONTROL],
     side: usize,
 }
 
@@ -537,6 +540,7 @@ impl IndexRounding {
         IndexRounding {
             bits: &costs.bits[step_group(cq)],
             classes: &costs.classes[usize::from(transform)][side],
+            positions: &costs.positions[side],
             side,
         }
     }
@@ -613,7 +617,8 @@ impl IndexRounding {
         relative_weight: f64,
     ) -> i32 {
         let side = self.side;
-        let (r, c) = (i / side, i % side);
+        let (r, c) = self.positions[i];
+        let (r, c) = (usize::from(r), usize::from(c));
         let low = magnitude as i32;
         // The first index's residual is taken as one step, as in the zero-flag contexts.
         let neighbour = |p: usize| {
@@ -672,6 +677,8 @@ struct ResidualCosts {
     bits: [[PricedClass; CONTROL_CLASSES]; STEP_GROUPS],
     /// By DPCM (0) or transform (1) and grid side.
     classes: [[[u8; MAX_CONTROL]; MAX_GRID + 1]; 2],
+    /// By grid side: the row and column of each position.
+    positions: [[(u8, u8); MAX_CONTROL]; MAX_GRID + 1],
 }
 
 impl ResidualCosts {
@@ -686,6 +693,7 @@ impl ResidualCosts {
         let mut costs = Box::new(ResidualCosts {
             bits: [[[[0.0; PRICED_MAGNITUDES]; ZERO_CONTEXTS]; CONTROL_CLASSES]; STEP_GROUPS],
             classes: [[[0; MAX_CONTROL]; MAX_GRID + 1]; 2],
+            positions: [[(0, 0); MAX_CONTROL]; MAX_GRID + 1],
         });
         for (group, classes) in costs.bits.iter_mut().enumerate() {
             for (class, contexts) in classes.iter_mut().enumerate() {
@@ -703,6 +711,11 @@ impl ResidualCosts {
                         *bits = counter.bits() as f32;
                     }
                 }
+            }
+        }
+        for (side, positions) in costs.positions.iter_mut().enumerate().skip(1) {
+            for (i, position) in positions.iter_mut().enumerate().take(side * side) {
+                *position = ((i / side) as u8, (i % side) as u8);
             }
         }
         for (transform, sides) in costs.classes.iter_mut().enumerate() {
