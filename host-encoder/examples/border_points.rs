@@ -88,15 +88,7 @@ fn main() {
         let pixels = plane.data.len();
         for &bpp in &rates {
             let target = Target::Bpp(bpp);
-            let config = EncoderConfig {
-                min_leaf_log2: if target.wants_fine_leaves(pixels) {
-                    1
-                } else {
-                    2
-                },
-                trial_bpp: Target::trial_bpp(&[target], pixels),
-                ..EncoderConfig::default()
-            };
+            let config = EncoderConfig::for_targets(&[target], pixels);
             let analysis = analyse(plane.clone(), &config, &|_| {}).expect("analysable image");
             let encoded = analysis.encode(target).expect("reachable rate");
             let (header, at) = Header::parse(&encoded.bytes).expect("own stream");

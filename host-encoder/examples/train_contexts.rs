@@ -42,15 +42,7 @@ fn main() {
         let pixels = plane.data.len();
         for bpp in RATES {
             let target = Target::Bpp(bpp);
-            let config = EncoderConfig {
-                min_leaf_log2: if target.wants_fine_leaves(pixels) {
-                    1
-                } else {
-                    2
-                },
-                trial_bpp: Target::trial_bpp(&[target], pixels),
-                ..EncoderConfig::default()
-            };
+            let config = EncoderConfig::for_targets(&[target], pixels);
             let analysis = analyse(plane.clone(), &config, &|_| {}).expect("analysis");
             let encoded = analysis.encode(target).expect("encode");
             let mut contexts = final_contexts(&encoded.bytes).expect("a valid stream");

@@ -164,15 +164,14 @@ struct Settings {
 
 impl Settings {
     fn config(&self, pixels: usize, jobs: &[(Target, PathBuf)]) -> EncoderConfig {
-        let fine = jobs.iter().any(|(t, _)| t.wants_fine_leaves(pixels));
-        let min_leaf_log2 = self.min_leaf_log2.unwrap_or(if fine { 1 } else { 2 });
         let targets: Vec<Target> = jobs.iter().map(|(t, _)| *t).collect();
+        let chosen = EncoderConfig::for_targets(&targets, pixels);
+        let min_leaf_log2 = self.min_leaf_log2.unwrap_or(chosen.min_leaf_log2);
         EncoderConfig {
             min_leaf_log2,
             max_leaf_log2: self.max_leaf_log2.max(min_leaf_log2),
             fit_weights: self.fit_weights,
-            trial_bpp: Target::trial_bpp(&targets, pixels),
-            ..EncoderConfig::default()
+            ..chosen
         }
     }
 }

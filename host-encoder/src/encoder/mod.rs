@@ -68,6 +68,21 @@ pub struct EncoderConfig {
     pub trial_bpp: f64,
 }
 
+impl EncoderConfig {
+    /// The default settings for an analysis that serves `targets` on an image of `pixels`
+    /// pixels, as `pifs` chooses them: leaves down to 2 px if any target wants them
+    /// ([`Target::wants_fine_leaves`]), else 4 px, and the trial rate of
+    /// [`Target::trial_bpp`].
+    pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
+        let fine = targets.iter().any(|t| t.wants_fine_leaves(pixels));
+        EncoderConfig {
+            min_leaf_log2: if fine { 1 } else { 2 },
+            trial_bpp: Target::trial_bpp(targets, pixels),
+            ..EncoderConfig::default()
+        }
+    }
+}
+
 impl Default for EncoderConfig {
     fn default() -> Self {
         EncoderConfig {
