@@ -6,8 +6,9 @@
 //! (thesis II.1.4.2: exact tabulation by recursive subdivision). The transforms are given as
 //! *rules* (thesis II.2.1.3): the subdivided grid keeps the old points (interpolating scheme),
 //! a new point on an old grid line is a barycentric combination of the four nearest points of
-//! that line (indices clamped to the line's ends), and a new point inside an old cell is a
-//! barycentric combination of the four new line points at the same phases on the cell's sides.
+//! that line (mirrored at the line's ends: [`tap_point`]), and a new point inside an old cell
+//! is a barycentric combination of the new points at its column phase on the four nearest old
+//! rows (the line rule again, across the rows: a tensor product).
 //! Rules depend on the phase `r = q mod N` of the new point only, so every transform matrix is
 //! barycentric, a sub-grid's border depends only on that border (the raccord condition holds by
 //! construction), and a breadth-first and a depth-first evaluation give identical values.
@@ -386,28 +387,44 @@ pub enum WeightClass {
     Cell = 1,
 }
 
-/// Default line rule taps (4-point cubic interpolation) for phase `r` of `N` transforms,
-/// weights on line points `a-1, a, a+1, a+2`.
+/// Default line rule taps for phase `r` of `N` transforms, weights on line points
+/// `a-1, a, a+1, a+2`: 4-point interpolation that reproduces straight lines, with side lobes
+/// twice those of cubic interpolation (midpoint `(-1, 5, 5, -1) / 8` instead of
+/// `(-1, 9, 9, -1) / 16`; quarter points `(-448, 3648, 1216, -320)` instead of
+/// `(-224, 3360, 1120, -160)`). On six grayscale Kodak images (`rd_sweep`) the sharper scheme
+/// gained 0.03 to 0.10 dB on average at each rate over the cubic one; side lobes of 1.5 or 2.5
+/// times the cubic ones lost up to 0.03 dB against it.
 pub const fn default_line_taps(n: u8, r: usize) -> [i32; 4] {
     match (n, r) {
-        (4, 1) => [-224, 3360, 1120, -160],
-        (4, 3) => [-160, 1120, 3360, -224],
-        _ => [-256, 2304, 2304, -256],
+        (4, 1) => [-448, 3648, 1216, -320],
+        (4, 3) => [-320, 1216, 3648, -448],
+        _ => [-512, 2560, 2560, -512],
     }
 }
 
-/// Default cell rule taps for phases `(r1, r2)` of `N` transforms, weights on the new points of
-/// the top, bottom, left and right sides of the cell.
-pub const fn default_cell_taps(n: u8, r1: usize, r2: usize) -> [i32; 4] {
-    let n = n as i32;
-    let (r1, r2) = (r1 as i32, r2 as i32);
-    let half = WEIGHT_ONE / 2;
-    [
-        half * (n - r1) / n,
-        half * r1 / n,
-        half * (n - r2) / n,
-        half * r2 / n,
-    ]
+/// Default cell rule taps for phases `(r1, r2)` of `N` transforms, weights on the new points at
+/// column phase `r2` of old rows `a1-1, a1, a1+1, a1+2`: the line rule of row phase `r1`, so
+/// that the default scheme is the tensor product of the line rules. (Version 7 blended the new
+/// points on the cell's four sides instead, which cannot reproduce a quadratic: the tensor
+/// product gained 0.02 to 0.06 dB on average at each rate on six grayscale Kodak images.)
+pub const fn default_cell_taps(n: u8, r1: usize, _r2: usize) -> [i32; 4] {
+    default_line_taps(n, r1)
+}
+
+/// The point of a line of points `0..=m` (`m >= 1`) that tap `t` of a rule for the interval
+/// `a..a+1` weighs: point `a + t - 1`, mirrored at the line's ends (point `-1` is point 1,
+/// point `m + 1` is point `m - 1`). Mirroring rather than repeating the end point: on six
+/// grayscale Kodak images, +0.02 to +0.05 dB on average at each rate.
+#[inline]
+pub const fn tap_point(a: usize, t: usize, m: usize) -> usize {
+    let j = a + t;
+    if j == 0 {
+        1
+    } else if j > m + 1 {
+        2 * m + 1 - j
+    } else {
+        j - 1
+    }
 }
 
 /// The tap of a rule that is not coded: it makes the taps sum to one.
@@ -421,8 +438,8 @@ pub struct Weights {
     /// `line[dir][r-1]`: taps for new points on horizontal (`dir` 0, along a row) and vertical
     /// (`dir` 1, along a column) lines at phase `r`.
     pub line: [[[i32; 4]; 3]; 2],
-    /// `cell[r1-1][r2-1]`: taps (top, bottom, left, right) for new points at row phase `r1` and
-    /// column phase `r2`.
+    /// `cell[r1-1][r2-1]`: taps for new points at row phase `r1` and column phase `r2`, on the
+    /// new points at column phase `r2` of old rows `a1-1, a1, a1+1, a1+2` ([`tap_point`]).
     pub cell: [[[i32; 4]; 3]; 3],
 }
 

@@ -160,7 +160,8 @@ fn header_errors_are_typed() {
         ("version 4", with(4, 4), DecodeError::UnsupportedVersion(4)),
         ("version 5", with(4, 5), DecodeError::UnsupportedVersion(5)),
         ("version 6", with(4, 6), DecodeError::UnsupportedVersion(6)),
-        ("version 8", with(4, 8), DecodeError::UnsupportedVersion(8)),
+        ("version 7", with(4, 7), DecodeError::UnsupportedVersion(7)),
+        ("version 9", with(4, 9), DecodeError::UnsupportedVersion(9)),
         (
             "version 255",
             with(4, 255),

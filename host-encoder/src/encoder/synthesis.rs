@@ -1,14 +1,14 @@
 //! Floating-point tabulation of a patch, with derivatives, for fitting.
 //!
 //! It follows decoder-core's integer synthesis rule for rule (same subdivision, same taps, same
-//! clamping of indices), without rounding. Each sample carries a vector: its value, then its
+//! mirroring of indices at a line's ends), without rounding. Each sample carries a vector: its value, then its
 //! derivatives with respect to every control value and every free weight. The derivatives follow
 //! the subdivision recursion (thesis II.3.4: the tabulation is polynomial in the parameters), so
 //! the Jacobian is exact: no finite differences.
 
 use decoder_core::model::{
-    for_each_free_tap, ModelType, TapSlot, Weights, CELL_DEPENDENT_TAP, LINE_DEPENDENT_TAP,
-    WEIGHT_ONE,
+    for_each_free_tap, tap_point, ModelType, TapSlot, Weights, CELL_DEPENDENT_TAP,
+    LINE_DEPENDENT_TAP, WEIGHT_ONE,
 };
 
 /// Parameter index of every free tap of a model, by rule (`usize::MAX` for the dependent tap).
@@ -227,7 +227,7 @@ impl Tabulator {
                         let taps = &self.weights.line[dir][ph - 1];
                         let pidx = &self.index.line[dir][ph - 1];
                         let src = |t: usize| -> usize {
-                            let idx = (a + t).saturating_sub(1).min(m);
+                            let idx = tap_point(a, t, m);
                             if dir == 0 {
                                 (line * side + idx) * k
                             } else {
@@ -259,7 +259,7 @@ impl Tabulator {
                 }
             }
         }
-        // Cell points, from the new line points on the cell's four sides.
+        // Cell points, from the new points at the same column phase on the nearest rows.
         for a1 in 0..m {
             for a2 in 0..m {
                 for r1 in 1..n {
@@ -267,12 +267,8 @@ impl Tabulator {
                         let taps = &self.weights.cell[r1 - 1][r2 - 1];
                         let pidx = &self.index.cell[r1 - 1][r2 - 1];
                         let at = |q1: usize, q2: usize| (q1 * rs + q2) * k;
-                        let srcs = [
-                            at(a1 * n, a2 * n + r2),
-                            at((a1 + 1) * n, a2 * n + r2),
-                            at(a1 * n + r1, a2 * n),
-                            at(a1 * n + r1, (a2 + 1) * n),
-                        ];
+                        let srcs: [usize; 4] =
+                            std::array::from_fn(|t| at(tap_point(a1, t, m) * n, a2 * n + r2));
                         let dst = at(a1 * n + r1, a2 * n + r2);
                         for e in 0..k {
                             r[dst + e] = taps[0] * r[srcs[0] + e]
