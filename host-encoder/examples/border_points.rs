@@ -2,24 +2,35 @@
 //! each image at each rate (as `pifs` does: one analysis per target, 2 px leaves from
 //! [`host_encoder::FINE_LEAVES_BPP`] on), walks the stream in decoding order and counts the
 //! control values that sit exactly where an earlier leaf already has a control point (the
-//! values a shared-border format would not code), and the largest number of such points that
-//! are waiting for a later leaf at any one time (what a decoder would have to remember).
+//! values a shared-border format would not code), how many of those are within half a
+//! quantiser step (of the later leaf) of the earlier leaf's value there (those a shared border
+//! would impose at no more than the quantiser's own error), and the largest number of such
+//! points that are waiting for a later leaf at any one time (what a decoder would have to
+//! remember).
 //!
 //! `cargo run --release -p host-encoder --example border_points -- [--bpp 0.1,0.5] IMAGE...`
 
 use decoder_core::bitstream::{Header, LeafSyntax};
 use decoder_core::entropy::{RangeDecoder, SliceSource};
-use decoder_core::model::MODELS;
+use decoder_core::model::{CONTROL_STEPS, MODELS};
 use decoder_core::patch::Patch;
 use decoder_core::quadtree::{walk, LeafInfo, Node, TreeVisitor};
 use decoder_core::DecodeError;
 use host_encoder::{analyse, io, EncoderConfig, Target};
 use std::collections::HashMap;
 
+/// A control point: position, decoded value and the step of its leaf's quantiser.
+#[derive(Clone, Copy)]
+struct Point {
+    at: (u32, u32),
+    value: i32,
+    step: i32,
+}
+
 /// The control points of every leaf, in decoding order.
 #[derive(Default)]
 struct ControlPoints {
-    leaves: Vec<Vec<(u32, u32)>>,
+    leaves: Vec<Vec<Point>>,
 }
 
 impl TreeVisitor for ControlPoints {
@@ -29,39 +40,59 @@ impl TreeVisitor for ControlPoints {
 
     fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
 
-    fn leaf(&mut self, info: &LeafInfo, _patch: &Patch) -> Result<(), DecodeError> {
+    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
         let intervals = u32::from(MODELS[usize::from(info.model)].intervals);
         let spacing = (1u32 << info.node.log2) / intervals;
+        let step = CONTROL_STEPS[usize::from(info.cquant)];
         let points = (0..=intervals)
             .flat_map(|i| (0..=intervals).map(move |j| (j, i)))
-            .map(|(j, i)| (info.node.x + j * spacing, info.node.y + i * spacing))
+            .map(|(j, i)| Point {
+                at: (info.node.x + j * spacing, info.node.y + i * spacing),
+                value: i32::from(patch.control[(i * (intervals + 1) + j) as usize]),
+                step,
+            })
             .collect();
         self.leaves.push(points);
         Ok(())
     }
 }
 
-/// Control values, those at an earlier leaf's control point, and the most such points waiting
-/// at once (from the leaf that makes a point to the last leaf that meets it again).
-fn count(points: &ControlPoints) -> (usize, usize, i64) {
-    let mut made: HashMap<(u32, u32), usize> = HashMap::new();
+/// What [`count`] finds.
+struct Counts {
+    /// Control values coded.
+    values: usize,
+    /// Those at an earlier leaf's control point.
+    met: usize,
+    /// Those of `met` within half a step of the earlier leaf's value there.
+    close: usize,
+    /// The most such points waiting at once.
+    most_waiting: i64,
+}
+
+/// Control values, those at an earlier leaf's control point (and how many of those are close
+/// to the value the earlier leaf has there), and the most such points waiting at once (from
+/// the leaf that makes a point to the last leaf that meets it again).
+fn count(points: &ControlPoints) -> Counts {
+    // Where each point was first made: the leaf, and its value there.
+    let mut made: HashMap<(u32, u32), (usize, i32)> = HashMap::new();
     let mut last_met: HashMap<(u32, u32), usize> = HashMap::new();
-    let (mut values, mut met) = (0, 0);
+    let (mut values, mut met, mut close) = (0, 0, 0);
     for (t, leaf) in points.leaves.iter().enumerate() {
-        for &p in leaf {
+        for p in leaf {
             values += 1;
-            if made.contains_key(&p) {
+            if let Some(&(_, earlier)) = made.get(&p.at) {
                 met += 1;
-                last_met.insert(p, t);
+                close += usize::from(2 * (p.value - earlier).abs() <= p.step);
+                last_met.insert(p.at, t);
             }
         }
-        for &p in leaf {
-            made.entry(p).or_insert(t);
+        for p in leaf {
+            made.entry(p.at).or_insert((t, p.value));
         }
     }
     let mut change = vec![0i64; points.leaves.len() + 1];
     for (p, &last) in &last_met {
-        change[made[p]] += 1;
+        change[made[p].0] += 1;
         change[last] -= 1;
     }
     let (mut waiting, mut most) = (0i64, 0i64);
@@ -69,7 +100,12 @@ fn count(points: &ControlPoints) -> (usize, usize, i64) {
         waiting += c;
         most = most.max(waiting);
     }
-    (values, met, most)
+    Counts {
+        values,
+        met,
+        close,
+        most_waiting: most,
+    }
 }
 
 fn main() {
@@ -82,7 +118,9 @@ fn main() {
             .collect();
         args.drain(i..i + 2);
     }
-    println!("image,target_bpp,leaves,control_values,at_earlier_points,share_pct,most_waiting");
+    println!(
+        "image,target_bpp,leaves,control_values,at_earlier_points,share_pct,within_half_step_pct,most_waiting"
+    );
     for path in &args {
         let plane = io::load_luma(path.as_ref()).expect("readable image");
         let pixels = plane.data.len();
@@ -96,14 +134,18 @@ fn main() {
             let mut decoder = RangeDecoder::new(SliceSource::new(payload)).expect("own stream");
             let mut points = ControlPoints::default();
             walk(&header, &mut decoder, &mut points).expect("own stream");
-            let (values, met, most) = count(&points);
+            let c = count(&points);
             let name = std::path::Path::new(path)
                 .file_name()
                 .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
             println!(
-                "{name},{bpp},{},{values},{met},{:.1},{most}",
+                "{name},{bpp},{},{},{},{:.1},{:.1},{}",
                 points.leaves.len(),
-                100.0 * met as f64 / values as f64
+                c.values,
+                c.met,
+                100.0 * c.met as f64 / c.values as f64,
+                100.0 * c.close as f64 / c.met.max(1) as f64,
+                c.most_waiting
             );
         }
     }
