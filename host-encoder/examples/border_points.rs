@@ -10,6 +10,8 @@
 //!
 //! `cargo run --release -p host-encoder --example border_points -- [--bpp 0.1,0.5] IMAGE...`
 
+mod common;
+
 use decoder_core::bitstream::{Header, LeafSyntax};
 use decoder_core::entropy::{RangeDecoder, SliceSource};
 use decoder_core::model::{CONTROL_STEPS, MODELS};
@@ -110,14 +112,7 @@ fn count(points: &ControlPoints) -> Counts {
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut rates = vec![0.1, 0.5];
-    if let Some(i) = args.iter().position(|a| a == "--bpp") {
-        rates = args[i + 1]
-            .split(',')
-            .map(|r| r.parse().expect("--bpp takes numbers"))
-            .collect();
-        args.drain(i..i + 2);
-    }
+    let rates = common::take_rates(&mut args, &[0.1, 0.5]);
     println!(
         "image,target_bpp,leaves,control_values,at_earlier_points,share_pct,within_half_step_pct,most_waiting"
     );

@@ -6,24 +6,16 @@
 //! Without `--min-leaf-log2`, the leaf depth follows the rate as `pifs` chooses it (2 px leaves
 //! from [`host_encoder::FINE_LEAVES_BPP`] on): one analysis per depth.
 
+mod common;
+
 use host_encoder::{analyse, io, psnr, Analysis, EncoderConfig, Target};
 use std::time::Instant;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut rates = vec![0.05, 0.1, 0.25, 0.5];
-    if let Some(i) = args.iter().position(|a| a == "--bpp") {
-        rates = args[i + 1]
-            .split(',')
-            .map(|r| r.parse().expect("--bpp takes numbers"))
-            .collect();
-        args.drain(i..i + 2);
-    }
-    let mut min_leaf_log2 = None;
-    if let Some(i) = args.iter().position(|a| a == "--min-leaf-log2") {
-        min_leaf_log2 = Some(args[i + 1].parse().expect("--min-leaf-log2 takes a number"));
-        args.drain(i..i + 2);
-    }
+    let rates = common::take_rates(&mut args, &[0.05, 0.1, 0.25, 0.5]);
+    let min_leaf_log2: Option<u8> = common::take_option(&mut args, "--min-leaf-log2")
+        .map(|v| v.parse().expect("--min-leaf-log2 takes a number"));
     println!("image,width,height,target_bpp,bytes,bpp,psnr_db,analysis_s,encode_s,decode_ms,leaves,rate_gap_pct,min_leaf_px");
     for path in &args {
         let plane = io::load_luma(std::path::Path::new(path)).expect("readable image");
