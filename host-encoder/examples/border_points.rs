@@ -1,6 +1,6 @@
 //! What shared borders between leaves could save, and what they would cost a decoder: encodes
-//! each image at each rate (as `pifs` does: one analysis per target, 2 px leaves from
-//! [`host_encoder::FINE_LEAVES_BPP`] on), walks the stream in decoding order and counts the
+//! each image at each rate (as `pifs` does: one analysis per target, with the small leaves of
+//! [`host_encoder::EncoderConfig::for_targets`]), walks the stream in decoding order and counts the
 //! control values that sit exactly where an earlier leaf already has a control point (the
 //! values a shared-border format would not code), how many of those are within half a
 //! quantiser step (of the later leaf) of the earlier leaf's value there (those a shared border

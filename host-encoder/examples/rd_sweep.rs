@@ -3,8 +3,9 @@
 //!
 //! `cargo run --release -p host-encoder --example rd_sweep -- [--bpp 0.05,0.1] [--min-leaf-log2 N] IMAGE...`
 //!
-//! Without `--min-leaf-log2`, the leaf depth follows the rate as `pifs` chooses it (2 px leaves
-//! from [`host_encoder::FINE_LEAVES_BPP`] on): one analysis per depth.
+//! Without `--min-leaf-log2`, the small leaves follow the rate as `pifs` chooses them (2 px
+//! leaves in busy blocks from [`host_encoder::BUSY_FINE_LEAVES_BPP`] on, everywhere from
+//! [`host_encoder::FINE_LEAVES_BPP`] on): one analysis per choice.
 
 mod common;
 
@@ -22,35 +23,37 @@ fn main() {
         let name = std::path::Path::new(path)
             .file_name()
             .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
-        // One analysis per leaf depth: the rates that want 2 px leaves share one, the others
-        // another (as `pifs` would choose for them), unless the depth is given.
+        // One analysis per choice of small leaves: the rates that share one (as `pifs` would
+        // choose it for each of them alone) share the analysis, unless the depth is given.
         let pixels = plane.data.len();
-        let depth = |bpp: f64| {
-            min_leaf_log2.unwrap_or(if Target::Bpp(bpp).wants_fine_leaves(pixels) {
-                1
-            } else {
-                2
-            })
+        let leaves = |bpp: f64| {
+            let chosen = EncoderConfig::for_targets(&[Target::Bpp(bpp)], pixels);
+            match min_leaf_log2 {
+                Some(d) => (d, 0.0),
+                None => (chosen.min_leaf_log2, chosen.fine_leaf_variance),
+            }
         };
-        let mut depths: Vec<u8> = rates.iter().map(|&r| depth(r)).collect();
-        depths.sort_unstable();
-        depths.dedup();
-        // The coarser depth first: rows keep the order of ascending rates.
-        for d in depths.into_iter().rev() {
+        let mut kinds: Vec<(u8, f64)> = rates.iter().map(|&r| leaves(r)).collect();
+        // The coarser leaves first (rows keep the order of ascending rates): 4 px, then 2 px
+        // in busy blocks, then 2 px everywhere.
+        kinds.sort_by(|a, b| b.0.cmp(&a.0).then(b.1.total_cmp(&a.1)));
+        kinds.dedup();
+        for kind in kinds {
             let group: Vec<Target> = rates
                 .iter()
-                .filter(|&&r| depth(r) == d)
+                .filter(|&&r| leaves(r) == kind)
                 .map(|&r| Target::Bpp(r))
                 .collect();
             let config = EncoderConfig {
-                min_leaf_log2: d,
+                min_leaf_log2: kind.0,
+                fine_leaf_variance: kind.1,
                 trial_bpp: Target::trial_bpp(&group, pixels),
                 ..EncoderConfig::default()
             };
             let t = Instant::now();
             let analysis = analyse(plane.clone(), &config, &|_| {}).expect("analysis");
             let analysis_s = t.elapsed().as_secs_f64();
-            for &bpp in rates.iter().filter(|&&r| depth(r) == d) {
+            for &bpp in rates.iter().filter(|&&r| leaves(r) == kind) {
                 sweep_one(&analysis, &name, &plane.data, bpp, analysis_s);
             }
         }

@@ -57,8 +57,8 @@ struct EncodeArgs {
     #[arg(long, group = "target")]
     psnr: Option<f64>,
     /// Smallest leaf side as a power of two [default: 1 (2 px) for targets of 0.3 bpp or more
-    /// and for --psnr, else 2 (4 px); 2 px leaves gain about 0.65 dB at 0.5 bpp and take
-    /// about twice as long]
+    /// and for --psnr, 1 in busy 4x4 blocks only from 0.2 bpp, else 2 (4 px); 2 px leaves gain
+    /// about 0.65 dB at 0.5 bpp and take about twice as long]
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=9))]
     min_leaf_log2: Option<u8>,
     /// Largest leaf side as a power of two.
@@ -171,6 +171,12 @@ impl Settings {
             min_leaf_log2,
             max_leaf_log2: self.max_leaf_log2.max(min_leaf_log2),
             fit_weights: self.fit_weights,
+            // Leaves the user asks for are analysed everywhere.
+            fine_leaf_variance: if self.min_leaf_log2.is_some() {
+                0.0
+            } else {
+                chosen.fine_leaf_variance
+            },
             ..chosen
         }
     }
