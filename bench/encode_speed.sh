@@ -3,8 +3,7 @@
 #   1. `pifs encode --bpp 0.25` per image, wall time (median of REPEATS runs per image), then
 #      the median over the images: the "one target, analysis included" figure;
 #   2. extra targets from one analysis: the per-target encode time of `rd_sweep` (0.05, 0.1,
-#      0.25 and 0.5 bpp), median over images and rates, apart for each leaf depth (0.5 bpp gets
-#      its own analysis with 2 px leaves, as `pifs` chooses);
+#      0.25 and 0.5 bpp), median over images and rates, apart for each smallest leaf size;
 #   3. scaling: the wall time of (1) on THREADS_IMAGES images with 1 and with 2 threads
 #      (RAYON_NUM_THREADS), and the speed-up.
 # Prints a markdown summary. Needs python3 (standard library) and GNU time (/usr/bin/time).

@@ -9,10 +9,10 @@ use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::DecodeError;
 use crate::initial_contexts::INITIAL_PROBABILITIES;
 use crate::model::{
-    band_level, coefficient_step, div_round, for_each_free_tap, inverse_grid_transform,
-    transform_order, ModelType, WeightQuantiser, Weights, CONTROL_QUANTISERS, CONTROL_STEPS,
-    MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, RASTER_ORDER, SAMPLE_MAX, SAMPLE_MIN,
-    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+    band_level, coefficient_step, div_round, expand_pixel_grid, for_each_free_tap,
+    inverse_grid_transform, transform_order, ModelType, WeightQuantiser, Weights,
+    CONTROL_QUANTISERS, CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, RASTER_ORDER,
+    SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use crate::patch::Patch;
 use crate::quadtree::Node;
@@ -20,7 +20,7 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 8;
+pub const VERSION: u8 = 9;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -325,8 +325,12 @@ pub struct LeafSyntax {
     pub wquant: u8,
     /// How the control values are coded.
     pub coding: ControlCoding,
-    /// Control values as quantiser indices, row-major: DPCM indices (see [`control_value`]) or
-    /// grid-transform coefficient indices (see [`transform_control_values`]), by `coding`.
+    /// Whether the leaf's control points are one pixel apart (a pixel grid, see
+    /// [`ModelType::coded_side`]): then `control` holds only the block's `m x m` values.
+    pub pixel_grid: bool,
+    /// Control values as quantiser indices, row-major over the coded grid
+    /// ([`ModelType::coded_side`]): DPCM indices (see [`control_value`]) or grid-transform
+    /// coefficient indices (see [`transform_control_values`]), by `coding`.
     pub control: [i16; MAX_CONTROL],
     /// Free weights as signed quantiser indices, in [`for_each_free_tap`] order.
     pub weights: [i16; MAX_WEIGHTS],
@@ -339,6 +343,7 @@ impl Default for LeafSyntax {
             cquant: 0,
             wquant: 0,
             coding: ControlCoding::Dpcm,
+            pixel_grid: false,
             control: [0; MAX_CONTROL],
             weights: [0; MAX_WEIGHTS],
         }
@@ -625,17 +630,32 @@ pub fn code_split<C: Coder>(
     c.bit(p, split)
 }
 
-/// The models usable at a block of side `2^log2`, in index order, and how many there are.
+/// The models usable at a block of side `2^log2` ([`ModelType::fits_block`]), in index order,
+/// and how many there are (none for a size no leaf may have).
 pub fn models_for_block(log2: u8) -> ([u8; MODEL_COUNT], usize) {
-    let mut list = [0u8; MODEL_COUNT];
-    let mut n = 0;
-    for (i, m) in MODELS.iter().enumerate() {
-        if m.fits_block(log2) {
-            list[n] = i as u8;
-            n += 1;
+    BLOCK_MODELS
+        .get(usize::from(log2))
+        .map_or(([0; MODEL_COUNT], 0), |&(list, n)| (list, usize::from(n)))
+}
+
+/// [`models_for_block`] for every leaf size, built at compile time (in bytes: flash is tight).
+const BLOCK_MODELS: [([u8; MODEL_COUNT], u8); MAX_LEAF_LOG2 as usize + 1] = block_models();
+
+const fn block_models() -> [([u8; MODEL_COUNT], u8); MAX_LEAF_LOG2 as usize + 1] {
+    let mut out = [([0u8; MODEL_COUNT], 0u8); MAX_LEAF_LOG2 as usize + 1];
+    let mut log2 = 0;
+    while log2 <= MAX_LEAF_LOG2 as usize {
+        let mut i = 0;
+        while i < MODEL_COUNT {
+            if MODELS[i].fits_block(log2 as u8) {
+                out[log2].0[out[log2].1 as usize] = i as u8;
+                out[log2].1 += 1;
+            }
+            i += 1;
         }
+        log2 += 1;
     }
-    (list, n)
+    out
 }
 
 /// Codes a leaf: model type, quantisers, control values, weights (syntax only:
@@ -665,6 +685,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     leaf.model = models[pos as usize];
     let mi = usize::from(leaf.model);
     let model = MODELS[mi];
+    leaf.pixel_grid = !model.subdivides(log2);
 
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
@@ -674,7 +695,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     leaf.cquant = cq as u8;
 
     let mut wq = 0u32;
-    if model.weight_count() > 0 {
+    if model.weight_count() > 0 && model.subdivides(log2) {
         wq = u32::from(leaf.wquant);
         code_tree(c, &mut ctx.wquant[mi], 2, &mut wq)?;
     }
@@ -788,7 +809,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
-    let side = model.grid();
+    let side = model.coded_side(node.log2);
     let transform = leaf.coding == ControlCoding::Transform;
     let order = if transform {
         transform_order(side)
@@ -905,18 +926,22 @@ pub fn reconstruct_into(
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
-    let side = model.grid();
+    let m = usize::from(model.intervals);
+    let side = if leaf.pixel_grid { m } else { m + 1 };
     match leaf.coding {
         ControlCoding::Transform => {
             transform_control_values(side, step, &leaf.control, &mut patch.control)
         }
         ControlCoding::Dpcm => {
             patch.control = [0; MAX_CONTROL];
-            for i in 0..model.control_count() {
+            for i in 0..side * side {
                 let index = i32::from(leaf.control[i]);
                 patch.control[i] = control_value(&patch.control, side, i, step, index);
             }
         }
+    }
+    if leaf.pixel_grid {
+        expand_pixel_grid(&mut patch.control, m);
     }
     reconstruct_weights(header, leaf, model, patch)
 }

@@ -114,10 +114,48 @@ impl ModelType {
         self.intervals >= 2
     }
 
-    /// Whether this model may code a block of side `2^log2`: the block must be at least two
-    /// control intervals wide per control interval, so that at least one subdivision happens.
+    /// Whether this model may code a block of side `2^log2`: its control points must be at
+    /// least one pixel apart. At one pixel apart (a *pixel grid*: the control values are the
+    /// block's pixels, and the row and column past it, and no subdivision is ever applied)
+    /// only the first model with that grid side may, as the others would draw the same patch.
     pub const fn fits_block(self, log2: u8) -> bool {
+        if log2 >= 16 {
+            return false;
+        }
+        let size = 1u32 << log2;
+        let m = self.intervals as u32;
+        size >= 2 * m || (size == m && self.is_first_of_its_grid())
+    }
+
+    /// Whether a leaf of side `2^log2` subdivides this model's control grid at least once
+    /// (its control points are at least two pixels apart): only then do its weights shape
+    /// the patch (and get coded).
+    pub const fn subdivides(self, log2: u8) -> bool {
         log2 < 16 && (1u32 << log2) >= 2 * self.intervals as u32
+    }
+
+    /// Side of the grid of control values a leaf of side `2^log2` codes: the whole control
+    /// grid (`m + 1`) where it subdivides; on a pixel grid only the block's own `m x m` pixels
+    /// (the row and column past the block, which draw nothing, repeat the last ones:
+    /// [`expand_pixel_grid`]).
+    pub const fn coded_side(self, log2: u8) -> usize {
+        if self.subdivides(log2) {
+            self.grid()
+        } else {
+            self.intervals as usize
+        }
+    }
+
+    /// Whether no model before this one in [`MODELS`] has the same control grid.
+    const fn is_first_of_its_grid(self) -> bool {
+        let mut i = 0;
+        while i < MODEL_COUNT {
+            if MODELS[i].intervals == self.intervals {
+                return MODELS[i].transforms == self.transforms;
+            }
+            i += 1;
+        }
+        false
     }
 }
 
@@ -174,30 +212,104 @@ const fn transform_scan(side: usize) -> [u8; MAX_CONTROL] {
     out
 }
 
-/// The grid sides of the models, in the order of the per-side tables below.
-const GRID_SIDES: [usize; 4] = [2, 3, 5, 9];
+/// The sides of the coded grids ([`ModelType::coded_side`]): the models' grids (2, 3, 5, 9)
+/// and their pixel grids (2, 4, 8), in the order of the per-side tables below.
+const GRID_SIDES: [usize; 6] = [2, 3, 4, 5, 8, 9];
 
-/// The slot of grid side `side` in the per-side tables (the largest grid for any other side).
-fn grid_slot(side: usize) -> usize {
-    GRID_SIDES
-        .iter()
-        .position(|&s| s == side)
-        .unwrap_or(GRID_SIDES.len() - 1)
+/// Where each side's entries start in the per-side tables, which hold `side * side` entries
+/// per side, one side after the other; the last entry is their total length (199: bytes keep
+/// the table small in flash).
+const GRID_OFFSETS: [u8; GRID_SIDES.len() + 1] = grid_offsets();
+
+const fn grid_offsets() -> [u8; GRID_SIDES.len() + 1] {
+    let mut out = [0u8; GRID_SIDES.len() + 1];
+    let mut k = 0;
+    while k < GRID_SIDES.len() {
+        out[k + 1] = out[k] + (GRID_SIDES[k] * GRID_SIDES[k]) as u8;
+        k += 1;
+    }
+    out
 }
 
-/// [`transform_scan`] of the grid sides 2, 3, 5 and 9.
-const TRANSFORM_SCANS: [[u8; MAX_CONTROL]; 4] = [
-    transform_scan(2),
-    transform_scan(3),
-    transform_scan(5),
-    transform_scan(9),
-];
+/// Total length of a per-side table.
+const GRID_TABLE_LEN: usize = GRID_OFFSETS[GRID_SIDES.len()] as usize;
+
+/// The slot in [`GRID_SIDES`] of each side up to [`MAX_GRID`] (the largest grid's for a side
+/// that is not there).
+const GRID_SLOTS: [u8; MAX_GRID + 1] = grid_slots();
+
+const fn grid_slots() -> [u8; MAX_GRID + 1] {
+    let mut out = [(GRID_SIDES.len() - 1) as u8; MAX_GRID + 1];
+    let mut k = 0;
+    while k < GRID_SIDES.len() {
+        out[GRID_SIDES[k]] = k as u8;
+        k += 1;
+    }
+    out
+}
+
+/// The entries of side `side` in a per-side table (the largest grid's for any other side).
+fn grid_entries(table: &[u8; GRID_TABLE_LEN], side: usize) -> &[u8] {
+    let k = usize::from(GRID_SLOTS[side.min(MAX_GRID)]);
+    &table[usize::from(GRID_OFFSETS[k])..usize::from(GRID_OFFSETS[k + 1])]
+}
+
+/// What a per-side table holds.
+#[derive(Clone, Copy)]
+enum GridTable {
+    /// [`transform_scan`].
+    Scans,
+    /// [`band_multipliers`].
+    BandMultipliers,
+}
+
+/// A per-side table: the first `side * side` entries of `table` for every side of
+/// [`GRID_SIDES`], one after the other.
+const fn per_side_table(table: GridTable) -> [u8; GRID_TABLE_LEN] {
+    let mut out = [0u8; GRID_TABLE_LEN];
+    let mut k = 0;
+    while k < GRID_SIDES.len() {
+        let entries = match table {
+            GridTable::Scans => transform_scan(GRID_SIDES[k]),
+            GridTable::BandMultipliers => band_multipliers(GRID_SIDES[k]),
+        };
+        let mut i = 0;
+        while i < GRID_SIDES[k] * GRID_SIDES[k] {
+            out[GRID_OFFSETS[k] as usize + i] = entries[i];
+            i += 1;
+        }
+        k += 1;
+    }
+    out
+}
+
+/// [`transform_scan`] of every coded grid side.
+const TRANSFORM_SCANS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::Scans);
 
 /// The coding order of the coefficients of a control grid of side `side` under the grid
-/// transform (see [`band_level`]): its first `side * side` entries are the row-major indices.
+/// transform (see [`band_level`]): the row-major indices of its `side * side` positions.
 pub fn transform_order(side: usize) -> &'static [u8] {
-    let scan = &TRANSFORM_SCANS[grid_slot(side)];
-    &scan[..(side * side).min(MAX_CONTROL)]
+    grid_entries(&TRANSFORM_SCANS, side)
+}
+
+/// Spreads the `m x m` values of a pixel grid (row-major, side `m`: [`ModelType::coded_side`])
+/// over the model's control grid of side `m + 1`, in place: the row and column past the block,
+/// which draw nothing, repeat the last ones.
+pub fn expand_pixel_grid(values: &mut [i16; MAX_CONTROL], m: usize) {
+    if m == 0 || m >= MAX_GRID {
+        return;
+    }
+    let side = m + 1;
+    // Backwards: every value moves to an index at least as large, past the ones still to move.
+    for r in (0..m).rev() {
+        for c in (0..m).rev() {
+            values[r * side + c] = values[r * m + c];
+        }
+        values[r * side + m] = values[r * side + m - 1];
+    }
+    for c in 0..side {
+        values[m * side + c] = values[(m - 1) * side + c];
+    }
 }
 
 /// Row-major order: the coding order of DPCM control values.
@@ -333,18 +445,13 @@ const fn band_multipliers(side: usize) -> [u8; MAX_CONTROL] {
     out
 }
 
-/// [`band_multipliers`] of the grid sides of the models (2, 3, 5, 9).
-const BAND_MULTIPLIERS: [[u8; MAX_CONTROL]; 4] = [
-    band_multipliers(2),
-    band_multipliers(3),
-    band_multipliers(5),
-    band_multipliers(9),
-];
+/// [`band_multipliers`] of every coded grid side.
+const BAND_MULTIPLIERS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandMultipliers);
 
 /// The quantiser step of coefficient `i` (row-major) of a control grid of side `side` for the
 /// control step `step`: `max(1, (step * multiplier + 32) >> 6)`.
 pub fn coefficient_step(side: usize, i: usize, step: i32) -> i32 {
-    let table = &BAND_MULTIPLIERS[grid_slot(side)];
+    let table = grid_entries(&BAND_MULTIPLIERS, side);
     let mult = i32::from(table.get(i).copied().unwrap_or(0));
     ((step * mult + BAND_ONE / 2) >> 6).max(1)
 }
@@ -570,5 +677,57 @@ pub fn div_round(v: i32, step: i32) -> i32 {
         (v + step / 2) / step
     } else {
         -((-v + step / 2) / step)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pixel grid's `m x m` values land at their grid positions, and the row and column past
+    /// the block repeat the last ones.
+    #[test]
+    fn pixel_grid_expands_to_the_control_grid() {
+        for m in [2usize, 4, 8] {
+            let mut values = [0i16; MAX_CONTROL];
+            for (i, v) in values.iter_mut().take(m * m).enumerate() {
+                *v = i as i16 + 1;
+            }
+            expand_pixel_grid(&mut values, m);
+            let side = m + 1;
+            for r in 0..side {
+                for c in 0..side {
+                    let (sr, sc) = (r.min(m - 1), c.min(m - 1));
+                    assert_eq!(
+                        values[r * side + c],
+                        (sr * m + sc) as i16 + 1,
+                        "m {m}: ({r}, {c})"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The per-side tables hold every coded grid side: the coding order of each is a
+    /// permutation of its positions, low band first.
+    #[test]
+    fn every_coded_side_has_its_transform_order() {
+        for model in MODELS {
+            for log2 in 1..=9u8 {
+                if !model.fits_block(log2) {
+                    continue;
+                }
+                let side = model.coded_side(log2);
+                let order = transform_order(side);
+                assert_eq!(order.len(), side * side, "side {side}");
+                let mut seen = [false; MAX_CONTROL];
+                for &i in order {
+                    assert!(!seen[usize::from(i)], "side {side}: {i} twice");
+                    seen[usize::from(i)] = true;
+                }
+                assert_eq!(order[0], 0);
+                assert!(coefficient_step(side, side * side - 1, 256) >= 1);
+            }
+        }
     }
 }

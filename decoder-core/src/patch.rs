@@ -176,10 +176,11 @@ impl Patch {
     }
 
     /// Renders the pixels of the leaf block of side `2^log2` at `(x0, y0)` that fall inside
-    /// `clip`, tile by tile. `log2` must satisfy `model.fits_block(log2)` (otherwise nothing is
-    /// drawn).
+    /// `clip`, tile by tile. The block must be at least as wide as the grid has intervals, and
+    /// at most 2^15 px (otherwise nothing is drawn); a decoded leaf's block satisfies
+    /// [`ModelType::fits_block`].
     pub fn render<S: PixelSink>(&self, x0: u32, y0: u32, log2: u8, clip: Rect, sink: &mut S) {
-        if !self.model.fits_block(log2) {
+        if log2 >= 16 || (1u32 << log2) < u32::from(self.model.intervals) {
             return;
         }
         let mut arena = [0i16; ARENA_LEN];
@@ -350,6 +351,62 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// On a pixel grid (control points one pixel apart) the patch draws its control values:
+    /// pixel `(x, y)` is value `(y, x)`, whatever the weights, and the values past the block
+    /// draw nothing.
+    #[test]
+    fn pixel_grids_draw_their_control_values() {
+        let mut pixel_grids = 0;
+        for model in MODELS {
+            let log2 = model.intervals.trailing_zeros() as u8;
+            if log2 < MIN_LEAF_LOG2 {
+                continue;
+            }
+            if !model.fits_block(log2) {
+                // The 5x5/4x4 model: the 5x5/2x2 model draws the same pixel grid.
+                assert_eq!(model, MODELS[3]);
+                continue;
+            }
+            assert!(!model.subdivides(log2), "{model:?}");
+            pixel_grids += 1;
+            let side = model.grid();
+            let mut control = [0i16; MAX_CONTROL];
+            for (i, v) in control.iter_mut().take(side * side).enumerate() {
+                *v = (SAMPLE_ONE * ((i * 37) % 256) as i32) as i16;
+            }
+            let mut weights = Weights::default_for(model);
+            weights
+                .line
+                .iter_mut()
+                .flatten()
+                .flatten()
+                .for_each(|t| *t += 500);
+            let patch = Patch {
+                model,
+                control,
+                weights,
+            };
+            let size = side - 1;
+            let mut block = Block {
+                size,
+                pixels: [0; 64],
+            };
+            patch.render(0, 0, log2, Rect::of_size(8, 8), &mut block);
+            for y in 0..size {
+                for x in 0..size {
+                    let expected = ((y * side + x) * 37 % 256) as u8;
+                    assert_eq!(
+                        block.pixels[y * size + x],
+                        expected,
+                        "{model:?} at ({x}, {y})"
+                    );
+                }
+            }
+        }
+        // 3x3 at 2 px, 5x5 at 4 px, 9x9 at 8 px (not the bilinear model: leaves are >= 2 px).
+        assert_eq!(pixel_grids, 3);
     }
 
     /// The arena is sized by a formula: every model at every leaf size it may code must still

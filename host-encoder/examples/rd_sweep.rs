@@ -3,9 +3,8 @@
 //!
 //! `cargo run --release -p host-encoder --example rd_sweep -- [--bpp 0.05,0.1] [--min-leaf-log2 N] IMAGE...`
 //!
-//! Without `--min-leaf-log2`, the small leaves follow the rate as `pifs` chooses them (2 px
-//! leaves in busy blocks from [`host_encoder::BUSY_FINE_LEAVES_BPP`] on, everywhere from
-//! [`host_encoder::FINE_LEAVES_BPP`] on): one analysis per choice.
+//! Each rate is encoded from the analysis `pifs` would make for it alone (its trial rate,
+//! [`host_encoder::Target::trial_bpp`]); rates for which that is the same analysis share it.
 
 mod common;
 
@@ -23,37 +22,28 @@ fn main() {
         let name = std::path::Path::new(path)
             .file_name()
             .map_or(path.clone(), |n| n.to_string_lossy().into_owned());
-        // One analysis per choice of small leaves: the rates that share one (as `pifs` would
-        // choose it for each of them alone) share the analysis, unless the depth is given.
         let pixels = plane.data.len();
-        let leaves = |bpp: f64| {
+        let config_for = |bpp: f64| {
             let chosen = EncoderConfig::for_targets(&[Target::Bpp(bpp)], pixels);
-            match min_leaf_log2 {
-                Some(d) => (d, 0.0),
-                None => (chosen.min_leaf_log2, chosen.fine_leaf_variance),
+            let min_leaf_log2 = min_leaf_log2.unwrap_or(chosen.min_leaf_log2);
+            EncoderConfig {
+                min_leaf_log2,
+                max_leaf_log2: chosen.max_leaf_log2.max(min_leaf_log2),
+                ..chosen
             }
         };
-        let mut kinds: Vec<(u8, f64)> = rates.iter().map(|&r| leaves(r)).collect();
-        // The coarser leaves first (rows keep the order of ascending rates): 4 px, then 2 px
-        // in busy blocks, then 2 px everywhere.
-        kinds.sort_by(|a, b| b.0.cmp(&a.0).then(b.1.total_cmp(&a.1)));
-        kinds.dedup();
-        for kind in kinds {
-            let group: Vec<Target> = rates
-                .iter()
-                .filter(|&&r| leaves(r) == kind)
-                .map(|&r| Target::Bpp(r))
-                .collect();
-            let config = EncoderConfig {
-                min_leaf_log2: kind.0,
-                fine_leaf_variance: kind.1,
-                trial_bpp: Target::trial_bpp(&group, pixels),
-                ..EncoderConfig::default()
-            };
+        let mut configs: Vec<EncoderConfig> = Vec::new();
+        for &r in &rates {
+            let config = config_for(r);
+            if !configs.contains(&config) {
+                configs.push(config);
+            }
+        }
+        for config in configs {
             let t = Instant::now();
             let analysis = analyse(plane.clone(), &config, &|_| {}).expect("analysis");
             let analysis_s = t.elapsed().as_secs_f64();
-            for &bpp in rates.iter().filter(|&&r| leaves(r) == kind) {
+            for &bpp in rates.iter().filter(|&&r| config_for(r) == config) {
                 sweep_one(&analysis, &name, &plane.data, bpp, analysis_s);
             }
         }

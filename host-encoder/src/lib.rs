@@ -19,6 +19,5 @@ pub mod io;
 
 pub use encoder::analysis::Analysis;
 pub use encoder::{
-    analyse, psnr, EncodeError, Encoded, EncoderConfig, Plane, Target, BUSY_FINE_LEAVES_BPP,
-    FINE_LEAF_VARIANCE, FINE_LEAVES_BPP, MIN_TRIAL_BPP,
+    analyse, psnr, EncodeError, Encoded, EncoderConfig, Plane, Target, MIN_TRIAL_BPP,
 };

@@ -74,5 +74,8 @@ fn encode_decode_info_round_trip() {
     let out = pifs(&["info", stream.to_str().unwrap()]);
     assert!(out.status.success());
     let info = String::from_utf8_lossy(&out.stdout);
-    assert!(info.contains("40x24") && info.contains("leaves"), "{info}");
+    assert!(
+        info.contains("40x24") && info.contains("leaves") && info.contains("pixel grids"),
+        "{info}"
+    );
 }

@@ -126,8 +126,8 @@ fn make_inputs(dir: &Path) {
     flipped[at] ^= 0x10;
     std::fs::write(p("bit-flip.pifs"), &flipped).unwrap();
     let mut newer = bytes.clone();
-    newer[4] = 9;
-    std::fs::write(p("version-9.pifs"), &newer).unwrap();
+    newer[4] = decoder_core::bitstream::VERSION + 1;
+    std::fs::write(p("version-next.pifs"), &newer).unwrap();
     let mut longer = bytes.clone();
     longer.extend_from_slice(b"trailing");
     std::fs::write(p("trailing-bytes.pifs"), &longer).unwrap();
@@ -466,7 +466,7 @@ fn cases(dir: &Path) -> Vec<Case> {
         ),
         refuse(
             "decode: stream from a newer format version",
-            &["decode", "{dir}/version-9.pifs", "-o", "{dir}/d7.png"],
+            &["decode", "{dir}/version-next.pifs", "-o", "{dir}/d7.png"],
             Some("{dir}/d7.png"),
         ),
         refuse(

@@ -15,7 +15,7 @@
 mod common;
 
 use common::{analyse_with, decode_all, golden_dir, golden_list, sha256_hex, CoverageSink};
-use decoder_core::bitstream::{FLAG_CODEBOOKS, MAGIC, VERSION};
+use decoder_core::bitstream::{ControlCoding, FLAG_CODEBOOKS, MAGIC, VERSION};
 use decoder_core::model::{WeightQuantiser, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS};
 use decoder_core::{LeafInfo, LeafObserver};
 use host_encoder::{EncoderConfig, Plane, Target};
@@ -85,10 +85,11 @@ fn specs() -> Vec<Spec> {
         Spec {
             // The encoder picks codebooks only where they pay for their header bytes: near the
             // best quality of a larger image. Which rate that is depends on the encoder's
-            // tuning, so several are tried.
+            // tuning, so several are tried. Leaves from 16 px: at 8 px the 9x9 model is a
+            // pixel grid, which has no weights and wins where the weighted leaves would.
             file: "codebooks_128x128.pifs",
             plane: common::synthetic(128, 128, 1, 4),
-            config: config(3, 5, 16),
+            config: config(4, 5, 16),
             targets: vec![
                 Target::Bpp(1.0),
                 Target::Bpp(2.0),
@@ -113,12 +114,20 @@ fn usage_of(name: &str, bytes: &[u8], usage: Usage) -> Usage {
 }
 
 /// Checks that the golden set reaches every reconstruction path of decoder-core: all model
-/// types, all weight quantisers (default, both uniform steps, Lloyd-Max codebook).
+/// types, all weight quantisers (default, both uniform steps, Lloyd-Max codebook), and pixel
+/// grids with both control codings.
 fn assert_full_usage(usage: &Usage) {
     let all_models: BTreeSet<u8> = (0..MODELS.len() as u8).collect();
     let all_wquants: BTreeSet<u8> = (0..WEIGHT_QUANTISERS as u8).collect();
     assert_eq!(usage.models, all_models, "model types used");
     assert_eq!(usage.wquants, all_wquants, "weight quantisers used");
+    // Pixel grids code only their block's values, with both codings.
+    assert!(!usage.pixel_grids.is_empty(), "no pixel grid");
+    assert_eq!(
+        usage.pixel_grid_codings,
+        BTreeSet::from([0, 1]),
+        "pixel grid codings"
+    );
     assert!(
         usage.leaf_sizes.len() >= 4,
         "leaf sizes {:?}",
@@ -276,6 +285,10 @@ struct Usage {
     models: BTreeSet<u8>,
     wquants: BTreeSet<u8>,
     leaf_sizes: BTreeSet<u8>,
+    /// The models used as pixel grids (control points one pixel apart).
+    pixel_grids: BTreeSet<u8>,
+    /// The control codings used on pixel grids (DPCM 0, transform 1).
+    pixel_grid_codings: BTreeSet<u8>,
 }
 
 impl LeafObserver for Usage {
@@ -283,6 +296,11 @@ impl LeafObserver for Usage {
         self.models.insert(info.model);
         self.wquants.insert(info.wquant);
         self.leaf_sizes.insert(info.node.log2);
+        if !MODELS[usize::from(info.model)].subdivides(info.node.log2) {
+            self.pixel_grids.insert(info.model);
+            self.pixel_grid_codings
+                .insert(u8::from(info.coding == ControlCoding::Transform));
+        }
     }
 }
 

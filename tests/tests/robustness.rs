@@ -161,7 +161,12 @@ fn header_errors_are_typed() {
         ("version 5", with(4, 5), DecodeError::UnsupportedVersion(5)),
         ("version 6", with(4, 6), DecodeError::UnsupportedVersion(6)),
         ("version 7", with(4, 7), DecodeError::UnsupportedVersion(7)),
-        ("version 9", with(4, 9), DecodeError::UnsupportedVersion(9)),
+        ("version 8", with(4, 8), DecodeError::UnsupportedVersion(8)),
+        (
+            "version 10",
+            with(4, 10),
+            DecodeError::UnsupportedVersion(10),
+        ),
         (
             "version 255",
             with(4, 255),

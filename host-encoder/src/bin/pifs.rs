@@ -56,11 +56,11 @@ struct EncodeArgs {
     /// Smallest file reaching this PSNR (dB).
     #[arg(long, group = "target")]
     psnr: Option<f64>,
-    /// Smallest leaf side as a power of two [default: 1 (2 px) for targets of 0.3 bpp or more
-    /// and for --psnr, 1 in busy 4x4 blocks only from 0.2 bpp, else 2 (4 px); 2 px leaves gain
-    /// about 0.65 dB at 0.5 bpp and take about twice as long]
-    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=9))]
-    min_leaf_log2: Option<u8>,
+    /// Smallest leaf side as a power of two (4 px leaves already code every pixel of their own
+    /// with a pixel grid; 2 px leaves make encoding about 1.7 times as long for no gain on the
+    /// Kodak images).
+    #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
+    min_leaf_log2: u8,
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
     max_leaf_log2: u8,
@@ -157,7 +157,7 @@ fn encode(args: &EncodeArgs) -> Result<(), String> {
 /// The analysis settings given on the command line (the smallest leaf may be left to the
 /// targets).
 struct Settings {
-    min_leaf_log2: Option<u8>,
+    min_leaf_log2: u8,
     max_leaf_log2: u8,
     fit_weights: bool,
 }
@@ -166,17 +166,10 @@ impl Settings {
     fn config(&self, pixels: usize, jobs: &[(Target, PathBuf)]) -> EncoderConfig {
         let targets: Vec<Target> = jobs.iter().map(|(t, _)| *t).collect();
         let chosen = EncoderConfig::for_targets(&targets, pixels);
-        let min_leaf_log2 = self.min_leaf_log2.unwrap_or(chosen.min_leaf_log2);
         EncoderConfig {
-            min_leaf_log2,
-            max_leaf_log2: self.max_leaf_log2.max(min_leaf_log2),
+            min_leaf_log2: self.min_leaf_log2,
+            max_leaf_log2: self.max_leaf_log2.max(self.min_leaf_log2),
             fit_weights: self.fit_weights,
-            // Leaves the user asks for are analysed everywhere.
-            fine_leaf_variance: if self.min_leaf_log2.is_some() {
-                0.0
-            } else {
-                chosen.fine_leaf_variance
-            },
             ..chosen
         }
     }
@@ -328,11 +321,17 @@ fn info(input: &Path) -> Result<(), String> {
         codings: [[usize; decoder_core::model::MODEL_COUNT]; 2],
         cquant: [usize; decoder_core::model::CONTROL_QUANTISERS],
         wquant: [usize; 4],
+        /// Leaves per model whose control points are one pixel apart.
+        pixel_grids: [usize; decoder_core::model::MODEL_COUNT],
     }
     impl decoder_core::LeafObserver for Stats {
         fn leaf(&mut self, info: &decoder_core::LeafInfo) {
             *self.per_depth.entry(info.node.log2).or_default() += 1;
             self.models[usize::from(info.model)] += 1;
+            let model = decoder_core::model::MODELS[usize::from(info.model)];
+            if !model.subdivides(info.node.log2) {
+                self.pixel_grids[usize::from(info.model)] += 1;
+            }
             let coding =
                 usize::from(info.coding == decoder_core::bitstream::ControlCoding::Transform);
             self.codings[coding][usize::from(info.model)] += 1;
@@ -351,6 +350,7 @@ fn info(input: &Path) -> Result<(), String> {
         codings: [[0; 5]; 2],
         cquant: [0; decoder_core::model::CONTROL_QUANTISERS],
         wquant: [0; 4],
+        pixel_grids: [0; decoder_core::model::MODEL_COUNT],
     };
     let (header, stats) = decoder_core::decode_observed(&data, &mut Discard, stats)
         .map_err(|e| format!("{}: {e}", input.display()))?;
@@ -386,10 +386,11 @@ fn info(input: &Path) -> Result<(), String> {
         println!("    {:>3}x{:<3}       {n}", 1 << log2, 1 << log2);
     }
     let names = ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"];
-    println!("  models           leaves (DPCM + transform)");
+    println!("  models           leaves (DPCM + transform) [pixel grids among them]");
     for (i, (name, n)) in names.iter().zip(stats.models).enumerate() {
         let (dpcm, transform) = (stats.codings[0][i], stats.codings[1][i]);
-        println!("    {name:<14} {n} ({dpcm} + {transform})");
+        let pixel_grids = stats.pixel_grids[i];
+        println!("    {name:<14} {n} ({dpcm} + {transform}) [{pixel_grids}]");
     }
     println!(
         "  control quantiser use (steps {:?} /16 grey): {:?}",
@@ -420,7 +421,7 @@ fn demo() -> Result<(), String> {
         .map(|&bpp| (Target::Bpp(bpp), out.join(format!("kodim23-{bpp}bpp.pifs"))))
         .collect();
     let settings = Settings {
-        min_leaf_log2: None,
+        min_leaf_log2: EncoderConfig::default().min_leaf_log2,
         max_leaf_log2: EncoderConfig::default().max_leaf_log2,
         fit_weights: false,
     };

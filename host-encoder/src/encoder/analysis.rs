@@ -17,25 +17,6 @@ use decoder_core::quadtree::Node;
 use decoder_core::LeafSyntax;
 use rayon::prelude::*;
 
-/// Whether the 4 x 4 block around a 2 px node is busy enough for 2 px leaves: its pixel
-/// variance (grey levels squared, over the pixels inside the image) is at least `threshold`.
-fn busy(plane: &Plane, node: &Node, threshold: f64) -> bool {
-    if threshold <= 0.0 {
-        return true;
-    }
-    let (x0, y0) = (node.x & !3, node.y & !3);
-    let (mut n, mut sum, mut squares) = (0.0, 0.0, 0.0);
-    for y in y0..(y0 + 4).min(plane.height) {
-        for x in x0..(x0 + 4).min(plane.width) {
-            let v = f64::from(plane.get(x, y));
-            n += 1.0;
-            sum += v;
-            squares += v * v;
-        }
-    }
-    squares / n - (sum / n) * (sum / n) >= threshold
-}
-
 /// One way of coding a node as a leaf.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
@@ -79,6 +60,7 @@ impl NodeAnalysis {
             cquant: c.cq,
             wquant: c.wq,
             coding: c.coding,
+            pixel_grid: !m.subdivides(self.node.log2),
             ..LeafSyntax::default()
         };
         let at = c.at as usize;
@@ -165,12 +147,6 @@ impl Analysis {
                         log2,
                     };
                     if !analyse {
-                        return None;
-                    }
-                    if log2 == 1 && !busy(&plane, &node, config.fine_leaf_variance) {
-                        // Counted as done: the progress bar counts every node of the levels.
-                        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        progress(n + 1);
                         return None;
                     }
                     let (models, count) = models_for_block(log2);
@@ -555,12 +531,14 @@ mod tests {
         assert!(checked >= 60, "only {checked} leaves checked");
     }
 
-    /// With a variance threshold, 2 px nodes are analysed in busy 4 x 4 blocks only, and the
-    /// encoder codes the rest with larger leaves: the stream decodes to its reconstruction.
+    /// Detail finer than the smallest leaf's subdividing grids: a checkerboard of 2 px squares
+    /// on 4 px leaves (whose 3 x 3 grid has points 2 px apart: its samples all land on
+    /// squares of one colour) is coded by pixel grids, and the stream decodes to the
+    /// encoder's reconstruction.
     #[test]
-    fn fine_leaves_only_in_busy_blocks() {
+    fn pixel_grids_code_detail_finer_than_their_leaves() {
         let (w, h) = (32u32, 16u32);
-        // Left half flat, right half a checkerboard of 4 x 4 blocks of 2 px squares.
+        // Left half flat, right half the checkerboard.
         let data = (0..w * h)
             .map(|i| {
                 let (x, y) = (i % w, i / w);
@@ -575,25 +553,17 @@ mod tests {
             .collect();
         let plane = Plane::new(w, h, data);
         let config = EncoderConfig {
-            min_leaf_log2: 1,
             max_leaf_log2: 4,
-            fine_leaf_variance: 1000.0,
             ..EncoderConfig::default()
         };
+        assert_eq!(config.min_leaf_log2, 2, "4 px leaves");
         let analysis = Analysis::run(plane.clone(), &config, &|_| {});
-        let fine = analysis.level(1).expect("a 2 px level");
-        for y in (0..h).step_by(2) {
-            for x in (0..w).step_by(2) {
-                assert_eq!(fine.get(x, y).is_some(), x >= 16, "2 px node at ({x}, {y})");
-            }
-        }
         let encoded = analysis
             .encode(super::super::Target::Bpp(4.0))
             .expect("an encode");
         let mut pixels = vec![0u8; plane.data.len()];
         decoder_core::decode_into(&encoded.bytes, &mut pixels).expect("a valid stream");
         assert_eq!(pixels, encoded.reconstruction);
-        // The checkerboard needs its 2 px leaves: it is coded far better than 4 px leaves could.
         assert!(encoded.psnr > 40.0, "PSNR {}", encoded.psnr);
     }
 }

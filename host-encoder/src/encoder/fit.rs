@@ -166,7 +166,8 @@ pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
 }
 
 /// Control values and free weights fitted together by Levenberg-Marquardt, starting from the
-/// default-weight fit `plain`; `None` when the model has no free weights or the block has too
+/// default-weight fit `plain`; `None` when the model has no free weights, does not subdivide
+/// at this block size (a pixel grid, [`ModelType::subdivides`]), or the block has too
 /// few samples for them (fewer than three per parameter: thesis III.2.3, otherwise the problem
 /// is singular).
 pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
@@ -175,7 +176,7 @@ pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
     let nc = plain.control.len();
     let nw = model.weight_count();
     let count = lattice.sample_count();
-    if nw == 0 || count < 3 * (nc + nw) {
+    if nw == 0 || !model.subdivides(node.log2) || count < 3 * (nc + nw) {
         return None;
     }
     let mut theta = plain.control.clone();
@@ -223,6 +224,41 @@ pub fn prepare_projections(log2s: impl Iterator<Item = u8>) {
     });
 }
 
+/// Weight of [`extrapolation_penalty`]: small against the pixels' errors, large enough for a
+/// well-conditioned factor.
+const EXTRAPOLATION_WEIGHT: f64 = 1e-4;
+
+/// On a pixel grid (control values one pixel apart, [`ModelType::subdivides`] false) the
+/// values on the row and column past the block draw none of its pixels, so the least-squares
+/// problem leaves them free. The format does not code them either: the decoder repeats the
+/// values before them ([`decoder_core::model::expand_pixel_grid`]). This quadratic form (to add
+/// to the Gram matrix) ties each to the value before it in its row (the last column, the corner
+/// included) or column (the last row), so the problem is regular and its solution repeats the
+/// block's last pixels as the decoder does.
+fn extrapolation_penalty(model: ModelType) -> DMatrix<f64> {
+    let m = usize::from(model.intervals);
+    let side = m + 1;
+    let n = side * side;
+    let mut penalty = DMatrix::<f64>::zeros(n, n);
+    for r in 0..side {
+        for c in 0..side {
+            if r < m && c < m {
+                continue;
+            }
+            // Along the row for the last column, else along the column.
+            let step = if c == m { 1 } else { side };
+            let at = r * side + c;
+            let pair = [(at, 1.0), (at - step, -1.0)];
+            for &(i, a) in &pair {
+                for &(j, b) in &pair {
+                    penalty[(i, j)] += EXTRAPOLATION_WEIGHT * a * b;
+                }
+            }
+        }
+    }
+    penalty
+}
+
 impl Projection {
     fn of(model_index: u8, log2: u8) -> &'static Projection {
         use std::sync::OnceLock;
@@ -252,7 +288,10 @@ impl Projection {
         );
         // Stored transposed: column k is the derivative vector of sample k.
         let bt = DMatrix::from_column_slice(nc, offsets.len(), &rows);
-        let gram = &bt * bt.transpose();
+        let mut gram = &bt * bt.transpose();
+        if !model.subdivides(log2) {
+            gram += extrapolation_penalty(model);
+        }
         let (pinv, factor) = match gram.clone().cholesky() {
             // G^-1 B^T as one matrix product (fast) rather than a triangular solve per pixel.
             Some(chol) => {

@@ -66,25 +66,13 @@ pub struct EncoderConfig {
     /// to the targets to come, the closer the estimates (0.5 rather than 0.2 for a 0.5 bpp
     /// target: rate-estimate gap +3.1% -> +0.9%, +0.02 dB on grayscale Kodak).
     pub trial_bpp: f64,
-    /// With 2 px leaves (`min_leaf_log2` 1): they are analysed only inside the 4 x 4 blocks
-    /// whose pixel variance (grey levels squared) is at least this; 0 analyses them everywhere.
-    /// Elsewhere a 4 px node cannot split.
-    pub fine_leaf_variance: f64,
 }
 
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
-    /// pixels, as `pifs` chooses them: leaves down to 2 px if any target wants them
-    /// ([`Target::fine_leaf_variance`]; where the one that wants most of them does), else 4 px,
-    /// and the trial rate of [`Target::trial_bpp`].
+    /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`].
     pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
-        let fine = targets
-            .iter()
-            .filter_map(|t| t.fine_leaf_variance(pixels))
-            .min_by(f64::total_cmp);
         EncoderConfig {
-            min_leaf_log2: if fine.is_some() { 1 } else { 2 },
-            fine_leaf_variance: fine.unwrap_or(0.0),
             trial_bpp: Target::trial_bpp(targets, pixels),
             ..EncoderConfig::default()
         }
@@ -99,29 +87,9 @@ impl Default for EncoderConfig {
             codebook_levels: 8,
             fit_weights: false,
             trial_bpp: MIN_TRIAL_BPP,
-            fine_leaf_variance: 0.0,
         }
     }
 }
-
-/// Bit rate from which an analysis whose leaf size is left to the encoder goes down to 2 px
-/// leaves everywhere ([`Target::fine_leaf_variance`]). Measured on the grayscale Kodak set
-/// (one analysis at 2 px against one at 4 px): +0.65 dB on average at 0.5 bpp and +0.10 dB at
-/// 0.25 bpp; nothing at 0.1 bpp and below. An encode takes about twice as long (whole process
-/// at 0.5 bpp, kodim01 and kodim13: median 1.6 s against 3.0 s).
-pub const FINE_LEAVES_BPP: f64 = 0.3;
-
-/// Bit rate from which (up to [`FINE_LEAVES_BPP`]) the analysis goes down to 2 px leaves in
-/// busy blocks only: those of at least [`FINE_LEAF_VARIANCE`].
-pub const BUSY_FINE_LEAVES_BPP: f64 = 0.2;
-
-/// The pixel variance (grey levels squared) of a 4 x 4 block from which 2 px leaves are
-/// analysed in it below [`FINE_LEAVES_BPP`]. At 0.25 bpp on six Kodak images (kodim01, 05, 08,
-/// 13, 19, 23) 2 px leaves everywhere gained 0.127 dB on average (kodim23 0.52) for 40% more
-/// analysis time; from a variance of 200, 1000 and 4000 on they gained 0.126, 0.118 and
-/// 0.023 dB, 1000 for a few percent of analysis time. (At 0.5 bpp the same 1000 lost 0.18 dB
-/// against 2 px leaves everywhere.)
-pub const FINE_LEAF_VARIANCE: f64 = 1000.0;
 
 /// The lowest trial rate [`Target::trial_bpp`] chooses: trials at the targets' own rates
 /// below it changed the mean PSNR on grayscale Kodak by -0.008 to +0.013 dB (noise), at
@@ -165,20 +133,6 @@ impl Target {
         (logs.iter().sum::<f64>() / logs.len() as f64)
             .exp()
             .max(MIN_TRIAL_BPP)
-    }
-
-    /// Whether this target, on an image of `pixels` pixels, calls for leaves down to 2 px
-    /// (`min_leaf_log2` 1) rather than 4, and where ([`EncoderConfig::fine_leaf_variance`]):
-    /// everywhere (0) for rates of at least [`FINE_LEAVES_BPP`] and for quality targets (their
-    /// rate is not known in advance), in busy blocks ([`FINE_LEAF_VARIANCE`]) from
-    /// [`BUSY_FINE_LEAVES_BPP`], nowhere (`None`) below.
-    pub fn fine_leaf_variance(self, pixels: usize) -> Option<f64> {
-        match self.bpp(pixels) {
-            None => Some(0.0),
-            Some(b) if b >= FINE_LEAVES_BPP => Some(0.0),
-            Some(b) if b >= BUSY_FINE_LEAVES_BPP => Some(FINE_LEAF_VARIANCE),
-            Some(_) => None,
-        }
     }
 }
 

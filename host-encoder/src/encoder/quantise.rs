@@ -10,15 +10,20 @@ use decoder_core::bitstream::{
 };
 use decoder_core::entropy::ZERO_CONTEXTS;
 use decoder_core::model::{
-    coefficient_step, for_each_free_tap, grid_sizes, transform_order, WeightClass, WeightQuantiser,
-    CONTROL_STEPS, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT,
-    WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
+    coefficient_step, expand_pixel_grid, for_each_free_tap, grid_sizes, transform_order,
+    WeightClass, WeightQuantiser, CONTROL_STEPS, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX,
+    SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
 };
 use nalgebra::DMatrix;
 
 /// A fit's control values prepared for quantisation, once for all quantisers: in sample units,
 /// and as grid-transform coefficients.
 pub struct ControlTargets {
+    /// Side of the coded grid ([`decoder_core::model::ModelType::coded_side`]); the values
+    /// below are row-major over it.
+    side: usize,
+    /// Whether the coded grid is a pixel grid (the block's `m x m` values only).
+    pixel_grid: bool,
     samples: [f64; MAX_CONTROL],
     coefficients: [f64; MAX_CONTROL],
     /// For an exact least-squares fit: what error feedback needs.
@@ -36,11 +41,12 @@ struct ExactTargets {
 impl ControlTargets {
     /// The targets of `fit`'s control values, on a block of side `2^log2`.
     pub fn of(fit: &Fit, log2: u8) -> Self {
-        let side = MODELS[usize::from(fit.model)].grid();
+        let model = MODELS[usize::from(fit.model)];
+        let (side, grid) = (model.coded_side(log2), model.grid());
         let in_samples = |control: &[f64], clamp: bool| {
             let mut samples = [0.0f64; MAX_CONTROL];
-            for (g, &c) in samples.iter_mut().zip(control).take(side * side) {
-                *g = c * f64::from(SAMPLE_ONE);
+            for (i, g) in samples.iter_mut().enumerate().take(side * side) {
+                *g = control[i / side * grid + i % side] * f64::from(SAMPLE_ONE);
                 if clamp {
                     *g = g.clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX));
                 }
@@ -62,6 +68,8 @@ impl ControlTargets {
             _ => None,
         };
         ControlTargets {
+            side,
+            pixel_grid: side != grid,
             samples,
             coefficients,
             exact,
@@ -172,9 +180,13 @@ impl ErrorFeedback {
     }
 
     fn build(model_index: u8, log2: u8) -> Option<ErrorFeedback> {
-        let g = gram(model_index, log2)?;
-        let side = MODELS[usize::from(model_index)].grid();
+        let model = MODELS[usize::from(model_index)];
+        let (side, grid) = (model.coded_side(log2), model.grid());
         let n = side * side;
+        // The form over the coded values (on a pixel grid, without the values past the block).
+        let full = gram(model_index, log2)?;
+        let at = |i: usize| i / side * grid + i % side;
+        let g = &DMatrix::from_fn(n, n, |i, j| full[(at(i), at(j))]);
         // The real-valued inverse transform M (column j: the values of coefficient j alone), as
         // the inverse of the forward transform's matrix; the coefficients' form is M^T G M.
         let forward = DMatrix::from_fn(n, n, |i, j| {
@@ -204,7 +216,8 @@ impl ErrorFeedback {
 pub struct Quantised {
     /// The leaf's syntax elements.
     pub leaf: LeafSyntax,
-    /// The reconstructed control values.
+    /// The reconstructed control values, row-major over the model's whole control grid (a
+    /// pixel grid's values past the block repeating the last ones, as the decoder's).
     pub values: [i16; MAX_CONTROL],
     /// The error quantisation adds to an exact fit's residual.
     pub added_error: Option<f64>,
@@ -229,8 +242,9 @@ pub fn quantise(
         ..LeafSyntax::default()
     };
     let step = CONTROL_STEPS[usize::from(cq)];
-    let side = model.grid();
-    let (values, form) = match coding {
+    let side = targets.side;
+    leaf.pixel_grid = targets.pixel_grid;
+    let (mut values, form) = match coding {
         ControlCoding::Dpcm => {
             let rounding = IndexRounding::new(cq, false, side);
             quantise_dpcm(targets, side, step, &rounding, &mut leaf.control)
@@ -243,6 +257,9 @@ pub fn quantise(
             (values, form)
         }
     };
+    if targets.pixel_grid {
+        expand_pixel_grid(&mut values, side);
+    }
     // The forms are over errors in sample units.
     let sample = f64::from(SAMPLE_ONE);
     let added_error = form.map(|f| f / (sample * sample));
