@@ -116,8 +116,8 @@ impl ModelType {
 
     /// Whether this model may code a block of side `2^log2`: its control points must be at
     /// least one pixel apart. At one pixel apart (a *pixel grid*: the control values are the
-    /// block's pixels, and the row and column past it, and no subdivision is ever applied)
-    /// only the first model with that grid side may, as the others would draw the same patch.
+    /// block's pixels and nothing is subdivided, see [`ModelType::coded_side`]) only the first
+    /// model with that grid side may, as the others would draw the same patch.
     pub const fn fits_block(self, log2: u8) -> bool {
         if log2 >= 16 {
             return false;
