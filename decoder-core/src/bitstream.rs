@@ -325,9 +325,6 @@ pub struct LeafSyntax {
     pub wquant: u8,
     /// How the control values are coded.
     pub coding: ControlCoding,
-    /// Whether the leaf's control points are one pixel apart (a pixel grid, see
-    /// [`ModelType::coded_side`]): then `control` holds only the block's `m x m` values.
-    pub pixel_grid: bool,
     /// Control values as quantiser indices, row-major over the coded grid
     /// ([`ModelType::coded_side`]): DPCM indices (see [`control_value`]) or grid-transform
     /// coefficient indices (see [`transform_control_values`]), by `coding`.
@@ -343,7 +340,6 @@ impl Default for LeafSyntax {
             cquant: 0,
             wquant: 0,
             coding: ControlCoding::Dpcm,
-            pixel_grid: false,
             control: [0; MAX_CONTROL],
             weights: [0; MAX_WEIGHTS],
         }
@@ -685,7 +681,6 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     leaf.model = models[pos as usize];
     let mi = usize::from(leaf.model);
     let model = MODELS[mi];
-    leaf.pixel_grid = !model.subdivides(log2);
 
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
@@ -900,11 +895,11 @@ fn code_weights<C: Coder>(
     result
 }
 
-/// Reconstructs the patch a leaf describes. Fails if a codebook index is out of range or a
-/// codebook is used that the stream does not carry.
-pub fn reconstruct(header: &Header, leaf: &LeafSyntax) -> Result<Patch, DecodeError> {
+/// Reconstructs the patch a leaf of side `2^log2` describes. Fails if a codebook index is out
+/// of range or a codebook is used that the stream does not carry.
+pub fn reconstruct(header: &Header, leaf: &LeafSyntax, log2: u8) -> Result<Patch, DecodeError> {
     let mut patch = Patch::EMPTY;
-    reconstruct_into(header, leaf, &mut patch)?;
+    reconstruct_into(header, leaf, log2, &mut patch)?;
     Ok(patch)
 }
 
@@ -920,14 +915,14 @@ fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, DecodeError> {
 pub fn reconstruct_into(
     header: &Header,
     leaf: &LeafSyntax,
+    log2: u8,
     patch: &mut Patch,
 ) -> Result<(), DecodeError> {
     let model = leaf_model(leaf)?;
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
-    let m = usize::from(model.intervals);
-    let side = if leaf.pixel_grid { m } else { m + 1 };
+    let side = model.coded_side(log2);
     match leaf.coding {
         ControlCoding::Transform => {
             transform_control_values(side, step, &leaf.control, &mut patch.control)
@@ -940,8 +935,8 @@ pub fn reconstruct_into(
             }
         }
     }
-    if leaf.pixel_grid {
-        expand_pixel_grid(&mut patch.control, m);
+    if side == usize::from(model.intervals) {
+        expand_pixel_grid(&mut patch.control, side);
     }
     reconstruct_weights(header, leaf, model, patch)
 }

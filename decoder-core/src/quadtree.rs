@@ -260,7 +260,7 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor>(
         &state.predictor,
         &mut leaf,
     )?;
-    reconstruct_into(header, &leaf, patch)?;
+    reconstruct_into(header, &leaf, node.log2, patch)?;
     Ok(LeafInfo {
         node,
         model: leaf.model,

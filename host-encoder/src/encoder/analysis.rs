@@ -60,7 +60,6 @@ impl NodeAnalysis {
             cquant: c.cq,
             wquant: c.wq,
             coding: c.coding,
-            pixel_grid: !m.subdivides(self.node.log2),
             ..LeafSyntax::default()
         };
         let at = c.at as usize;
@@ -404,7 +403,7 @@ pub fn closed_loop_sse(
     node: &Node,
     leaf: &decoder_core::LeafSyntax,
 ) -> f64 {
-    let Ok(patch) = decoder_core::bitstream::reconstruct(header, leaf) else {
+    let Ok(patch) = decoder_core::bitstream::reconstruct(header, leaf, node.log2) else {
         return f64::INFINITY;
     };
     struct Sse<'a> {

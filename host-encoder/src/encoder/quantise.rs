@@ -22,8 +22,6 @@ pub struct ControlTargets {
     /// Side of the coded grid ([`decoder_core::model::ModelType::coded_side`]); the values
     /// below are row-major over it.
     side: usize,
-    /// Whether the coded grid is a pixel grid (the block's `m x m` values only).
-    pixel_grid: bool,
     samples: [f64; MAX_CONTROL],
     coefficients: [f64; MAX_CONTROL],
     /// For an exact least-squares fit: what error feedback needs.
@@ -69,7 +67,6 @@ impl ControlTargets {
         };
         ControlTargets {
             side,
-            pixel_grid: side != grid,
             samples,
             coefficients,
             exact,
@@ -243,7 +240,6 @@ pub fn quantise(
     };
     let step = CONTROL_STEPS[usize::from(cq)];
     let side = targets.side;
-    leaf.pixel_grid = targets.pixel_grid;
     let (mut values, form) = match coding {
         ControlCoding::Dpcm => {
             let rounding = IndexRounding::new(cq, false, side);
@@ -257,7 +253,7 @@ pub fn quantise(
             (values, form)
         }
     };
-    if targets.pixel_grid {
+    if side == usize::from(model.intervals) {
         expand_pixel_grid(&mut values, side);
     }
     // The forms are over errors in sample units.

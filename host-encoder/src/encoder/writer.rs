@@ -133,7 +133,8 @@ pub fn reconstruct(
             let Some(Decision::Leaf(ci)) = plan.decision(analysis, node) else {
                 return Err(DecodeError::InvalidData("leaf without a candidate"));
             };
-            let patch = reconstruct_patch(header, &na.leaf(&na.candidates[usize::from(ci)]))?;
+            let leaf = na.leaf(&na.candidates[usize::from(ci)]);
+            let patch = reconstruct_patch(header, &leaf, node.log2)?;
             let mut tiles = Tiles::default();
             patch.render(
                 node.x,
