@@ -12,15 +12,16 @@ use crate::model::{
     band_level, coefficient_step, div_round, expand_pixel_grid, for_each_free_tap,
     inverse_grid_transform, transform_order, ModelType, WeightQuantiser, Weights,
     CONTROL_QUANTISERS, CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, RASTER_ORDER,
-    SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+    SAMPLE_MAX, SAMPLE_MIN, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use crate::patch::Patch;
+use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
 use crate::quadtree::Node;
 
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 9;
+pub const VERSION: u8 = 10;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -30,7 +31,7 @@ pub const MAX_LENGTH_BYTES: usize = 5;
 /// Smallest allowed leaf side, as a power of two.
 pub const MIN_LEAF_LOG2: u8 = 1;
 /// Largest allowed leaf side, as a power of two.
-pub const MAX_LEAF_LOG2: u8 = 9;
+pub const MAX_LEAF_LOG2: u8 = 7;
 /// Largest number of levels of a Lloyd-Max codebook.
 pub const MAX_CODEBOOK: usize = 16;
 /// Header flag: Lloyd-Max weight codebooks follow the fixed header.
@@ -346,11 +347,11 @@ impl Default for LeafSyntax {
     }
 }
 
-/// Control class: a leaf's first value (DPCM) or low band (transform), predicted by a corner
-/// elsewhere.
+/// Control class: a leaf's first value (DPCM) or low band (transform), predicted from one
+/// neighbour's pixel or none.
 const CLASS_FIRST: usize = 0;
-/// Control class: a leaf's first value or low band, predicted by a corner at exactly the
-/// leaf's.
+/// Control class: a leaf's first value or low band, predicted from the pixels left of and
+/// above its corner.
 const CLASS_SHARED: usize = 1;
 /// Control class (DPCM): the rest of the first row and column.
 const CLASS_EDGE: usize = 2;
@@ -461,153 +462,6 @@ impl Contexts {
         for class in self.weights.iter_mut().flatten() {
             class.for_each_prob(&mut f);
         }
-    }
-}
-
-/// Number of leaf corners remembered for predicting a leaf's first control value.
-pub const CORNER_MEMORY: usize = 32;
-
-/// Where a leaf's first control value gets its prediction from.
-pub trait SamplePrediction {
-    /// A prediction of the sample at pixel position `(x, y)`, and whether an earlier leaf had a
-    /// corner at exactly that position.
-    fn predict(&self, x: u32, y: u32) -> (i32, bool);
-}
-
-/// Which corner of its leaf a remembered corner is. Each is remembered with the value of the
-/// leaf's own pixel nearest to it, so that a corner shared by several leaves says what each
-/// of them drew next to it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-enum CornerRole {
-    /// The leaf's top-left corner: its own first pixel.
-    TopLeft = 0,
-    /// The top-right corner, with the pixel to its left: a later leaf's left neighbour.
-    TopRight = 1,
-    /// The bottom-left corner, with the pixel above it: a later leaf's upper neighbour.
-    BottomLeft = 2,
-    /// The bottom-right corner, with the pixel above and to its left.
-    BottomRight = 3,
-}
-
-/// A remembered corner: half its pixel coordinates (corners lie on even coordinates, and
-/// halves fit in 16 bits for every image size), the value of its leaf's pixel nearest to it,
-/// and its role.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Corner {
-    half_x: u16,
-    half_y: u16,
-    value: i16,
-    role: CornerRole,
-}
-
-/// Prediction state carried from leaf to leaf: the corners of recently decoded leaves.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Predictor {
-    corners: [Corner; CORNER_MEMORY],
-    len: usize,
-    next: usize,
-}
-
-impl Default for Predictor {
-    fn default() -> Self {
-        Predictor::EMPTY
-    }
-}
-
-impl Predictor {
-    /// No corner remembered (all zero bits, like [`Contexts::FRESH`]).
-    pub const EMPTY: Predictor = Predictor {
-        corners: [Corner {
-            half_x: 0,
-            half_y: 0,
-            value: 0,
-            role: CornerRole::TopLeft,
-        }; CORNER_MEMORY],
-        len: 0,
-        next: 0,
-    };
-}
-
-impl SamplePrediction for Predictor {
-    /// The pixel at a leaf's top-left corner `(x, y)` from the pixels its neighbours drew next
-    /// to it: the left neighbour's `(x-1, y)` (a top-right corner at `(x, y)`), the upper
-    /// neighbour's `(x, y-1)` (a bottom-left corner) and the upper-left one's `(x-1, y-1)` (a
-    /// bottom-right corner), the most recent of each. With all three, their LOCO-I median; with
-    /// the left and upper ones, their mean; with one of them, that one. Otherwise the nearest
-    /// remembered corner (city-block distance, most recent first on ties), else mid-grey.
-    #[inline(never)]
-    fn predict(&self, x: u32, y: u32) -> (i32, bool) {
-        let (hx, hy) = (x / 2, y / 2);
-        // The values beside `(x, y)` by role, and a bit per role found.
-        let mut beside = [0i32; 4];
-        let mut found = 0u32;
-        let (mut nearest, mut nearest_value) = (u32::MAX, 128 * SAMPLE_ONE);
-        for k in 0..self.len {
-            // From the most recent entry backwards.
-            let corner = &self.corners[(self.next + CORNER_MEMORY - 1 - k) % CORNER_MEMORY];
-            let d = u32::from(corner.half_x).abs_diff(hx) + u32::from(corner.half_y).abs_diff(hy);
-            let value = i32::from(corner.value);
-            let role = corner.role as usize;
-            if d == 0 && found & (1 << role) == 0 {
-                beside[role] = value;
-                found |= 1 << role;
-            }
-            if d < nearest {
-                (nearest, nearest_value) = (d, value);
-            }
-        }
-        let [_, left, up, up_left] = beside;
-        // Bit 0: the left neighbour's pixel, bit 1: the upper one's, bit 2: the upper-left one's.
-        match found >> 1 {
-            0b111 => (med(left, up, up_left), true),
-            0b011 => ((left + up) >> 1, true),
-            0b001 | 0b101 => (left, true),
-            0b010 | 0b110 => (up, true),
-            _ => (nearest_value, nearest == 0),
-        }
-    }
-}
-
-impl Predictor {
-    /// Remembers the four corners of a decoded leaf of side `2^log2` at `(x, y)`, each with the
-    /// leaf's pixel nearest to it. The pixel one step inside a corner is taken on the straight
-    /// line between the corner's control value and the next one inwards (bilinearly in the
-    /// corner's last cell for the bottom-right one): exact for the bilinear model, and close to
-    /// the subdivision surface for the others.
-    #[inline(never)]
-    pub fn remember(&mut self, x: u32, y: u32, log2: u8, patch: &Patch) {
-        let side = patch.model.grid();
-        let m = side - 1;
-        // The grid spacing is a power of two: `2^log2 / m`.
-        let t = u32::from(log2).saturating_sub((m as u32).trailing_zeros());
-        // (Indices are below MAX_CONTROL; the clamp only spares a bounds check.)
-        let at = |i: usize| i32::from(patch.control[i.min(MAX_CONTROL - 1)]);
-        // From control value `inner` towards the corner's `outer`, one pixel short of it.
-        let inside = |inner: i32, outer: i32| inner + (((outer - inner) * ((1 << t) - 1)) >> t);
-        let last = side * side - 1;
-        let s = 1u32 << log2;
-        self.push(x, y, at(0), CornerRole::TopLeft);
-        self.push(x + s, y, inside(at(m - 1), at(m)), CornerRole::TopRight);
-        let bottom_left = inside(at(last - m - side), at(last - m));
-        self.push(x, y + s, bottom_left, CornerRole::BottomLeft);
-        let above = inside(at(last - side - 1), at(last - side));
-        let below = inside(at(last - 1), at(last));
-        self.push(x + s, y + s, inside(above, below), CornerRole::BottomRight);
-    }
-
-    /// Remembers one corner. Leaf corners lie on even coordinates below `2^17`; values stay
-    /// between the control values they come from, in the sample range.
-    #[inline(never)]
-    fn push(&mut self, x: u32, y: u32, value: i32, role: CornerRole) {
-        self.corners[self.next % CORNER_MEMORY] = Corner {
-            half_x: (x / 2) as u16,
-            half_y: (y / 2) as u16,
-            value: value as i16,
-            role,
-        };
-        self.next = (self.next + 1) % CORNER_MEMORY;
-        self.len = (self.len + 1).min(CORNER_MEMORY);
     }
 }
 
@@ -786,12 +640,20 @@ pub fn transform_control_values(
     }
 }
 
-/// Control values: `(m+1)^2` indices in the coding order of the leaf's control coding (raster
-/// for DPCM, [`transform_order`] for the grid transform). The first coded index is coded as its
-/// difference from a prediction by earlier leaves ([`SamplePrediction`]: the nearest remembered
-/// corner, with its own contexts when it sits exactly at the leaf's corner), in units of its own
-/// step; the others as they are, with contexts by position (DPCM: first row and column or
-/// interior) or by transform level.
+/// What a control index is coded against: the first one's prediction, or the pixels beside an
+/// index of DPCM's first row or column (if known).
+enum Prediction {
+    First(i32),
+    Edge(Option<(i32, i32)>),
+}
+
+/// Control values: the coded side's indices in the coding order of the leaf's control coding
+/// (raster for DPCM, [`transform_order`] for the grid transform). The first coded index is
+/// coded as its difference from a prediction by earlier leaves ([`SamplePrediction::predict`],
+/// with its own contexts when both neighbours are known), in units of its own step. Under DPCM,
+/// every other index of the first row and column is coded as its difference from
+/// [`edge_offset`] where the pixels beside it are known ([`edge_pixels`]); the rest as they
+/// are. Contexts are by position (DPCM: first row and column or interior) or transform level.
 fn code_control<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
@@ -805,18 +667,27 @@ fn code_control<C: Coder, P: SamplePrediction>(
         .ok_or(DecodeError::InvalidData("control quantiser"))?;
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.coded_side(node.log2);
+    let spacing = model.spacing(node.log2);
     let transform = leaf.coding == ControlCoding::Transform;
     let order = if transform {
         transform_order(side)
     } else {
         &RASTER_ORDER[..side * side]
     };
-    // The first coded value is grid position 0 in both orders, and the only one coded against
-    // a prediction: its residual's magnitude is kept for its neighbours' contexts.
+    // The first coded value is grid position 0 in both orders: its residual's magnitude is
+    // kept for its neighbours' contexts.
     let mut first_magnitude = 0;
+    // DPCM: the last values reconstructed on the first row and in the first column, which the
+    // next ones there are predicted from.
+    let (mut row_value, mut column_value) = (0, 0);
     for (n, &i) in order.iter().enumerate() {
         let i = usize::from(i);
         let (r, col) = (i / side, i % side);
+        let base = match (n, r) {
+            (0, _) => 0,
+            (_, 0) => row_value,
+            _ => column_value,
+        };
         let (pred_index, class) = if n == 0 {
             let (p, exact) = prediction.predict(node.x, node.y);
             let q = if transform {
@@ -825,17 +696,39 @@ fn code_control<C: Coder, P: SamplePrediction>(
                 step
             };
             let class = if exact { CLASS_SHARED } else { CLASS_FIRST };
-            (div_round(p, q), class)
+            (Prediction::First(div_round(p, q)), class)
         } else {
-            (0, control_class(transform, side, r, col))
+            let class = control_class(transform, side, r, col);
+            let beside = if transform || (r > 0 && col > 0) {
+                None
+            } else {
+                edge_pixels(prediction, node, spacing, r == 0, r + col)
+            };
+            (Prediction::Edge(beside), class)
+        };
+        let ctx = zero_context(&leaf.control, first_magnitude, side, r, col);
+        let (pred_index, ctx) = match pred_index {
+            Prediction::First(p) => (p, ctx),
+            Prediction::Edge(Some((a, b))) => {
+                (edge_offset(base, a, b, step), edge_context(ctx, a, b, step))
+            }
+            Prediction::Edge(None) => (0, ctx),
         };
         let mut residual = i32::from(leaf.control[i]) - pred_index;
-        let ctx = zero_context(&leaf.control, first_magnitude, side, r, col);
         contexts[class].code(c, ctx, &mut residual)?;
-        leaf.control[i] = i16::try_from(pred_index + residual)
-            .map_err(|_| DecodeError::InvalidData("control value"))?;
+        let index = pred_index + residual;
+        leaf.control[i] =
+            i16::try_from(index).map_err(|_| DecodeError::InvalidData("control value"))?;
+        // The first value and the first row and column, reconstructed (DPCM's).
+        let value = i32::from(dequantise_control(base, step, index));
         if n == 0 {
             first_magnitude = residual.unsigned_abs().min(2) as usize;
+        }
+        if r == 0 {
+            row_value = value;
+        }
+        if col == 0 {
+            column_value = value;
         }
     }
     Ok(())
@@ -985,45 +878,129 @@ fn reconstruct_weights(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::SAMPLE_ONE;
 
-    /// A bilinear leaf of side `2^log2` with control values `v` (row-major 2 x 2).
-    fn bilinear(v: [i16; 4]) -> Patch {
-        let mut patch = Patch::EMPTY;
-        patch.model = MODELS[0];
-        patch.control[..4].copy_from_slice(&v);
-        patch
+    /// Plays the encoder's part (records every bit) or the decoder's (replays them).
+    struct Tape {
+        bits: [bool; 2048],
+        len: usize,
+        read: Option<usize>,
     }
 
-    /// A corner is remembered with its leaf's pixel next to it: exact for the bilinear model.
-    #[test]
-    fn corners_carry_the_pixel_next_to_them() {
-        let mut memory = Predictor::EMPTY;
-        // 4 px wide: pixel 3 of a ramp from 0 to 64 is 48; pixel (3, 3) of the bilinear
-        // surface 0, 64 / 32, 160 is 3/4 of the way from 48 (at (3, 0)) to 128 (at (3, 4)).
-        memory.remember(0, 0, 2, &bilinear([0, 64, 32, 160]));
-        assert_eq!(memory.predict(4, 0), (48, true));
-        assert_eq!(memory.predict(0, 4), (24, true));
-        let at_3_4 = 32 + (160 - 32) * 3 / 4;
-        assert_eq!(memory.predict(4, 4), (48 + (at_3_4 - 48) * 3 / 4, true));
-        // Nowhere near a corner: the nearest entry, not shared.
-        assert_eq!(memory.predict(12, 0), (48, false));
+    impl Tape {
+        fn new() -> Tape {
+            Tape {
+                bits: [false; 2048],
+                len: 0,
+                read: None,
+            }
+        }
     }
 
-    /// With left, upper and upper-left neighbours, the LOCO-I median of their pixels; with the
-    /// left and upper ones, their mean.
+    impl Coder for Tape {
+        fn bit(&mut self, _p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+            self.bypass(bit)
+        }
+
+        fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+            match &mut self.read {
+                Some(at) => {
+                    *bit = *self.bits.get(*at).ok_or(DecodeError::Truncated)?;
+                    *at += 1;
+                }
+                None => {
+                    self.bits[self.len] = *bit;
+                    self.len += 1;
+                }
+            }
+            Ok(())
+        }
+    }
+
+    /// Pixels around a leaf at (8, 8): above it a ramp, left of it a step.
+    struct Around;
+
+    impl SamplePrediction for Around {
+        fn above(&self, x: u32, _y: u32) -> Option<i32> {
+            Some(i32::try_from(x).ok()? * 40 * SAMPLE_ONE / 8)
+        }
+
+        fn left(&self, _x: u32, y: u32) -> Option<i32> {
+            Some(if y < 10 { 40 } else { 200 } * SAMPLE_ONE)
+        }
+    }
+
+    /// No neighbours.
+    struct Alone;
+
+    impl SamplePrediction for Alone {
+        fn above(&self, _x: u32, _y: u32) -> Option<i32> {
+            None
+        }
+
+        fn left(&self, _x: u32, _y: u32) -> Option<i32> {
+            None
+        }
+    }
+
+    /// The bits of a DPCM pixel grid of 4 px at (8, 8) whose first row continues the ramp
+    /// above it and whose first column the step left of it, and that the decoder reads the
+    /// same indices back.
+    fn coded_bits<P: SamplePrediction>(prediction: &P) -> usize {
+        let node = Node {
+            x: 8,
+            y: 8,
+            log2: 2,
+        };
+        let model = MODELS[2];
+        assert_eq!(model.coded_side(2), 4);
+        let step = CONTROL_STEPS[0];
+        let mut leaf = LeafSyntax {
+            model: 2,
+            ..LeafSyntax::default()
+        };
+        // Sample values: row 0 follows the ramp above (8..11) * 5, column 0 the step.
+        let target = |r: usize, c: usize| match (r, c) {
+            (0, c) => (8 + c as i32) * 5 * SAMPLE_ONE,
+            (r, 0) => (if r < 2 { 40 } else { 200 }) * SAMPLE_ONE,
+            _ => 100 * SAMPLE_ONE,
+        };
+        let mut values = [0i16; MAX_CONTROL];
+        for i in 0..16 {
+            let (r, c) = (i / 4, i % 4);
+            let base = if i == 0 {
+                0
+            } else {
+                intra_prediction(&values, 4, r, c)
+            };
+            let index = div_round(target(r, c) - base, step);
+            leaf.control[i] = index as i16;
+            values[i] = dequantise_control(base, step, index);
+        }
+        let mut tape = Tape::new();
+        let mut ctx = Contexts::default();
+        code_leaf(&mut tape, &mut ctx, &node, prediction, &mut leaf.clone()).unwrap();
+        let written = tape.len;
+        tape.read = Some(0);
+        let mut read = LeafSyntax::default();
+        code_leaf(
+            &mut tape,
+            &mut Contexts::default(),
+            &node,
+            prediction,
+            &mut read,
+        )
+        .unwrap();
+        assert_eq!(tape.read, Some(written));
+        assert_eq!(read.control, leaf.control);
+        written
+    }
+
+    /// A DPCM leaf's first row and column are coded against the pixels beside them.
     #[test]
-    fn first_value_is_predicted_from_the_neighbours_pixels() {
-        let flat = |v: i16| bilinear([v; 4]);
-        let mut memory = Predictor::EMPTY;
-        memory.remember(2, 0, 1, &flat(800));
-        memory.remember(0, 2, 1, &flat(1600));
-        assert_eq!(memory.predict(2, 2), (1200, true));
-        memory.remember(0, 0, 1, &flat(1120));
-        assert_eq!(memory.predict(2, 2), (1600 + 800 - 1120, true));
-        // Upper-left brighter than both: an edge, the darker side continues.
-        memory.remember(0, 0, 1, &flat(2000));
-        assert_eq!(memory.predict(2, 2), (800, true));
-        assert_eq!(Predictor::EMPTY.predict(0, 0), (128 * SAMPLE_ONE, false));
+    fn edges_are_predicted_from_the_pixels_beside_them() {
+        let (near, alone) = (coded_bits(&Around), coded_bits(&Alone));
+        assert!(near < alone, "{near} bits with neighbours, {alone} without");
     }
 
     /// The table of initial probabilities covers every context exactly once, in the order

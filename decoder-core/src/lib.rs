@@ -12,6 +12,7 @@
 //! - [`entropy`]: the range decoder and the binarisations;
 //! - [`model`]: model types, subdivision rules, quantisers;
 //! - [`patch`]: integer patch synthesis (where a pixel is made);
+//! - [`prediction`]: the pixel frontier a leaf's values are predicted from;
 //! - [`quadtree`]: the walk over the quadtree cut;
 //! - [`stream`]: decoding from a sequential [`entropy::ByteSource`] (no stream in RAM) and
 //!   decoding of a clip rectangle only;
@@ -35,6 +36,7 @@ mod error;
 pub mod initial_contexts;
 pub mod model;
 pub mod patch;
+pub mod prediction;
 pub mod quadtree;
 pub mod stream;
 
@@ -48,6 +50,7 @@ pub use stream::{decode_region, decode_stream, decode_stream_region, MAX_HEADER_
 
 use entropy::{RangeDecoder, SliceSource};
 use patch::Patch;
+use prediction::Frontier;
 pub use quadtree::LeafInfo;
 use quadtree::{Node, TreeVisitor};
 
@@ -125,6 +128,20 @@ impl<S: PixelSink, O: LeafObserver> TreeVisitor for Drawer<'_, S, O> {
         self.observer.leaf(info);
         let node = &info.node;
         patch.render(node.x, node.y, node.log2, self.clip, self.sink);
+        Ok(())
+    }
+
+    // The whole image is drawn: the frontier learns each leaf's edges as they are drawn.
+    fn leaf_with_frontier(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier,
+    ) -> Result<(), DecodeError> {
+        self.observer.leaf(info);
+        let node = &info.node;
+        let mut sink = frontier.capture(node, self.sink);
+        patch.render(node.x, node.y, node.log2, self.clip, &mut sink);
         Ok(())
     }
 }

@@ -134,6 +134,13 @@ impl ModelType {
         log2 < 16 && (1u32 << log2) >= 2 * self.intervals as u32
     }
 
+    /// Pixels between neighbouring control points on a leaf of side `2^log2` (which this
+    /// model fits, [`ModelType::fits_block`]).
+    pub const fn spacing(self, log2: u8) -> u32 {
+        let size = if log2 < 16 { 1u32 << log2 } else { 1 << 15 };
+        size / self.intervals as u32
+    }
+
     /// Side of the grid of control values a leaf of side `2^log2` codes: the whole control
     /// grid (`m + 1`) where it subdivides; on a pixel grid only the block's own `m x m` pixels
     /// (the row and column past the block, which draw nothing, repeat the last ones:
@@ -544,10 +551,22 @@ pub const CELL_DEPENDENT_TAP: usize = 0;
 pub struct Weights {
     /// `line[dir][r-1]`: taps for new points on horizontal (`dir` 0, along a row) and vertical
     /// (`dir` 1, along a column) lines at phase `r`.
-    pub line: [[[i32; 4]; 3]; 2],
+    pub line: [[[i16; 4]; 3]; 2],
     /// `cell[r1-1][r2-1]`: taps for new points at row phase `r1` and column phase `r2`, on the
     /// new points at column phase `r2` of old rows `a1-1, a1, a1+1, a1+2` ([`tap_point`]).
-    pub cell: [[[i32; 4]; 3]; 3],
+    pub cell: [[[i16; 4]; 3]; 3],
+}
+
+/// A rule's taps in 16 bits (every tap of a balanced rule fits: free taps are at most
+/// [`WEIGHT_LIMIT`] in magnitude, so the dependent one is at most `WEIGHT_ONE + 3 *
+/// WEIGHT_LIMIT`), which halves a patch's weights on a decoder's stack.
+const fn narrow(taps: [i32; 4]) -> [i16; 4] {
+    [
+        taps[0] as i16,
+        taps[1] as i16,
+        taps[2] as i16,
+        taps[3] as i16,
+    ]
 }
 
 impl Weights {
@@ -559,10 +578,10 @@ impl Weights {
             cell: [[[0; 4]; 3]; 3],
         };
         for r in 1..n as usize {
-            w.line[0][r - 1] = default_line_taps(n, r);
-            w.line[1][r - 1] = default_line_taps(n, r);
+            w.line[0][r - 1] = narrow(default_line_taps(n, r));
+            w.line[1][r - 1] = narrow(default_line_taps(n, r));
             for r2 in 1..n as usize {
-                w.cell[r - 1][r2 - 1] = default_cell_taps(n, r, r2);
+                w.cell[r - 1][r2 - 1] = narrow(default_cell_taps(n, r, r2));
             }
         }
         w
@@ -586,27 +605,27 @@ impl Weights {
     /// Adds `deviation` to the free tap `slot`, clamped to `[-WEIGHT_LIMIT, WEIGHT_LIMIT]`.
     pub fn deviate(&mut self, slot: TapSlot, deviation: i32) {
         let tap = self.tap_mut(slot);
-        *tap = tap
+        *tap = i32::from(*tap)
             .saturating_add(deviation)
-            .clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT);
+            .clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT) as i16;
     }
 
     /// Sets every rule's dependent tap so that its taps sum to exactly [`WEIGHT_ONE`].
     pub fn balance(&mut self) {
         for rule in self.line.iter_mut().flatten() {
             rule[LINE_DEPENDENT_TAP] = 0;
-            let s: i32 = rule.iter().sum();
-            rule[LINE_DEPENDENT_TAP] = WEIGHT_ONE - s;
+            let s: i32 = rule.iter().map(|&t| i32::from(t)).sum();
+            rule[LINE_DEPENDENT_TAP] = (WEIGHT_ONE - s) as i16;
         }
         for rule in self.cell.iter_mut().flatten() {
             rule[CELL_DEPENDENT_TAP] = 0;
-            let s: i32 = rule.iter().sum();
-            rule[CELL_DEPENDENT_TAP] = WEIGHT_ONE - s;
+            let s: i32 = rule.iter().map(|&t| i32::from(t)).sum();
+            rule[CELL_DEPENDENT_TAP] = (WEIGHT_ONE - s) as i16;
         }
     }
 
     /// The tap addressed by `slot`.
-    pub fn tap_mut(&mut self, slot: TapSlot) -> &mut i32 {
+    pub fn tap_mut(&mut self, slot: TapSlot) -> &mut i16 {
         match slot {
             TapSlot::Line { dir, phase, tap } => &mut self.line[dir][phase - 1][tap],
             TapSlot::Cell { r1, r2, tap } => &mut self.cell[r1 - 1][r2 - 1][tap],

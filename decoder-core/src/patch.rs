@@ -148,7 +148,7 @@ impl Patch {
                 let m = self.model.grid() - 1;
                 let mut acc = 0i32;
                 for (t, &tap) in taps.iter().enumerate() {
-                    acc += tap * self.line(g, 0, tap_point(a1, t, m), a2, r2);
+                    acc += i32::from(tap) * self.line(g, 0, tap_point(a1, t, m), a2, r2);
                 }
                 round_clamp(acc)
             }
@@ -170,7 +170,7 @@ impl Patch {
             } else {
                 g[idx * side + fixed]
             };
-            acc += tap * i32::from(v);
+            acc += i32::from(tap) * i32::from(v);
         }
         round_clamp(acc)
     }
@@ -180,6 +180,14 @@ impl Patch {
     /// at most 2^15 px (otherwise nothing is drawn); a decoded leaf's block satisfies
     /// [`ModelType::fits_block`].
     pub fn render<S: PixelSink>(&self, x0: u32, y0: u32, log2: u8, clip: Rect, sink: &mut S) {
+        self.render_to(x0, y0, log2, clip, sink);
+    }
+
+    /// [`Patch::render`] through a trait object: one copy of the synthesis serves every sink
+    /// (the decoder draws through the caller's and keeps its prediction frontier through its
+    /// own), which matters more on a microcontroller's flash than a call per tile does.
+    #[inline(never)]
+    fn render_to(&self, x0: u32, y0: u32, log2: u8, clip: Rect, sink: &mut dyn PixelSink) {
         if log2 >= 16 || (1u32 << log2) < u32::from(self.model.intervals) {
             return;
         }
@@ -200,7 +208,7 @@ impl Patch {
     /// Subdivides grid `g` (pixel spacing `sp` between its points), storing each child grid at
     /// the front of `below` while that child is refined.
     #[allow(clippy::too_many_arguments)]
-    fn walk<S: PixelSink>(
+    fn walk(
         &self,
         g: &[i16],
         below: &mut [i16],
@@ -208,7 +216,7 @@ impl Patch {
         y: u32,
         sp: u32,
         clip: &Rect,
-        sink: &mut S,
+        sink: &mut dyn PixelSink,
     ) {
         let m = u32::from(self.model.intervals);
         let n = u32::from(self.model.transforms);
@@ -247,7 +255,7 @@ impl Patch {
     /// Emits the `m*sp` square of pixels covered by grid `g`, computing each pixel from `g` at
     /// refined stride `N / sp`.
     #[inline(never)]
-    fn emit<S: PixelSink>(&self, g: &[i16], x: u32, y: u32, sp: u32, clip: &Rect, sink: &mut S) {
+    fn emit(&self, g: &[i16], x: u32, y: u32, sp: u32, clip: &Rect, sink: &mut dyn PixelSink) {
         let ext = u32::from(self.model.intervals) * sp;
         let stride = (u32::from(self.model.transforms) / sp.max(1)) as usize;
         let x_lo = x.max(clip.x);

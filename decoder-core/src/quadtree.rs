@@ -9,11 +9,12 @@
 //! leaf size is a leaf without a flag; every other node codes a split flag.
 
 use crate::bitstream::{
-    code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax, Predictor,
+    code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax,
 };
 use crate::entropy::Coder;
 use crate::error::DecodeError;
 use crate::patch::Patch;
+use crate::prediction::Frontier;
 
 /// A quadtree node: the square of side `2^log2` pixels at `(x, y)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -96,6 +97,19 @@ pub trait TreeVisitor {
     fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax);
     /// Called once the leaf is coded, with its reconstruction.
     fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError>;
+    /// What the walk calls once the leaf is coded: the frontier must learn the leaf's bottom
+    /// row and right column before the next leaf. By default [`Frontier::record`] renders
+    /// them, then [`TreeVisitor::leaf`] runs; a visitor that draws the whole leaf anyway can
+    /// draw it through [`Frontier::capture`] instead.
+    fn leaf_with_frontier(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier,
+    ) -> Result<(), DecodeError> {
+        frontier.record(&info.node, patch);
+        self.leaf(info, patch)
+    }
 }
 
 /// What a walk reports about a coded leaf besides its patch.
@@ -119,16 +133,17 @@ pub struct WalkState {
     /// Adaptive contexts.
     pub contexts: Contexts,
     /// Prediction memory.
-    pub predictor: Predictor,
+    pub frontier: Frontier,
 }
 
 impl WalkState {
-    /// Cleared state (fresh contexts, no corner remembered), all zero bits: a decoder clears
-    /// its state in place, then sets the contexts with [`Contexts::start`]. The state at the
+    /// Cleared state (fresh contexts, nothing decoded), all zero bits: a decoder clears its
+    /// state in place, then sets the contexts with [`Contexts::start`] ([`walk_with`] starts
+    /// the frontier). The state at the
     /// start of a stream is [`WalkState::default`].
     pub const FRESH: WalkState = WalkState {
         contexts: Contexts::FRESH,
-        predictor: Predictor::EMPTY,
+        frontier: Frontier::EMPTY,
     };
 }
 
@@ -143,13 +158,17 @@ pub fn walk<C: Coder, V: TreeVisitor>(
     Ok(state)
 }
 
-/// Like [`walk`], with a caller-provided state (no copy of it is returned).
+/// Like [`walk`], with a caller-provided state whose contexts the caller has set (no copy of
+/// it is returned).
 pub fn walk_with<C: Coder, V: TreeVisitor>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState,
 ) -> Result<(), DecodeError> {
+    state
+        .frontier
+        .start(u32::from(header.width), u32::from(header.height));
     let root = Node {
         x: 0,
         y: 0,
@@ -236,8 +255,7 @@ fn walk_leaf<C: Coder, V: TreeVisitor>(
 ) -> Result<(), DecodeError> {
     let mut patch = Patch::EMPTY;
     let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
-    state.predictor.remember(node.x, node.y, node.log2, &patch);
-    visitor.leaf(&info, &patch)
+    visitor.leaf_with_frontier(&info, &patch, &mut state.frontier)
 }
 
 /// A leaf's syntax, coded and reconstructed into `patch`. Out of line, so that the syntax
@@ -257,7 +275,7 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor>(
         coder,
         &mut state.contexts,
         &node,
-        &state.predictor,
+        &state.frontier,
         &mut leaf,
     )?;
     reconstruct_into(header, &leaf, node.log2, patch)?;

@@ -408,14 +408,14 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/o20.pifs"),
         ),
         refuse(
-            "--max-leaf-log2 10",
+            "--max-leaf-log2 8",
             &[
                 "encode",
                 "{dir}/good.png",
                 "-o",
                 "{dir}/o21.pifs",
                 "--max-leaf-log2",
-                "10",
+                "8",
             ],
             Some("{dir}/o21.pifs"),
         ),

@@ -74,7 +74,7 @@ fn specs() -> Vec<Spec> {
             "low_64x64.pifs",
             image64.clone(),
             config(2, 5, 8),
-            Target::Bpp(0.15),
+            Target::Bpp(0.2),
         ),
         plain(
             "high_64x64.pifs",

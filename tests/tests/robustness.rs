@@ -162,10 +162,11 @@ fn header_errors_are_typed() {
         ("version 6", with(4, 6), DecodeError::UnsupportedVersion(6)),
         ("version 7", with(4, 7), DecodeError::UnsupportedVersion(7)),
         ("version 8", with(4, 8), DecodeError::UnsupportedVersion(8)),
+        ("version 9", with(4, 9), DecodeError::UnsupportedVersion(9)),
         (
-            "version 10",
-            with(4, 10),
-            DecodeError::UnsupportedVersion(10),
+            "version 11",
+            with(4, 11),
+            DecodeError::UnsupportedVersion(11),
         ),
         (
             "version 255",
@@ -221,8 +222,8 @@ fn header_errors_are_typed() {
             DecodeError::InvalidHeader("leaf sizes"),
         ),
         (
-            "max leaf 10",
-            with(12, 0xA2),
+            "max leaf 8",
+            with(12, 0x82),
             DecodeError::InvalidHeader("leaf sizes"),
         ),
         (
@@ -391,7 +392,7 @@ fn header_errors_are_typed() {
 
 #[test]
 fn header_claiming_a_huge_image_needs_a_huge_buffer() {
-    let data = sealed_stream(&header(65535, 65535, 2, 9), &[0x55; 64]);
+    let data = sealed_stream(&header(65535, 65535, 2, 7), &[0x55; 64]);
     let header = decoder_core::read_header(&data).unwrap();
     assert_eq!(
         Limits::pixels(1 << 24).check(&header),
@@ -445,11 +446,11 @@ proptest! {
     fn random_payload_behind_a_valid_header_never_panics(
         width in 1u16..200,
         height in 1u16..200,
-        min_leaf in 1u8..=9,
-        extra in 0u8..=8,
+        min_leaf in 1u8..=7,
+        extra in 0u8..=6,
         payload in proptest::collection::vec(any::<u8>(), 0..1024),
     ) {
-        let max_leaf = (min_leaf + extra).min(9);
+        let max_leaf = (min_leaf + extra).min(7);
         let data = sealed_stream(&header(width, height, min_leaf, max_leaf), &payload);
         let result = decode_checked(&data);
         if payload.len() < 4 {

@@ -62,7 +62,7 @@ struct EncodeArgs {
     #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
     min_leaf_log2: u8,
     /// Largest leaf side as a power of two.
-    #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
+    #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     max_leaf_log2: u8,
     /// Also fit the subdivision weights (the thesis's full inverse problem): about twice the
     /// analysis time for a few hundredths of a dB at most.

@@ -6,13 +6,14 @@ use super::fit::{fit_default, fit_weighted, Fit};
 use super::quantise::{lloyd_max, quantise, weight_classes, ControlTargets, Quantised};
 use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
-use decoder_core::bitstream::{med, models_for_block, Codebook, Header, SamplePrediction};
+use decoder_core::bitstream::{models_for_block, Codebook, Header};
 use decoder_core::bitstream::{Contexts, ControlCoding};
 use decoder_core::model::{
     WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use decoder_core::model::{WeightQuantiser, SAMPLE_ONE};
 use decoder_core::patch::{PixelSink, Rect};
+use decoder_core::prediction::{inside_tile, SamplePrediction};
 use decoder_core::quadtree::Node;
 use decoder_core::LeafSyntax;
 use rayon::prelude::*;
@@ -261,7 +262,11 @@ impl Analysis {
                 let mut indices = Vec::new();
                 for (fi, fit) in na.fits.iter().enumerate() {
                     let model = MODELS[usize::from(fit.model)];
-                    let targets = ControlTargets::of(fit, na.node.log2);
+                    let targets = ControlTargets::of(fit, na.node.log2).with_edges(
+                        &ImagePrediction { plane },
+                        &na.node,
+                        fit.model,
+                    );
                     let fitted_weights = fit.weighted;
                     for cq in 0..CONTROL_QUANTISERS as u8 {
                         for wq in 0..WEIGHT_QUANTISERS as u8 {
@@ -316,39 +321,27 @@ impl Analysis {
     }
 }
 
-/// The prediction of a leaf's first control value, estimated before the stream exists: except
-/// at the image's origin, earlier leaves are taken to have drawn the image's own pixels next to
-/// the leaf's corner, predicted as the decoder's [`decoder_core::bitstream::Predictor`] does
-/// (LOCO-I median of the pixels to the left, above and above-left, or the one there is).
+/// Prediction from earlier leaves, estimated before the stream exists: earlier leaves are taken
+/// to have drawn the image's own pixels, under the decoder's availability rule
+/// ([`decoder_core::prediction::Frontier`]).
 pub struct ImagePrediction<'a> {
     /// The image.
     pub plane: &'a Plane,
-    /// The leaf.
-    pub node: Node,
 }
 
 impl ImagePrediction<'_> {
     fn sample(&self, x: u32, y: u32) -> i32 {
-        i32::from(
-            self.plane
-                .get(x.min(self.plane.width - 1), y.min(self.plane.height - 1)),
-        ) * SAMPLE_ONE
+        i32::from(self.plane.get(x, y)) * SAMPLE_ONE
     }
 }
 
 impl SamplePrediction for ImagePrediction<'_> {
-    fn predict(&self, x: u32, y: u32) -> (i32, bool) {
-        let p = match (x > 0, y > 0) {
-            (true, true) => med(
-                self.sample(x - 1, y),
-                self.sample(x, y - 1),
-                self.sample(x - 1, y - 1),
-            ),
-            (true, false) => self.sample(x - 1, y),
-            (false, true) => self.sample(x, y - 1),
-            (false, false) => self.sample(x, y),
-        };
-        (p, x > 0 || y > 0)
+    fn above(&self, x: u32, y: u32) -> Option<i32> {
+        (inside_tile(y, self.plane.height) && x < self.plane.width).then(|| self.sample(x, y - 1))
+    }
+
+    fn left(&self, x: u32, y: u32) -> Option<i32> {
+        (inside_tile(x, self.plane.width) && y < self.plane.height).then(|| self.sample(x - 1, y))
     }
 }
 

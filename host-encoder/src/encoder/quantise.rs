@@ -14,6 +14,8 @@ use decoder_core::model::{
     WeightClass, WeightQuantiser, CONTROL_STEPS, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX,
     SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
 };
+use decoder_core::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
+use decoder_core::quadtree::Node;
 use nalgebra::DMatrix;
 
 /// A fit's control values prepared for quantisation, once for all quantisers: in sample units,
@@ -26,6 +28,9 @@ pub struct ControlTargets {
     coefficients: [f64; MAX_CONTROL],
     /// For an exact least-squares fit: what error feedback needs.
     exact: Option<ExactTargets>,
+    /// The pixels beside each DPCM first-row (`[0]`) and first-column (`[1]`) value and beside
+    /// the one before it, where known ([`edge_pixels`]).
+    edges: [[Option<(i32, i32)>; MAX_GRID]; 2],
 }
 
 /// The unclamped least-squares control values of an exact fit, as samples and coefficients,
@@ -70,7 +75,54 @@ impl ControlTargets {
             samples,
             coefficients,
             exact,
+            edges: [[None; MAX_GRID]; 2],
         }
+    }
+
+    /// These targets on the leaf `node` of model `model`, whose DPCM first row and column are
+    /// predicted from `prediction`'s pixels.
+    pub fn with_edges<P: SamplePrediction>(
+        mut self,
+        prediction: &P,
+        node: &Node,
+        model: u8,
+    ) -> Self {
+        let spacing = MODELS[usize::from(model)].spacing(node.log2);
+        for (row, edges) in self.edges.iter_mut().enumerate() {
+            for (k, e) in edges.iter_mut().enumerate().take(self.side) {
+                *e = edge_pixels(prediction, node, spacing, row == 0, k);
+            }
+        }
+        self
+    }
+
+    /// The zero-flag context of DPCM value `(r, c)` where the pixels beside it are known
+    /// ([`edge_context`]).
+    fn edge_context(
+        &self,
+        indices: &[i16; MAX_CONTROL],
+        r: usize,
+        c: usize,
+        step: i32,
+    ) -> Option<usize> {
+        let pixels = match (r, c) {
+            (0, c) => self.edges[0][c],
+            (r, 0) => self.edges[1][r],
+            _ => None,
+        };
+        pixels.map(|(a, b)| edge_context(zero_context(indices, 1, self.side, r, c), a, b, step))
+    }
+
+    /// The index offset DPCM codes value `(r, c)` against, given the value before it
+    /// (`base`): nonzero only on the first row and column, where the pixels beside them are
+    /// known.
+    fn edge_offset(&self, r: usize, c: usize, base: i32, step: i32) -> i32 {
+        let pixels = match (r, c) {
+            (0, c) => self.edges[0][c],
+            (r, 0) => self.edges[1][r],
+            _ => None,
+        };
+        pixels.map_or(0, |(a, b)| edge_offset(base, a, b, step))
     }
 }
 
@@ -324,18 +376,32 @@ fn quantise_dpcm(
             ),
             _ => (targets.samples[i], 1.0),
         };
+        let (r, c) = (i / side, i % side);
         let base = if i == 0 {
             0
         } else {
-            intra_prediction(&values, side, i / side, i % side)
+            intra_prediction(&values, side, r, c)
+        };
+        // The residual is coded against an offset on the first row and column.
+        let offset = if i == 0 {
+            0
+        } else {
+            targets.edge_offset(r, c, base, step)
         };
         // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
-        let index = rounding.round(
-            indices,
-            i,
-            (target - f64::from(base)) / f64::from(step),
-            relative_weight,
-        );
+        let context = if i == 0 {
+            None
+        } else {
+            targets.edge_context(indices, r, c, step)
+        };
+        let index = offset
+            + rounding.round(
+                indices,
+                i,
+                (target - f64::from(base)) / f64::from(step) - f64::from(offset),
+                relative_weight,
+                context,
+            );
         indices[i] = index as i16;
         values[i] = dequantise_control(base, step, index);
         if let (Some(e), Some((partial, last))) = (exact, feedback) {
@@ -368,7 +434,8 @@ fn quantise_coefficients(
         for (k, &i) in order.iter().enumerate() {
             let i = usize::from(i);
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-            indices[i] = rounding.round(indices, i, targets.coefficients[i] / steps[k], 1.0) as i16;
+            indices[i] =
+                rounding.round(indices, i, targets.coefficients[i] / steps[k], 1.0, None) as i16;
         }
         return None;
     };
@@ -387,7 +454,7 @@ fn quantise_coefficients(
         let i = usize::from(i);
         let (partial, last) = (f.partial(k, &errors[..k]), f.row(k)[k]);
         let target = exact.coefficients[i] - partial / last;
-        let index = rounding.round(indices, i, target / steps[k], relative_weights[k]);
+        let index = rounding.round(indices, i, target / steps[k], relative_weights[k], None);
         indices[i] = index as i16;
         errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
         rows[k] = partial + last * errors[k];
@@ -450,6 +517,7 @@ impl CoefficientQuantiser<'_> {
                     i,
                     target / self.steps[k],
                     self.relative_weights[k],
+                    None,
                 );
                 let error = f64::from(index) * self.steps[k] - self.exact[i];
                 let delta = error - errors[k];
@@ -582,7 +650,14 @@ impl IndexRounding {
     /// error, relative to the leaf's mean, is `relative_weight`, given the other indices (those
     /// not chosen yet are zero).
     #[inline]
-    fn round(&self, indices: &[i16; MAX_CONTROL], i: usize, v: f64, relative_weight: f64) -> i32 {
+    fn round(
+        &self,
+        indices: &[i16; MAX_CONTROL],
+        i: usize,
+        v: f64,
+        relative_weight: f64,
+        context: Option<usize>,
+    ) -> i32 {
         if i == 0 {
             // The first index's residual is coded against a prediction from earlier leaves that
             // is not known here: it is rounded to nearest. (Version 7's dead zone for it, of
@@ -610,7 +685,7 @@ impl IndexRounding {
         } else if magnitude < SURE_ZERO {
             0
         } else {
-            self.round_small(indices, i, magnitude, relative_weight)
+            self.round_small(indices, i, magnitude, relative_weight, context)
         };
         if v < 0.0 {
             -chosen
@@ -628,6 +703,7 @@ impl IndexRounding {
         i: usize,
         magnitude: f64,
         relative_weight: f64,
+        context: Option<usize>,
     ) -> i32 {
         let side = self.side;
         let (r, c) = self.positions[i];
@@ -641,7 +717,7 @@ impl IndexRounding {
                 usize::from(indices[p].unsigned_abs().min(2))
             }
         };
-        let context = zero_context(indices, 1, side, r, c);
+        let context = context.unwrap_or_else(|| zero_context(indices, 1, side, r, c));
         // Bits of the index and of its followers (right of and below it, whose zero-flag
         // contexts it sets; on the first row or column it counts twice there), by magnitude.
         let mut bits = [0.0f64; 3];
@@ -957,6 +1033,82 @@ mod tests {
         );
     }
 
+    /// On the bundled sample image, DPCM pixel grids of 8 px quantised and coded against the
+    /// pixels beside them (the image's own, as the analysis takes them) take fewer bits than
+    /// without them, for no more error (measured at step 96: 7.0% fewer bits, 0.8% less added
+    /// error).
+    #[test]
+    fn dpcm_edges_are_coded_against_the_pixels_beside_them() {
+        use super::super::analysis::ImagePrediction;
+        use super::super::fit::fit_default;
+        use decoder_core::bitstream::code_leaf;
+        use decoder_core::prediction::SamplePrediction;
+        struct Alone;
+        impl SamplePrediction for Alone {
+            fn above(&self, _x: u32, _y: u32) -> Option<i32> {
+                None
+            }
+            fn left(&self, _x: u32, _y: u32) -> Option<i32> {
+                None
+            }
+        }
+        /// Adds a leaf's bits (from the contexts a stream starts with) and added error.
+        fn tally<P: SamplePrediction>(
+            fit: &Fit,
+            node: &Node,
+            prediction: &P,
+            sum: &mut (f64, f64),
+        ) {
+            let (model, cq) = (fit.model, 4);
+            let targets = ControlTargets::of(fit, node.log2).with_edges(prediction, node, model);
+            let q = quantise(
+                fit,
+                &targets,
+                cq,
+                0,
+                ControlCoding::Dpcm,
+                &[Codebook::EMPTY; 2],
+            );
+            let mut counter = BitCounter::frozen();
+            let mut leaf = q.leaf;
+            code_leaf(
+                &mut counter,
+                &mut Contexts::default(),
+                node,
+                prediction,
+                &mut leaf,
+            )
+            .expect("a valid leaf");
+            sum.0 += counter.bits();
+            sum.1 += q.added_error.expect("an exact fit");
+        }
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
+        let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
+        let image = ImagePrediction { plane: &plane };
+        let (model, log2) = (4u8, 3u8);
+        let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
+        for by in 1..plane.height >> log2 {
+            for bx in 1..plane.width >> log2 {
+                let node = Node {
+                    x: bx << log2,
+                    y: by << log2,
+                    log2,
+                };
+                let fit = fit_default(&plane, &node, model);
+                tally(&fit, &node, &image, &mut with);
+                tally(&fit, &node, &Alone, &mut without);
+            }
+        }
+        assert!(
+            with.0 < 0.95 * without.0 && with.1 < 1.02 * without.1,
+            "bits {} with the pixels beside, {} without; added error {} and {}",
+            with.0,
+            without.0,
+            with.1,
+            without.1
+        );
+    }
+
     /// A nonzero index must pay for its bits: among zero neighbours (where a nonzero index and
     /// the contexts it sets cost most) a target of 0.65 step rounds to zero, among large
     /// neighbours to one, whatever its sign; under either coding.
@@ -966,17 +1118,17 @@ mod tests {
         for transform in [false, true] {
             let rounding = IndexRounding::new(9, transform, side);
             let mut indices = [0i16; MAX_CONTROL];
-            assert_eq!(rounding.round(&indices, 4, 0.65, 1.0), 0);
-            assert_eq!(rounding.round(&indices, 4, -0.65, 1.0), 0);
+            assert_eq!(rounding.round(&indices, 4, 0.65, 1.0, None), 0);
+            assert_eq!(rounding.round(&indices, 4, -0.65, 1.0, None), 0);
             indices[3] = 5;
             indices[1] = -4;
             indices[5] = 2;
             indices[7] = 3;
-            assert_eq!(rounding.round(&indices, 4, 0.65, 1.0), 1);
-            assert_eq!(rounding.round(&indices, 4, -0.65, 1.0), -1);
+            assert_eq!(rounding.round(&indices, 4, 0.65, 1.0, None), 1);
+            assert_eq!(rounding.round(&indices, 4, -0.65, 1.0, None), -1);
             // A value that weighs much in the patch error is kept among zeros too.
             let quiet = [0i16; MAX_CONTROL];
-            assert_eq!(rounding.round(&quiet, 4, 0.65, 20.0), 1);
+            assert_eq!(rounding.round(&quiet, 4, 0.65, 20.0, None), 1);
         }
     }
 
@@ -986,9 +1138,9 @@ mod tests {
     fn large_indices_round_to_nearest() {
         let rounding = IndexRounding::new(9, true, 5);
         let indices = [0i16; MAX_CONTROL];
-        assert_eq!(rounding.round(&indices, 12, 5.45, 1.0), 5);
-        assert_eq!(rounding.round(&indices, 12, 5.55, 1.0), 6);
-        assert_eq!(rounding.round(&indices, 12, -5.55, 1.0), -6);
+        assert_eq!(rounding.round(&indices, 12, 5.45, 1.0, None), 5);
+        assert_eq!(rounding.round(&indices, 12, 5.55, 1.0, None), 6);
+        assert_eq!(rounding.round(&indices, 12, -5.55, 1.0, None), -6);
     }
 
     /// Every coefficient's step is scaled so that one step adds the same energy to the control

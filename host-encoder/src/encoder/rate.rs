@@ -150,7 +150,6 @@ impl RateTable {
                         let Some(na) = na else { return Vec::new() };
                         let prediction = super::analysis::ImagePrediction {
                             plane: &analysis.plane,
-                            node: na.node,
                         };
                         // Frozen counters leave the contexts alone: one copy per node.
                         let mut ctx = snapshot.clone();

@@ -64,7 +64,7 @@ impl Tabulator {
         let index = TapIndex::new(model);
         // One rule: free taps are default + deviation (bounded like decoder-core's), the
         // dependent tap makes the rule sum to one.
-        let real_rule = |base: &[i32; 4], params: &[usize; 4], dependent: usize| -> [f64; 4] {
+        let real_rule = |base: &[i16; 4], params: &[usize; 4], dependent: usize| -> [f64; 4] {
             let mut rule = [0.0; 4];
             for t in (0..4).filter(|&t| t != dependent) {
                 let d = match params[t] {

@@ -1,0 +1,301 @@
+//! Prediction from earlier leaves: the pixel frontier a decoder keeps, and what the syntax
+//! predicts from it (a leaf's first control value, and the first row and column of a DPCM
+//! leaf).
+//!
+//! Control values interpolate the image: a leaf's top row of control values sits on the pixel
+//! row just below its upper neighbours, its left column just right of its left neighbours. The
+//! decoder therefore remembers, for every column of the current [`FRONTIER`]-pixel tile, the
+//! last pixel decoded in it (the bottom row of the leaves above), and for every row the last
+//! pixel decoded in that row (the right column of the leaves to the left). In the quadtree's Z
+//! order, the pixels above and to the left of a leaf are decoded before it and nothing decoded
+//! in between covers them again, so inside a tile these are exactly the neighbours' pixels;
+//! across a tile's top or left edge nothing is predicted (the tile's pixels are contiguous in
+//! Z order, but its upper and left neighbours tiles are not), which bounds the memory at two
+//! rows of [`FRONTIER`] bytes whatever the image size.
+
+use crate::bitstream::med;
+use crate::model::{div_round, SAMPLE_ONE};
+use crate::patch::{Patch, PixelSink, Rect};
+use crate::quadtree::Node;
+use crate::stream::intersect;
+
+/// Side of the tiles the frontier covers, pixels: prediction does not cross their top and left
+/// edges.
+pub const FRONTIER: u32 = 128;
+
+// No leaf is larger than a tile: each tile's leaves are consecutive in Z order.
+const _: () = assert!(1u32 << crate::bitstream::MAX_LEAF_LOG2 <= FRONTIER);
+
+/// Where a leaf's predictions come from: the pixels earlier leaves drew next to it.
+pub trait SamplePrediction {
+    /// The pixel just above `(x, y)` (at `(x, y - 1)`), in sample units, if earlier leaves drew
+    /// it and it is in `(x, y)`'s tile ([`FRONTIER`]).
+    fn above(&self, x: u32, y: u32) -> Option<i32>;
+
+    /// The pixel just left of `(x, y)` (at `(x - 1, y)`), in sample units, as
+    /// [`SamplePrediction::above`].
+    fn left(&self, x: u32, y: u32) -> Option<i32>;
+
+    /// A prediction of a leaf's top-left pixel `(x, y)`, and whether it comes from both
+    /// neighbours: the mean of the pixels left of and above it, or the one there is, else
+    /// mid-grey.
+    fn predict(&self, x: u32, y: u32) -> (i32, bool) {
+        match (self.left(x, y), self.above(x, y)) {
+            (Some(l), Some(u)) => ((l + u) >> 1, true),
+            (Some(v), None) | (None, Some(v)) => (v, false),
+            (None, None) => (128 * SAMPLE_ONE, false),
+        }
+    }
+}
+
+/// Whether position `v` along an axis of an image `len` pixels long has a predecessor in its
+/// tile: the frontier's availability rule, shared by decoders and encoders.
+#[inline]
+pub fn inside_tile(v: u32, len: u32) -> bool {
+    !v.is_multiple_of(FRONTIER) && v < len
+}
+
+/// The index a DPCM leaf's first-row or first-column control value is coded against, in steps
+/// of `step`: the LOCO-I median of the value before it in the leaf (`base`, which the value's
+/// index is added to) and the pixels next to the leaf beside it and beside `base` (`outside`,
+/// `outside_before`), as an offset from `base`.
+#[inline]
+pub fn edge_offset(base: i32, outside: i32, outside_before: i32, step: i32) -> i32 {
+    div_round(med(base, outside, outside_before) - base, step)
+}
+
+/// The zero-flag context of a DPCM first-row or first-column residual whose pixels beside are
+/// known: half its neighbourhood context `context` (twice the magnitude of the index before it)
+/// plus the change between those pixels, in steps (at most 2).
+#[inline]
+pub fn edge_context(context: usize, outside: i32, outside_before: i32, step: i32) -> usize {
+    context / 2 + ((outside - outside_before).unsigned_abs() / step.max(1) as u32).min(2) as usize
+}
+
+/// The pixels next to a leaf's control point `k` of its first row (`row == true`) or column,
+/// and next to point `k - 1`: `Some` when both are known and point `k` lies in the leaf
+/// (spacing `spacing` pixels).
+#[inline]
+pub fn edge_pixels<P: SamplePrediction + ?Sized>(
+    prediction: &P,
+    node: &Node,
+    spacing: u32,
+    row: bool,
+    k: usize,
+) -> Option<(i32, i32)> {
+    let along = k as u32 * spacing;
+    if k == 0 || along >= node.size() {
+        return None;
+    }
+    let pixel = |d: u32| {
+        if row {
+            prediction.above(node.x + d, node.y)
+        } else {
+            prediction.left(node.x, node.y + d)
+        }
+    };
+    Some((pixel(along)?, pixel(along - spacing)?))
+}
+
+/// The decoder's prediction memory: the last pixel decoded in each column and in each row of
+/// the current tile (modulo [`FRONTIER`]), and the image size.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frontier {
+    columns: [u8; FRONTIER as usize],
+    rows: [u8; FRONTIER as usize],
+    width: u32,
+    height: u32,
+}
+
+impl Default for Frontier {
+    fn default() -> Self {
+        Frontier::EMPTY
+    }
+}
+
+impl Frontier {
+    /// Nothing decoded, for an empty image (all zero bits, like
+    /// [`crate::bitstream::Contexts::FRESH`]): [`Frontier::start`] sets the size.
+    pub const EMPTY: Frontier = Frontier {
+        columns: [0; FRONTIER as usize],
+        rows: [0; FRONTIER as usize],
+        width: 0,
+        height: 0,
+    };
+
+    /// Starts a stream of a `width x height` image. The slots keep what they hold: a slot is
+    /// only read once a leaf of the stream has written it (the availability rule of
+    /// [`SamplePrediction::above`]).
+    pub fn start(&mut self, width: u32, height: u32) {
+        self.width = width;
+        self.height = height;
+    }
+
+    /// Remembers the bottom row and the right column of a decoded leaf (as far as they lie in
+    /// the image), rendered from its patch.
+    #[inline(never)]
+    pub fn record(&mut self, node: &Node, patch: &Patch) {
+        let s = node.size();
+        let image = Rect::of_size(self.width, self.height);
+        for row in [true, false] {
+            let clip = Rect {
+                x: if row { node.x } else { node.x + s - 1 },
+                y: if row { node.y + s - 1 } else { node.y },
+                w: if row { s } else { 1 },
+                h: if row { 1 } else { s },
+            };
+            let clip = intersect(clip, image);
+            patch.render(
+                node.x,
+                node.y,
+                node.log2,
+                clip,
+                &mut self.capture(node, &mut Discard),
+            );
+        }
+    }
+
+    /// A sink that hands every tile of the leaf `node` on to `sink` and remembers the pixels
+    /// of the leaf's bottom row and right column among them: drawing a whole leaf through it
+    /// does what [`Frontier::record`] does, without rendering anything twice.
+    pub fn capture<'a>(&'a mut self, node: &Node, sink: &'a mut dyn PixelSink) -> Capture<'a> {
+        let last = node.size() - 1;
+        Capture {
+            frontier: self,
+            sink,
+            right: node.x + last,
+            bottom: node.y + last,
+        }
+    }
+}
+
+/// See [`Frontier::capture`].
+pub struct Capture<'a> {
+    frontier: &'a mut Frontier,
+    sink: &'a mut dyn PixelSink,
+    right: u32,
+    bottom: u32,
+}
+
+impl PixelSink for Capture<'_> {
+    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        let f = &mut *self.frontier;
+        let w = w as usize;
+        if x + w as u32 - 1 == self.right {
+            for (j, row) in pixels.chunks_exact(w).enumerate() {
+                f.rows[((y + j as u32) % FRONTIER) as usize] = row[w - 1];
+            }
+        }
+        if y + h - 1 == self.bottom {
+            if let Some(row) = pixels.chunks_exact(w).last() {
+                for (i, &p) in row.iter().enumerate() {
+                    f.columns[((x + i as u32) % FRONTIER) as usize] = p;
+                }
+            }
+        }
+        self.sink.tile(x, y, w as u32, h, pixels);
+    }
+}
+
+/// Draws nothing.
+struct Discard;
+
+impl PixelSink for Discard {
+    fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, _pixels: &[u8]) {}
+}
+
+impl SamplePrediction for Frontier {
+    #[inline]
+    fn above(&self, x: u32, y: u32) -> Option<i32> {
+        (inside_tile(y, self.height) && x < self.width)
+            .then(|| i32::from(self.columns[(x % FRONTIER) as usize]) * SAMPLE_ONE)
+    }
+
+    #[inline]
+    fn left(&self, x: u32, y: u32) -> Option<i32> {
+        (inside_tile(x, self.width) && y < self.height)
+            .then(|| i32::from(self.rows[(y % FRONTIER) as usize]) * SAMPLE_ONE)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{Weights, MODELS};
+
+    /// A bilinear patch with corner values `v` (sample units).
+    fn bilinear(v: [i16; 4]) -> Patch {
+        let mut control = [0; crate::model::MAX_CONTROL];
+        control[..4].copy_from_slice(&v);
+        Patch {
+            model: MODELS[0],
+            control,
+            weights: Weights::default_for(MODELS[0]),
+        }
+    }
+
+    #[test]
+    fn a_leaf_predicts_from_the_pixels_its_neighbours_drew() {
+        let mut frontier = Frontier::EMPTY;
+        frontier.start(64, 64);
+        let one = SAMPLE_ONE as i16;
+        // A 4 px ramp from 0 to 64 grey levels across, at (0, 0): its right column is 48 (the
+        // pixel one step short of the corner value 64), its bottom row 0, 16, 32, 48.
+        frontier.record(
+            &Node {
+                x: 0,
+                y: 0,
+                log2: 2,
+            },
+            &bilinear([0, 64 * one, 0, 64 * one]),
+        );
+        let ramp = |k: i32| 16 * k * SAMPLE_ONE;
+        assert_eq!(frontier.above(2, 4), Some(ramp(2)));
+        assert_eq!(frontier.left(4, 3), Some(ramp(3)));
+        // Leaves at (4, 0) and (0, 4), in Z order, draw the pixels the one at (4, 4) is
+        // predicted from.
+        frontier.record(
+            &Node {
+                x: 4,
+                y: 0,
+                log2: 2,
+            },
+            &bilinear([100 * one; 4]),
+        );
+        assert_eq!(frontier.left(8, 1), Some(100 * SAMPLE_ONE));
+        assert_eq!(frontier.predict(0, 4), (0, false));
+        frontier.record(
+            &Node {
+                x: 0,
+                y: 4,
+                log2: 2,
+            },
+            &bilinear([40 * one; 4]),
+        );
+        assert_eq!(frontier.predict(4, 4), (70 * SAMPLE_ONE, true));
+        // Nothing across a tile's edges or outside the image.
+        assert_eq!(frontier.above(2, 0), None);
+        assert_eq!(frontier.above(2, FRONTIER), None);
+        assert_eq!(frontier.left(FRONTIER, 2), None);
+        assert_eq!(frontier.above(64, 4), None);
+        assert_eq!(Frontier::EMPTY.predict(0, 0), (128 * SAMPLE_ONE, false));
+    }
+
+    #[test]
+    fn edges_follow_the_neighbours_gradient() {
+        // Flat neighbours: predict the value before.
+        assert_eq!(edge_offset(160, 800, 800, 16), 0);
+        // A vertical edge in the row above (between the two pixels) continues into the leaf:
+        // the median is the pixel above.
+        assert_eq!(edge_offset(160, 800, 160, 16), 40);
+        // A horizontal edge (flat pixels above, far from the value before): keep the value
+        // before.
+        assert_eq!(edge_offset(800, 160, 160, 16), 0);
+        // A smooth gradient: the value before plus the change along the row above.
+        assert_eq!(edge_offset(160, 800, 480, 16), 20);
+        // The context: half the neighbourhood's, plus the change beside in steps (at most 2).
+        assert_eq!(edge_context(4, 800, 800, 16), 2);
+        assert_eq!(edge_context(2, 800, 784, 16), 2);
+        assert_eq!(edge_context(0, 800, 160, 16), 2);
+    }
+}
