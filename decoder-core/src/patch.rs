@@ -87,6 +87,14 @@ impl Rect {
         u64::from(self.y) + u64::from(self.h)
     }
 
+    /// Whether `other` lies inside this rectangle.
+    pub fn contains(&self, other: &Rect) -> bool {
+        self.x <= other.x
+            && self.y <= other.y
+            && other.right() <= self.right()
+            && other.bottom() <= self.bottom()
+    }
+
     /// Whether the square of side `ext` at `(x, y)` overlaps this rectangle.
     pub fn overlaps_square(&self, x: u32, y: u32, ext: u32) -> bool {
         u64::from(x) < self.right()

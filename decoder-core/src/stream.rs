@@ -18,6 +18,7 @@ use crate::checksum::Crc32;
 use crate::entropy::{ByteSource, Coder, RangeDecoder, SliceSource};
 use crate::error::DecodeError;
 use crate::patch::{Patch, PixelSink, Rect};
+use crate::prediction::Frontier;
 use crate::quadtree::{self, LeafInfo, Node, TreeVisitor};
 
 /// Longest possible header: the fixed part, the longest payload length and two codebooks of
@@ -258,11 +259,10 @@ where
 {
     let mut coder =
         RangeDecoder::start(source).map_err(|(source, e)| source.after_error(header, e))?;
+    let image = Rect::of_size(header.width.into(), header.height.into());
     let mut visitor = ClipVisitor {
-        clip: intersect(
-            clip,
-            Rect::of_size(header.width.into(), header.height.into()),
-        ),
+        clip: intersect(clip, image),
+        image,
         sink,
         stop,
     };
@@ -310,8 +310,20 @@ pub fn intersect(a: Rect, b: Rect) -> Rect {
 
 struct ClipVisitor<'s, S, F> {
     clip: Rect,
+    image: Rect,
     sink: &'s mut S,
     stop: F,
+}
+
+impl<S: PixelSink, F: Fn(&S) -> bool> ClipVisitor<'_, S, F> {
+    /// Whether the sink asked to stop.
+    fn stopped(&self) -> Result<(), DecodeError> {
+        if (self.stop)(self.sink) {
+            Err(STOPPED)
+        } else {
+            Ok(())
+        }
+    }
 }
 
 impl<S: PixelSink, F: Fn(&S) -> bool> TreeVisitor for ClipVisitor<'_, S, F> {
@@ -329,11 +341,32 @@ impl<S: PixelSink, F: Fn(&S) -> bool> TreeVisitor for ClipVisitor<'_, S, F> {
         if self.clip.w > 0 && self.clip.h > 0 {
             patch.render(node.x, node.y, node.log2, self.clip, self.sink);
         }
-        if (self.stop)(self.sink) {
-            Err(STOPPED)
-        } else {
-            Ok(())
+        self.stopped()
+    }
+
+    // A leaf drawn whole (the clip holds all of it that is in the image) fills the frontier as
+    // it is drawn; any other leaf has its edges rendered apart.
+    #[inline(never)]
+    fn leaf_with_frontier(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier,
+    ) -> Result<(), DecodeError> {
+        let node = &info.node;
+        let square = Rect {
+            x: node.x,
+            y: node.y,
+            w: node.size(),
+            h: node.size(),
+        };
+        if !self.clip.contains(&intersect(square, self.image)) {
+            frontier.record(node, patch);
+            return self.leaf(info, patch);
         }
+        let mut sink = frontier.capture(node, self.sink);
+        patch.render(node.x, node.y, node.log2, self.clip, &mut sink);
+        self.stopped()
     }
 }
 
