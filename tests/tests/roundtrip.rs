@@ -246,3 +246,22 @@ fn observed_leaves_form_a_valid_quadtree_cut() {
         );
     }
 }
+
+/// Leaf sizes outside the format's range are taken as the nearest allowed ones: the stream
+/// decodes and its header says what was used.
+#[test]
+fn leaf_sizes_outside_the_format_are_clamped() {
+    let config = EncoderConfig {
+        min_leaf_log2: 0,
+        max_leaf_log2: 9,
+        ..small_config()
+    };
+    let plane = synthetic(40, 30, 3, 8);
+    let encoded = analyse_with(plane.clone(), &config)
+        .encode(Target::Bpp(1.0))
+        .expect("an encodable image");
+    let header = decoder_core::read_header(&encoded.bytes).expect("a valid header");
+    assert_eq!((header.min_leaf_log2, header.max_leaf_log2), (1, 7));
+    let (_, pixels) = decode_all(&encoded.bytes).expect("a decodable stream");
+    assert_eq!(pixels, encoded.reconstruction);
+}

@@ -59,7 +59,7 @@ struct EncodeArgs {
     /// Smallest leaf side as a power of two (4 px leaves already code every pixel of their own
     /// with a pixel grid; 2 px leaves make encoding about 1.7 times as long for no gain on the
     /// Kodak images).
-    #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=9))]
+    #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     min_leaf_log2: u8,
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]

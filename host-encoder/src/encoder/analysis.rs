@@ -6,7 +6,7 @@ use super::fit::{fit_default, fit_weighted, Fit};
 use super::quantise::{lloyd_max, quantise, weight_classes, ControlTargets, Quantised};
 use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
-use decoder_core::bitstream::{models_for_block, Codebook, Header};
+use decoder_core::bitstream::{models_for_block, Codebook, Header, MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::bitstream::{Contexts, ControlCoding};
 use decoder_core::model::{
     WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
@@ -117,13 +117,15 @@ impl Analysis {
 
     /// Analyses `plane`. `progress` is called with the number of nodes analysed so far.
     pub fn run(plane: Plane, config: &EncoderConfig, progress: &(dyn Fn(u64) + Sync)) -> Analysis {
+        // Leaf sizes the format allows.
+        let min_leaf_log2 = config.min_leaf_log2.clamp(MIN_LEAF_LOG2, MAX_LEAF_LOG2);
         let mut header = Header {
             width: plane.width as u16,
             height: plane.height as u16,
             channels: 1,
             bit_depth: 8,
-            min_leaf_log2: config.min_leaf_log2,
-            max_leaf_log2: config.max_leaf_log2.max(config.min_leaf_log2),
+            min_leaf_log2,
+            max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
             codebooks: [Codebook::EMPTY; 2],
             // Set by the writer.
             payload_len: 0,
