@@ -21,7 +21,7 @@ use crate::quadtree::Node;
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 10;
+pub const VERSION: u8 = 11;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
@@ -649,8 +649,9 @@ enum Prediction {
 
 /// Control values: the coded side's indices in the coding order of the leaf's control coding
 /// (raster for DPCM, [`transform_order`] for the grid transform). The first coded index is
-/// coded as its difference from a prediction by earlier leaves ([`SamplePrediction::predict`],
-/// with its own contexts when both neighbours are known), in units of its own step. Under DPCM,
+/// coded as its difference from a prediction by earlier leaves ([`SamplePrediction::predict`]:
+/// of the corner under DPCM, of the block's mean for the transform's low band; with their own
+/// contexts when both edges are known), in units of its own step. Under DPCM,
 /// every other index of the first row and column is coded as its difference from
 /// [`edge_offset`] where the pixels beside it are known ([`edge_pixels`]); the rest as they
 /// are. Contexts are by position (DPCM: first row and column or interior) or transform level.
@@ -689,7 +690,9 @@ fn code_control<C: Coder, P: SamplePrediction>(
             _ => column_value,
         };
         let (pred_index, class) = if n == 0 {
-            let (p, exact) = prediction.predict(node.x, node.y);
+            // A grid transform's low band is the block's mean, DPCM's first value its corner.
+            let width = if transform { node.size() } else { 1 };
+            let (p, exact) = prediction.predict(node.x, node.y, width);
             let q = if transform {
                 coefficient_step(side, i, step)
             } else {
@@ -921,12 +924,14 @@ mod tests {
     struct Around;
 
     impl SamplePrediction for Around {
-        fn above(&self, x: u32, _y: u32) -> Option<i32> {
-            Some(i32::try_from(x).ok()? * 40 * SAMPLE_ONE / 8)
-        }
-
-        fn left(&self, _x: u32, y: u32) -> Option<i32> {
-            Some(if y < 10 { 40 } else { 200 } * SAMPLE_ONE)
+        fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
+            Some(if above {
+                i32::try_from(x).ok()? * 40 * SAMPLE_ONE / 8
+            } else if y < 10 {
+                40 * SAMPLE_ONE
+            } else {
+                200 * SAMPLE_ONE
+            })
         }
     }
 
@@ -934,11 +939,7 @@ mod tests {
     struct Alone;
 
     impl SamplePrediction for Alone {
-        fn above(&self, _x: u32, _y: u32) -> Option<i32> {
-            None
-        }
-
-        fn left(&self, _x: u32, _y: u32) -> Option<i32> {
+        fn beside(&self, _above: bool, _x: u32, _y: u32) -> Option<i32> {
             None
         }
     }

@@ -28,22 +28,43 @@ const _: () = assert!(1u32 << crate::bitstream::MAX_LEAF_LOG2 <= FRONTIER);
 
 /// Where a leaf's predictions come from: the pixels earlier leaves drew next to it.
 pub trait SamplePrediction {
-    /// The pixel just above `(x, y)` (at `(x, y - 1)`), in sample units, if earlier leaves drew
-    /// it and it is in `(x, y)`'s tile ([`FRONTIER`]).
-    fn above(&self, x: u32, y: u32) -> Option<i32>;
+    /// The pixel just above `(x, y)` (at `(x, y - 1)`) when `above`, else the one just left of
+    /// it (at `(x - 1, y)`), in sample units, if earlier leaves drew it and it is in `(x, y)`'s
+    /// tile ([`FRONTIER`]).
+    fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32>;
 
-    /// The pixel just left of `(x, y)` (at `(x - 1, y)`), in sample units, as
-    /// [`SamplePrediction::above`].
-    fn left(&self, x: u32, y: u32) -> Option<i32>;
+    /// The pixel just above `(x, y)` ([`SamplePrediction::beside`]).
+    fn above(&self, x: u32, y: u32) -> Option<i32> {
+        self.beside(true, x, y)
+    }
 
-    /// A prediction of a leaf's top-left pixel `(x, y)`, and whether it comes from both
-    /// neighbours: the mean of the pixels left of and above it, or the one there is, else
-    /// mid-grey.
-    fn predict(&self, x: u32, y: u32) -> (i32, bool) {
-        match (self.left(x, y), self.above(x, y)) {
-            (Some(l), Some(u)) => ((l + u) >> 1, true),
-            (Some(v), None) | (None, Some(v)) => (v, false),
-            (None, None) => (128 * SAMPLE_ONE, false),
+    /// The pixel just left of `(x, y)` ([`SamplePrediction::beside`]).
+    fn left(&self, x: u32, y: u32) -> Option<i32> {
+        self.beside(false, x, y)
+    }
+
+    /// A prediction of the leaf at `(x, y)` from the pixels along its top and left edges over
+    /// `width` pixels: their mean (of those known), and whether both edges have a known pixel;
+    /// mid-grey when none is. With a width of 1, the mean of the pixels left of and above the
+    /// top-left pixel (a DPCM leaf's first value); with the leaf's side, a prediction of the
+    /// block's mean (what a grid transform's low band is, rather than its corner).
+    fn predict(&self, x: u32, y: u32, width: u32) -> (i32, bool) {
+        let (mut sum, mut count, mut sides) = (0u32, 0u32, 0);
+        for row in [true, false] {
+            let before = count;
+            for k in 0..width {
+                let (px, py) = if row { (x + k, y) } else { (x, y + k) };
+                if let Some(v) = self.beside(row, px, py) {
+                    // Pixels are non-negative sample values.
+                    sum += v as u32;
+                    count += 1;
+                }
+            }
+            sides += u32::from(count > before);
+        }
+        match count {
+            0 => (128 * SAMPLE_ONE, false),
+            _ => ((sum / count) as i32, sides == 2),
         }
     }
 }
@@ -88,11 +109,12 @@ pub fn edge_pixels<P: SamplePrediction + ?Sized>(
         return None;
     }
     let pixel = |d: u32| {
-        if row {
-            prediction.above(node.x + d, node.y)
+        let (x, y) = if row {
+            (node.x + d, node.y)
         } else {
-            prediction.left(node.x, node.y + d)
-        }
+            (node.x, node.y + d)
+        };
+        prediction.beside(row, x, y)
     };
     Some((pixel(along)?, pixel(along - spacing)?))
 }
@@ -180,20 +202,19 @@ pub struct Capture<'a> {
 impl PixelSink for Capture<'_> {
     fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
         let f = &mut *self.frontier;
-        let w = w as usize;
-        if x + w as u32 - 1 == self.right {
-            for (j, row) in pixels.chunks_exact(w).enumerate() {
-                f.rows[((y + j as u32) % FRONTIER) as usize] = row[w - 1];
+        let on_right = x + w - 1 == self.right;
+        for (j, row) in pixels.chunks(w as usize).enumerate() {
+            let py = y + j as u32;
+            if let (true, Some(&p)) = (on_right, row.last()) {
+                f.rows[(py % FRONTIER) as usize] = p;
             }
-        }
-        if y + h - 1 == self.bottom {
-            if let Some(row) = pixels.chunks_exact(w).last() {
+            if py == self.bottom {
                 for (i, &p) in row.iter().enumerate() {
                     f.columns[((x + i as u32) % FRONTIER) as usize] = p;
                 }
             }
         }
-        self.sink.tile(x, y, w as u32, h, pixels);
+        self.sink.tile(x, y, w, h, pixels);
     }
 }
 
@@ -206,15 +227,15 @@ impl PixelSink for Discard {
 
 impl SamplePrediction for Frontier {
     #[inline]
-    fn above(&self, x: u32, y: u32) -> Option<i32> {
-        (inside_tile(y, self.height) && x < self.width)
-            .then(|| i32::from(self.columns[(x % FRONTIER) as usize]) * SAMPLE_ONE)
-    }
-
-    #[inline]
-    fn left(&self, x: u32, y: u32) -> Option<i32> {
-        (inside_tile(x, self.width) && y < self.height)
-            .then(|| i32::from(self.rows[(y % FRONTIER) as usize]) * SAMPLE_ONE)
+    fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
+        // Along the edge and across it, with the image's size that way.
+        let (slots, along, across, length, breadth) = if above {
+            (&self.columns, x, y, self.width, self.height)
+        } else {
+            (&self.rows, y, x, self.height, self.width)
+        };
+        (inside_tile(across, breadth) && along < length)
+            .then(|| i32::from(slots[(along % FRONTIER) as usize]) * SAMPLE_ONE)
     }
 }
 
@@ -263,7 +284,9 @@ mod tests {
             &bilinear([100 * one; 4]),
         );
         assert_eq!(frontier.left(8, 1), Some(100 * SAMPLE_ONE));
-        assert_eq!(frontier.predict(0, 4), (0, false));
+        assert_eq!(frontier.predict(0, 4, 1), (0, false));
+        // A grid transform's low band: the mean along the top edge (the left one is a tile's).
+        assert_eq!(frontier.predict(0, 4, 4), (ramp(3) / 2, false));
         frontier.record(
             &Node {
                 x: 0,
@@ -272,13 +295,14 @@ mod tests {
             },
             &bilinear([40 * one; 4]),
         );
-        assert_eq!(frontier.predict(4, 4), (70 * SAMPLE_ONE, true));
+        assert_eq!(frontier.predict(4, 4, 1), (70 * SAMPLE_ONE, true));
+        assert_eq!(frontier.predict(4, 4, 4), (70 * SAMPLE_ONE, true));
         // Nothing across a tile's edges or outside the image.
         assert_eq!(frontier.above(2, 0), None);
         assert_eq!(frontier.above(2, FRONTIER), None);
         assert_eq!(frontier.left(FRONTIER, 2), None);
         assert_eq!(frontier.above(64, 4), None);
-        assert_eq!(Frontier::EMPTY.predict(0, 0), (128 * SAMPLE_ONE, false));
+        assert_eq!(Frontier::EMPTY.predict(0, 0, 1), (128 * SAMPLE_ONE, false));
     }
 
     #[test]

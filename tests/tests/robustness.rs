@@ -164,9 +164,14 @@ fn header_errors_are_typed() {
         ("version 8", with(4, 8), DecodeError::UnsupportedVersion(8)),
         ("version 9", with(4, 9), DecodeError::UnsupportedVersion(9)),
         (
-            "version 11",
-            with(4, 11),
-            DecodeError::UnsupportedVersion(11),
+            "version 10",
+            with(4, 10),
+            DecodeError::UnsupportedVersion(10),
+        ),
+        (
+            "version 12",
+            with(4, 12),
+            DecodeError::UnsupportedVersion(12),
         ),
         (
             "version 255",

@@ -338,12 +338,17 @@ impl ImagePrediction<'_> {
 }
 
 impl SamplePrediction for ImagePrediction<'_> {
-    fn above(&self, x: u32, y: u32) -> Option<i32> {
-        (inside_tile(y, self.plane.height) && x < self.plane.width).then(|| self.sample(x, y - 1))
-    }
-
-    fn left(&self, x: u32, y: u32) -> Option<i32> {
-        (inside_tile(x, self.plane.width) && y < self.plane.height).then(|| self.sample(x - 1, y))
+    fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
+        let (width, height) = (self.plane.width, self.plane.height);
+        let known = if above {
+            inside_tile(y, height) && x < width
+        } else {
+            inside_tile(x, width) && y < height
+        };
+        known.then(|| {
+            let (x, y) = if above { (x, y - 1) } else { (x - 1, y) };
+            self.sample(x, y)
+        })
     }
 }
 

@@ -1045,10 +1045,7 @@ mod tests {
         use decoder_core::prediction::SamplePrediction;
         struct Alone;
         impl SamplePrediction for Alone {
-            fn above(&self, _x: u32, _y: u32) -> Option<i32> {
-                None
-            }
-            fn left(&self, _x: u32, _y: u32) -> Option<i32> {
+            fn beside(&self, _above: bool, _x: u32, _y: u32) -> Option<i32> {
                 None
             }
         }
