@@ -96,6 +96,16 @@ impl ControlTargets {
         self
     }
 
+    /// The pixels beside DPCM value `(r, c)` and beside the value before it, where known (only
+    /// on the first row and column).
+    fn beside(&self, r: usize, c: usize) -> Option<(i32, i32)> {
+        match (r, c) {
+            (0, c) => self.edges[0][c],
+            (r, 0) => self.edges[1][r],
+            _ => None,
+        }
+    }
+
     /// The zero-flag context of DPCM value `(r, c)` where the pixels beside it are known
     /// ([`edge_context`]).
     fn edge_context(
@@ -105,24 +115,15 @@ impl ControlTargets {
         c: usize,
         step: i32,
     ) -> Option<usize> {
-        let pixels = match (r, c) {
-            (0, c) => self.edges[0][c],
-            (r, 0) => self.edges[1][r],
-            _ => None,
-        };
-        pixels.map(|(a, b)| edge_context(zero_context(indices, 1, self.side, r, c), a, b, step))
+        self.beside(r, c)
+            .map(|(a, b)| edge_context(zero_context(indices, 1, self.side, r, c), a, b, step))
     }
 
     /// The index offset DPCM codes value `(r, c)` against, given the value before it
-    /// (`base`): nonzero only on the first row and column, where the pixels beside them are
-    /// known.
+    /// (`base`): nonzero only where the pixels beside it are known.
     fn edge_offset(&self, r: usize, c: usize, base: i32, step: i32) -> i32 {
-        let pixels = match (r, c) {
-            (0, c) => self.edges[0][c],
-            (r, 0) => self.edges[1][r],
-            _ => None,
-        };
-        pixels.map_or(0, |(a, b)| edge_offset(base, a, b, step))
+        self.beside(r, c)
+            .map_or(0, |(a, b)| edge_offset(base, a, b, step))
     }
 }
 
