@@ -274,7 +274,8 @@ pub struct Quantised {
 }
 
 /// Quantises `fit` (whose control values `targets` holds) with control quantiser `cq`, control
-/// coding `coding` and weight quantiser `wq`.
+/// coding `coding` and weight quantiser `wq`, rounding control indices with the Lagrange
+/// multiplier `rounding_lambda` ([`ROUNDING_LAMBDA`] and [`ROUNDING_VARIANTS`]).
 pub fn quantise(
     fit: &Fit,
     targets: &ControlTargets,
@@ -282,6 +283,7 @@ pub fn quantise(
     wq: u8,
     coding: ControlCoding,
     codebooks: &[Codebook; 2],
+    rounding_lambda: f64,
 ) -> Quantised {
     let model = MODELS[usize::from(fit.model)];
     let mut leaf = LeafSyntax {
@@ -295,11 +297,11 @@ pub fn quantise(
     let side = targets.side;
     let (mut values, form) = match coding {
         ControlCoding::Dpcm => {
-            let rounding = IndexRounding::new(cq, false, side);
+            let rounding = IndexRounding::new(cq, false, side, rounding_lambda);
             quantise_dpcm(targets, side, step, &rounding, &mut leaf.control)
         }
         ControlCoding::Transform => {
-            let rounding = IndexRounding::new(cq, true, side);
+            let rounding = IndexRounding::new(cq, true, side, rounding_lambda);
             let form = quantise_coefficients(targets, side, step, &rounding, &mut leaf.control);
             let mut values = [0i16; MAX_CONTROL];
             transform_control_values(side, step, &leaf.control, &mut values);
@@ -583,9 +585,18 @@ fn forward_line(g: &mut [f64; MAX_CONTROL], start: usize, stride: usize, m: usiz
 }
 
 /// The Lagrange multiplier of index rounding: bits are worth this much of a leaf's mean
-/// patch error per squared step. On six Kodak images 0.12 did best (0.10 and 0.14 within
-/// 0.01 dB); at high rate a uniform quantiser's slope is `2 ln 2 / 12 = 0.116`.
-const ROUNDING_LAMBDA: f64 = 0.12;
+/// patch error per squared step. On six Kodak images 0.12 did best as the only one (0.10 and
+/// 0.14 within 0.01 dB); at high rate a uniform quantiser's slope is `2 ln 2 / 12 = 0.116`.
+pub const ROUNDING_LAMBDA: f64 = 0.12;
+
+/// Other multipliers each candidate the rate control keeps is also rounded with
+/// ([`crate::Analysis`]): a leaf's control steps are a factor of 1.33 to 1.5 apart, and the
+/// same step rounded with fewer zeros (or more) fills the gaps between them on the leaf's
+/// rate/distortion curve. On six Kodak images (kodim01, 05, 08, 13, 19, 23) these four gained
+/// +0.029 / +0.051 / +0.084 / +0.098 dB at 0.05 / 0.1 / 0.25 / 0.5 bpp; 0.02, 0.04, 0.07
+/// gained +0.029 / +0.040 / +0.064 / +0.092, 0.25, 0.5, 1.0 only +0.005 / +0.024 / +0.033 /
+/// +0.022.
+pub const ROUNDING_VARIANTS: [f64; 4] = [0.03, 0.06, 0.25, 0.5];
 
 /// Targets below this many steps become zero without pricing the alternatives: a nonzero
 /// index there adds at least 0.2 of its weight in error, which its bits hardly ever repay (on
@@ -607,18 +618,21 @@ struct IndexRounding {
     /// slowest instructions of this hot path).
     positions: &'static [(u8, u8); MAX_CONTROL],
     side: usize,
+    /// Bits are worth this much of the leaf's mean patch error per squared step.
+    lambda: f64,
 }
 
 impl IndexRounding {
     /// The rounding of control quantiser `cq` under the grid transform or DPCM, for a grid of
     /// side `side`.
-    fn new(cq: u8, transform: bool, side: usize) -> IndexRounding {
+    fn new(cq: u8, transform: bool, side: usize, lambda: f64) -> IndexRounding {
         let costs = ResidualCosts::get();
         IndexRounding {
             bits: &costs.bits[step_group(cq)],
             classes: &costs.classes[usize::from(transform)][side],
             positions: &costs.positions[side],
             side,
+            lambda,
         }
     }
 
@@ -676,7 +690,7 @@ impl IndexRounding {
             // when the larger one takes a longer Exp-Golomb code (suffixes are bypass bits).
             let mut up = relative_weight * (1.0 - 2.0 * (magnitude - f64::from(low)));
             if (low + 1).count_ones() == 1 {
-                up += ROUNDING_LAMBDA * (self.price(i, 0, low + 1) - self.price(i, 0, low));
+                up += self.lambda * (self.price(i, 0, low + 1) - self.price(i, 0, low));
             }
             if up < 0.0 {
                 low + 1
@@ -741,7 +755,7 @@ impl IndexRounding {
         }
         let cost = |k: i32| {
             let d = magnitude - f64::from(k);
-            relative_weight * d * d + ROUNDING_LAMBDA * bits[k as usize]
+            relative_weight * d * d + self.lambda * bits[k as usize]
         };
         let mut best = (cost(0), 0);
         for k in [low, low + 1] {
@@ -1007,7 +1021,7 @@ mod tests {
                     let added = |t: &ControlTargets, sum: &mut (f64, f64)| {
                         let mut indices = [0i16; MAX_CONTROL];
                         let cq = CONTROL_STEPS.iter().position(|&s| s == step).unwrap();
-                        let rounding = IndexRounding::new(cq as u8, true, side);
+                        let rounding = IndexRounding::new(cq as u8, true, side, ROUNDING_LAMBDA);
                         quantise_coefficients(t, side, step, &rounding, &mut indices);
                         let mut values = [0i16; MAX_CONTROL];
                         transform_control_values(side, step, &indices, &mut values);
@@ -1066,6 +1080,7 @@ mod tests {
                 0,
                 ControlCoding::Dpcm,
                 &[Codebook::EMPTY; 2],
+                ROUNDING_LAMBDA,
             );
             let mut counter = BitCounter::frozen();
             let mut leaf = q.leaf;
@@ -1114,7 +1129,7 @@ mod tests {
     fn rounding_prices_nonzero_indices_by_their_neighbours() {
         let side = 3;
         for transform in [false, true] {
-            let rounding = IndexRounding::new(9, transform, side);
+            let rounding = IndexRounding::new(9, transform, side, ROUNDING_LAMBDA);
             let mut indices = [0i16; MAX_CONTROL];
             assert_eq!(rounding.round(&indices, 4, 0.65, 1.0, None), 0);
             assert_eq!(rounding.round(&indices, 4, -0.65, 1.0, None), 0);
@@ -1134,7 +1149,7 @@ mod tests {
     /// is to nearest.
     #[test]
     fn large_indices_round_to_nearest() {
-        let rounding = IndexRounding::new(9, true, 5);
+        let rounding = IndexRounding::new(9, true, 5, ROUNDING_LAMBDA);
         let indices = [0i16; MAX_CONTROL];
         assert_eq!(rounding.round(&indices, 12, 5.45, 1.0, None), 5);
         assert_eq!(rounding.round(&indices, 12, 5.55, 1.0, None), 6);
