@@ -607,16 +607,7 @@ mod tests {
     #[test]
     fn estimated_error_follows_the_closed_loop() {
         let (w, h) = (64u32, 64u32);
-        let mut seed = 7u32;
-        let data = (0..w * h)
-            .map(|i| {
-                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                let (x, y) = (f64::from(i % w), f64::from(i / w));
-                let smooth = 128.0 + 60.0 * (x / 9.0).sin() * (y / 13.0).cos();
-                (smooth + f64::from(seed >> 28)).clamp(0.0, 255.0) as u8
-            })
-            .collect();
-        let plane = Plane::new(w, h, data);
+        let plane = textured_plane(w, h);
         let header = Header {
             width: w as u16,
             height: h as u16,

@@ -624,7 +624,7 @@ struct IndexRounding {
 
 impl IndexRounding {
     /// The rounding of control quantiser `cq` under the grid transform or DPCM, for a grid of
-    /// side `side`.
+    /// side `side`, with multiplier `lambda`.
     fn new(cq: u8, transform: bool, side: usize, lambda: f64) -> IndexRounding {
         let costs = ResidualCosts::get();
         IndexRounding {
