@@ -76,8 +76,8 @@ fn bench_vectors() -> Vec<Vector> {
     for path in env::split_paths(&list) {
         println!("cargo:rerun-if-changed={}", path.display());
         let bytes = fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let header =
-            decoder_core::read_header(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let header = decoder_core::Header::read(&bytes)
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         vectors.push(Vector {
             name: path.file_name().unwrap().to_string_lossy().into_owned(),
             width: header.width,

@@ -1,6 +1,6 @@
 //! Entropy coding: adaptive binary arithmetic (range) coding.
 //!
-//! The bitstream syntax ([`crate::bitstream`]) is written once, against the [`Coder`] trait: every
+//! The bitstream syntax (the `syntax` module) is written once, against the [`Coder`] trait: every
 //! syntax element is passed by `&mut`, an encoder reads it and a decoder overwrites it. The
 //! decoder here ([`RangeDecoder`]) and the host encoder's writer and rate estimator all implement
 //! that trait, so the three can never disagree about what is coded, in which order, with which
@@ -10,7 +10,7 @@
 //! probabilities, adaptation by a shift that grows with the number of bits a context has coded
 //! ([`ADAPT_SHIFTS`]): fast while a context learns, steadier once it has.
 
-use crate::error::DecodeError;
+use crate::error::{DecodeError, SyntaxElement};
 
 /// Number of bits of a probability.
 pub const PROB_BITS: u32 = 12;
@@ -283,7 +283,7 @@ impl IntContexts {
         let mut k = 0usize;
         loop {
             if k >= MAX_PREFIX {
-                return Err(DecodeError::InvalidData("integer magnitude"));
+                return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
             }
             let mut more = k < k_in;
             c.bit(&mut prefix[k.min(PREFIX_CONTEXTS - 1)], &mut more)?;
@@ -304,11 +304,11 @@ impl IntContexts {
     }
 }
 
-/// Codes an unsigned value `0..count` (`count <= 2^bits`) as a binary tree of `bits` context-coded
-/// decisions (`ctx` needs `2^bits` entries; entry 0 is unused).
-pub fn code_tree<C: Coder>(
+/// Codes an unsigned value below `2^bits` as a binary tree of `bits` context-coded decisions
+/// (`N`, the number of contexts, is `2^bits`; entry 0 is unused).
+pub fn code_tree<C: Coder, const N: usize>(
     c: &mut C,
-    ctx: &mut [Prob],
+    ctx: &mut [Prob; N],
     bits: u32,
     v: &mut u32,
 ) -> Result<(), DecodeError> {
@@ -316,10 +316,7 @@ pub fn code_tree<C: Coder>(
     let mut out = 0u32;
     for i in (0..bits).rev() {
         let mut b = (*v >> i) & 1 == 1;
-        let p = ctx
-            .get_mut(node)
-            .ok_or(DecodeError::InvalidData("context"))?;
-        c.bit(p, &mut b)?;
+        c.bit(&mut ctx[node % N], &mut b)?;
         node = (node << 1) | usize::from(b);
         out = (out << 1) | u32::from(b);
     }
@@ -328,20 +325,17 @@ pub fn code_tree<C: Coder>(
 }
 
 /// Codes an index `0..count` as a truncated unary code with one context per position
-/// (`ctx.len() >= count - 1`).
-pub fn code_unary<C: Coder>(
+/// (`count <= N + 1`).
+pub fn code_unary<C: Coder, const N: usize>(
     c: &mut C,
-    ctx: &mut [Prob],
+    ctx: &mut [Prob; N],
     count: u32,
     v: &mut u32,
 ) -> Result<(), DecodeError> {
     let mut i = 0u32;
     while i + 1 < count {
         let mut more = *v > i;
-        let p = ctx
-            .get_mut(i as usize)
-            .ok_or(DecodeError::InvalidData("context"))?;
-        c.bit(p, &mut more)?;
+        c.bit(&mut ctx[i as usize % N], &mut more)?;
         if !more {
             break;
         }

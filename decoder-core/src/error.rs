@@ -1,28 +1,32 @@
-//! Typed decoding errors.
+//! Typed errors: what is wrong with a stream ([`DecodeError`]), and a decode that may also
+//! stop because the pixel sink failed ([`DrawError`]).
 
 use core::fmt;
 
-/// Everything that can go wrong while reading a `.pifs` stream.
+use crate::format::VERSION;
+
+/// Everything that can be wrong with a `.pifs` stream, or with a caller's request to decode it.
 ///
 /// The decoder never panics: every malformed, truncated or hostile byte string ends in one of
 /// these values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum DecodeError {
     /// The stream ended before the header or the payload was complete.
     Truncated,
     /// The first four bytes are not `PIFS`.
     BadMagic,
-    /// The stream was written by a newer (or unknown) version of the format.
+    /// The stream was written by another (or an unknown) version of the format.
     UnsupportedVersion(u8),
     /// The channel count is not one this decoder can reconstruct.
     UnsupportedChannels(u8),
     /// The sample bit depth is not one this decoder can reconstruct.
     UnsupportedBitDepth(u8),
-    /// A header field is out of its allowed range; the text names the field.
-    InvalidHeader(&'static str),
+    /// A header field is out of its allowed range.
+    InvalidHeader(HeaderField),
     /// The payload decoded to a value the syntax forbids (the arithmetic decoder lost
-    /// synchronisation, or the stream was damaged); the text names the element.
-    InvalidData(&'static str),
+    /// synchronisation, or the stream was damaged).
+    InvalidData(SyntaxElement),
     /// The stream's CRC-32 does not match its bytes: it was damaged on the way.
     ChecksumMismatch {
         /// The checksum the header carries.
@@ -41,33 +45,164 @@ pub enum DecodeError {
     BufferTooSmall,
 }
 
+/// The header field a [`DecodeError::InvalidHeader`] is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum HeaderField {
+    /// Flag bits the format reserves are set.
+    ReservedFlags,
+    /// Width or height is zero.
+    Dimensions,
+    /// The smallest or largest leaf size is outside the format's range, or they are in the
+    /// wrong order.
+    LeafSizes,
+    /// The payload length is badly encoded or too large.
+    PayloadLength,
+    /// Bytes follow the payload the header declares.
+    TrailingBytes,
+    /// A codebook has fewer than two or more than sixteen levels.
+    CodebookSize,
+    /// A codebook's levels are out of range or not increasing.
+    CodebookLevels,
+}
+
+impl HeaderField {
+    fn describe(self) -> &'static str {
+        match self {
+            HeaderField::ReservedFlags => "reserved flag bits are set",
+            HeaderField::Dimensions => "width and height must be at least 1",
+            HeaderField::LeafSizes => "leaf sizes",
+            HeaderField::PayloadLength => "payload length",
+            HeaderField::TrailingBytes => "payload length (bytes follow the payload)",
+            HeaderField::CodebookSize => "codebook size",
+            HeaderField::CodebookLevels => "codebook levels",
+        }
+    }
+}
+
+/// The payload syntax element a [`DecodeError::InvalidData`] is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SyntaxElement {
+    /// A quadtree node of a size no node may have.
+    NodeSize,
+    /// The quadtree is deeper than any image allows.
+    QuadtreeDepth,
+    /// A leaf of a size no model may code.
+    LeafSize,
+    /// A model type index.
+    ModelType,
+    /// A control quantiser index.
+    ControlQuantiser,
+    /// A weight quantiser index.
+    WeightQuantiser,
+    /// A control value index out of range.
+    ControlValue,
+    /// A Lloyd-Max codebook index out of range, or a codebook the stream does not carry.
+    CodebookIndex,
+    /// An integer whose magnitude prefix is longer than the format allows.
+    IntegerMagnitude,
+    /// The payload's length does not match what the quadtree used.
+    PayloadLength,
+}
+
+impl SyntaxElement {
+    fn describe(self) -> &'static str {
+        match self {
+            SyntaxElement::NodeSize => "node size",
+            SyntaxElement::QuadtreeDepth => "quadtree depth",
+            SyntaxElement::LeafSize => "leaf size",
+            SyntaxElement::ModelType => "model type",
+            SyntaxElement::ControlQuantiser => "control quantiser",
+            SyntaxElement::WeightQuantiser => "weight quantiser",
+            SyntaxElement::ControlValue => "control value",
+            SyntaxElement::CodebookIndex => "codebook index",
+            SyntaxElement::IntegerMagnitude => "integer magnitude",
+            SyntaxElement::PayloadLength => "payload length",
+        }
+    }
+}
+
+impl fmt::Display for HeaderField {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.describe())
+    }
+}
+
+impl fmt::Display for SyntaxElement {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.describe())
+    }
+}
+
 impl fmt::Display for DecodeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             DecodeError::Truncated => write!(f, "the stream is truncated"),
             DecodeError::BadMagic => write!(f, "not a PIFS stream (bad magic bytes)"),
-            DecodeError::UnsupportedVersion(v) => {
-                write!(
-                    f,
-                    "unsupported PIFS version {v} (this decoder reads version {})",
-                    crate::bitstream::VERSION
-                )
-            }
+            DecodeError::UnsupportedVersion(v) => write!(
+                f,
+                "unsupported PIFS version {v} (this decoder reads version {VERSION})"
+            ),
             DecodeError::UnsupportedChannels(c) => write!(f, "unsupported channel count {c}"),
             DecodeError::UnsupportedBitDepth(b) => write!(f, "unsupported bit depth {b}"),
-            DecodeError::InvalidHeader(what) => write!(f, "invalid header: {what}"),
-            DecodeError::InvalidData(what) => write!(f, "corrupt payload: invalid {what}"),
+            DecodeError::InvalidHeader(field) => write!(f, "invalid header: {field}"),
+            DecodeError::InvalidData(element) => write!(f, "corrupt payload: invalid {element}"),
             DecodeError::ChecksumMismatch { stored, computed } => write!(
                 f,
                 "the stream is damaged: its CRC-32 is {computed:08x}, the header says {stored:08x}"
             ),
-            DecodeError::TooLarge { width, height } => {
-                write!(
-                    f,
-                    "the image ({width}x{height}) exceeds the decoder's size limit"
-                )
-            }
+            DecodeError::TooLarge { width, height } => write!(
+                f,
+                "the image ({width}x{height}) exceeds the decoder's size limit"
+            ),
             DecodeError::BufferTooSmall => write!(f, "output buffer too small for the image"),
+        }
+    }
+}
+
+impl core::error::Error for DecodeError {}
+
+/// A decode that hands pixels to a sink can fail two ways: the stream is bad, or the sink
+/// (a display, a file) failed. Decoding stops at the first of either.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DrawError<E> {
+    /// The stream is bad: decoding stopped here (what came before was drawn).
+    Decode(DecodeError),
+    /// The sink failed: decoding stopped at its first error.
+    Sink(E),
+}
+
+impl<E> From<DecodeError> for DrawError<E> {
+    fn from(e: DecodeError) -> Self {
+        DrawError::Decode(e)
+    }
+}
+
+/// A sink that cannot fail leaves only the stream's errors.
+impl From<DrawError<core::convert::Infallible>> for DecodeError {
+    fn from(e: DrawError<core::convert::Infallible>) -> Self {
+        match e {
+            DrawError::Decode(e) => e,
+            DrawError::Sink(never) => match never {},
+        }
+    }
+}
+
+impl<E: fmt::Debug> fmt::Display for DrawError<E> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DrawError::Decode(e) => e.fmt(f),
+            DrawError::Sink(e) => write!(f, "the pixel sink failed: {e:?}"),
+        }
+    }
+}
+
+impl<E: fmt::Debug> core::error::Error for DrawError<E> {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            DrawError::Decode(e) => Some(e),
+            DrawError::Sink(_) => None,
         }
     }
 }

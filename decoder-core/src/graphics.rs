@@ -2,25 +2,25 @@
 //! `embedded-graphics`): a PIFS stream as an [`ImageDrawable`].
 //!
 //! ```
-//! use decoder_core::graphics::PifsImage;
+//! use decoder_core::{graphics::PifsImage, DrawError};
 //! use embedded_graphics::{image::Image, pixelcolor::Rgb565, prelude::*};
 //!
-//! fn show<D>(stream: &[u8], display: &mut D) -> Result<(), D::Error>
+//! fn show<D>(stream: &[u8], display: &mut D) -> Result<(), DrawError<D::Error>>
 //! where
 //!     D: DrawTarget<Color = Rgb565>,
 //! {
-//!     // Checks the header once; drawing never panics.
-//!     let Ok(logo) = PifsImage::new(stream) else {
-//!         return Ok(()); // not a PIFS stream
-//!     };
-//!     Image::new(&logo, Point::new(10, 20)).draw(display)
+//!     // Checks the header, the length and the checksum once; drawing never panics.
+//!     let logo = PifsImage::new(stream)?;
+//!     Image::new(&logo, Point::new(10, 20))
+//!         .draw(display)
+//!         .map_err(DrawError::Sink)
 //! }
 //! # let mut display = embedded_graphics::mock_display::MockDisplay::<Rgb565>::new();
-//! # show(b"not a stream", &mut display).unwrap();
+//! # assert!(show(b"not a stream", &mut display).is_err());
 //! ```
 //!
-//! Pixels reach the display as whole tiles (at most [`TILE`](crate::patch::TILE) x
-//! [`TILE`](crate::patch::TILE)) through [`DrawTarget::fill_contiguous`], never pixel by pixel.
+//! Pixels reach the display as whole tiles (at most [`TILE`](crate::TILE) x
+//! [`TILE`](crate::TILE)) through [`DrawTarget::fill_contiguous`], never pixel by pixel.
 //! Only tiles that are visible are synthesised: the area drawn is cut to the target's
 //! [`bounding_box`](embedded_graphics_core::geometry::Dimensions::bounding_box) (an image partly off-screen) and, for
 //! [`ImageDrawable::draw_sub_image`], to the sub-image. The payload is always entropy-decoded in
@@ -34,8 +34,8 @@
 //! `Ok(())` (the [`ImageDrawable`] signature has no room for a [`DecodeError`]); the pixels of the
 //! leaves decoded before the error have been drawn. They never panic. To see the error, use
 //! [`PifsImage::draw_checked`] / [`PifsImage::draw_sub_image_checked`], which return a
-//! [`DrawError`], or check the whole payload once with [`PifsImage::verify`] (entropy decoding
-//! only, no pixels).
+//! [`DrawError`], or check the whole payload once with [`PifsImage::decoder`] and
+//! [`Decoder::verify`] (entropy decoding only, no pixels).
 //!
 //! # Colours
 //!
@@ -55,11 +55,12 @@ use embedded_graphics_core::pixelcolor::{
 };
 use embedded_graphics_core::primitives::Rectangle;
 
-use crate::bitstream::Header;
-use crate::entropy::{ByteSource, SliceSource};
-use crate::error::DecodeError;
-use crate::patch::{PixelSink, Rect};
-use crate::stream::{read_header_checksummed, walk_payload, Payload, StreamPayload};
+use crate::decoder::{Decoder, Input};
+use crate::entropy::ByteSource;
+use crate::error::{DecodeError, DrawError};
+use crate::geometry::Rect;
+use crate::syntax::Header;
+use crate::synthesis::{PixelSink, Tile};
 
 /// A colour type that decoded 8-bit luma can be drawn as.
 pub trait FromGray: PixelColor {
@@ -100,21 +101,6 @@ macro_rules! from_gray8 {
 
 from_gray8!(Gray2, Gray4, Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888, Bgr888);
 
-/// What went wrong while drawing with [`PifsImage::draw_checked`] and friends.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DrawError<E> {
-    /// The stream is damaged: decoding stopped here (earlier leaves were drawn).
-    Decode(DecodeError),
-    /// The draw target failed: drawing stopped at its first error.
-    Target(E),
-}
-
-impl<E> From<DecodeError> for DrawError<E> {
-    fn from(e: DecodeError) -> Self {
-        DrawError::Decode(e)
-    }
-}
-
 /// A PIFS stream held in memory (flash or RAM), drawable with embedded-graphics in colour `C`.
 ///
 /// Creating one parses and validates the header; every draw decodes the stream again, tile by
@@ -122,7 +108,6 @@ impl<E> From<DecodeError> for DrawError<E> {
 /// `C` is usually inferred from the draw target.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PifsImage<'a, C = Gray8> {
-    data: &'a [u8],
     payload: &'a [u8],
     header: Header,
     color: PhantomData<C>,
@@ -132,10 +117,9 @@ impl<'a, C> PifsImage<'a, C> {
     /// Wraps the stream `data`, after checking its header, its length and its checksum (so a
     /// damaged stream is refused here, before anything is drawn).
     pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
-        let (header, payload) = crate::stream::open(data)?;
+        let header = *Decoder::new(data)?.header();
         Ok(PifsImage {
-            data,
-            payload,
+            payload: &data[header.encoded_len()..],
             header,
             color: PhantomData,
         })
@@ -146,47 +130,11 @@ impl<'a, C> PifsImage<'a, C> {
         &self.header
     }
 
-    /// Decodes the whole image into `sink` (grayscale tiles, image coordinates).
-    pub fn decode_to<S: PixelSink>(&self, sink: &mut S) -> Result<(), DecodeError> {
-        self.decode_region_to(Rect::of_size(u32::MAX, u32::MAX), sink)
+    /// A decoder of the stream (already checked: this does not check it again), for decoding
+    /// into a sink or a buffer rather than a draw target.
+    pub fn decoder(&self) -> Decoder<crate::decoder::InMemory<'a>> {
+        Decoder::verified(self.header, self.payload)
     }
-
-    /// Decodes only the pixels inside `clip` (image coordinates) into `sink`.
-    pub fn decode_region_to<S: PixelSink>(
-        &self,
-        clip: Rect,
-        sink: &mut S,
-    ) -> Result<(), DecodeError> {
-        walk_payload(
-            &self.header,
-            SliceSource::new(self.payload),
-            clip,
-            sink,
-            |_| false,
-        )
-    }
-
-    /// Decodes the image into `out` (row-major, `width * height` bytes of luma).
-    pub fn decode_into(&self, out: &mut [u8]) -> Result<(), DecodeError> {
-        crate::decode_into(self.data, out).map(|_| ())
-    }
-
-    /// The whole stream (header and payload).
-    pub fn data(&self) -> &'a [u8] {
-        self.data
-    }
-
-    /// Entropy-decodes the whole payload without producing pixels: `Ok` when drawing will not
-    /// meet a decoding error.
-    pub fn verify(&self) -> Result<(), DecodeError> {
-        self.decode_region_to(Rect::of_size(0, 0), &mut NoPixels)
-    }
-}
-
-struct NoPixels;
-
-impl PixelSink for NoPixels {
-    fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, _pixels: &[u8]) {}
 }
 
 impl<C: FromGray> PifsImage<'_, C> {
@@ -197,7 +145,7 @@ impl<C: FromGray> PifsImage<'_, C> {
         D: DrawTarget<Color = C>,
     {
         let all = Rectangle::new(Point::zero(), self.size());
-        draw_area(&self.header, self.source(), target, &all)
+        draw_area(self.decoder(), target, &all)
     }
 
     /// Draws the part `area` (image coordinates) of the image with `area`'s top-left corner at
@@ -211,11 +159,7 @@ impl<C: FromGray> PifsImage<'_, C> {
     where
         D: DrawTarget<Color = C>,
     {
-        draw_area(&self.header, self.source(), target, area)
-    }
-
-    fn source(&self) -> SliceSource<'_> {
-        SliceSource::new(self.payload)
+        draw_area(self.decoder(), target, area)
     }
 }
 
@@ -249,48 +193,43 @@ impl<C: FromGray> ImageDrawable for PifsImage<'_, C> {
 
 fn ignore_decode_errors<E>(r: Result<(), DrawError<E>>) -> Result<(), E> {
     match r {
-        Err(DrawError::Target(e)) => Err(e),
+        Err(DrawError::Sink(e)) => Err(e),
         _ => Ok(()),
     }
 }
 
-/// Decodes a stream read sequentially from `source` (see [`crate::stream`]) straight onto
-/// `target`, with the image's top-left corner at the target's origin. Returns the header.
+/// Decodes a stream read sequentially from `source` (see [`Decoder::from_source`]) straight
+/// onto `target`, with the image's top-left corner at the target's origin. Returns the header.
 ///
 /// Unlike [`PifsImage`], the stream cannot be replayed, so everything is read even when only a
-/// part of the image is visible, and the checksum is checked at the end, after drawing (see
-/// [`crate::stream::decode_stream`]).
-pub fn draw_stream<B, D>(mut source: B, target: &mut D) -> Result<Header, DrawError<D::Error>>
+/// part of the image is visible, and the checksum is checked at the end, after drawing.
+pub fn draw_stream<B, D>(source: B, target: &mut D) -> Result<Header, DrawError<D::Error>>
 where
     B: ByteSource,
     D: DrawTarget,
     D::Color: FromGray,
 {
-    let (header, crc) = read_header_checksummed(&mut source)?;
+    let decoder = Decoder::from_source(source)?;
+    let header = *decoder.header();
     let size = Size::new(header.width.into(), header.height.into());
-    draw_area(
-        &header,
-        StreamPayload::new(source, &header, crc),
-        target,
-        &Rectangle::new(Point::zero(), size),
-    )?;
+    draw_area(decoder, target, &Rectangle::new(Point::zero(), size))?;
     Ok(header)
 }
 
-/// Draws `area` (image coordinates) of the image whose payload `source` holds, with `area`'s
-/// top-left corner at the target's origin. A payload whose checksum is still to be verified is
-/// read to its end even when nothing of it is visible.
-fn draw_area<P, D>(
-    header: &Header,
-    source: P,
+/// Draws `area` (image coordinates) of the image `decoder` decodes, with `area`'s top-left
+/// corner at the target's origin. A payload whose checksum is still to be verified is read to
+/// its end even when nothing of it is visible.
+fn draw_area<I, D>(
+    decoder: Decoder<I>,
     target: &mut D,
     area: &Rectangle,
 ) -> Result<(), DrawError<D::Error>>
 where
-    P: Payload,
+    I: Input,
     D: DrawTarget,
     D::Color: FromGray,
 {
+    let header = decoder.header();
     let offset = area.top_left;
     let image = Rectangle::new(
         Point::zero(),
@@ -301,7 +240,7 @@ where
     let visible = Rectangle::new(visible.top_left + offset, visible.size);
     let clip = area.intersection(&image).intersection(&visible);
     let clip = if clip.is_zero_sized() || clip.top_left.x < 0 || clip.top_left.y < 0 {
-        if !P::CHECKS_CHECKSUM {
+        if I::VERIFIED {
             return Ok(());
         }
         Rect::of_size(0, 0)
@@ -313,24 +252,15 @@ where
             h: clip.size.height,
         }
     };
-    let mut sink = TargetSink {
-        target,
-        offset,
-        error: None,
-    };
-    let result = walk_payload(header, source, clip, &mut sink, |s| s.error.is_some());
-    match sink.error {
-        Some(e) => Err(DrawError::Target(e)),
-        None => result.map_err(DrawError::Decode),
-    }
+    let mut sink = TargetSink { target, offset };
+    decoder.clip(clip).decode(&mut sink)?;
+    Ok(())
 }
 
-/// Forwards decoded tiles to a draw target, translated by `-offset`; remembers the target's
-/// first error and ignores everything after it.
+/// Forwards decoded tiles to a draw target, translated by `-offset`.
 struct TargetSink<'t, D: DrawTarget> {
     target: &'t mut D,
     offset: Point,
-    error: Option<D::Error>,
 }
 
 impl<D> PixelSink for TargetSink<'_, D>
@@ -338,16 +268,14 @@ where
     D: DrawTarget,
     D::Color: FromGray,
 {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
-        if self.error.is_some() {
-            return;
-        }
+    type Error = D::Error;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), D::Error> {
+        let Rect { x, y, w, h } = tile.area;
         // Tile coordinates are below 2^16 (image coordinates), so they fit in i32.
         let at = Point::new(x as i32, y as i32) - self.offset;
         let area = Rectangle::new(at, Size::new(w, h));
-        let colors = pixels.iter().map(|&l| D::Color::from_gray(l));
-        if let Err(e) = self.target.fill_contiguous(&area, colors) {
-            self.error = Some(e);
-        }
+        let colors = tile.pixels.iter().map(|&l| D::Color::from_gray(l));
+        self.target.fill_contiguous(&area, colors)
     }
 }

@@ -1,208 +1,195 @@
 //! # decoder-core
 //!
 //! The `no_std`, allocation-free decoder of the PIFS image format: a quadtree of projected-IFS
-//! patches (E. Guérin's thesis, 2002) coded with an adaptive binary arithmetic coder.
-//!
-//! The crate is also the one definition of the bitstream: the host encoder writes streams with
-//! the same syntax code ([`bitstream`], [`quadtree`]) and judges its choices with the same
-//! reconstruction ([`patch`]), so what the encoder measures is what a device shows.
-//!
-//! Layout:
-//! - [`bitstream`]: the header and every payload syntax element (where a byte is parsed);
-//! - [`entropy`]: the range decoder and the binarisations;
-//! - [`model`]: model types, subdivision rules, quantisers;
-//! - [`patch`]: integer patch synthesis (where a pixel is made);
-//! - [`prediction`]: the pixel frontier a leaf's values are predicted from;
-//! - [`quadtree`]: the walk over the quadtree cut;
-//! - [`stream`]: decoding from a sequential [`entropy::ByteSource`] (no stream in RAM) and
-//!   decoding of a clip rectangle only;
-//! - `graphics` (cargo feature `embedded-graphics`): a stream as an embedded-graphics image.
+//! patches (E. Guérin's thesis, 2002) coded with an adaptive binary arithmetic coder. Memory is
+//! fixed at compile time (a few KiB of stack, no frame buffer), reconstruction is integer and
+//! bit-exact on every platform, and no input makes it panic: every malformed stream is a
+//! [`DecodeError`].
 //!
 //! ```
 //! # fn demo(stream: &[u8]) -> Result<(), decoder_core::DecodeError> {
-//! let header = decoder_core::read_header(stream)?;
-//! let mut pixels = vec![0u8; header.pixel_count()];
-//! decoder_core::decode_into(stream, &mut pixels)?;
+//! use decoder_core::{Decoder, Limits};
+//!
+//! let decoder = Decoder::new(stream)?.limits(&Limits::pixels(1 << 24))?;
+//! let mut pixels = vec![0u8; decoder.header().pixel_count()];
+//! decoder.decode_into(&mut pixels)?;
 //! # Ok(()) }
 //! ```
+//!
+//! ## The public surface
+//!
+//! - [`Decoder`]: the one entry point, over a stream in memory ([`Decoder::new`]) or a
+//!   sequential [`ByteSource`] ([`Decoder::from_source`]), optionally cut to a [`Rect`]
+//!   ([`Decoder::clip`]) or bounded by [`Limits`]; decodes into a [`PixelSink`] (tile by tile,
+//!   no frame buffer) or a buffer.
+//! - [`PixelSink`] receives [`Tile`]s of at most [`TILE`] x [`TILE`] pixels and may fail; its
+//!   error ends the decode as [`DrawError::Sink`].
+//! - [`Header`]: the image's size and format fields; [`LeafInfo`] (with [`Node`] and
+//!   [`ControlCoding`]) describes each leaf to a [`Decoder::observe`] callback.
+//! - Errors: [`DecodeError`] (with [`HeaderField`] and [`SyntaxElement`]), [`DrawError`].
+//! - [`graphics`] (cargo feature `embedded-graphics`): a stream as an embedded-graphics
+//!   `ImageDrawable` in any colour type.
+//!
+//! ## Inside
+//!
+//! The modules are layered, each using only those below it: the format's shared vocabulary
+//! (constants, geometry, the CRC), errors, entropy coding (the range decoder), the patch models,
+//! synthesis (where a pixel is made), prediction (the pixel frontier), syntax (where a byte is
+//! parsed), the quadtree walk, the decoder API, the embedded-graphics adapter. The host encoder
+//! runs the same syntax and synthesis code (through `decoder_core::internal`, which is not part
+//! of the public API), so what it measures is what a device shows. `docs/bitstream.md` is the
+//! specification.
 #![no_std]
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs, missing_debug_implementations)]
+#![deny(rustdoc::broken_intra_doc_links)]
 
-pub mod bitstream;
-pub mod checksum;
-pub mod entropy;
+mod checksum;
+mod decoder;
+mod entropy;
 mod error;
-pub mod initial_contexts;
-pub mod model;
-pub mod patch;
-pub mod prediction;
-pub mod quadtree;
-pub mod stream;
+mod format;
+mod geometry;
+mod model;
+mod prediction;
+mod syntax;
+mod synthesis;
+mod walk;
 
 #[cfg(feature = "embedded-graphics")]
 pub mod graphics;
 
-pub use bitstream::{Header, LeafSyntax};
-pub use error::DecodeError;
-pub use patch::{PixelSink, Rect};
-pub use stream::{decode_region, decode_stream, decode_stream_region, MAX_HEADER_LEN};
+pub use decoder::{Decoder, InMemory, Input, Limits, Streamed};
+pub use entropy::{ByteSource, SliceSource};
+pub use error::{DecodeError, DrawError, HeaderField, SyntaxElement};
+pub use format::{MAGIC, VERSION};
+pub use geometry::{Node, Rect};
+pub use syntax::{ControlCoding, Header, MAX_HEADER_LEN};
+pub use synthesis::{PixelSink, Tile, TILE};
+pub use walk::LeafInfo;
 
-use entropy::{RangeDecoder, SliceSource};
-use patch::Patch;
-use prediction::Frontier;
-pub use quadtree::LeafInfo;
-use quadtree::{Node, TreeVisitor};
-
-/// Reads and validates the header of a stream.
-pub fn read_header(data: &[u8]) -> Result<Header, DecodeError> {
-    Header::parse(data).map(|(h, _)| h)
-}
-
-/// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
-/// is drawn or allocated (a host decoding into a buffer it allocates should always set them:
-/// a 17-byte header can announce a 65535 x 65535 image).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Limits {
-    /// Largest accepted width.
-    pub max_width: u16,
-    /// Largest accepted height.
-    pub max_height: u16,
-    /// Largest accepted `width * height`.
-    pub max_pixels: u64,
-}
-
-impl Limits {
-    /// No bound beyond the format's own (65535 x 65535).
-    pub const NONE: Limits = Limits {
-        max_width: u16::MAX,
-        max_height: u16::MAX,
-        max_pixels: u64::MAX,
-    };
-
-    /// At most `max_pixels` pixels, any shape.
-    pub const fn pixels(max_pixels: u64) -> Limits {
-        Limits {
-            max_pixels,
-            ..Limits::NONE
-        }
+/// The format's machinery that the host encoder and the project's tests share with this
+/// decoder: the syntax, the entropy coder, the models, synthesis, prediction and the walk.
+///
+/// Not part of the public API: no stability promise, and nothing here is needed to decode.
+#[doc(hidden)]
+pub mod internal {
+    /// See the crate's `checksum` module.
+    pub mod checksum {
+        pub use crate::checksum::*;
     }
-
-    /// `Ok` when `header` describes an image within these bounds, else
-    /// [`DecodeError::TooLarge`].
-    pub fn check(&self, header: &Header) -> Result<(), DecodeError> {
-        let pixels = u64::from(header.width) * u64::from(header.height);
-        if header.width > self.max_width
-            || header.height > self.max_height
-            || pixels > self.max_pixels
-        {
-            return Err(DecodeError::TooLarge {
-                width: header.width,
-                height: header.height,
-            });
-        }
-        Ok(())
+    /// See the crate's `entropy` module.
+    pub mod entropy {
+        pub use crate::entropy::*;
+    }
+    /// See the crate's `format` module.
+    pub mod format {
+        pub use crate::format::*;
+    }
+    /// See the crate's `geometry` module.
+    pub mod geometry {
+        pub use crate::geometry::*;
+    }
+    /// See the crate's `model` module.
+    pub mod model {
+        pub use crate::model::*;
+    }
+    /// See the crate's `prediction` module.
+    pub mod prediction {
+        pub use crate::prediction::*;
+    }
+    /// See the crate's `syntax` module.
+    pub mod syntax {
+        pub use crate::syntax::*;
+    }
+    /// See the crate's `synthesis` module.
+    pub mod synthesis {
+        pub use crate::synthesis::*;
+    }
+    /// See the crate's `walk` module.
+    pub mod walk {
+        pub use crate::walk::*;
     }
 }
 
-/// A [`PixelSink`] that also hears about every leaf (for inspection tools).
-pub trait LeafObserver {
-    /// Called for every leaf, in coding order, before its pixels.
-    fn leaf(&mut self, info: &LeafInfo);
-}
+#[cfg(test)]
+mod layering {
+    extern crate std;
 
-struct Drawer<'s, S: PixelSink, O: LeafObserver> {
-    clip: Rect,
-    sink: &'s mut S,
-    observer: O,
-}
+    use std::string::String;
+    use std::vec::Vec;
 
-impl<S: PixelSink, O: LeafObserver> TreeVisitor for Drawer<'_, S, O> {
-    fn split(&mut self, _node: &Node) -> bool {
-        false
+    /// The modules from the bottom up: each may use only those before it (and its own
+    /// submodules).
+    const LAYERS: &[&[&str]] = &[
+        &["format", "geometry", "checksum"],
+        &["error"],
+        &["entropy"],
+        &["model"],
+        &["synthesis"],
+        &["prediction"],
+        &["syntax"],
+        &["walk"],
+        &["decoder"],
+        &["graphics"],
+    ];
+
+    fn layer(module: &str) -> usize {
+        LAYERS
+            .iter()
+            .position(|l| l.contains(&module))
+            .unwrap_or_else(|| panic!("module {module} has no layer"))
     }
 
-    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
-
-    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
-        self.observer.leaf(info);
-        let node = &info.node;
-        patch.render(node.x, node.y, node.log2, self.clip, self.sink);
-        Ok(())
-    }
-
-    // The whole image is drawn: the frontier learns each leaf's edges as they are drawn.
-    fn leaf_with_frontier(
-        &mut self,
-        info: &LeafInfo,
-        patch: &Patch,
-        frontier: &mut Frontier,
-    ) -> Result<(), DecodeError> {
-        self.observer.leaf(info);
-        let node = &info.node;
-        let mut sink = frontier.capture(node, self.sink);
-        patch.render(node.x, node.y, node.log2, self.clip, &mut sink);
-        Ok(())
-    }
-}
-
-struct NoObserver;
-
-impl LeafObserver for NoObserver {
-    fn leaf(&mut self, _info: &LeafInfo) {}
-}
-
-/// Decodes a stream, handing pixels to `sink` tile by tile (no frame buffer needed).
-pub fn decode<S: PixelSink>(data: &[u8], sink: &mut S) -> Result<Header, DecodeError> {
-    decode_observed(data, sink, NoObserver).map(|(h, _)| h)
-}
-
-/// Decodes a stream like [`decode`], also reporting every leaf to `observer`; returns the header
-/// and the observer.
-pub fn decode_observed<S: PixelSink, O: LeafObserver>(
-    data: &[u8],
-    sink: &mut S,
-    observer: O,
-) -> Result<(Header, O), DecodeError> {
-    let (header, payload) = stream::open(data)?;
-    let mut coder = RangeDecoder::new(SliceSource::new(payload))?;
-    let clip = Rect::of_size(u32::from(header.width), u32::from(header.height));
-    let mut drawer = Drawer {
-        clip,
-        sink,
-        observer,
-    };
-    stream::run_walk(&header, &mut coder, &mut drawer)?;
-    stream::Payload::finish(coder.into_source(), &header)?;
-    Ok((header, drawer.observer))
-}
-
-struct BufferSink<'a> {
-    out: &'a mut [u8],
-    width: usize,
-}
-
-impl PixelSink for BufferSink<'_> {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
-        let (x, y, w, h) = (x as usize, y as usize, w as usize, h as usize);
-        for (row, src) in pixels.chunks_exact(w).take(h).enumerate() {
-            let start = (y + row) * self.width + x;
-            if let Some(dst) = self.out.get_mut(start..start + w) {
-                dst.copy_from_slice(src);
+    /// Every `crate::<module>` a source file names, outside comments.
+    fn uses(source: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        for line in source.lines() {
+            let code = line.split("//").next().unwrap_or("");
+            let mut rest = code;
+            while let Some(at) = rest.find("crate::") {
+                let name: String = rest[at + 7..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                out.push(name);
+                rest = &rest[at + 7..];
             }
         }
+        out
     }
-}
 
-/// Decodes a stream into `out` (row-major, `width * height` bytes for grayscale).
-pub fn decode_into(data: &[u8], out: &mut [u8]) -> Result<Header, DecodeError> {
-    let header = read_header(data)?;
-    if out.len() < header.pixel_count() * usize::from(header.channels) {
-        return Err(DecodeError::BufferTooSmall);
+    /// No module uses one above it: the layering has no cycle. Read from the sources, so a new
+    /// `use` that breaks it fails here.
+    #[test]
+    fn modules_use_only_the_layers_below() {
+        let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        let mut checked = 0;
+        for layer_modules in LAYERS {
+            for &module in *layer_modules {
+                let mut files = Vec::new();
+                let file = src.join(std::format!("{module}.rs"));
+                files.push(file);
+                if let Ok(dir) = std::fs::read_dir(src.join(module)) {
+                    files.extend(dir.flatten().map(|e| e.path()));
+                }
+                for file in files {
+                    let text = std::fs::read_to_string(&file)
+                        .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+                    for used in uses(&text) {
+                        if used == module {
+                            continue;
+                        }
+                        assert!(
+                            layer(&used) < layer(module),
+                            "{} uses crate::{used}, which is not below {module}",
+                            file.display()
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked >= 13, "only {checked} files checked");
     }
-    let mut sink = BufferSink {
-        out,
-        width: usize::from(header.width),
-    };
-    decode(data, &mut sink)
 }

@@ -13,18 +13,17 @@
 //! Z order, but its upper and left neighbours tiles are not), which bounds the memory at two
 //! rows of [`FRONTIER`] bytes whatever the image size.
 
-use crate::bitstream::med;
-use crate::model::{div_round, SAMPLE_ONE};
-use crate::patch::{Patch, PixelSink, Rect};
-use crate::quadtree::Node;
-use crate::stream::intersect;
+use crate::format::{div_round, med, MAX_LEAF_LOG2};
+use crate::geometry::{Node, Rect};
+use crate::model::SAMPLE_ONE;
+use crate::synthesis::{Patch, Stop, Tile, TileOut};
 
 /// Side of the tiles the frontier covers, pixels: prediction does not cross their top and left
 /// edges.
 pub const FRONTIER: u32 = 128;
 
 // No leaf is larger than a tile: each tile's leaves are consecutive in Z order.
-const _: () = assert!(1u32 << crate::bitstream::MAX_LEAF_LOG2 <= FRONTIER);
+const _: () = assert!(1u32 << MAX_LEAF_LOG2 <= FRONTIER);
 
 /// Where a leaf's predictions come from: the pixels earlier leaves drew next to it.
 pub trait SamplePrediction {
@@ -137,7 +136,7 @@ impl Default for Frontier {
 
 impl Frontier {
     /// Nothing decoded, for an empty image (all zero bits, like
-    /// [`crate::bitstream::Contexts::FRESH`]): [`Frontier::start`] sets the size.
+    /// the syntax's fresh contexts): [`Frontier::start`] sets the size.
     pub const EMPTY: Frontier = Frontier {
         columns: [0; FRONTIER as usize],
         rows: [0; FRONTIER as usize],
@@ -160,31 +159,29 @@ impl Frontier {
         let s = node.size();
         let image = Rect::of_size(self.width, self.height);
         for row in [true, false] {
-            let clip = Rect {
+            let edge = Rect {
                 x: if row { node.x } else { node.x + s - 1 },
                 y: if row { node.y + s - 1 } else { node.y },
                 w: if row { s } else { 1 },
                 h: if row { 1 } else { s },
             };
-            let clip = intersect(clip, image);
-            patch.render(
-                node.x,
-                node.y,
-                node.log2,
-                clip,
+            // Capturing into nothing cannot stop.
+            let _ = patch.render_to(
+                node,
+                edge.intersect(&image),
                 &mut self.capture(node, &mut Discard),
             );
         }
     }
 
-    /// A sink that hands every tile of the leaf `node` on to `sink` and remembers the pixels
-    /// of the leaf's bottom row and right column among them: drawing a whole leaf through it
-    /// does what [`Frontier::record`] does, without rendering anything twice.
-    pub fn capture<'a>(&'a mut self, node: &Node, sink: &'a mut dyn PixelSink) -> Capture<'a> {
+    /// A tile output that hands every tile of the leaf `node` on to `out` and remembers the
+    /// pixels of the leaf's bottom row and right column among them: drawing a whole leaf
+    /// through it does what [`Frontier::record`] does, without rendering anything twice.
+    pub fn capture<'a>(&'a mut self, node: &Node, out: &'a mut dyn TileOut) -> Capture<'a> {
         let last = node.size() - 1;
         Capture {
             frontier: self,
-            sink,
+            out,
             right: node.x + last,
             bottom: node.y + last,
         }
@@ -194,16 +191,26 @@ impl Frontier {
 /// See [`Frontier::capture`].
 pub struct Capture<'a> {
     frontier: &'a mut Frontier,
-    sink: &'a mut dyn PixelSink,
+    out: &'a mut dyn TileOut,
     right: u32,
     bottom: u32,
 }
 
-impl PixelSink for Capture<'_> {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+impl core::fmt::Debug for Capture<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Capture")
+            .field("right", &self.right)
+            .field("bottom", &self.bottom)
+            .finish_non_exhaustive()
+    }
+}
+
+impl TileOut for Capture<'_> {
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
         let f = &mut *self.frontier;
+        let Rect { x, y, w, .. } = tile.area;
         let on_right = x + w - 1 == self.right;
-        for (j, row) in pixels.chunks(w as usize).enumerate() {
+        for (j, row) in tile.pixels.chunks(w as usize).enumerate() {
             let py = y + j as u32;
             if let (true, Some(&p)) = (on_right, row.last()) {
                 f.rows[(py % FRONTIER) as usize] = p;
@@ -214,15 +221,17 @@ impl PixelSink for Capture<'_> {
                 }
             }
         }
-        self.sink.tile(x, y, w, h, pixels);
+        self.out.put(tile)
     }
 }
 
-/// Draws nothing.
+/// Takes every tile and keeps nothing.
 struct Discard;
 
-impl PixelSink for Discard {
-    fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, _pixels: &[u8]) {}
+impl TileOut for Discard {
+    fn put(&mut self, _tile: Tile<'_>) -> Result<(), Stop> {
+        Ok(())
+    }
 }
 
 impl SamplePrediction for Frontier {

@@ -26,7 +26,7 @@
 //!
 //! With the `bench` feature (see `bench/embedded.sh`) it embeds the streams listed in
 //! `PIFS_BENCH_STREAMS` (a path list, `:`-separated), decodes each once with
-//! `decoder_core::decode` into a sink that sums the pixels, and prints
+//! `decoder_core::Decoder` into a sink that sums the pixels, and prints
 //! `PIFS-BENCH name=… w=… h=… bytes=… stack=… instr=… checksum=… ok=…` per stream;
 //! `baseline` builds the same firmware without the decoder call (for the flash and RAM
 //! deltas).
@@ -127,10 +127,13 @@ fn run(counter: &measure::Counter) -> bool {
     struct Sum(u32);
 
     impl decoder_core::PixelSink for Sum {
-        fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, pixels: &[u8]) {
-            for &p in pixels {
+        type Error = core::convert::Infallible;
+
+        fn tile(&mut self, tile: decoder_core::Tile<'_>) -> Result<(), Self::Error> {
+            for &p in tile.pixels {
                 self.0 = self.0.wrapping_add(u32::from(p));
             }
+            Ok(())
         }
     }
 
@@ -138,11 +141,13 @@ fn run(counter: &measure::Counter) -> bool {
     #[inline(never)]
     fn decode_once(data: &'static [u8], sum: &mut Sum) -> bool {
         #[cfg(not(feature = "baseline"))]
-        let ok = decoder_core::decode(black_box(data), sum).is_ok();
+        let ok = decoder_core::Decoder::new(black_box(data))
+            .is_ok_and(|decoder| decoder.decode(sum).is_ok());
         #[cfg(feature = "baseline")]
         let ok = {
-            use decoder_core::PixelSink;
-            sum.tile(0, 0, 0, 0, black_box(data));
+            for &b in black_box(data) {
+                sum.0 = sum.0.wrapping_add(u32::from(b));
+            }
             true
         };
         ok

@@ -3,8 +3,9 @@
 use core::convert::Infallible;
 
 use cortex_m_semihosting::heprintln;
-use decoder_core::entropy::ByteSource;
-use decoder_core::graphics::{draw_stream, DrawError, PifsImage};
+use decoder_core::graphics::{draw_stream, PifsImage};
+use decoder_core::ByteSource;
+use decoder_core::DrawError;
 use embedded_graphics::image::{Image, ImageDrawableExt};
 use embedded_graphics::pixelcolor::{Gray8, GrayColor};
 use embedded_graphics::prelude::*;
@@ -287,7 +288,7 @@ fn measured_decode(
     match result {
         Ok(()) => Ok((stack, counter.instructions(t1 - t0))),
         Err(DrawError::Decode(e)) => Err(e),
-        Err(DrawError::Target(never)) => match never {},
+        Err(DrawError::Sink(never)) => match never {},
     }
 }
 
@@ -320,7 +321,7 @@ fn stream_tile_hash(
     match draw_stream(Uart { data, pos: 0 }, &mut streamed) {
         Ok(_) => Ok(streamed.sha.finalize().into()),
         Err(DrawError::Decode(e)) => Err(e),
-        Err(DrawError::Target(never)) => match never {},
+        Err(DrawError::Sink(never)) => match never {},
     }
 }
 

@@ -3,8 +3,8 @@
 //! synthetic image. `cargo bench -p host-encoder --bench fit`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use decoder_core::bitstream::models_for_block;
-use decoder_core::quadtree::Node;
+use decoder_core::internal::syntax::models_for_block;
+use decoder_core::Node;
 use host_encoder::encoder::fit::{fit_default, fit_weighted};
 use host_encoder::Plane;
 use std::hint::black_box;

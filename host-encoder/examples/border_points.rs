@@ -12,12 +12,16 @@
 
 mod common;
 
-use decoder_core::bitstream::{Header, LeafSyntax};
-use decoder_core::entropy::{RangeDecoder, SliceSource};
-use decoder_core::model::{CONTROL_STEPS, MODELS};
-use decoder_core::patch::Patch;
-use decoder_core::quadtree::{walk, LeafInfo, Node, TreeVisitor};
+use decoder_core::internal::entropy::RangeDecoder;
+use decoder_core::internal::model::MODELS;
+use decoder_core::internal::prediction::Frontier;
+use decoder_core::internal::syntax::control::CONTROL_STEPS;
+use decoder_core::internal::syntax::{Header, LeafSyntax};
+use decoder_core::internal::synthesis::Patch;
+use decoder_core::internal::walk::{walk, LeafInfo, TreeVisitor};
 use decoder_core::DecodeError;
+use decoder_core::Node;
+use decoder_core::SliceSource;
 use host_encoder::{analyse, io, EncoderConfig, Target};
 use std::collections::HashMap;
 
@@ -36,13 +40,21 @@ struct ControlPoints {
 }
 
 impl TreeVisitor for ControlPoints {
+    type Error = DecodeError;
+
     fn split(&mut self, _node: &Node) -> bool {
         false
     }
 
     fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
 
-    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError> {
+    fn leaf(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier,
+    ) -> Result<(), DecodeError> {
+        frontier.record(&info.node, patch);
         let intervals = u32::from(MODELS[usize::from(info.model)].intervals);
         let spacing = (1u32 << info.node.log2) / intervals;
         let step = CONTROL_STEPS[usize::from(info.cquant)];

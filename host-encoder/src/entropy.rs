@@ -1,11 +1,11 @@
 //! Encoder side of the arithmetic coder: the range encoder that writes streams, and the
 //! counting coder the rate optimiser uses. Both implement decoder-core's
-//! [`decoder_core::entropy::Coder`], so they run the very syntax code the decoder runs.
+//! [`decoder_core::internal::entropy::Coder`], so they run the very syntax code the decoder runs.
 
-use decoder_core::entropy::{Coder, Prob, PROB_BITS, RANGE_TOP};
+use decoder_core::internal::entropy::{Coder, Prob, PROB_BITS, RANGE_TOP};
 use decoder_core::DecodeError;
 
-/// Binary range encoder (mirror of `decoder_core::entropy::RangeDecoder`).
+/// Binary range encoder (mirror of `decoder_core::internal::entropy::RangeDecoder`).
 #[derive(Debug, Clone)]
 pub struct RangeEncoder {
     low: u64,

@@ -17,7 +17,7 @@ pub fn load_luma(path: &Path) -> Result<Plane, String> {
         let is_pifs = std::fs::File::open(path)
             .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
             .is_ok()
-            && magic == decoder_core::bitstream::MAGIC;
+            && magic == decoder_core::internal::format::MAGIC;
         return Err(if is_pifs {
             format!(
                 "{} is already a PIFS stream (use 'pifs decode' to turn it into an image)",

@@ -68,7 +68,10 @@ fn encode_decode_info_round_trip() {
     let img = image::open(&decoded).unwrap().to_luma8();
     assert_eq!(img.dimensions(), (40, 24));
     let mut expected = vec![0u8; 40 * 24];
-    decoder_core::decode_into(&std::fs::read(&stream).unwrap(), &mut expected).unwrap();
+    let bytes = std::fs::read(&stream).unwrap();
+    decoder_core::Decoder::new(&bytes)
+        .and_then(|d| d.decode_into(&mut expected))
+        .unwrap();
     assert_eq!(img.as_raw(), &expected);
 
     let out = pifs(&["info", stream.to_str().unwrap()]);

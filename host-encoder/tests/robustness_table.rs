@@ -126,7 +126,7 @@ fn make_inputs(dir: &Path) {
     flipped[at] ^= 0x10;
     std::fs::write(p("bit-flip.pifs"), &flipped).unwrap();
     let mut newer = bytes.clone();
-    newer[4] = decoder_core::bitstream::VERSION + 1;
+    newer[4] = decoder_core::internal::format::VERSION + 1;
     std::fs::write(p("version-next.pifs"), &newer).unwrap();
     let mut longer = bytes.clone();
     longer.extend_from_slice(b"trailing");
@@ -134,7 +134,7 @@ fn make_inputs(dir: &Path) {
     // A valid, checksummed header announcing 65535 x 65535 pixels, with a tiny payload.
     let mut huge = bytes.clone();
     huge[8..12].copy_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF]);
-    decoder_core::bitstream::seal(&mut huge);
+    decoder_core::internal::syntax::seal(&mut huge);
     std::fs::write(p("huge-header.pifs"), &huge).unwrap();
 }
 
@@ -146,7 +146,7 @@ fn write_palette_png(path: &Path) {
         let mut body = kind.to_vec();
         body.extend_from_slice(data);
         out.extend_from_slice(&body);
-        out.extend_from_slice(&decoder_core::checksum::crc32(&body).to_be_bytes());
+        out.extend_from_slice(&decoder_core::internal::checksum::crc32(&body).to_be_bytes());
     }
     let (w, h) = (32u32, 32u32);
     let mut raw = Vec::new();
@@ -666,9 +666,11 @@ fn run(case: &Case, dir: &Path) -> String {
             let path = case.output.as_ref().unwrap();
             let bytes = std::fs::read(path).unwrap();
             if path.extension().is_some_and(|e| e == "pifs") {
-                let header = decoder_core::read_header(&bytes).unwrap();
-                let mut px = vec![0u8; header.pixel_count()];
-                decoder_core::decode_into(&bytes, &mut px)
+                let decoder =
+                    decoder_core::Decoder::new(&bytes).unwrap_or_else(|e| panic!("{label}: {e}"));
+                let mut px = vec![0u8; decoder.header().pixel_count()];
+                decoder
+                    .decode_into(&mut px)
                     .unwrap_or_else(|e| panic!("{label}: {e}"));
             } else {
                 image::open(path).unwrap_or_else(|e| panic!("{label}: {e}"));

@@ -10,8 +10,8 @@
 //!   exactly the encoder's reconstruction.
 
 use crate::CoverageSink;
-use decoder_core::bitstream::seal;
-use decoder_core::entropy::ByteSource;
+use decoder_core::internal::syntax::seal;
+use decoder_core::ByteSource;
 use decoder_core::{DecodeError, PixelSink};
 
 /// Largest image [`decode_bytes`] decodes into a buffer (larger headers are checked against a
@@ -27,11 +27,11 @@ pub fn decode_bytes(data: &[u8]) {
 }
 
 fn decode_checked(data: &[u8]) {
-    let header = match decoder_core::read_header(data) {
+    let header = match decoder_core::Header::read(data) {
         Ok(h) => h,
         Err(e) => {
             let mut sink = CoverageSink::new(1, 1);
-            assert_eq!(decoder_core::decode(data, &mut sink).err(), Some(e));
+            assert_eq!(crate::decode(data, &mut sink).err(), Some(e));
             assert_eq!(sink.tiles, 0, "tiles drawn from a stream with a bad header");
             return;
         }
@@ -39,22 +39,27 @@ fn decode_checked(data: &[u8]) {
     let limits = decoder_core::Limits::pixels(MAX_PIXELS);
     if limits.check(&header).is_err() {
         let mut small = [0u8; 64];
-        if header.pixel_count() > small.len() {
+        // A stream that passes its checks is refused for the buffer, before anything is
+        // decoded.
+        if let (true, Ok(decoder)) = (
+            header.pixel_count() > small.len(),
+            decoder_core::Decoder::new(data),
+        ) {
             assert_eq!(
-                decoder_core::decode_into(data, &mut small),
+                decoder.decode_into(&mut small),
                 Err(DecodeError::BufferTooSmall)
             );
         }
         return;
     }
     let mut sink = CoverageSink::new(u32::from(header.width), u32::from(header.height));
-    let result = decoder_core::decode(data, &mut sink);
+    let result = crate::decode(data, &mut sink);
     assert!(sink.violations.is_empty(), "{:?}", sink.violations[0]);
     assert!(
         sink.counts.iter().all(|&c| c <= 1),
         "a pixel was written twice"
     );
-    if decoder_core::stream::open(data).is_err() {
+    if decoder_core::Decoder::new(data).is_err() {
         assert_eq!(sink.tiles, 0, "a stream that failed its checks was drawn");
     }
     if result.is_ok() {
@@ -92,12 +97,16 @@ impl Tiles {
 }
 
 impl PixelSink for Tiles {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+    type Error = std::convert::Infallible;
+
+    fn tile(&mut self, tile: decoder_core::Tile<'_>) -> Result<(), Self::Error> {
         self.count += 1;
+        let decoder_core::Rect { x, y, w, h } = tile.area;
         for v in [x, y, w, h] {
             self.eat(&v.to_le_bytes());
         }
-        self.eat(pixels);
+        self.eat(tile.pixels);
+        Ok(())
     }
 }
 
@@ -126,7 +135,7 @@ pub fn stream_equals_slice(data: &[u8]) {
 }
 
 fn stream_vs_slice(data: &[u8]) {
-    let header = decoder_core::read_header(data);
+    let header = decoder_core::Header::read(data);
     if let Ok(h) = &header {
         // Keep the tile log small.
         if decoder_core::Limits::pixels(MAX_PIXELS).check(h).is_err() {
@@ -140,13 +149,13 @@ fn stream_vs_slice(data: &[u8]) {
         _ => data,
     };
     let mut whole = Tiles::default();
-    let r_whole = decoder_core::decode(exact, &mut whole);
+    let r_whole = crate::decode(exact, &mut whole);
     let mut streamed = Tiles::default();
     let mut source = OneByOne { data, pulled: 0 };
-    let r_streamed = decoder_core::decode_stream(&mut source, &mut streamed);
+    let r_streamed = crate::decode_stream(&mut source, &mut streamed);
     assert_eq!(r_streamed, r_whole, "streamed and in-memory results differ");
     assert!(source.pulled <= exact.len(), "read past the stream's end");
-    if decoder_core::stream::open(exact).is_ok() {
+    if decoder_core::Decoder::new(exact).is_ok() {
         assert!(streamed == whole, "streamed and in-memory tiles differ");
     } else {
         assert_eq!(whole.count, 0, "a stream that failed its checks was drawn");
@@ -183,7 +192,7 @@ pub fn roundtrip(data: &[u8]) {
         Ok(encoded) => {
             assert!(encoded.bytes.len() <= budget, "budget overshot");
             let mut out = vec![0u8; n];
-            let header = decoder_core::decode_into(&encoded.bytes, &mut out).expect("decodes");
+            let header = crate::decode_into(&encoded.bytes, &mut out).expect("decodes");
             assert_eq!(
                 (u32::from(header.width), u32::from(header.height)),
                 (width, height)

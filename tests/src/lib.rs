@@ -4,9 +4,12 @@
 
 pub mod fuzz;
 
+use decoder_core::{ByteSource, DecodeError, Decoder, Header, PixelSink, Rect, Tile};
+use std::convert::Infallible;
+
 /// A [`decoder_core::PixelSink`] that records how often every pixel of a `width x height` image
 /// is written, the last value written, and any tile that breaks the sink contract (out of the
-/// image, larger than [`decoder_core::patch::TILE`], or `pixels.len() != w * h`).
+/// image, larger than [`decoder_core::TILE`], or `pixels.len() != w * h`).
 pub struct CoverageSink {
     pub width: u32,
     pub height: u32,
@@ -48,9 +51,13 @@ impl CoverageSink {
 }
 
 impl decoder_core::PixelSink for CoverageSink {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+        let Rect { x, y, w, h } = tile.area;
+        let pixels = tile.pixels;
         self.tiles += 1;
-        let tile = decoder_core::patch::TILE as u32;
+        let tile = decoder_core::TILE as u32;
         if w == 0 || h == 0 || w > tile || h > tile {
             self.violations
                 .push(format!("tile {w}x{h} at ({x}, {y}): bad tile size"));
@@ -60,7 +67,7 @@ impl decoder_core::PixelSink for CoverageSink {
                 "tile {w}x{h} at ({x}, {y}): {} pixels",
                 pixels.len()
             ));
-            return;
+            return Ok(());
         }
         if u64::from(x) + u64::from(w) > u64::from(self.width)
             || u64::from(y) + u64::from(h) > u64::from(self.height)
@@ -69,7 +76,7 @@ impl decoder_core::PixelSink for CoverageSink {
                 "tile {w}x{h} at ({x}, {y}) outside the {}x{} image",
                 self.width, self.height
             ));
-            return;
+            return Ok(());
         }
         let mut k = 0;
         for py in y..y + h {
@@ -80,5 +87,27 @@ impl decoder_core::PixelSink for CoverageSink {
                 k += 1;
             }
         }
+        Ok(())
     }
+}
+
+/// Decodes a whole stream in memory into `sink` ([`Decoder::new`] then [`Decoder::decode`]).
+pub fn decode<S: PixelSink<Error = Infallible>>(
+    data: &[u8],
+    sink: &mut S,
+) -> Result<Header, DecodeError> {
+    Ok(Decoder::new(data)?.decode(sink)?)
+}
+
+/// Decodes a whole stream in memory into a row-major buffer.
+pub fn decode_into(data: &[u8], out: &mut [u8]) -> Result<Header, DecodeError> {
+    Decoder::new(data)?.decode_into(out)
+}
+
+/// Decodes a stream read from `source` in order into `sink`.
+pub fn decode_stream<B: ByteSource, S: PixelSink<Error = Infallible>>(
+    source: B,
+    sink: &mut S,
+) -> Result<Header, DecodeError> {
+    Ok(Decoder::from_source(source)?.decode(sink)?)
 }

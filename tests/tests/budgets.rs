@@ -174,7 +174,7 @@ fn bad_dimensions_are_errors() {
         assert!(
             matches!(
                 analyse(plane, &config, &|_| {}),
-                Err(EncodeError::BadDimensions(a, b)) if (a, b) == (w, h)
+                Err(EncodeError::BadDimensions { width, height }) if (width, height) == (w, h)
             ),
             "{w}x{h}"
         );

@@ -10,14 +10,18 @@
 //! ```
 //!
 //! Regenerate only for an intended format change, together with a bump of
-//! `decoder_core::bitstream::VERSION`.
+//! `decoder_core::internal::format::VERSION`.
 
 mod common;
 
 use common::{analyse_with, decode_all, golden_dir, golden_list, sha256_hex, CoverageSink};
-use decoder_core::bitstream::{ControlCoding, FLAG_CODEBOOKS, MAGIC, VERSION};
-use decoder_core::model::{WeightQuantiser, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS};
-use decoder_core::{LeafInfo, LeafObserver};
+use decoder_core::internal::format::{MAGIC, VERSION};
+use decoder_core::internal::model::MODELS;
+use decoder_core::internal::syntax::control::{
+    WeightQuantiser, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+};
+use decoder_core::internal::syntax::{ControlCoding, FLAG_CODEBOOKS};
+use decoder_core::LeafInfo;
 use host_encoder::{EncoderConfig, Plane, Target};
 use std::collections::BTreeSet;
 
@@ -105,12 +109,15 @@ fn specs() -> Vec<Spec> {
 }
 
 /// Decodes `bytes` and records which models and quantisers its leaves use.
-fn usage_of(name: &str, bytes: &[u8], usage: Usage) -> Usage {
-    let h = decoder_core::read_header(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+fn usage_of(name: &str, bytes: &[u8], mut usage: Usage) -> Usage {
+    let h = decoder_core::Header::read(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
     let mut sink = CoverageSink::new(u32::from(h.width), u32::from(h.height));
-    decoder_core::decode_observed(bytes, &mut sink, usage)
+    decoder_core::Decoder::new(bytes)
         .unwrap_or_else(|e| panic!("{name}: {e}"))
-        .1
+        .observe(|leaf| usage.leaf(leaf))
+        .decode(&mut sink)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    usage
 }
 
 /// Checks that the golden set reaches every reconstruction path of decoder-core: all model
@@ -243,7 +250,7 @@ fn tile_sink_decodes_golden_streams_identically() {
     for g in golden_list() {
         let bytes = std::fs::read(golden_dir().join(&g.file)).unwrap();
         let mut sink = CoverageSink::new(u32::from(g.width), u32::from(g.height));
-        decoder_core::decode(&bytes, &mut sink).unwrap();
+        pifs_tests::decode(&bytes, &mut sink).unwrap();
         assert!(
             sink.violations.is_empty(),
             "{}: {:?}",
@@ -268,14 +275,14 @@ fn every_golden_file_is_listed_and_the_set_is_varied() {
     // one smallest leaf size.
     let headers: Vec<_> = common::golden_streams()
         .iter()
-        .map(|(_, b)| decoder_core::read_header(b).unwrap())
+        .map(|(_, b)| decoder_core::Header::read(b).unwrap())
         .collect();
     assert!(headers.iter().any(|h| h.has_codebooks()));
     assert!(headers.iter().any(|h| !h.has_codebooks()));
     let min_leaves: BTreeSet<u8> = headers.iter().map(|h| h.min_leaf_log2).collect();
     assert!(min_leaves.len() > 1, "{min_leaves:?}");
     for (name, b) in common::golden_streams() {
-        let h = decoder_core::read_header(&b).unwrap();
+        let h = decoder_core::Header::read(&b).unwrap();
         assert_eq!(h.has_codebooks(), b[7] & FLAG_CODEBOOKS != 0, "{name}");
     }
 }
@@ -291,7 +298,7 @@ struct Usage {
     pixel_grid_codings: BTreeSet<u8>,
 }
 
-impl LeafObserver for Usage {
+impl Usage {
     fn leaf(&mut self, info: &LeafInfo) {
         self.models.insert(info.model);
         self.wquants.insert(info.wquant);
@@ -351,6 +358,6 @@ fn initial_context_table_matches_the_specification() {
         .collect();
     assert_eq!(
         table,
-        decoder_core::initial_contexts::INITIAL_PROBABILITIES.to_vec()
+        decoder_core::internal::syntax::initial_contexts::INITIAL_PROBABILITIES.to_vec()
     );
 }

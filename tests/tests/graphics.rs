@@ -17,10 +17,11 @@
 mod common;
 
 use common::{decode_all, golden_dir, golden_list};
-use decoder_core::entropy::{ByteSource, SliceSource};
-use decoder_core::graphics::{draw_stream, DrawError, FromGray, PifsImage};
-use decoder_core::patch::TILE;
+use decoder_core::graphics::{draw_stream, FromGray, PifsImage};
 use decoder_core::DecodeError;
+use decoder_core::DrawError;
+use decoder_core::TILE;
+use decoder_core::{ByteSource, SliceSource};
 use embedded_graphics::image::{Image, ImageDrawable, ImageDrawableExt};
 use embedded_graphics::mock_display::MockDisplay;
 use embedded_graphics::pixelcolor::{BinaryColor, Gray8, Rgb565, Rgb888, RgbColor};
@@ -341,7 +342,7 @@ fn sub_image_and_off_screen_parts_synthesise_only_visible_tiles() {
 #[test]
 fn damaged_streams_never_panic_and_draw_checked_reports_them() {
     for d in golden() {
-        let header_len = decoder_core::read_header(&d.stream).unwrap().encoded_len();
+        let header_len = decoder_core::Header::read(&d.stream).unwrap().encoded_len();
         // Truncated payload: refused before anything is drawn.
         let cut = &d.stream[..(header_len + 4).max(d.stream.len() * 2 / 3)];
         assert_eq!(
@@ -387,14 +388,21 @@ fn damaged_streams_never_panic_and_draw_checked_reports_them() {
                 d.name
             );
         }
-        assert_eq!(PifsImage::<Gray8>::new(&d.stream).unwrap().verify(), Ok(()));
+        assert_eq!(
+            PifsImage::<Gray8>::new(&d.stream)
+                .unwrap()
+                .decoder()
+                .verify()
+                .map(|_| ()),
+            Ok(())
+        );
     }
     assert_eq!(
         PifsImage::<Gray8>::new(b"JPEG....").err(),
         Some(DecodeError::BadMagic)
     );
     let d = &golden()[0];
-    let header_len = decoder_core::read_header(&d.stream).unwrap().encoded_len();
+    let header_len = decoder_core::Header::read(&d.stream).unwrap().encoded_len();
     assert_eq!(
         PifsImage::<Gray8>::new(&d.stream[..header_len]).err(),
         Some(DecodeError::Truncated)
@@ -416,7 +424,7 @@ fn target_errors_stop_the_drawing() {
         );
         let mut t = Recorder::new(d.width, d.height);
         t.fail_after = Some(0);
-        assert_eq!(img.draw_checked(&mut t), Err(DrawError::Target(Broken)));
+        assert_eq!(img.draw_checked(&mut t), Err(DrawError::Sink(Broken)));
     }
 }
 
@@ -448,15 +456,20 @@ fn streamed_drawing_equals_in_memory_drawing() {
         let mut out = vec![0u8; d.pixels.len()];
         struct Buf<'a>(&'a mut [u8], u32);
         impl decoder_core::PixelSink for Buf<'_> {
-            fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+            type Error = std::convert::Infallible;
+
+            fn tile(&mut self, tile: decoder_core::Tile<'_>) -> Result<(), Self::Error> {
+                let decoder_core::Rect { x, y, w, h } = tile.area;
                 for j in 0..h {
                     for i in 0..w {
-                        self.0[((y + j) * self.1 + x + i) as usize] = pixels[(j * w + i) as usize];
+                        self.0[((y + j) * self.1 + x + i) as usize] =
+                            tile.pixels[(j * w + i) as usize];
                     }
                 }
+                Ok(())
             }
         }
-        decoder_core::decode_stream(Uart(&d.stream, 0), &mut Buf(&mut out, d.width)).unwrap();
+        pifs_tests::decode_stream(Uart(&d.stream, 0), &mut Buf(&mut out, d.width)).unwrap();
         assert!(
             out == d.pixels,
             "{}: decode_stream differs from decode_into",
@@ -471,14 +484,19 @@ fn streamed_drawing_equals_in_memory_drawing() {
         };
         struct Rec<'a>(&'a mut Recorder);
         impl decoder_core::PixelSink for Rec<'_> {
-            fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+            type Error = Broken;
+
+            fn tile(&mut self, tile: decoder_core::Tile<'_>) -> Result<(), Self::Error> {
+                let decoder_core::Rect { x, y, w, h } = tile.area;
                 let area = Rectangle::new(Point::new(x as i32, y as i32), Size::new(w, h));
                 self.0
-                    .fill_contiguous(&area, pixels.iter().map(|&l| Gray8::new(l)))
-                    .unwrap();
+                    .fill_contiguous(&area, tile.pixels.iter().map(|&l| Gray8::new(l)))
             }
         }
-        decoder_core::decode_stream_region(Uart(&d.stream, 0), clip, &mut Rec(&mut region))
+        decoder_core::Decoder::from_source(Uart(&d.stream, 0))
+            .unwrap()
+            .clip(clip)
+            .decode(&mut Rec(&mut region))
             .unwrap();
         for (i, p) in region.pixels.iter().enumerate() {
             let (x, y) = (i as u32 % d.width, i as u32 / d.width);

@@ -13,8 +13,8 @@
 mod common;
 
 use common::Lcg;
-use decoder_core::model::{ModelType, MODELS};
-use decoder_core::quadtree::Node;
+use decoder_core::internal::model::{ModelType, MODELS};
+use decoder_core::Node;
 use host_encoder::encoder::fit::fit_block;
 use host_encoder::encoder::synthesis::Tabulator;
 use host_encoder::Plane;
@@ -208,8 +208,9 @@ fn tabulator_follows_the_integer_synthesis() {
     // The float tabulator is the model the fitter optimises; decoder-core's integer synthesis is
     // what a decoder shows. For parameters on the format's grids (control values in 1/16 grey
     // level, weights in 1/4096) they agree to within the integer rounding.
-    use decoder_core::model::{Weights, MAX_CONTROL, SAMPLE_ONE, WEIGHT_ONE};
-    use decoder_core::patch::{Patch, Rect};
+    use decoder_core::internal::model::{Weights, MAX_CONTROL, SAMPLE_ONE, WEIGHT_ONE};
+    use decoder_core::internal::synthesis::Patch;
+    use decoder_core::{Node, Rect};
     for (mi, &model) in MODELS.iter().enumerate() {
         let log2 = 5;
         let (control, weights) = parameters(model, 9 + mi as u32, MILD);
@@ -238,7 +239,8 @@ fn tabulator_follows_the_integer_synthesis() {
         patch.control[..control_q.len()].copy_from_slice(&control_q);
         let size = 1u32 << log2;
         let mut sink = common::CoverageSink::new(size, size);
-        patch.render(0, 0, log2, Rect::of_size(size, size), &mut sink);
+        let node = Node { x: 0, y: 0, log2 };
+        let Ok(()) = patch.render(&node, Rect::of_size(size, size), &mut sink);
         assert!(
             sink.violations.is_empty(),
             "model {mi}: {:?}",

@@ -152,11 +152,15 @@ fn fields(line: &str) -> BTreeMap<&str, &str> {
 struct TileHash(Sha256);
 
 impl decoder_core::PixelSink for TileHash {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+    type Error = std::convert::Infallible;
+
+    fn tile(&mut self, tile: decoder_core::Tile<'_>) -> Result<(), Self::Error> {
+        let decoder_core::Rect { x, y, w, h } = tile.area;
         for v in [x, y, w, h] {
             self.0.update(v.to_le_bytes());
         }
-        self.0.update(pixels);
+        self.0.update(tile.pixels);
+        Ok(())
     }
 }
 
@@ -182,7 +186,7 @@ fn host_hashes() -> BTreeMap<String, (u16, u16, String, String)> {
                 g.file
             );
             let mut tiles = TileHash(Sha256::new());
-            decoder_core::decode(&stream, &mut tiles).unwrap();
+            pifs_tests::decode(&stream, &mut tiles).unwrap();
             let tiles: String = tiles
                 .0
                 .finalize()

@@ -6,7 +6,8 @@
 mod common;
 
 use common::{golden_streams, sealed_stream, CoverageSink};
-use decoder_core::bitstream::{seal, Codebook, Header, CHECKSUM_BYTES, FLAG_CODEBOOKS, MAGIC};
+use decoder_core::internal::format::MAGIC;
+use decoder_core::internal::syntax::{seal, Codebook, Header, CHECKSUM_BYTES, FLAG_CODEBOOKS};
 use decoder_core::{DecodeError, Limits};
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -24,14 +25,14 @@ fn streams() -> &'static [(String, Vec<u8>)] {
 /// bytes: no panic (the caller is a test, a panic fails it), a header error for an unparsable
 /// header, and a buffer error for a buffer smaller than the header claims.
 fn decode_checked(data: &[u8]) -> Result<(), DecodeError> {
-    let header = match decoder_core::read_header(data) {
+    let header = match decoder_core::Header::read(data) {
         Ok(h) => h,
         Err(e) => {
             // The same error through the full decoder, whatever the buffer.
             let mut buf = [0u8; 16];
-            assert_eq!(decoder_core::decode_into(data, &mut buf), Err(e));
+            assert_eq!(pifs_tests::decode_into(data, &mut buf), Err(e));
             let mut sink = CoverageSink::new(1, 1);
-            assert_eq!(decoder_core::decode(data, &mut sink).err(), Some(e));
+            assert_eq!(pifs_tests::decode(data, &mut sink).err(), Some(e));
             assert_eq!(sink.tiles, 0);
             return Err(e);
         }
@@ -39,22 +40,25 @@ fn decode_checked(data: &[u8]) -> Result<(), DecodeError> {
     let n = header.pixel_count();
     assert!(n > 0);
     if n > MAX_PIXELS {
+        // A stream that passes its checks is refused for the buffer, before anything is
+        // decoded.
         let mut small = vec![0u8; 1024];
+        let decoder = decoder_core::Decoder::new(data)?;
         assert_eq!(
-            decoder_core::decode_into(data, &mut small),
+            decoder.decode_into(&mut small),
             Err(DecodeError::BufferTooSmall)
         );
         return Err(DecodeError::BufferTooSmall);
     }
     let mut out = vec![0u8; n];
-    let result = decoder_core::decode_into(data, &mut out);
+    let result = pifs_tests::decode_into(data, &mut out);
     if let Ok(h) = result {
         assert_eq!(h, header);
     }
     // The tile interface on the same bytes: the same outcome, and whatever the payload, no tile
     // outside the image or larger than a tile, and no pixel twice.
     let mut sink = CoverageSink::new(u32::from(header.width), u32::from(header.height));
-    let via_sink = decoder_core::decode(data, &mut sink);
+    let via_sink = pifs_tests::decode(data, &mut sink);
     assert_eq!(via_sink, result);
     assert!(sink.violations.is_empty(), "{:?}", &sink.violations[..1]);
     assert!(
@@ -196,7 +200,7 @@ fn header_errors_are_typed() {
         (
             "reserved flag",
             with(7, 2),
-            DecodeError::InvalidHeader("reserved flag bits are set"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::ReservedFlags),
         ),
         (
             "width 0",
@@ -205,7 +209,7 @@ fn header_errors_are_typed() {
                 h[9] = 0;
                 h
             },
-            DecodeError::InvalidHeader("width and height must be at least 1"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::Dimensions),
         ),
         (
             "height 0",
@@ -214,22 +218,22 @@ fn header_errors_are_typed() {
                 h[11] = 0;
                 h
             },
-            DecodeError::InvalidHeader("width and height must be at least 1"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::Dimensions),
         ),
         (
             "min leaf 0",
             with(12, 0x40),
-            DecodeError::InvalidHeader("leaf sizes"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::LeafSizes),
         ),
         (
             "min leaf above max leaf",
             with(12, 0x34),
-            DecodeError::InvalidHeader("leaf sizes"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::LeafSizes),
         ),
         (
             "max leaf 8",
             with(12, 0x82),
-            DecodeError::InvalidHeader("leaf sizes"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::LeafSizes),
         ),
         (
             "codebook flag without codebooks",
@@ -248,7 +252,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&[1, 0, 0]);
                 h
             },
-            DecodeError::InvalidHeader("codebook size"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookSize),
         ),
         (
             "codebook of 17 levels",
@@ -259,7 +263,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&[0; 40]);
                 h
             },
-            DecodeError::InvalidHeader("codebook size"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookSize),
         ),
         (
             "codebook levels not increasing",
@@ -271,7 +275,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&5i16.to_le_bytes());
                 h
             },
-            DecodeError::InvalidHeader("codebook levels"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookLevels),
         ),
         (
             "codebook level beyond the weight limit",
@@ -283,7 +287,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&i16::MAX.to_le_bytes());
                 h
             },
-            DecodeError::InvalidHeader("codebook levels"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookLevels),
         ),
         (
             "second codebook cut short",
@@ -312,7 +316,7 @@ fn header_errors_are_typed() {
         (
             "bytes after the payload",
             sealed(7, &[0; 8]),
-            DecodeError::InvalidHeader("payload length (bytes follow the payload)"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::TrailingBytes),
         ),
         (
             "payload length in six bytes",
@@ -321,7 +325,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&[0x80, 0x80, 0x80, 0x80, 0x80, 0]);
                 h
             },
-            DecodeError::InvalidHeader("payload length"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::PayloadLength),
         ),
         (
             "payload length above 2^32 - 1",
@@ -330,7 +334,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF, 0x10]);
                 h
             },
-            DecodeError::InvalidHeader("payload length"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::PayloadLength),
         ),
         (
             "payload length with a redundant zero group",
@@ -340,7 +344,7 @@ fn header_errors_are_typed() {
                 h.extend_from_slice(&[0; 8]);
                 h
             },
-            DecodeError::InvalidHeader("payload length"),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::PayloadLength),
         ),
         (
             "payload length cut short",
@@ -354,7 +358,7 @@ fn header_errors_are_typed() {
         ("checksum field zero", with(13, 0), {
             let mut h = with(13, 0);
             h[CHECKSUM_BYTES].fill(0);
-            let computed = decoder_core::bitstream::stream_checksum(&h);
+            let computed = decoder_core::internal::syntax::stream_checksum(&h);
             DecodeError::ChecksumMismatch {
                 stored: 0,
                 computed,
@@ -363,10 +367,10 @@ fn header_errors_are_typed() {
     ];
     for (what, bytes, expected) in cases {
         assert_eq!(
-            decoder_core::read_header(&bytes).err().or_else(|| {
+            decoder_core::Header::read(&bytes).err().or_else(|| {
                 // Header fine: the error must come from the payload.
                 let mut buf = vec![0u8; 256];
-                decoder_core::decode_into(&bytes, &mut buf).err()
+                pifs_tests::decode_into(&bytes, &mut buf).err()
             }),
             Some(expected),
             "{what}"
@@ -398,7 +402,7 @@ fn header_errors_are_typed() {
 #[test]
 fn header_claiming_a_huge_image_needs_a_huge_buffer() {
     let data = sealed_stream(&header(65535, 65535, 2, 7), &[0x55; 64]);
-    let header = decoder_core::read_header(&data).unwrap();
+    let header = decoder_core::Header::read(&data).unwrap();
     assert_eq!(
         Limits::pixels(1 << 24).check(&header),
         Err(DecodeError::TooLarge {
@@ -416,7 +420,7 @@ fn header_claiming_a_huge_image_needs_a_huge_buffer() {
     assert_eq!(header.root_log2(), 16);
     let mut small = vec![0u8; 1 << 16];
     assert_eq!(
-        decoder_core::decode_into(&data, &mut small),
+        pifs_tests::decode_into(&data, &mut small),
         Err(DecodeError::BufferTooSmall)
     );
 }
@@ -498,7 +502,7 @@ proptest! {
         // Flips confined to the payload: the header stays valid, so the range decoder and the
         // syntax checks see every damaged stream.
         let mut bytes = streams()[which].1.clone();
-        let start = decoder_core::read_header(&bytes).unwrap().encoded_len();
+        let start = decoder_core::Header::read(&bytes).unwrap().encoded_len();
         for (at, bit) in &flips {
             let i = start + at.index(bytes.len() - start);
             bytes[i] ^= 1 << bit;

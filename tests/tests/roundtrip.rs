@@ -5,9 +5,9 @@
 mod common;
 
 use common::{analyse_with, decode_all, gradient, psnr_u8, small_config, sse, synthetic};
-use decoder_core::bitstream::FLAG_CODEBOOKS;
-use decoder_core::model::MODELS;
-use decoder_core::{LeafInfo, LeafObserver};
+use decoder_core::internal::model::MODELS;
+use decoder_core::internal::syntax::FLAG_CODEBOOKS;
+use decoder_core::LeafInfo;
 use host_encoder::{Encoded, EncoderConfig, Plane, Target};
 use std::sync::OnceLock;
 
@@ -126,7 +126,7 @@ fn reported_psnr_is_the_psnr_of_the_decoded_pixels() {
 fn reported_payload_bits_match_the_stream() {
     for case in cases() {
         let e = &case.encoded;
-        let header = decoder_core::read_header(&e.bytes).expect(&case.name);
+        let header = decoder_core::Header::read(&e.bytes).expect(&case.name);
         let payload_bits = (e.bytes.len() - header.encoded_len()) as f64 * 8.0;
         assert_eq!(e.actual_payload_bits, payload_bits, "{}", case.name);
         assert_eq!(
@@ -162,7 +162,7 @@ fn higher_rate_is_not_worse() {
 fn pixel_sink_receives_every_pixel_exactly_once() {
     for case in cases() {
         let mut sink = common::CoverageSink::new(case.plane.width, case.plane.height);
-        let header = decoder_core::decode(&case.encoded.bytes, &mut sink).expect(&case.name);
+        let header = pifs_tests::decode(&case.encoded.bytes, &mut sink).expect(&case.name);
         assert_eq!(
             (u32::from(header.width), u32::from(header.height)),
             (case.plane.width, case.plane.height)
@@ -191,7 +191,7 @@ fn pixel_sink_receives_every_pixel_exactly_once() {
 #[derive(Default)]
 struct Leaves(Vec<LeafInfo>);
 
-impl LeafObserver for Leaves {
+impl Leaves {
     fn leaf(&mut self, info: &LeafInfo) {
         self.0.push(*info);
     }
@@ -202,9 +202,12 @@ fn observed_leaves_form_a_valid_quadtree_cut() {
     for case in cases() {
         let (w, h) = (case.plane.width, case.plane.height);
         let mut sink = common::CoverageSink::new(w, h);
-        let (header, leaves) =
-            decoder_core::decode_observed(&case.encoded.bytes, &mut sink, Leaves::default())
-                .expect(&case.name);
+        let mut leaves = Leaves::default();
+        let header = decoder_core::Decoder::new(&case.encoded.bytes)
+            .expect(&case.name)
+            .observe(|leaf| leaves.leaf(leaf))
+            .decode(&mut sink)
+            .expect(&case.name);
         let leaves = leaves.0;
         assert_eq!(
             leaves.len(),
@@ -260,7 +263,7 @@ fn leaf_sizes_outside_the_format_are_clamped() {
     let encoded = analyse_with(plane.clone(), &config)
         .encode(Target::Bpp(1.0))
         .expect("an encodable image");
-    let header = decoder_core::read_header(&encoded.bytes).expect("a valid header");
+    let header = decoder_core::Header::read(&encoded.bytes).expect("a valid header");
     assert_eq!((header.min_leaf_log2, header.max_leaf_log2), (1, 7));
     let (_, pixels) = decode_all(&encoded.bytes).expect("a decodable stream");
     assert_eq!(pixels, encoded.reconstruction);

@@ -43,7 +43,7 @@ fn check_size(width: u32, height: u32, config: &EncoderConfig, target: Target) {
     assert_eq!(common::sse(&decoded, &plane.data), e.sse, "{what}: SSE");
 
     let mut sink = CoverageSink::new(width, height);
-    decoder_core::decode(&e.bytes, &mut sink).unwrap();
+    pifs_tests::decode(&e.bytes, &mut sink).unwrap();
     assert!(sink.violations.is_empty(), "{what}: {:?}", sink.violations);
     assert_eq!(sink.not_once(5), vec![], "{what}: (x, y, count)");
     assert!(sink.pixels == decoded, "{what}: sink pixels");
@@ -53,14 +53,14 @@ fn check_size(width: u32, height: u32, config: &EncoderConfig, target: Target) {
     for len in [n - 1, 0] {
         let mut short = vec![0u8; len];
         assert_eq!(
-            decoder_core::decode_into(&e.bytes, &mut short),
+            pifs_tests::decode_into(&e.bytes, &mut short),
             Err(DecodeError::BufferTooSmall),
             "{what}: buffer of {len} bytes"
         );
     }
     // Larger than needed: the image goes to the front, the rest is left alone.
     let mut long = vec![0xA5u8; n + 7];
-    decoder_core::decode_into(&e.bytes, &mut long).unwrap();
+    pifs_tests::decode_into(&e.bytes, &mut long).unwrap();
     assert!(long[..n] == decoded[..], "{what}: oversized buffer");
     assert!(
         long[n..].iter().all(|&b| b == 0xA5),

@@ -288,13 +288,14 @@ fn decode(input: &Path, output: &Path, limits: decoder_core::Limits) -> Result<(
     // The output format is known from the name: refuse a bad one before decoding.
     io::encode_gray(output, 1, 1, &[0])?;
     let data = read_stream(input)?;
-    let header =
-        decoder_core::read_header(&data).map_err(|e| format!("{}: {e}", input.display()))?;
-    limits
-        .check(&header)
+    let decoder =
+        decoder_core::Decoder::new(&data).map_err(|e| format!("{}: {e}", input.display()))?;
+    let decoder = decoder
+        .limits(&limits)
         .map_err(|e| format!("{}: {e} (see --max-pixels)", input.display()))?;
-    let mut pixels = vec![0u8; header.pixel_count()];
-    decoder_core::decode_into(&data, &mut pixels)
+    let mut pixels = vec![0u8; decoder.header().pixel_count()];
+    let header = decoder
+        .decode_into(&mut pixels)
         .map_err(|e| format!("{}: {e}", input.display()))?;
     let bytes = io::encode_gray(
         output,
@@ -316,47 +317,48 @@ fn decode(input: &Path, output: &Path, limits: decoder_core::Limits) -> Result<(
 fn info(input: &Path) -> Result<(), String> {
     struct Stats {
         per_depth: std::collections::BTreeMap<u8, usize>,
-        models: [usize; decoder_core::model::MODEL_COUNT],
+        models: [usize; decoder_core::internal::model::MODEL_COUNT],
         /// Leaves per model coded with DPCM, then with the grid transform.
-        codings: [[usize; decoder_core::model::MODEL_COUNT]; 2],
-        cquant: [usize; decoder_core::model::CONTROL_QUANTISERS],
+        codings: [[usize; decoder_core::internal::model::MODEL_COUNT]; 2],
+        cquant: [usize; decoder_core::internal::syntax::control::CONTROL_QUANTISERS],
         wquant: [usize; 4],
         /// Leaves per model whose control points are one pixel apart.
-        pixel_grids: [usize; decoder_core::model::MODEL_COUNT],
+        pixel_grids: [usize; decoder_core::internal::model::MODEL_COUNT],
     }
-    impl decoder_core::LeafObserver for Stats {
+    impl Stats {
         fn leaf(&mut self, info: &decoder_core::LeafInfo) {
             *self.per_depth.entry(info.node.log2).or_default() += 1;
             self.models[usize::from(info.model)] += 1;
-            let model = decoder_core::model::MODELS[usize::from(info.model)];
+            let model = decoder_core::internal::model::MODELS[usize::from(info.model)];
             if !model.subdivides(info.node.log2) {
                 self.pixel_grids[usize::from(info.model)] += 1;
             }
-            let coding =
-                usize::from(info.coding == decoder_core::bitstream::ControlCoding::Transform);
+            let coding = usize::from(
+                info.coding == decoder_core::internal::syntax::ControlCoding::Transform,
+            );
             self.codings[coding][usize::from(info.model)] += 1;
             self.cquant[usize::from(info.cquant)] += 1;
             self.wquant[usize::from(info.wquant)] += 1;
         }
     }
-    struct Discard;
-    impl decoder_core::PixelSink for Discard {
-        fn tile(&mut self, _x: u32, _y: u32, _w: u32, _h: u32, _p: &[u8]) {}
-    }
     let data = read_stream(input)?;
-    let stats = Stats {
+    let mut stats = Stats {
         per_depth: Default::default(),
         models: [0; 5],
         codings: [[0; 5]; 2],
-        cquant: [0; decoder_core::model::CONTROL_QUANTISERS],
+        cquant: [0; decoder_core::internal::syntax::control::CONTROL_QUANTISERS],
         wquant: [0; 4],
-        pixel_grids: [0; decoder_core::model::MODEL_COUNT],
+        pixel_grids: [0; decoder_core::internal::model::MODEL_COUNT],
     };
-    let (header, stats) = decoder_core::decode_observed(&data, &mut Discard, stats)
+    let header = decoder_core::Decoder::new(&data)
+        .and_then(|d| d.observe(|leaf| stats.leaf(leaf)).verify())
         .map_err(|e| format!("{}: {e}", input.display()))?;
     let px = header.pixel_count() as f64;
     println!("{}", input.display());
-    println!("  format version   {}", decoder_core::bitstream::VERSION);
+    println!(
+        "  format version   {}",
+        decoder_core::internal::format::VERSION
+    );
     println!(
         "  dimensions       {}x{}, {} channel(s), {} bits",
         header.width, header.height, header.channels, header.bit_depth
@@ -394,7 +396,7 @@ fn info(input: &Path) -> Result<(), String> {
     }
     println!(
         "  control quantiser use (steps {:?} /16 grey): {:?}",
-        decoder_core::model::CONTROL_STEPS,
+        decoder_core::internal::syntax::control::CONTROL_STEPS,
         stats.cquant
     );
     println!(

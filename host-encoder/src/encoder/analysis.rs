@@ -9,17 +9,21 @@ use super::quantise::{
 };
 use super::rate::{Anchor, RateTable};
 use super::{EncoderConfig, Plane};
-use decoder_core::bitstream::{models_for_block, Codebook, Header, MAX_LEAF_LOG2, MIN_LEAF_LOG2};
-use decoder_core::bitstream::{Contexts, ControlCoding};
-use decoder_core::model::{
-    WeightClass, CONTROL_QUANTISERS, MODELS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
+use decoder_core::internal::model::SAMPLE_ONE;
+use decoder_core::internal::model::{WeightClass, MODELS};
+use decoder_core::internal::prediction::{inside_tile, SamplePrediction};
+use decoder_core::internal::syntax::control::WeightQuantiser;
+use decoder_core::internal::syntax::control::{
+    CONTROL_QUANTISERS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
-use decoder_core::model::{WeightQuantiser, SAMPLE_ONE};
-use decoder_core::patch::{PixelSink, Rect};
-use decoder_core::prediction::{inside_tile, SamplePrediction};
-use decoder_core::quadtree::Node;
-use decoder_core::LeafSyntax;
+use decoder_core::internal::syntax::LeafSyntax;
+use decoder_core::internal::syntax::{models_for_block, Codebook, Header};
+use decoder_core::internal::syntax::{Contexts, ControlCoding};
+use decoder_core::Node;
+use decoder_core::{PixelSink, Rect, Tile};
 use rayon::prelude::*;
+use std::convert::Infallible;
 
 /// One way of coding a node as a leaf.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -386,7 +390,7 @@ impl Analysis {
 
 /// Prediction from earlier leaves, estimated before the stream exists: earlier leaves are taken
 /// to have drawn the image's own pixels, under the decoder's availability rule
-/// ([`decoder_core::prediction::Frontier`]).
+/// ([`decoder_core::internal::prediction::Frontier`]).
 pub struct ImagePrediction<'a> {
     /// The image.
     pub plane: &'a Plane,
@@ -445,7 +449,7 @@ fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Qua
     if let Some(residual) = fit.residual {
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
             let n = MODELS[usize::from(fit.model)].control_count();
-            let mut control = [0.0f64; decoder_core::model::MAX_CONTROL];
+            let mut control = [0.0f64; decoder_core::internal::model::MAX_CONTROL];
             for (c, &v) in control.iter_mut().zip(&q.values[..n]) {
                 *c = f64::from(v) / f64::from(SAMPLE_ONE);
             }
@@ -469,9 +473,9 @@ pub fn closed_loop_sse(
     plane: &Plane,
     header: &Header,
     node: &Node,
-    leaf: &decoder_core::LeafSyntax,
+    leaf: &decoder_core::internal::syntax::LeafSyntax,
 ) -> f64 {
-    let Ok(patch) = decoder_core::bitstream::reconstruct(header, leaf, node.log2) else {
+    let Ok(patch) = decoder_core::internal::syntax::reconstruct(header, leaf, node.log2) else {
         return f64::INFINITY;
     };
     struct Sse<'a> {
@@ -479,25 +483,24 @@ pub fn closed_loop_sse(
         total: u64,
     }
     impl PixelSink for Sse<'_> {
-        fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        type Error = Infallible;
+
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+            let Rect { x, y, w, h } = tile.area;
             let mut k = 0;
             for py in y..y + h {
                 for px in x..x + w {
-                    let d = i64::from(self.plane.get(px, py)) - i64::from(pixels[k]);
+                    let d = i64::from(self.plane.get(px, py)) - i64::from(tile.pixels[k]);
                     self.total += (d * d) as u64;
                     k += 1;
                 }
             }
+            Ok(())
         }
     }
     let mut sink = Sse { plane, total: 0 };
-    patch.render(
-        node.x,
-        node.y,
-        node.log2,
-        Rect::of_size(plane.width, plane.height),
-        &mut sink,
-    );
+    let image = Rect::of_size(plane.width, plane.height);
+    let Ok(()) = patch.render(node, image, &mut sink);
     sink.total as f64
 }
 
@@ -698,7 +701,9 @@ mod tests {
             .encode(super::super::Target::Bpp(4.0))
             .expect("an encode");
         let mut pixels = vec![0u8; plane.data.len()];
-        decoder_core::decode_into(&encoded.bytes, &mut pixels).expect("a valid stream");
+        decoder_core::Decoder::new(&encoded.bytes)
+            .and_then(|d| d.decode_into(&mut pixels))
+            .expect("a valid stream");
         assert_eq!(pixels, encoded.reconstruction);
         assert!(encoded.psnr > 40.0, "PSNR {}", encoded.psnr);
     }

@@ -8,8 +8,8 @@
 
 use super::synthesis::Tabulator;
 use super::Plane;
-use decoder_core::model::{ModelType, WEIGHT_LIMIT, WEIGHT_ONE};
-use decoder_core::quadtree::Node;
+use decoder_core::internal::model::{ModelType, WEIGHT_LIMIT, WEIGHT_ONE};
+use decoder_core::Node;
 use nalgebra::{DMatrix, DVector};
 
 /// Largest number of samples used to fit one block: bigger blocks are fitted on a regular
@@ -51,7 +51,7 @@ impl Fit {
         let residual = self.residual?;
         let projection = Projection::of(self.model, log2);
         let n = projection.gram.nrows();
-        let mut d = [0.0f64; decoder_core::model::MAX_CONTROL];
+        let mut d = [0.0f64; decoder_core::internal::model::MAX_CONTROL];
         for (k, dk) in d.iter_mut().enumerate().take(n) {
             *dk = control[k] - self.exact[k];
         }
@@ -141,7 +141,7 @@ pub fn fit_block(plane: &Plane, node: &Node, model_index: u8) -> Fit {
 /// the image one precomputed projection of the block's samples (see [`gram`]), at the image's edges one
 /// Gauss-Newton step.
 pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
-    let model = decoder_core::model::MODELS[usize::from(model_index)];
+    let model = decoder_core::internal::model::MODELS[usize::from(model_index)];
     let lattice = Lattice::new(plane, node);
     let (mut control, exact, residual) =
         if lattice.is_interior() && node.log2 <= MAX_PROJECTION_LOG2 {
@@ -171,7 +171,7 @@ pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
 /// few samples for them (fewer than three per parameter: thesis III.2.3, otherwise the problem
 /// is singular).
 pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
-    let model = decoder_core::model::MODELS[usize::from(plain.model)];
+    let model = decoder_core::internal::model::MODELS[usize::from(plain.model)];
     let lattice = Lattice::new(plane, node);
     let nc = plain.control.len();
     let nw = model.weight_count();
@@ -214,7 +214,7 @@ pub fn prepare_projections(log2s: impl Iterator<Item = u8>) {
     use rayon::prelude::*;
     let mut pairs = Vec::new();
     for log2 in log2s.filter(|&l| l <= MAX_PROJECTION_LOG2) {
-        let (models, count) = decoder_core::bitstream::models_for_block(log2);
+        let (models, count) = decoder_core::internal::syntax::models_for_block(log2);
         pairs.extend(models[..count].iter().map(|&m| (m, log2)));
     }
     // Largest first: they take longest.
@@ -231,7 +231,7 @@ const EXTRAPOLATION_WEIGHT: f64 = 1e-4;
 /// On a pixel grid (control values one pixel apart, [`ModelType::subdivides`] false) the
 /// values on the row and column past the block draw none of its pixels, so the least-squares
 /// problem leaves them free. The format does not code them either: the decoder repeats the
-/// values before them ([`decoder_core::model::expand_pixel_grid`]). This quadratic form (to add
+/// values before them ([`decoder_core::internal::syntax::control::expand_pixel_grid`]). This quadratic form (to add
 /// to the Gram matrix) ties each to the value before it in its row (the last column, the corner
 /// included) or column (the last row), so the problem is regular and its solution repeats the
 /// block's last pixels as the decoder does.
@@ -262,15 +262,16 @@ fn extrapolation_penalty(model: ModelType) -> DMatrix<f64> {
 impl Projection {
     fn of(model_index: u8, log2: u8) -> &'static Projection {
         use std::sync::OnceLock;
-        const SIZES: usize = decoder_core::bitstream::MAX_LEAF_LOG2 as usize + 1;
-        static TABLE: [[OnceLock<Projection>; SIZES]; decoder_core::model::MODEL_COUNT] =
-            [const { [const { OnceLock::new() }; SIZES] }; decoder_core::model::MODEL_COUNT];
+        const SIZES: usize = decoder_core::internal::format::MAX_LEAF_LOG2 as usize + 1;
+        static TABLE: [[OnceLock<Projection>; SIZES]; decoder_core::internal::model::MODEL_COUNT] =
+            [const { [const { OnceLock::new() }; SIZES] };
+                decoder_core::internal::model::MODEL_COUNT];
         TABLE[usize::from(model_index)][usize::from(log2)]
             .get_or_init(|| Projection::build(model_index, log2))
     }
 
     fn build(model_index: u8, log2: u8) -> Projection {
-        let model = decoder_core::model::MODELS[usize::from(model_index)];
+        let model = decoder_core::internal::model::MODELS[usize::from(model_index)];
         let nc = model.control_count();
         let size = 1u32 << log2;
         let mut offsets = Vec::with_capacity((size * size) as usize);
@@ -547,7 +548,7 @@ mod tests {
         };
         let mut factored = 0;
         for log2 in 1..=6u8 {
-            let (models, count) = decoder_core::bitstream::models_for_block(log2);
+            let (models, count) = decoder_core::internal::syntax::models_for_block(log2);
             for &m in &models[..count] {
                 let p = Projection::of(m, log2);
                 factored += usize::from(p.factor.is_some());

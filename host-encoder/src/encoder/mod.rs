@@ -9,7 +9,8 @@ pub mod synthesis;
 pub mod writer;
 
 use analysis::Analysis;
-use decoder_core::bitstream::{Codebook, Header};
+use decoder_core::internal::syntax::{Codebook, Header};
+use decoder_core::DecodeError;
 use std::fmt;
 
 /// An 8-bit grayscale image.
@@ -139,11 +140,17 @@ impl Target {
 
 /// Why an encode failed.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum EncodeError {
     /// The image is larger than the format allows (65535 per side) or empty.
-    BadDimensions(u32, u32),
+    BadDimensions {
+        /// Width of the image, pixels.
+        width: u32,
+        /// Height of the image, pixels.
+        height: u32,
+    },
     /// The target is not a positive finite number.
-    BadTarget(String),
+    BadTarget(Target),
     /// Even the smallest stream is larger than the budget.
     BudgetTooSmall {
         /// The budget, bytes.
@@ -158,16 +165,18 @@ pub enum EncodeError {
         /// Best reachable, dB.
         best: f64,
     },
-    /// Internal error from the shared syntax code (a bug).
-    Internal(String),
+    /// The shared syntax code refused what the encoder asked it to write (a bug).
+    Syntax(DecodeError),
+    /// The encoder's own bookkeeping is inconsistent (a bug); the text says what was found.
+    Internal(&'static str),
 }
 
 impl fmt::Display for EncodeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            EncodeError::BadDimensions(w, h) => write!(
+            EncodeError::BadDimensions { width, height } => write!(
                 f,
-                "image size {w}x{h} is not supported (1 to 65535 per side)"
+                "image size {width}x{height} is not supported (1 to 65535 per side)"
             ),
             EncodeError::BadTarget(t) => write!(f, "invalid target: {t}"),
             EncodeError::BudgetTooSmall { budget, smallest } => {
@@ -176,12 +185,32 @@ impl fmt::Display for EncodeError {
             EncodeError::QualityUnreachable { requested, best } => {
                 write!(f, "PSNR {requested:.2} dB is unreachable: the best this encoder reaches is {best:.2} dB")
             }
-            EncodeError::Internal(e) => write!(f, "internal encoder error: {e}"),
+            EncodeError::Syntax(_) => {
+                write!(f, "internal encoder error: the syntax refused a leaf")
+            }
+            EncodeError::Internal(what) => write!(f, "internal encoder error: {what}"),
         }
     }
 }
 
-impl std::error::Error for EncodeError {}
+impl std::error::Error for EncodeError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            EncodeError::Syntax(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Target::Bpp(b) => write!(f, "{b} bits per pixel"),
+            Target::Bytes(n) => write!(f, "{n} bytes"),
+            Target::Psnr(p) => write!(f, "PSNR {p} dB"),
+        }
+    }
+}
 
 /// An encoded stream with its figures.
 #[derive(Debug, Clone)]
@@ -229,7 +258,7 @@ impl Analysis {
             }
             Target::Bytes(n) if n > 0 => Some(n),
             Target::Psnr(p) if p.is_finite() && p > 0.0 => None,
-            other => return Err(EncodeError::BadTarget(format!("{other:?}"))),
+            other => return Err(EncodeError::BadTarget(other)),
         };
         let mut variants = vec![Header {
             codebooks: [Codebook::EMPTY; 2],
@@ -260,7 +289,7 @@ impl Analysis {
                 Err(e) => last_err = Some(e),
             }
         }
-        best.ok_or_else(|| last_err.unwrap_or_else(|| EncodeError::Internal("no variant".into())))
+        best.ok_or_else(|| last_err.unwrap_or(EncodeError::Internal("no header variant")))
     }
 
     /// The encoded stream `written` of `plan`, with its reconstruction and figures.
@@ -270,8 +299,7 @@ impl Analysis {
         plan: &rate::Plan,
         written: writer::Written,
     ) -> Result<Encoded, EncodeError> {
-        let reconstruction = writer::reconstruct(self, header, plan)
-            .map_err(|e| EncodeError::Internal(e.to_string()))?;
+        let reconstruction = writer::reconstruct(self, header, plan)?;
         let pixels = self.header.pixel_count();
         let sse: f64 = reconstruction
             .iter()
@@ -293,7 +321,7 @@ impl Analysis {
     }
 
     fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
-        writer::write(self, header, plan).map_err(|e| EncodeError::Internal(e.to_string()))
+        writer::write(self, header, plan)
     }
 
     /// Best stream of at most `budget` bytes. The analysis's rates ([`Analysis::rates`], from
@@ -406,7 +434,10 @@ pub fn analyse(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Analysis, EncodeError> {
     if plane.width == 0 || plane.height == 0 || plane.width > 65535 || plane.height > 65535 {
-        return Err(EncodeError::BadDimensions(plane.width, plane.height));
+        return Err(EncodeError::BadDimensions {
+            width: plane.width,
+            height: plane.height,
+        });
     }
     Ok(Analysis::run(plane, config, progress))
 }

@@ -3,25 +3,30 @@
 
 use super::fit::{gram, Fit};
 use crate::entropy::BitCounter;
-use decoder_core::bitstream::{
+use decoder_core::internal::entropy::ZERO_CONTEXTS;
+use decoder_core::internal::model::{
+    for_each_free_tap, WeightClass, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX, SAMPLE_MIN,
+    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE,
+};
+use decoder_core::internal::prediction::{
+    edge_context, edge_offset, edge_pixels, SamplePrediction,
+};
+use decoder_core::internal::syntax::control::{
+    coefficient_step, expand_pixel_grid, grid_sizes, transform_order, WeightQuantiser,
+    CONTROL_STEPS, WEIGHT_QUANTISER_KINDS,
+};
+use decoder_core::internal::syntax::{
     control_class, dequantise_control, intra_prediction, step_group, transform_control_values,
     zero_context, Codebook, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES, MAX_CODEBOOK,
     STEP_GROUPS,
 };
-use decoder_core::entropy::ZERO_CONTEXTS;
-use decoder_core::model::{
-    coefficient_step, expand_pixel_grid, for_each_free_tap, grid_sizes, transform_order,
-    WeightClass, WeightQuantiser, CONTROL_STEPS, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX,
-    SAMPLE_MIN, SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE, WEIGHT_QUANTISER_KINDS,
-};
-use decoder_core::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
-use decoder_core::quadtree::Node;
+use decoder_core::Node;
 use nalgebra::DMatrix;
 
 /// A fit's control values prepared for quantisation, once for all quantisers: in sample units,
 /// and as grid-transform coefficients.
 pub struct ControlTargets {
-    /// Side of the coded grid ([`decoder_core::model::ModelType::coded_side`]); the values
+    /// Side of the coded grid ([`decoder_core::internal::model::ModelType::coded_side`]); the values
     /// below are row-major over it.
     side: usize,
     samples: [f64; MAX_CONTROL],
@@ -221,9 +226,10 @@ struct ErrorFeedback {
 impl ErrorFeedback {
     fn of(model_index: u8, log2: u8) -> Option<&'static ErrorFeedback> {
         use std::sync::OnceLock;
-        const SIZES: usize = decoder_core::bitstream::MAX_LEAF_LOG2 as usize + 1;
-        static TABLE: [[OnceLock<Option<ErrorFeedback>>; SIZES]; decoder_core::model::MODEL_COUNT] =
-            [const { [const { OnceLock::new() }; SIZES] }; decoder_core::model::MODEL_COUNT];
+        const SIZES: usize = decoder_core::internal::format::MAX_LEAF_LOG2 as usize + 1;
+        static TABLE: [[OnceLock<Option<ErrorFeedback>>; SIZES];
+            decoder_core::internal::model::MODEL_COUNT] = [const { [const { OnceLock::new() }; SIZES] };
+            decoder_core::internal::model::MODEL_COUNT];
         TABLE[usize::from(model_index)][usize::from(log2)]
             .get_or_init(|| ErrorFeedback::build(model_index, log2))
             .as_ref()
@@ -541,7 +547,7 @@ impl CoefficientQuantiser<'_> {
 }
 
 /// The forward grid transform of control values (row-major, side `side`), in real arithmetic:
-/// the inverse of decoder-core's integer [`decoder_core::model::inverse_grid_transform`] up to
+/// the inverse of decoder-core's integer [`decoder_core::internal::syntax::control::inverse_grid_transform`] up to
 /// its roundings. Level by level, rows first, then columns, on the shrinking low band.
 pub fn forward_grid_transform(g: &mut [f64; MAX_CONTROL], side: usize) {
     let (sizes, levels) = grid_sizes(side);
@@ -901,7 +907,7 @@ pub fn weight_classes(model: u8) -> Vec<WeightClass> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use decoder_core::model::inverse_grid_transform;
+    use decoder_core::internal::syntax::control::inverse_grid_transform;
     use nalgebra::DVector;
 
     const SIDES: [usize; 4] = [2, 3, 5, 9];
@@ -999,7 +1005,7 @@ mod tests {
     #[test]
     fn error_feedback_lowers_the_added_error() {
         use super::super::fit::fit_default;
-        use decoder_core::quadtree::Node;
+        use decoder_core::Node;
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
         let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
         let (model, log2) = (4u8, 4u8);
@@ -1056,8 +1062,8 @@ mod tests {
     fn dpcm_edges_are_coded_against_the_pixels_beside_them() {
         use super::super::analysis::ImagePrediction;
         use super::super::fit::fit_default;
-        use decoder_core::bitstream::code_leaf;
-        use decoder_core::prediction::SamplePrediction;
+        use decoder_core::internal::prediction::SamplePrediction;
+        use decoder_core::internal::syntax::code_leaf;
         struct Alone;
         impl SamplePrediction for Alone {
             fn beside(&self, _above: bool, _x: u32, _y: u32) -> Option<i32> {

@@ -7,10 +7,11 @@
 
 use super::analysis::Analysis;
 use crate::entropy::BitCounter;
-use decoder_core::bitstream::{code_leaf, code_split, Contexts, Header};
-use decoder_core::model::WeightQuantiser;
-use decoder_core::model::WEIGHT_QUANTISER_KINDS;
-use decoder_core::quadtree::{node_kind, Node, NodeKind};
+use decoder_core::internal::syntax::control::WeightQuantiser;
+use decoder_core::internal::syntax::control::WEIGHT_QUANTISER_KINDS;
+use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header};
+use decoder_core::internal::walk::{node_kind, NodeKind};
+use decoder_core::Node;
 use rayon::prelude::*;
 
 /// Per-candidate rates (bits) under one context snapshot, with the candidates' errors, laid
@@ -192,7 +193,7 @@ impl RateTable {
                 rates
             })
             .collect();
-        let split_bits = (0..=decoder_core::bitstream::MAX_LEAF_LOG2)
+        let split_bits = (0..=decoder_core::internal::format::MAX_LEAF_LOG2)
             .map(|log2| {
                 let mut out = [0.0; 2];
                 for (flag, slot) in out.iter_mut().enumerate() {

@@ -6,7 +6,7 @@
 //! the subdivision recursion (thesis II.3.4: the tabulation is polynomial in the parameters), so
 //! the Jacobian is exact: no finite differences.
 
-use decoder_core::model::{
+use decoder_core::internal::model::{
     for_each_free_tap, tap_point, ModelType, TapSlot, Weights, CELL_DEPENDENT_TAP,
     LINE_DEPENDENT_TAP, WEIGHT_ONE,
 };

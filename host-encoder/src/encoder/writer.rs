@@ -3,14 +3,17 @@
 
 use super::analysis::Analysis;
 use super::rate::{Decision, Plan};
+use super::EncodeError;
 use crate::entropy::RangeEncoder;
-use decoder_core::bitstream::{
+use decoder_core::internal::prediction::Frontier;
+use decoder_core::internal::syntax::{
     reconstruct as reconstruct_patch, seal, Contexts, Header, LeafSyntax,
 };
-use decoder_core::patch::{Patch, PixelSink, Rect};
-use decoder_core::quadtree::{node_kind, walk, LeafInfo, Node, NodeKind, TreeVisitor};
-use decoder_core::DecodeError;
+use decoder_core::internal::synthesis::Patch;
+use decoder_core::internal::walk::{node_kind, walk, LeafInfo, NodeKind, TreeVisitor};
+use decoder_core::{DecodeError, Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
+use std::convert::Infallible;
 
 /// A written stream and the encoder's own reconstruction of it.
 #[derive(Debug, Clone)]
@@ -32,6 +35,8 @@ struct PlanVisitor<'a> {
 }
 
 impl TreeVisitor for PlanVisitor<'_> {
+    type Error = DecodeError;
+
     fn split(&mut self, node: &Node) -> bool {
         !matches!(
             self.plan.decision(self.analysis, node),
@@ -51,25 +56,31 @@ impl TreeVisitor for PlanVisitor<'_> {
         }
     }
 
-    fn leaf(&mut self, _info: &LeafInfo, _patch: &Patch) -> Result<(), DecodeError> {
+    fn leaf(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier,
+    ) -> Result<(), DecodeError> {
+        frontier.record(&info.node, patch);
         self.leaves += 1;
         Ok(())
     }
 }
 
 /// Writes the stream for `plan` with `header`.
-pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Written, DecodeError> {
+pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Written, EncodeError> {
     let mut visitor = PlanVisitor {
         analysis,
         plan,
         leaves: 0,
     };
     let mut coder = RangeEncoder::new();
-    let state = walk(header, &mut coder, &mut visitor)?;
+    let state = walk(header, &mut coder, &mut visitor).map_err(EncodeError::Syntax)?;
     let payload = coder.finish();
     let header = Header {
         payload_len: u32::try_from(payload.len())
-            .map_err(|_| DecodeError::InvalidHeader("payload length"))?,
+            .map_err(|_| EncodeError::Internal("a payload of 4 GiB or more"))?,
         ..*header
     };
     let mut bytes = vec![0u8; header.encoded_len()];
@@ -91,7 +102,7 @@ pub fn reconstruct(
     analysis: &Analysis,
     header: &Header,
     plan: &Plan,
-) -> Result<Vec<u8>, DecodeError> {
+) -> Result<Vec<u8>, EncodeError> {
     let (width, height) = (u32::from(header.width), u32::from(header.height));
     // The plan's leaves, found as the walk finds them.
     let mut leaves = Vec::new();
@@ -120,7 +131,7 @@ pub fn reconstruct(
                 });
             }
         } else {
-            return Err(DecodeError::InvalidData("plan without a leaf"));
+            return Err(EncodeError::Internal("a plan without a leaf"));
         }
     }
     let tiles: Vec<Tiles> = leaves
@@ -129,20 +140,14 @@ pub fn reconstruct(
             let na = analysis
                 .level(node.log2)
                 .and_then(|l| l.get(node.x, node.y))
-                .ok_or(DecodeError::InvalidData("leaf not analysed"))?;
+                .ok_or(EncodeError::Internal("a leaf that was not analysed"))?;
             let Some(Decision::Leaf(ci)) = plan.decision(analysis, node) else {
-                return Err(DecodeError::InvalidData("leaf without a candidate"));
+                return Err(EncodeError::Internal("a leaf without a candidate"));
             };
             let leaf = na.leaf(&na.candidates[usize::from(ci)]);
-            let patch = reconstruct_patch(header, &leaf, node.log2)?;
+            let patch = reconstruct_patch(header, &leaf, node.log2).map_err(EncodeError::Syntax)?;
             let mut tiles = Tiles::default();
-            patch.render(
-                node.x,
-                node.y,
-                node.log2,
-                Rect::of_size(width, height),
-                &mut tiles,
-            );
+            let Ok(()) = patch.render(node, Rect::of_size(width, height), &mut tiles);
             Ok(tiles)
         })
         .collect::<Result<_, _>>()?;
@@ -169,8 +174,13 @@ struct Tiles {
 }
 
 impl PixelSink for Tiles {
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+        let Rect { x, y, w, h } = tile.area;
         self.rects.push((x, y, w, h, self.pixels.len()));
-        self.pixels.extend_from_slice(&pixels[..(w * h) as usize]);
+        self.pixels
+            .extend_from_slice(&tile.pixels[..(w * h) as usize]);
+        Ok(())
     }
 }

@@ -113,9 +113,9 @@ pub fn psnr_u8(a: &[u8], b: &[u8]) -> f64 {
 pub fn decode_all(
     stream: &[u8],
 ) -> Result<(decoder_core::Header, Vec<u8>), decoder_core::DecodeError> {
-    let header = decoder_core::read_header(stream)?;
+    let header = decoder_core::Header::read(stream)?;
     let mut out = vec![0u8; header.pixel_count() * usize::from(header.channels)];
-    let h = decoder_core::decode_into(stream, &mut out)?;
+    let h = pifs_tests::decode_into(stream, &mut out)?;
     assert_eq!(h, header, "decode_into returned a different header");
     Ok((header, out))
 }
@@ -189,6 +189,6 @@ pub fn sealed_stream(header: &decoder_core::Header, payload: &[u8]) -> Vec<u8> {
     let mut bytes = vec![0u8; header.encoded_len()];
     header.write(&mut bytes);
     bytes.extend_from_slice(payload);
-    decoder_core::bitstream::seal(&mut bytes);
+    decoder_core::internal::syntax::seal(&mut bytes);
     bytes
 }

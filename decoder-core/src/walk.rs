@@ -8,59 +8,14 @@
 //! them). A node larger than the largest leaf is split without a flag; a node of the smallest
 //! leaf size is a leaf without a flag; every other node codes a split flag.
 
-use crate::bitstream::{
+use crate::entropy::Coder;
+use crate::error::{DecodeError, SyntaxElement};
+pub use crate::geometry::Node;
+use crate::prediction::Frontier;
+use crate::syntax::{
     code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax,
 };
-use crate::entropy::Coder;
-use crate::error::DecodeError;
-use crate::patch::Patch;
-use crate::prediction::Frontier;
-
-/// A quadtree node: the square of side `2^log2` pixels at `(x, y)`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Node {
-    /// Left column.
-    pub x: u32,
-    /// Top row.
-    pub y: u32,
-    /// Side, as a power of two.
-    pub log2: u8,
-}
-
-impl Node {
-    /// Side in pixels.
-    pub fn size(&self) -> u32 {
-        1 << self.log2
-    }
-
-    /// The four children in coding (Z) order.
-    pub fn children(&self) -> [Node; 4] {
-        let h = self.size() / 2;
-        let l = self.log2 - 1;
-        [
-            Node {
-                x: self.x,
-                y: self.y,
-                log2: l,
-            },
-            Node {
-                x: self.x + h,
-                y: self.y,
-                log2: l,
-            },
-            Node {
-                x: self.x,
-                y: self.y + h,
-                log2: l,
-            },
-            Node {
-                x: self.x + h,
-                y: self.y + h,
-                log2: l,
-            },
-        ]
-    }
-}
+use crate::synthesis::Patch;
 
 /// What a node is in the coding order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,26 +45,24 @@ pub fn node_kind(header: &Header, node: &Node) -> NodeKind {
 
 /// The two sides of the walk: an encoder supplies decisions, a decoder consumes results.
 pub trait TreeVisitor {
+    /// Why a visit can fail: the stream's errors, and whatever else the visitor adds (a pixel
+    /// sink's).
+    type Error: From<DecodeError>;
     /// Encoder: whether `node` is split (called before its flag is coded). Decoders may return
     /// anything: the flag read from the stream replaces it.
     fn split(&mut self, node: &Node) -> bool;
     /// Encoder: fills in the leaf's syntax elements before they are coded. Decoders do nothing.
     fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax);
-    /// Called once the leaf is coded, with its reconstruction.
-    fn leaf(&mut self, info: &LeafInfo, patch: &Patch) -> Result<(), DecodeError>;
-    /// What the walk calls once the leaf is coded: the frontier must learn the leaf's bottom
-    /// row and right column before the next leaf. By default [`Frontier::record`] renders
-    /// them, then [`TreeVisitor::leaf`] runs; a visitor that draws the whole leaf anyway can
-    /// draw it through [`Frontier::capture`] instead.
-    fn leaf_with_frontier(
+    /// Called once the leaf is coded, with its reconstruction. The frontier must learn the
+    /// leaf's bottom row and right column before the next leaf: [`Frontier::record`] renders
+    /// them, or a visitor that draws the whole leaf anyway draws it through
+    /// [`Frontier::capture`].
+    fn leaf(
         &mut self,
         info: &LeafInfo,
         patch: &Patch,
         frontier: &mut Frontier,
-    ) -> Result<(), DecodeError> {
-        frontier.record(&info.node, patch);
-        self.leaf(info, patch)
-    }
+    ) -> Result<(), Self::Error>;
 }
 
 /// What a walk reports about a coded leaf besides its patch.
@@ -152,7 +105,7 @@ pub fn walk<C: Coder, V: TreeVisitor>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
-) -> Result<WalkState, DecodeError> {
+) -> Result<WalkState, V::Error> {
     let mut state = WalkState::default();
     walk_with(header, coder, visitor, &mut state)?;
     Ok(state)
@@ -165,7 +118,7 @@ pub fn walk_with<C: Coder, V: TreeVisitor>(
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState,
-) -> Result<(), DecodeError> {
+) -> Result<(), V::Error> {
     state
         .frontier
         .start(u32::from(header.width), u32::from(header.height));
@@ -189,7 +142,7 @@ fn walk_node<C: Coder, V: TreeVisitor>(
     visitor: &mut V,
     state: &mut WalkState,
     root: Node,
-) -> Result<(), DecodeError> {
+) -> Result<(), V::Error> {
     let mut node = root;
     let mut path = [0u8; MAX_DEPTH];
     let mut depth = 0usize;
@@ -213,7 +166,7 @@ fn walk_node<C: Coder, V: TreeVisitor>(
         if split {
             // Split nodes are larger than the smallest leaf, so log2 >= 1 here.
             if depth == MAX_DEPTH || node.log2 == 0 {
-                return Err(DecodeError::InvalidData("quadtree depth"));
+                return Err(DecodeError::InvalidData(SyntaxElement::QuadtreeDepth).into());
             }
             path[depth] = 0;
             depth += 1;
@@ -252,10 +205,10 @@ fn walk_leaf<C: Coder, V: TreeVisitor>(
     visitor: &mut V,
     state: &mut WalkState,
     node: Node,
-) -> Result<(), DecodeError> {
+) -> Result<(), V::Error> {
     let mut patch = Patch::EMPTY;
     let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
-    visitor.leaf_with_frontier(&info, &patch, &mut state.frontier)
+    visitor.leaf(&info, &patch, &mut state.frontier)
 }
 
 /// A leaf's syntax, coded and reconstructed into `patch`. Out of line, so that the syntax

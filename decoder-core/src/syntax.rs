@@ -1,39 +1,44 @@
 //! The bitstream syntax ([`VERSION`]): the header, and every syntax element of the payload in the
-//! order it is coded. `docs/bitstream.md` is the prose form of this module.
+//! order it is coded (where a byte is parsed). `docs/bitstream.md` is the prose form of this
+//! module.
 //!
 //! Payload elements are coded through the [`Coder`] trait, so the decoder, the host encoder's
 //! writer and its rate estimator all run this same code.
 
+pub mod control;
+pub mod initial_contexts;
+
 use crate::checksum::Crc32;
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
-use crate::error::DecodeError;
-use crate::initial_contexts::INITIAL_PROBABILITIES;
+use crate::error::{DecodeError, HeaderField, SyntaxElement};
+use crate::format::{div_round, med};
+pub use crate::format::{MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
+use crate::geometry::Node;
 use crate::model::{
-    band_level, coefficient_step, div_round, expand_pixel_grid, for_each_free_tap,
-    inverse_grid_transform, transform_order, ModelType, WeightQuantiser, Weights,
-    CONTROL_QUANTISERS, CONTROL_STEPS, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT, RASTER_ORDER,
-    SAMPLE_MAX, SAMPLE_MIN, WEIGHT_LIMIT, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+    for_each_free_tap, ModelType, Weights, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT,
+    SAMPLE_MAX, SAMPLE_MIN, WEIGHT_LIMIT,
 };
-use crate::patch::Patch;
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
-use crate::quadtree::Node;
+use crate::synthesis::Patch;
+use control::{
+    band_level, coefficient_step, expand_pixel_grid, inverse_grid_transform, transform_order,
+    WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, RASTER_ORDER, WEIGHT_QUANTISERS,
+    WEIGHT_QUANTISER_KINDS,
+};
+use initial_contexts::INITIAL_PROBABILITIES;
 
-/// The four magic bytes that open every stream.
-pub const MAGIC: [u8; 4] = *b"PIFS";
-/// The format version this crate reads and writes.
-pub const VERSION: u8 = 11;
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 17;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
 pub const CHECKSUM_BYTES: core::ops::Range<usize> = 13..17;
 /// Longest encoding of the payload length (LEB128 of a `u32`).
 pub const MAX_LENGTH_BYTES: usize = 5;
-/// Smallest allowed leaf side, as a power of two.
-pub const MIN_LEAF_LOG2: u8 = 1;
-/// Largest allowed leaf side, as a power of two.
-pub const MAX_LEAF_LOG2: u8 = 7;
 /// Largest number of levels of a Lloyd-Max codebook.
 pub const MAX_CODEBOOK: usize = 16;
+/// Longest possible header: the fixed part, the longest payload length and two codebooks of
+/// [`MAX_CODEBOOK`] levels (`17 + 5 + 2 * (1 + 2 * 16) = 88` bytes). A decoder reading a
+/// sequential source never buffers more.
+pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES + 2 * (1 + 2 * MAX_CODEBOOK);
 /// Header flag: Lloyd-Max weight codebooks follow the fixed header.
 pub const FLAG_CODEBOOKS: u8 = 1;
 
@@ -159,6 +164,12 @@ impl Header {
         self.encoded_len() as u64 + u64::from(self.payload_len)
     }
 
+    /// Reads and validates the header at the start of `data` (the payload need not follow: this
+    /// is how a caller learns an image's size before deciding to decode it).
+    pub fn read(data: &[u8]) -> Result<Header, DecodeError> {
+        Header::parse(data).map(|(header, _)| header)
+    }
+
     /// Parses the header at the start of `data`; returns it and the offset of the payload.
     pub fn parse(data: &[u8]) -> Result<(Header, usize), DecodeError> {
         let fixed =
@@ -184,21 +195,19 @@ impl Header {
         }
         let flags = fixed[7];
         if flags & !FLAG_CODEBOOKS != 0 {
-            return Err(DecodeError::InvalidHeader("reserved flag bits are set"));
+            return Err(DecodeError::InvalidHeader(HeaderField::ReservedFlags));
         }
         let width = u16::from_le_bytes([fixed[8], fixed[9]]);
         let height = u16::from_le_bytes([fixed[10], fixed[11]]);
         if width == 0 || height == 0 {
-            return Err(DecodeError::InvalidHeader(
-                "width and height must be at least 1",
-            ));
+            return Err(DecodeError::InvalidHeader(HeaderField::Dimensions));
         }
         let min_leaf_log2 = fixed[12] & 0x0F;
         let max_leaf_log2 = fixed[12] >> 4;
         if !(MIN_LEAF_LOG2..=MAX_LEAF_LOG2).contains(&min_leaf_log2)
             || !(min_leaf_log2..=MAX_LEAF_LOG2).contains(&max_leaf_log2)
         {
-            return Err(DecodeError::InvalidHeader("leaf sizes"));
+            return Err(DecodeError::InvalidHeader(HeaderField::LeafSizes));
         }
         let mut header = Header {
             width,
@@ -220,22 +229,22 @@ impl Header {
             len |= u64::from(b & 0x7F) << (7 * k);
             if b & 0x80 == 0 {
                 if k > 0 && b == 0 {
-                    return Err(DecodeError::InvalidHeader("payload length"));
+                    return Err(DecodeError::InvalidHeader(HeaderField::PayloadLength));
                 }
                 break;
             }
             if k == MAX_LENGTH_BYTES - 1 {
-                return Err(DecodeError::InvalidHeader("payload length"));
+                return Err(DecodeError::InvalidHeader(HeaderField::PayloadLength));
             }
         }
-        header.payload_len =
-            u32::try_from(len).map_err(|_| DecodeError::InvalidHeader("payload length"))?;
+        header.payload_len = u32::try_from(len)
+            .map_err(|_| DecodeError::InvalidHeader(HeaderField::PayloadLength))?;
         if flags & FLAG_CODEBOOKS != 0 {
             for book in header.codebooks.iter_mut() {
                 let len = *data.get(pos).ok_or(DecodeError::Truncated)?;
                 pos += 1;
                 if !(2..=MAX_CODEBOOK as u8).contains(&len) {
-                    return Err(DecodeError::InvalidHeader("codebook size"));
+                    return Err(DecodeError::InvalidHeader(HeaderField::CodebookSize));
                 }
                 book.len = len;
                 for i in 0..usize::from(len) {
@@ -245,7 +254,7 @@ impl Header {
                     if i32::from(level).abs() > WEIGHT_LIMIT
                         || (i > 0 && level <= book.levels[i - 1])
                     {
-                        return Err(DecodeError::InvalidHeader("codebook levels"));
+                        return Err(DecodeError::InvalidHeader(HeaderField::CodebookLevels));
                     }
                     book.levels[i] = level;
                 }
@@ -466,7 +475,7 @@ impl Contexts {
 }
 
 /// Codes the split flag of a node of side `2^log2` (only coded where the node could be either a
-/// leaf or split: see [`crate::quadtree`]).
+/// leaf or split: see the quadtree walk).
 pub fn code_split<C: Coder>(
     c: &mut C,
     ctx: &mut Contexts,
@@ -476,7 +485,7 @@ pub fn code_split<C: Coder>(
     let p = ctx
         .split
         .get_mut(usize::from(log2))
-        .ok_or(DecodeError::InvalidData("node size"))?;
+        .ok_or(DecodeError::InvalidData(SyntaxElement::NodeSize))?;
     c.bit(p, split)
 }
 
@@ -520,7 +529,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     let log2 = node.log2;
     let (models, count) = models_for_block(log2);
     if count == 0 {
-        return Err(DecodeError::InvalidData("leaf size"));
+        return Err(DecodeError::InvalidData(SyntaxElement::LeafSize));
     }
     // Model type: truncated unary over the models this block size allows.
     let mut pos = models[..count]
@@ -530,7 +539,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     let model_ctx = ctx
         .model
         .get_mut(usize::from(log2))
-        .ok_or(DecodeError::InvalidData("leaf size"))?;
+        .ok_or(DecodeError::InvalidData(SyntaxElement::LeafSize))?;
     code_unary(c, model_ctx, count as u32, &mut pos)?;
     leaf.model = models[pos as usize];
     let mi = usize::from(leaf.model);
@@ -539,7 +548,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
     if cq as usize >= CONTROL_QUANTISERS {
-        return Err(DecodeError::InvalidData("control quantiser"));
+        return Err(DecodeError::InvalidData(SyntaxElement::ControlQuantiser));
     }
     leaf.cquant = cq as u8;
 
@@ -605,19 +614,6 @@ pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
         .clamp(SAMPLE_MIN, SAMPLE_MAX) as i16
 }
 
-/// Median edge detector (LOCO-I): the median of `left`, `up` and `left + up - up_left`.
-#[inline]
-pub fn med(left: i32, up: i32, up_left: i32) -> i32 {
-    let (lo, hi) = if left < up { (left, up) } else { (up, left) };
-    if up_left >= hi {
-        lo
-    } else if up_left <= lo {
-        hi
-    } else {
-        left + up - up_left
-    }
-}
-
 /// The control values of a leaf from its coefficient indices (row-major, side `side`) and its
 /// control step, into `out`: every index times its coefficient's step ([`coefficient_step`],
 /// saturated to 16 bits), through the inverse grid transform ([`inverse_grid_transform`]),
@@ -665,7 +661,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
 ) -> Result<(), DecodeError> {
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
-        .ok_or(DecodeError::InvalidData("control quantiser"))?;
+        .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
     let contexts = &mut ctx.control[step_group(leaf.cquant)];
     let side = model.coded_side(node.log2);
     let spacing = model.spacing(node.log2);
@@ -720,8 +716,8 @@ fn code_control<C: Coder, P: SamplePrediction>(
         let mut residual = i32::from(leaf.control[i]) - pred_index;
         contexts[class].code(c, ctx, &mut residual)?;
         let index = pred_index + residual;
-        leaf.control[i] =
-            i16::try_from(index).map_err(|_| DecodeError::InvalidData("control value"))?;
+        leaf.control[i] = i16::try_from(index)
+            .map_err(|_| DecodeError::InvalidData(SyntaxElement::ControlValue))?;
         // The first value and the first row and column, reconstructed (DPCM's).
         let value = i32::from(dequantise_control(base, step, index));
         if n == 0 {
@@ -804,7 +800,7 @@ fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, DecodeError> {
     MODELS
         .get(usize::from(leaf.model))
         .copied()
-        .ok_or(DecodeError::InvalidData("model type"))
+        .ok_or(DecodeError::InvalidData(SyntaxElement::ModelType))
 }
 
 /// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack).
@@ -817,7 +813,7 @@ pub fn reconstruct_into(
     let model = leaf_model(leaf)?;
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
-        .ok_or(DecodeError::InvalidData("control quantiser"))?;
+        .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
     let side = model.coded_side(log2);
     match leaf.coding {
         ControlCoding::Transform => {
@@ -848,7 +844,7 @@ fn reconstruct_weights(
     patch.model = model;
     let kind = *WEIGHT_QUANTISER_KINDS
         .get(usize::from(leaf.wquant))
-        .ok_or(DecodeError::InvalidData("weight quantiser"))?;
+        .ok_or(DecodeError::InvalidData(SyntaxElement::WeightQuantiser))?;
     patch.weights = Weights::default_for(model);
     let mut i = 0;
     let mut result = Ok(());
@@ -863,7 +859,7 @@ fn reconstruct_weights(
                 let book = &header.codebooks[slot.class() as usize];
                 let at = book.center() + index;
                 if book.len == 0 || at < 0 || at >= i32::from(book.len) {
-                    result = Err(DecodeError::InvalidData("codebook index"));
+                    result = Err(DecodeError::InvalidData(SyntaxElement::CodebookIndex));
                     0
                 } else {
                     i32::from(book.levels[at as usize])

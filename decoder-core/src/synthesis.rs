@@ -13,7 +13,8 @@
 //! computed directly from the parent grid and handed to the [`PixelSink`] in tiles of at most
 //! [`TILE`] x [`TILE`].
 
-use crate::bitstream::MAX_LEAF_LOG2;
+use crate::format::MAX_LEAF_LOG2;
+use crate::geometry::{Node, Rect};
 use crate::model::{
     tap_point, ModelType, Weights, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN,
     WEIGHT_BITS,
@@ -54,53 +55,83 @@ const fn arena_len() -> usize {
     max
 }
 
-/// Receives decoded pixels, one rectangular tile at a time.
-pub trait PixelSink {
-    /// Pixels of the `w x h` rectangle at `(x, y)`, row-major (`pixels.len() == w * h`).
-    fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]);
-}
-
-/// An axis-aligned rectangle of pixels.
+/// A rectangle of decoded pixels, handed to a [`PixelSink`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Rect {
-    /// Left column.
-    pub x: u32,
-    /// Top row.
-    pub y: u32,
-    /// Width in pixels.
-    pub w: u32,
-    /// Height in pixels.
-    pub h: u32,
+#[non_exhaustive]
+pub struct Tile<'a> {
+    /// Where the pixels go, in image coordinates (at most [`TILE`] x [`TILE`]).
+    pub area: Rect,
+    /// 8-bit luma, row-major, `area.w * area.h` values.
+    pub pixels: &'a [u8],
 }
 
-impl Rect {
-    /// The rectangle of the given size at the origin.
-    pub const fn of_size(w: u32, h: u32) -> Self {
-        Rect { x: 0, y: 0, w, h }
+/// Receives decoded pixels, one [`Tile`] at a time, in the order the decoder makes them. A sink
+/// that fails (a display bus error, a full disk) returns its error, and decoding stops there.
+pub trait PixelSink {
+    /// Why the sink can fail ([`core::convert::Infallible`] when it cannot).
+    type Error;
+
+    /// Takes the pixels of one tile.
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Self::Error>;
+}
+
+impl<S: PixelSink + ?Sized> PixelSink for &mut S {
+    type Error = S::Error;
+
+    #[inline]
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), S::Error> {
+        (**self).tile(tile)
+    }
+}
+
+/// A sink refused a tile: synthesis stops. The sink's own error is kept by [`Catch`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Stop;
+
+/// Where synthesis delivers tiles, as a trait object: one copy of the synthesis serves every
+/// sink (the caller's, the prediction frontier's), which matters more on a microcontroller's
+/// flash than a call per tile does.
+pub trait TileOut {
+    /// Takes one tile; [`Stop`] ends the synthesis.
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop>;
+}
+
+/// A [`PixelSink`] seen as a [`TileOut`]: keeps the sink's first error for [`Catch::finish`].
+pub struct Catch<'s, S: PixelSink + ?Sized> {
+    sink: &'s mut S,
+    error: Option<S::Error>,
+}
+
+impl<'s, S: PixelSink + ?Sized> Catch<'s, S> {
+    /// Wraps `sink`.
+    pub fn new(sink: &'s mut S) -> Self {
+        Catch { sink, error: None }
     }
 
-    fn right(&self) -> u64 {
-        u64::from(self.x) + u64::from(self.w)
+    /// The sink's error if synthesis stopped for it.
+    pub fn finish(self, result: Result<(), Stop>) -> Result<(), S::Error> {
+        match (result, self.error) {
+            (Err(Stop), Some(e)) => Err(e),
+            _ => Ok(()),
+        }
     }
+}
 
-    fn bottom(&self) -> u64 {
-        u64::from(self.y) + u64::from(self.h)
+impl<S: PixelSink + ?Sized> core::fmt::Debug for Catch<'_, S> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Catch")
+            .field("failed", &self.error.is_some())
+            .finish_non_exhaustive()
     }
+}
 
-    /// Whether `other` lies inside this rectangle.
-    pub fn contains(&self, other: &Rect) -> bool {
-        self.x <= other.x
-            && self.y <= other.y
-            && other.right() <= self.right()
-            && other.bottom() <= self.bottom()
-    }
-
-    /// Whether the square of side `ext` at `(x, y)` overlaps this rectangle.
-    pub fn overlaps_square(&self, x: u32, y: u32, ext: u32) -> bool {
-        u64::from(x) < self.right()
-            && u64::from(y) < self.bottom()
-            && u64::from(x) + u64::from(ext) > u64::from(self.x)
-            && u64::from(y) + u64::from(ext) > u64::from(self.y)
+impl<S: PixelSink + ?Sized> TileOut for Catch<'_, S> {
+    #[inline]
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+        self.sink.tile(tile).map_err(|e| {
+            self.error = Some(e);
+            Stop
+        })
     }
 }
 
@@ -183,21 +214,27 @@ impl Patch {
         round_clamp(acc)
     }
 
-    /// Renders the pixels of the leaf block of side `2^log2` at `(x0, y0)` that fall inside
-    /// `clip`, tile by tile. The block must be at least as wide as the grid has intervals, and
-    /// at most 2^15 px (otherwise nothing is drawn); a decoded leaf's block satisfies
-    /// [`ModelType::fits_block`].
-    pub fn render<S: PixelSink>(&self, x0: u32, y0: u32, log2: u8, clip: Rect, sink: &mut S) {
-        self.render_to(x0, y0, log2, clip, sink);
+    /// Renders the pixels of the leaf `node` that fall inside `clip`, tile by tile, into
+    /// `sink`, stopping at the sink's first error. The leaf must be at least as wide as the
+    /// grid has intervals, and at most 2^15 px (otherwise nothing is drawn); a decoded leaf
+    /// satisfies [`ModelType::fits_block`].
+    pub fn render<S: PixelSink + ?Sized>(
+        &self,
+        node: &Node,
+        clip: Rect,
+        sink: &mut S,
+    ) -> Result<(), S::Error> {
+        let mut out = Catch::new(sink);
+        let result = self.render_to(node, clip, &mut out);
+        out.finish(result)
     }
 
-    /// [`Patch::render`] through a trait object: one copy of the synthesis serves every sink
-    /// (the decoder draws through the caller's and keeps its prediction frontier through its
-    /// own), which matters more on a microcontroller's flash than a call per tile does.
+    /// [`Patch::render`] into a [`TileOut`] trait object.
     #[inline(never)]
-    fn render_to(&self, x0: u32, y0: u32, log2: u8, clip: Rect, sink: &mut dyn PixelSink) {
-        if log2 >= 16 || (1u32 << log2) < u32::from(self.model.intervals) {
-            return;
+    pub fn render_to(&self, node: &Node, clip: Rect, out: &mut dyn TileOut) -> Result<(), Stop> {
+        let log2 = node.log2;
+        if log2 >= 16 || (1u32 << log2) < u32::from(self.model.intervals) || clip.is_empty() {
+            return Ok(());
         }
         let mut arena = [0i16; ARENA_LEN];
         let n2 = self.model.control_count();
@@ -205,12 +242,12 @@ impl Patch {
         self.walk(
             &self.control[..n2],
             &mut arena,
-            x0,
-            y0,
+            node.x,
+            node.y,
             spacing,
             &clip,
-            sink,
-        );
+            out,
+        )
     }
 
     /// Subdivides grid `g` (pixel spacing `sp` between its points), storing each child grid at
@@ -224,22 +261,21 @@ impl Patch {
         y: u32,
         sp: u32,
         clip: &Rect,
-        sink: &mut dyn PixelSink,
-    ) {
+        out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
         let n = u32::from(self.model.transforms);
         let side = self.model.grid();
         let n2 = side * side;
         if !clip.overlaps_square(x, y, m * sp) {
-            return;
+            return Ok(());
         }
         if sp <= n {
-            self.emit(g, x, y, sp, clip, sink);
-            return;
+            return self.emit(g, x, y, sp, clip, out);
         }
         let csp = sp / n;
         if below.len() < n2 {
-            return;
+            return Ok(());
         }
         let (child, deeper) = below.split_at_mut(n2);
         for i in 0..n {
@@ -255,15 +291,24 @@ impl Patch {
                         child[u * side + v] = self.point(g, q1, q2) as i16;
                     }
                 }
-                self.walk(child, deeper, cx, cy, csp, clip, sink);
+                self.walk(child, deeper, cx, cy, csp, clip, out)?;
             }
         }
+        Ok(())
     }
 
     /// Emits the `m*sp` square of pixels covered by grid `g`, computing each pixel from `g` at
     /// refined stride `N / sp`.
     #[inline(never)]
-    fn emit(&self, g: &[i16], x: u32, y: u32, sp: u32, clip: &Rect, sink: &mut dyn PixelSink) {
+    fn emit(
+        &self,
+        g: &[i16],
+        x: u32,
+        y: u32,
+        sp: u32,
+        clip: &Rect,
+        out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
         let ext = u32::from(self.model.intervals) * sp;
         let stride = (u32::from(self.model.transforms) / sp.max(1)) as usize;
         let x_lo = x.max(clip.x);
@@ -286,19 +331,30 @@ impl Patch {
                         k += 1;
                     }
                 }
-                sink.tile(tx, ty, tw, th, &buf[..k]);
+                let area = Rect {
+                    x: tx,
+                    y: ty,
+                    w: tw,
+                    h: th,
+                };
+                out.put(Tile {
+                    area,
+                    pixels: &buf[..k],
+                })?;
                 tx += tw;
             }
             ty += th;
         }
+        Ok(())
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bitstream::MIN_LEAF_LOG2;
+    use crate::format::MIN_LEAF_LOG2;
     use crate::model::SAMPLE_ONE;
+    use core::convert::Infallible;
 
     /// Counts the pixels a render delivers and checks each lies in its leaf.
     struct Count {
@@ -307,10 +363,14 @@ mod tests {
     }
 
     impl PixelSink for Count {
-        fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        type Error = Infallible;
+
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+            let Rect { x, y, w, h } = tile.area;
             assert!(x + w <= self.size && y + h <= self.size);
-            assert_eq!(pixels.len() as u32, w * h);
+            assert_eq!(tile.pixels.len() as u32, w * h);
             self.pixels += u64::from(w * h);
+            Ok(())
         }
     }
 
@@ -321,14 +381,23 @@ mod tests {
     }
 
     impl PixelSink for Block {
-        fn tile(&mut self, x: u32, y: u32, w: u32, h: u32, pixels: &[u8]) {
+        type Error = Infallible;
+
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+            let Rect { x, y, w, h } = tile.area;
             for r in 0..h as usize {
                 for c in 0..w as usize {
                     self.pixels[(y as usize + r) * self.size + x as usize + c] =
-                        pixels[r * w as usize + c];
+                        tile.pixels[r * w as usize + c];
                 }
             }
+            Ok(())
         }
+    }
+
+    /// The leaf of side `2^log2` at the origin.
+    fn at_origin(log2: u8) -> Node {
+        Node { x: 0, y: 0, log2 }
     }
 
     /// The default scheme is the tensor product of its line rules, so a control grid that is a
@@ -358,7 +427,7 @@ mod tests {
                 size: 8,
                 pixels: [0; 64],
             };
-            patch.render(0, 0, 3, Rect::of_size(8, 8), &mut block);
+            let Ok(()) = patch.render(&at_origin(3), Rect::of_size(8, 8), &mut block);
             let p = |x: usize, y: usize| i32::from(block.pixels[y * 8 + x]);
             for y in 0..8 {
                 for x in 0..8 {
@@ -409,7 +478,7 @@ mod tests {
                 size,
                 pixels: [0; 64],
             };
-            patch.render(0, 0, log2, Rect::of_size(8, 8), &mut block);
+            let Ok(()) = patch.render(&at_origin(log2), Rect::of_size(8, 8), &mut block);
             for y in 0..size {
                 for x in 0..size {
                     let expected = ((y * side + x) * 37 % 256) as u8;
@@ -441,7 +510,7 @@ mod tests {
                 };
                 let size = 1u32 << log2;
                 let mut sink = Count { size, pixels: 0 };
-                patch.render(0, 0, log2, Rect::of_size(size, size), &mut sink);
+                let Ok(()) = patch.render(&at_origin(log2), Rect::of_size(size, size), &mut sink);
                 assert_eq!(sink.pixels, u64::from(size * size), "{model:?} at 2^{log2}");
             }
         }

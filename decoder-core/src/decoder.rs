@@ -1,0 +1,787 @@
+//! The public decoding API: a [`Decoder`] built over a stream in memory or a sequential source,
+//! optionally cut to a clip rectangle, that hands pixels to a [`PixelSink`].
+//!
+//! A stream in memory ([`Decoder::new`]) is checked whole (length and CRC-32) before anything
+//! is drawn. A sequential source ([`Decoder::from_source`]: a UART, a radio link, an SPI flash
+//! read in order) is never held in memory: the header is collected into a small fixed buffer
+//! ([`MAX_HEADER_LEN`] bytes) and the payload is fed straight into the range decoder, each byte
+//! pulled exactly once; its checksum can only be checked at the end.
+//!
+//! A clip rectangle limits the synthesis, not the entropy decoding: the arithmetic decoder and
+//! the adaptive contexts must see every bit, but leaves outside the clip produce no pixels
+//! (only the edge pixels later leaves are predicted from).
+
+use core::convert::Infallible;
+
+use crate::checksum::Crc32;
+use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
+use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
+use crate::geometry::Rect;
+use crate::prediction::Frontier;
+use crate::syntax::{
+    stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
+};
+use crate::synthesis::{Catch, Patch, PixelSink, Tile};
+use crate::walk::{self, LeafInfo, Node, TreeVisitor, WalkState};
+
+/// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
+/// is drawn or allocated (a host decoding into a buffer it allocates should always set them:
+/// a 17-byte header can announce a 65535 x 65535 image).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Largest accepted width.
+    pub max_width: u16,
+    /// Largest accepted height.
+    pub max_height: u16,
+    /// Largest accepted `width * height`.
+    pub max_pixels: u64,
+}
+
+impl Limits {
+    /// No bound beyond the format's own (65535 x 65535).
+    pub const NONE: Limits = Limits {
+        max_width: u16::MAX,
+        max_height: u16::MAX,
+        max_pixels: u64::MAX,
+    };
+
+    /// At most `max_pixels` pixels, any shape.
+    pub const fn pixels(max_pixels: u64) -> Limits {
+        Limits {
+            max_pixels,
+            ..Limits::NONE
+        }
+    }
+
+    /// `Ok` when `header` describes an image within these bounds, else
+    /// [`DecodeError::TooLarge`].
+    pub fn check(&self, header: &Header) -> Result<(), DecodeError> {
+        let pixels = u64::from(header.width) * u64::from(header.height);
+        if header.width > self.max_width
+            || header.height > self.max_height
+            || pixels > self.max_pixels
+        {
+            return Err(DecodeError::TooLarge {
+                width: header.width,
+                height: header.height,
+            });
+        }
+        Ok(())
+    }
+}
+
+mod sealed {
+    pub trait Sealed {}
+}
+
+/// Where a [`Decoder`] reads a payload from: a stream in memory ([`InMemory`], checked before
+/// decoding) or a sequential source ([`Streamed`], checked at the end). Sealed: the two are
+/// the only ones.
+pub trait Input: sealed::Sealed + ByteSource {
+    /// Whether the payload was verified (length and checksum) before decoding; otherwise it
+    /// must be read to its end even when no pixel of it is wanted.
+    #[doc(hidden)]
+    const VERIFIED: bool;
+
+    /// After the walk: `Ok` when the walk used exactly the payload (and the checksum matches).
+    #[doc(hidden)]
+    fn finish(self, header: &Header) -> Result<(), DecodeError>;
+
+    /// After a walk that failed with `error`: the error to report. A payload not verified
+    /// beforehand reads the rest of its declared length, so that damage is reported as such
+    /// ([`DecodeError::ChecksumMismatch`]) whichever syntax check it happened to trip first,
+    /// exactly as the in-memory decoder reports it.
+    #[doc(hidden)]
+    fn after_error(self, header: &Header, error: DecodeError) -> DecodeError;
+}
+
+/// The payload of a stream in memory, whose length and checksum [`Decoder::new`] checked.
+#[derive(Debug, Clone)]
+pub struct InMemory<'a>(SliceSource<'a>);
+
+impl sealed::Sealed for InMemory<'_> {}
+
+impl ByteSource for InMemory<'_> {
+    #[inline]
+    fn next_byte(&mut self) -> Option<u8> {
+        self.0.next_byte()
+    }
+}
+
+impl Input for InMemory<'_> {
+    const VERIFIED: bool = true;
+
+    fn finish(mut self, _header: &Header) -> Result<(), DecodeError> {
+        match self.next_byte() {
+            None => Ok(()),
+            Some(_) => Err(DecodeError::InvalidData(SyntaxElement::PayloadLength)),
+        }
+    }
+
+    fn after_error(self, _header: &Header, error: DecodeError) -> DecodeError {
+        error
+    }
+}
+
+/// The payload of a sequential source: at most the header's payload length is pulled, and
+/// every byte goes through the stream's CRC-32, checked at the end.
+#[derive(Debug)]
+pub struct Streamed<B> {
+    inner: B,
+    remaining: u32,
+    crc: Crc32,
+}
+
+impl<B> sealed::Sealed for Streamed<B> {}
+
+impl<B: ByteSource> ByteSource for Streamed<B> {
+    #[inline]
+    fn next_byte(&mut self) -> Option<u8> {
+        if self.remaining == 0 {
+            return None;
+        }
+        let b = self.inner.next_byte()?;
+        self.remaining -= 1;
+        self.crc.update_byte(b);
+        Some(b)
+    }
+}
+
+impl<B: ByteSource> Input for Streamed<B> {
+    const VERIFIED: bool = false;
+
+    /// The rest of the payload (which a valid stream does not have) goes into the checksum,
+    /// which must match (damage is the likeliest cause of a short walk); then the walk must
+    /// have used the whole payload.
+    fn finish(self, header: &Header) -> Result<(), DecodeError> {
+        let unread = self.remaining != 0;
+        self.drain_and_check(header)?;
+        if unread {
+            return Err(DecodeError::InvalidData(SyntaxElement::PayloadLength));
+        }
+        Ok(())
+    }
+
+    fn after_error(self, header: &Header, error: DecodeError) -> DecodeError {
+        self.drain_and_check(header).err().unwrap_or(error)
+    }
+}
+
+impl<B: ByteSource> Streamed<B> {
+    /// Reads the rest of the declared payload into the checksum and compares it.
+    fn drain_and_check(mut self, header: &Header) -> Result<(), DecodeError> {
+        while self.next_byte().is_some() {}
+        if self.remaining != 0 {
+            return Err(DecodeError::Truncated);
+        }
+        let computed = self.crc.value();
+        if computed != header.checksum {
+            return Err(DecodeError::ChecksumMismatch {
+                stored: header.checksum,
+                computed,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Decodes one stream: build it over the stream ([`Decoder::new`] for a slice,
+/// [`Decoder::from_source`] for a sequential source), optionally narrow what it draws
+/// ([`Decoder::clip`]) or watch its leaves ([`Decoder::observe`]), then decode into a
+/// [`PixelSink`] ([`Decoder::decode`]) or a buffer ([`Decoder::decode_into`]).
+///
+/// ```
+/// # use decoder_core::{Decoder, DecodeError, Rect};
+/// # fn demo(stream: &[u8]) -> Result<(), DecodeError> {
+/// let decoder = Decoder::new(stream)?; // header, length and checksum checked
+/// let header = *decoder.header();
+/// let mut pixels = vec![0u8; header.pixel_count()];
+/// decoder.decode_into(&mut pixels)?;
+///
+/// // Only the top-left 64 x 64 pixels, into any sink (here a closure-free buffer):
+/// let mut corner = vec![0u8; header.pixel_count()];
+/// Decoder::new(stream)?
+///     .clip(Rect { x: 0, y: 0, w: 64, h: 64 })
+///     .decode_into(&mut corner)?;
+/// # Ok(()) }
+/// ```
+#[derive(Debug, Clone)]
+pub struct Decoder<I, O = fn(&LeafInfo)> {
+    header: Header,
+    input: I,
+    clip: Rect,
+    observer: O,
+}
+
+/// The default observer: ignores every leaf.
+fn ignore_leaf(_: &LeafInfo) {}
+
+impl<'a> Decoder<InMemory<'a>> {
+    /// A decoder of the whole stream `data`, after checking its header, that it is exactly as
+    /// long as the header says, and its checksum: a damaged stream is refused here, before
+    /// anything is drawn.
+    pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
+        let (header, offset) = Header::parse(data)?;
+        let end = offset as u64 + u64::from(header.payload_len);
+        if (data.len() as u64) < end {
+            return Err(DecodeError::Truncated);
+        }
+        if data.len() as u64 > end {
+            return Err(DecodeError::InvalidHeader(HeaderField::TrailingBytes));
+        }
+        let computed = stream_checksum(data);
+        if computed != header.checksum {
+            return Err(DecodeError::ChecksumMismatch {
+                stored: header.checksum,
+                computed,
+            });
+        }
+        Ok(Decoder::verified(header, &data[offset..]))
+    }
+
+    /// A decoder of a payload already checked with its header (by [`Decoder::new`]).
+    pub(crate) fn verified(header: Header, payload: &'a [u8]) -> Self {
+        Decoder::with_input(header, InMemory(SliceSource::new(payload)))
+    }
+}
+
+impl<B: ByteSource> Decoder<Streamed<B>> {
+    /// A decoder that reads its stream from `source` in order, never holding it: reads and
+    /// checks the header now (exactly its bytes: the source is left at the payload), the
+    /// payload while decoding. Because nothing is held, the checksum is checked at the end: a
+    /// damaged stream may draw damaged pixels before [`DecodeError::ChecksumMismatch`] (or the
+    /// error the damage caused) is returned. Exactly the header's and the payload's bytes are
+    /// pulled from `source`, never one more.
+    pub fn from_source(mut source: B) -> Result<Self, DecodeError> {
+        let (header, crc) = read_header(&mut source)?;
+        let input = Streamed {
+            inner: source,
+            remaining: header.payload_len,
+            crc,
+        };
+        Ok(Decoder::with_input(header, input))
+    }
+}
+
+impl<I> Decoder<I> {
+    fn with_input(header: Header, input: I) -> Self {
+        Decoder {
+            header,
+            input,
+            clip: Rect::EVERYTHING,
+            observer: ignore_leaf,
+        }
+    }
+}
+
+impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
+    /// The stream's header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Refuses the stream ([`DecodeError::TooLarge`]) if its image is beyond `limits`.
+    pub fn limits(self, limits: &Limits) -> Result<Self, DecodeError> {
+        limits.check(&self.header)?;
+        Ok(self)
+    }
+
+    /// Draws only the pixels inside `area` (image coordinates; the intersection with any
+    /// earlier clip). The whole payload is still entropy-decoded, so payload errors are
+    /// reported wherever they are.
+    pub fn clip(mut self, area: Rect) -> Self {
+        self.clip = self.clip.intersect(&area);
+        self
+    }
+
+    /// Calls `observer` for every leaf, in coding order, before its pixels (for inspection
+    /// tools).
+    pub fn observe<P: FnMut(&LeafInfo)>(self, observer: P) -> Decoder<I, P> {
+        Decoder {
+            header: self.header,
+            input: self.input,
+            clip: self.clip,
+            observer,
+        }
+    }
+
+    /// Decodes the stream, handing the pixels inside the clip to `sink` tile by tile (no
+    /// frame buffer needed); stops at the stream's or the sink's first error. Returns the
+    /// header.
+    pub fn decode<S: PixelSink + ?Sized>(
+        self,
+        sink: &mut S,
+    ) -> Result<Header, DrawError<S::Error>> {
+        let header = self.header;
+        let image = Rect::of_size(header.width.into(), header.height.into());
+        let mut drawer = Drawer {
+            clip: self.clip.intersect(&image),
+            image,
+            sink,
+            observer: self.observer,
+        };
+        let mut coder = match RangeDecoder::start(self.input) {
+            Ok(coder) => coder,
+            Err((input, e)) => return Err(input.after_error(&header, e).into()),
+        };
+        match run_walk(&header, &mut coder, &mut drawer) {
+            Ok(()) => coder.into_source().finish(&header)?,
+            Err(DrawError::Decode(e)) => {
+                return Err(coder.into_source().after_error(&header, e).into())
+            }
+            Err(sink_error) => return Err(sink_error),
+        }
+        Ok(header)
+    }
+
+    /// Decodes the stream into `out`: row-major, `width` bytes per row, at least
+    /// `width * height * channels` bytes ([`DecodeError::BufferTooSmall`] otherwise). Pixels
+    /// outside the clip are left as they are.
+    pub fn decode_into(self, out: &mut [u8]) -> Result<Header, DecodeError> {
+        let header = self.header;
+        if out.len() < header.pixel_count() * usize::from(header.channels) {
+            return Err(DecodeError::BufferTooSmall);
+        }
+        let mut buffer = Buffer {
+            out,
+            width: usize::from(header.width),
+        };
+        Ok(self.decode(&mut buffer)?)
+    }
+
+    /// Entropy-decodes the whole payload without drawing a pixel: `Ok` when drawing will not
+    /// meet a decoding error.
+    pub fn verify(self) -> Result<Header, DecodeError> {
+        Ok(self.clip(Rect::of_size(0, 0)).decode(&mut NoPixels)?)
+    }
+}
+
+/// Reads exactly the header's bytes from `source` and parses them; returns the header and the
+/// CRC-32 state after its checksummed bytes.
+///
+/// The fixed part is read first; further bytes (the payload length and the optional codebooks)
+/// are pulled one at a time only while [`Header::parse`] reports the header as truncated, so the
+/// source is left at the first payload byte. Errors are those of [`Header::parse`] on the same
+/// bytes; a source that ends early gives [`DecodeError::Truncated`] (or
+/// [`DecodeError::BadMagic`], like a short slice would).
+fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeError> {
+    let mut buf = [0u8; MAX_HEADER_LEN];
+    let mut len = 0;
+    while len < FIXED_HEADER_LEN {
+        match source.next_byte() {
+            Some(b) => {
+                buf[len] = b;
+                len += 1;
+            }
+            None => break,
+        }
+    }
+    loop {
+        match Header::parse(&buf[..len]) {
+            Ok((header, _)) => {
+                let mut crc = Crc32::default();
+                crc.update(&buf[..CHECKSUM_BYTES.start]);
+                crc.update(&buf[CHECKSUM_BYTES.end..len]);
+                return Ok((header, crc));
+            }
+            Err(DecodeError::Truncated) if (FIXED_HEADER_LEN..MAX_HEADER_LEN).contains(&len) => {
+                buf[len] = source.next_byte().ok_or(DecodeError::Truncated)?;
+                len += 1;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// The walk, its final state dropped: every decoding path goes through here. Not inlined, so
+/// that the walk's state (the adaptive contexts and the prediction memory) stays in this one
+/// frame instead of being copied into every caller's.
+#[inline(never)]
+fn run_walk<B: ByteSource, V: TreeVisitor>(
+    header: &Header,
+    coder: &mut RangeDecoder<B>,
+    visitor: &mut V,
+) -> Result<(), V::Error> {
+    let mut state = WalkState::FRESH;
+    state.contexts.start();
+    walk::walk_with(header, coder, visitor, &mut state)
+}
+
+/// The one visitor of every decode: draws each leaf's pixels inside the clip into the sink and
+/// keeps the prediction frontier.
+struct Drawer<'s, S: PixelSink + ?Sized, O> {
+    /// What to draw, already cut to the image.
+    clip: Rect,
+    image: Rect,
+    sink: &'s mut S,
+    observer: O,
+}
+
+impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O> {
+    type Error = DrawError<S::Error>;
+
+    fn split(&mut self, _node: &Node) -> bool {
+        false
+    }
+
+    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
+
+    /// A leaf the clip holds whole fills the frontier as it is drawn; any other leaf has its
+    /// edges rendered apart. Not inlined: the synthesis buffers then live only while a leaf is
+    /// drawn, instead of in every frame of the quadtree walk.
+    #[inline(never)]
+    fn leaf(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier,
+    ) -> Result<(), Self::Error> {
+        (self.observer)(info);
+        let node = &info.node;
+        let mut out = Catch::new(&mut *self.sink);
+        let result = if self.clip.contains(&node.rect().intersect(&self.image)) {
+            patch.render_to(node, self.clip, &mut frontier.capture(node, &mut out))
+        } else {
+            frontier.record(node, patch);
+            patch.render_to(node, self.clip, &mut out)
+        };
+        out.finish(result).map_err(DrawError::Sink)
+    }
+}
+
+/// A row-major frame buffer.
+struct Buffer<'a> {
+    out: &'a mut [u8],
+    width: usize,
+}
+
+impl PixelSink for Buffer<'_> {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+        let Rect { x, y, w, .. } = tile.area;
+        let (x, y, w) = (x as usize, y as usize, w as usize);
+        for (row, src) in tile.pixels.chunks_exact(w).enumerate() {
+            let start = (y + row) * self.width + x;
+            if let Some(dst) = self.out.get_mut(start..start + w) {
+                dst.copy_from_slice(src);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Takes no pixel (none is drawn).
+struct NoPixels;
+
+impl PixelSink for NoPixels {
+    type Error = Infallible;
+
+    fn tile(&mut self, _tile: Tile<'_>) -> Result<(), Infallible> {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+    use crate::syntax::VERSION;
+    use std::path::PathBuf;
+    use std::string::String;
+    use std::vec::Vec;
+
+    /// Records every tile.
+    #[derive(Default, PartialEq, Debug)]
+    struct Recorder {
+        tiles: Vec<(Rect, Vec<u8>)>,
+    }
+
+    impl PixelSink for Recorder {
+        type Error = Infallible;
+
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+            self.tiles.push((tile.area, tile.pixels.to_vec()));
+            Ok(())
+        }
+    }
+
+    /// Fails at its `n`-th tile.
+    struct FailsAt(usize);
+
+    impl PixelSink for FailsAt {
+        type Error = usize;
+
+        fn tile(&mut self, _tile: Tile<'_>) -> Result<(), usize> {
+            if self.0 == 0 {
+                return Err(42);
+            }
+            self.0 -= 1;
+            Ok(())
+        }
+    }
+
+    /// Yields one byte per call and counts the calls made after the end.
+    struct ByteByByte<'a> {
+        data: &'a [u8],
+        pos: usize,
+        past_end: usize,
+    }
+
+    impl<'a> ByteByByte<'a> {
+        fn new(data: &'a [u8]) -> Self {
+            ByteByByte {
+                data,
+                pos: 0,
+                past_end: 0,
+            }
+        }
+    }
+
+    impl ByteSource for ByteByByte<'_> {
+        fn next_byte(&mut self) -> Option<u8> {
+            let b = self.data.get(self.pos).copied();
+            match b {
+                Some(_) => self.pos += 1,
+                None => self.past_end += 1,
+            }
+            b
+        }
+    }
+
+    fn golden() -> Vec<(String, Vec<u8>)> {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/golden");
+        let mut out = Vec::new();
+        if let Ok(entries) = std::fs::read_dir(&dir) {
+            for e in entries.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if name.ends_with(".pifs") {
+                    out.push((name, std::fs::read(e.path()).unwrap()));
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
+    fn header_with_codebooks() -> Vec<u8> {
+        let mut h = Vec::from(*b"PIFS");
+        h.extend_from_slice(&[VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42]);
+        // Checksum (not checked by the header parser), then a payload length of 300 (two
+        // LEB128 bytes).
+        h.extend_from_slice(&[1, 2, 3, 4, 0xAC, 0x02]);
+        for len in [3u8, 16] {
+            h.push(len);
+            for i in 0..i16::from(len) {
+                h.extend_from_slice(&(i * 100 - 700).to_le_bytes());
+            }
+        }
+        h
+    }
+
+    fn decode_slice(data: &[u8], sink: &mut Recorder) -> Result<Header, DecodeError> {
+        Ok(Decoder::new(data)?.decode(sink)?)
+    }
+
+    fn decode_streamed<B: ByteSource>(
+        source: B,
+        sink: &mut Recorder,
+    ) -> Result<Header, DecodeError> {
+        Ok(Decoder::from_source(source)?.decode(sink)?)
+    }
+
+    #[test]
+    fn header_is_read_exactly() {
+        let mut bytes = header_with_codebooks();
+        let len = bytes.len();
+        bytes.extend_from_slice(&[0xAB, 0xCD]);
+        let mut src = ByteByByte::new(&bytes);
+        let (header, _) = read_header(&mut src).unwrap();
+        assert_eq!(src.pos, len, "read past the header");
+        assert_eq!(header.encoded_len(), len);
+        assert_eq!(Header::parse(&bytes).unwrap(), (header, len));
+        assert!(len <= MAX_HEADER_LEN);
+    }
+
+    #[test]
+    fn every_truncated_header_matches_the_slice_parser() {
+        let bytes = header_with_codebooks();
+        for cut in 0..bytes.len() {
+            let mut src = ByteByByte::new(&bytes[..cut]);
+            let streamed = read_header(&mut src).map(|(h, _)| h);
+            let sliced = Header::parse(&bytes[..cut]).map(|(h, _)| h);
+            assert_eq!(streamed, sliced, "cut at {cut}");
+        }
+    }
+
+    #[test]
+    fn streamed_equals_sliced_for_every_golden_vector_and_prefix() {
+        let vectors = golden();
+        assert!(!vectors.is_empty(), "no golden vectors in tests/golden/");
+        for (name, data) in &vectors {
+            let mut sliced = Recorder::default();
+            let r_slice = decode_slice(data, &mut sliced);
+            let mut streamed = Recorder::default();
+            let mut src = ByteByByte::new(data);
+            let r_stream = decode_streamed(&mut src, &mut streamed);
+            assert_eq!(r_stream, r_slice, "{name}");
+            assert_eq!(streamed, sliced, "{name}: tiles differ");
+            assert_eq!((src.pos, src.past_end), (data.len(), 0), "{name}");
+            // Truncated streams fail identically; the slice decoder refuses them before
+            // drawing, the streaming one after drawing a prefix of the image's tiles.
+            for cut in (0..data.len()).step_by(1 + data.len() / 64) {
+                let mut a = Recorder::default();
+                let mut b = Recorder::default();
+                let ra = decode_slice(&data[..cut], &mut a);
+                let rb = decode_streamed(SliceSource::new(&data[..cut]), &mut b);
+                assert_eq!(ra, Err(DecodeError::Truncated), "{name} cut at {cut}");
+                assert_eq!(ra, rb, "{name} cut at {cut}");
+                assert!(
+                    a.tiles.is_empty(),
+                    "{name} cut at {cut}: drew a truncated stream"
+                );
+                assert_eq!(
+                    b.tiles[..],
+                    sliced.tiles[..b.tiles.len()],
+                    "{name} cut at {cut}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn clipped_decoding_is_the_full_decode_cut_to_the_clip() {
+        for (name, data) in &golden() {
+            let Ok(decoder) = Decoder::new(data) else {
+                continue;
+            };
+            let header = *decoder.header();
+            let (w, h) = (u32::from(header.width), u32::from(header.height));
+            let mut full = std::vec![0u8; (w * h) as usize];
+            if decoder.decode_into(&mut full).is_err() {
+                continue;
+            }
+            let clips = [
+                Rect { x: 0, y: 0, w, h },
+                Rect {
+                    x: w / 3,
+                    y: h / 4,
+                    w: w / 2 + 1,
+                    h: h / 3 + 1,
+                },
+                Rect {
+                    x: w - 1,
+                    y: 0,
+                    w: 100,
+                    h: 1,
+                },
+                Rect {
+                    x: w,
+                    y: h,
+                    w: 5,
+                    h: 5,
+                },
+            ];
+            for clip in clips {
+                let mut rec = Recorder::default();
+                Decoder::new(data)
+                    .unwrap()
+                    .clip(clip)
+                    .decode(&mut rec)
+                    .unwrap();
+                let mut streamed = Recorder::default();
+                Decoder::from_source(SliceSource::new(data))
+                    .unwrap()
+                    .clip(clip)
+                    .decode(&mut streamed)
+                    .unwrap();
+                assert_eq!(rec, streamed, "{name}: clip {clip:?}");
+                let inside = clip.intersect(&Rect::of_size(w, h));
+                let mut seen = std::vec![0u32; (w * h) as usize];
+                for (area, px) in &rec.tiles {
+                    assert!(area.w as usize <= crate::synthesis::TILE);
+                    assert!(area.h as usize <= crate::synthesis::TILE);
+                    for j in 0..area.h {
+                        for i in 0..area.w {
+                            let (px_x, px_y) = (area.x + i, area.y + j);
+                            let pixel = Rect {
+                                x: px_x,
+                                y: px_y,
+                                w: 1,
+                                h: 1,
+                            };
+                            assert!(
+                                inside.contains(&pixel),
+                                "{name}: pixel ({px_x}, {px_y}) outside clip {clip:?}"
+                            );
+                            let k = (px_y * w + px_x) as usize;
+                            seen[k] += 1;
+                            assert_eq!(px[(j * area.w + i) as usize], full[k], "{name}");
+                        }
+                    }
+                }
+                let covered = seen.iter().filter(|&&c| c == 1).count() as u32;
+                assert_eq!(covered, inside.w * inside.h, "{name}: clip {clip:?}");
+                assert!(seen.iter().all(|&c| c <= 1), "{name}: overdraw");
+            }
+        }
+    }
+
+    /// A sink's error ends the decode at once and comes back as itself; a streamed decode does
+    /// not read on (past the first leaf of a stream of many).
+    #[test]
+    fn a_failing_sink_stops_the_decode() {
+        for (name, data) in &golden() {
+            let Ok(decoder) = Decoder::new(data) else {
+                continue;
+            };
+            let mut leaves = 0;
+            Decoder::new(data)
+                .unwrap()
+                .observe(|_: &LeafInfo| leaves += 1)
+                .verify()
+                .unwrap();
+            assert_eq!(
+                decoder.decode(&mut FailsAt(1)),
+                Err(DrawError::Sink(42)),
+                "{name}"
+            );
+            let mut src = ByteByByte::new(data);
+            let r = Decoder::from_source(&mut src)
+                .unwrap()
+                .decode(&mut FailsAt(0));
+            assert_eq!(r, Err(DrawError::Sink(42)), "{name}");
+            assert_eq!(src.past_end, 0, "{name}");
+            if leaves > 4 {
+                assert!(
+                    src.pos < data.len(),
+                    "{name}: read on after the sink failed"
+                );
+            }
+        }
+    }
+
+    /// The observer sees every leaf once, in coding order, and a verify draws nothing.
+    #[test]
+    fn observers_see_every_leaf_and_verify_draws_nothing() {
+        for (name, data) in &golden() {
+            let Ok(decoder) = Decoder::new(data) else {
+                continue;
+            };
+            let header = *decoder.header();
+            let mut area = 0u64;
+            decoder
+                .observe(|leaf: &LeafInfo| {
+                    let r = leaf
+                        .node
+                        .rect()
+                        .intersect(&Rect::of_size(header.width.into(), header.height.into()));
+                    area += u64::from(r.w) * u64::from(r.h);
+                })
+                .verify()
+                .unwrap();
+            assert_eq!(area, header.pixel_count() as u64, "{name}");
+        }
+    }
+}
