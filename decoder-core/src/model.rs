@@ -179,9 +179,8 @@ pub enum WeightClass {
 /// `a-1, a, a+1, a+2`: 4-point interpolation that reproduces straight lines, with side lobes
 /// twice those of cubic interpolation (midpoint `(-1, 5, 5, -1) / 8` instead of
 /// `(-1, 9, 9, -1) / 16`; quarter points `(-448, 3648, 1216, -320)` instead of
-/// `(-224, 3360, 1120, -160)`). On six grayscale Kodak images (`rd_sweep`) the sharper scheme
-/// gained 0.03 to 0.10 dB on average at each rate over the cubic one; side lobes of 1.5 or 2.5
-/// times the cubic ones lost up to 0.03 dB against it.
+/// `(-224, 3360, 1120, -160)`): these code photographs better than the cubic taps and than
+/// side lobes of other sizes (see docs/decisions.md).
 pub const fn default_line_taps(n: u8, r: usize) -> [i32; 4] {
     match (n, r) {
         (4, 1) => [-448, 3648, 1216, -320],
@@ -192,17 +191,16 @@ pub const fn default_line_taps(n: u8, r: usize) -> [i32; 4] {
 
 /// Default cell rule taps for phases `(r1, r2)` of `N` transforms, weights on the new points at
 /// column phase `r2` of old rows `a1-1, a1, a1+1, a1+2`: the line rule of row phase `r1`, so
-/// that the default scheme is the tensor product of the line rules. (Version 7 blended the new
-/// points on the cell's four sides instead, which cannot reproduce a quadratic: the tensor
-/// product gained 0.02 to 0.06 dB on average at each rate on six grayscale Kodak images.)
+/// that the default scheme is the tensor product of the line rules (a blend of the new points
+/// on the cell's four sides cannot reproduce a quadratic; see docs/decisions.md).
 pub const fn default_cell_taps(n: u8, r1: usize, _r2: usize) -> [i32; 4] {
     default_line_taps(n, r1)
 }
 
 /// The point of a line of points `0..=m` (`m >= 1`) that tap `t` of a rule for the interval
 /// `a..a+1` weighs: point `a + t - 1`, mirrored at the line's ends (point `-1` is point 1,
-/// point `m + 1` is point `m - 1`). Mirroring rather than repeating the end point: on six
-/// grayscale Kodak images, +0.02 to +0.05 dB on average at each rate.
+/// point `m + 1` is point `m - 1`). Mirroring rather than repeating the end point or
+/// extrapolating the line: it codes photographs best (see docs/decisions.md).
 #[inline]
 pub const fn tap_point(a: usize, t: usize, m: usize) -> usize {
     let j = a + t;

@@ -402,8 +402,8 @@ mod tests {
 
     /// The default scheme is the tensor product of its line rules, so a control grid that is a
     /// sum of a function of the column and a function of the row gives such a sum everywhere:
-    /// `P(x, y) - P(x, 0) - P(0, y) + P(0, 0)` vanishes up to the roundings. (Version 7's cell
-    /// rule, a blend of the cell's four sides, missed by up to 6 grey levels here.)
+    /// `P(x, y) - P(x, 0) - P(0, y) + P(0, 0)` vanishes up to the roundings (a blend of the
+    /// cell's four sides does not: see docs/decisions.md).
     #[test]
     fn default_scheme_keeps_sums_of_row_and_column_functions() {
         for model in [MODELS[1], MODELS[2], MODELS[3]] {

@@ -57,15 +57,14 @@ struct EncodeArgs {
     #[arg(long, group = "target")]
     psnr: Option<f64>,
     /// Smallest leaf side as a power of two (4 px leaves already code every pixel of their own
-    /// with a pixel grid; 2 px leaves make encoding about 1.7 times as long for no gain on the
-    /// Kodak images).
+    /// with a pixel grid; 2 px leaves make encoding much longer for no gain).
     #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     min_leaf_log2: u8,
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     max_leaf_log2: u8,
-    /// Also fit the subdivision weights (the thesis's full inverse problem): about twice the
-    /// analysis time for a few hundredths of a dB at most.
+    /// Also fit the subdivision weights (the thesis's full inverse problem): a much longer
+    /// analysis for very little gain.
     #[arg(long)]
     fit_weights: bool,
 }

@@ -418,9 +418,8 @@ impl SamplePrediction for ImagePrediction<'_> {
 }
 
 /// Whether the analysis fits model `m` when weights are not fitted. The 5x5/4x4 model's default
-/// scheme makes nearly the same surface as the 5x5/2x2 model's: on six Kodak images it was
-/// chosen for under 1% of leaves, and leaving it out changed PSNR by less than 0.01 dB at every
-/// rate while saving about a tenth of the analysis.
+/// scheme makes nearly the same surface as the 5x5/2x2 model's, so searching it too costs
+/// analysis time for hardly any gain (see docs/decisions.md).
 fn searched_with_default_weights(m: u8) -> bool {
     m != 3
 }
@@ -430,10 +429,8 @@ fn searched_with_default_weights(m: u8) -> bool {
 const HULL_LAYERS: usize = 2;
 
 /// Rounding variants are made of the candidates on a node's hull for multipliers within this
-/// factor of the trial's (the targets an analysis serves lie around its trial rate). On six
-/// Kodak images a factor of 16 lost at most 0.002 dB in the mean at any rate against varying
-/// every kept candidate, and took 95 s for their sweep instead of 115 s (79 s without
-/// variants); a factor of 4 lost 0.013 dB at 0.05 bpp, whose analysis is the 0.2 bpp trial's.
+/// factor of the trial's: the targets an analysis serves lie around its trial rate, and
+/// varying candidates far from it costs time for no gain (see docs/decisions.md).
 const VARIANT_WINDOW: f64 = 16.0;
 
 /// Below this mean squared error per pixel, a candidate's error is measured in the closed loop

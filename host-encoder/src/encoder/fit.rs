@@ -118,7 +118,7 @@ impl Lattice {
 
     /// Whether the block's sample at offset `(dx, dy)` is on the lattice and in the image. The
     /// row and column just past the block (where the patch's last control values sit) belong to
-    /// the neighbours and are not fitted: fitting them too cost 0.7 to 0.9 dB.
+    /// the neighbours and are not fitted: fitting them too lost quality (see docs/decisions.md).
     fn wants(&self, dx: u32, dy: u32) -> bool {
         dx < self.size
             && dy < self.size

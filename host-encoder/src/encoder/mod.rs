@@ -52,21 +52,19 @@ pub struct EncoderConfig {
     /// Smallest leaf side, as a power of two (1 to 7; other values are taken as the nearest).
     pub min_leaf_log2: u8,
     /// Largest leaf side, as a power of two (at most 7, the format's largest; a larger value is
-    /// taken as 7, a smaller one than the smallest leaf as that). Default 7 (128 px): 256 px leaves
-    /// were not chosen on the Kodak images checked at 0.05 bpp, leaving them out did not change
-    /// the mean PSNR of the 24 at any rate, and their projections cost a quarter of the
-    /// analysis time.
+    /// taken as 7, a smaller one than the smallest leaf as that). Default 7 (128 px): larger
+    /// leaves were not chosen in practice and their projections are costly (see
+    /// docs/decisions.md).
     pub max_leaf_log2: u8,
     /// Levels of the Lloyd-Max weight codebooks (0: none).
     pub codebook_levels: usize,
     /// Whether to fit the free subdivision weights as well as the control values (the
-    /// thesis's full inverse problem). Off by default: on the grayscale Kodak images it doubled
-    /// the analysis time for about 0.01 dB, since the default scheme fitted exactly (a linear
-    /// least-squares problem) is nearly always the better buy.
+    /// thesis's full inverse problem). Off by default: it makes the analysis much longer for
+    /// a negligible gain, since the default scheme fitted exactly (a linear least-squares
+    /// problem) is nearly always the better buy (see docs/decisions.md).
     pub fit_weights: bool,
     /// Bit rate of the trial encode whose final contexts train the rate estimates: the closer
-    /// to the targets to come, the closer the estimates (0.5 rather than 0.2 for a 0.5 bpp
-    /// target: rate-estimate gap +3.1% -> +0.9%, +0.02 dB on grayscale Kodak).
+    /// to the targets to come, the closer the estimates (see docs/decisions.md).
     pub trial_bpp: f64,
 }
 
@@ -93,9 +91,8 @@ impl Default for EncoderConfig {
     }
 }
 
-/// The lowest trial rate [`Target::trial_bpp`] chooses: trials at the targets' own rates
-/// below it changed the mean PSNR on grayscale Kodak by -0.008 to +0.013 dB (noise), at
-/// 0.5 bpp they gained +0.023 dB.
+/// The lowest trial rate [`Target::trial_bpp`] chooses: below it, trials at the targets' own
+/// rates made no measurable difference (see docs/decisions.md).
 pub const MIN_TRIAL_BPP: f64 = 0.2;
 
 /// What an encode must achieve.

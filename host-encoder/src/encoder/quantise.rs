@@ -483,9 +483,8 @@ fn quantise_coefficients(
     Some(errors[..n].iter().zip(&gradient).map(|(e, g)| e * g).sum())
 }
 
-/// Passes of [`CoefficientQuantiser::refine`] at most. On six Kodak images one pass gained
-/// 0.02 to 0.04 dB; going on until a pass changes nothing (capped here, as dead-zone rounding
-/// could cycle) another 0.01 to 0.03 dB, for about a tenth more analysis time.
+/// Passes of [`CoefficientQuantiser::refine`] at most: refinement goes on until a pass changes
+/// nothing, capped because dead-zone rounding could cycle (see docs/decisions.md).
 const MAX_REFINEMENT_PASSES: usize = 8;
 
 /// What refining the quantised coefficients of one leaf needs, in coding order.
@@ -591,23 +590,19 @@ fn forward_line(g: &mut [f64; MAX_CONTROL], start: usize, stride: usize, m: usiz
 }
 
 /// The Lagrange multiplier of index rounding: bits are worth this much of a leaf's mean
-/// patch error per squared step. On six Kodak images 0.12 did best as the only one (0.10 and
-/// 0.14 within 0.01 dB); at high rate a uniform quantiser's slope is `2 ln 2 / 12 = 0.116`.
+/// patch error per squared step, close to a uniform quantiser's slope at high rate,
+/// `2 ln 2 / 12` (see docs/decisions.md).
 pub const ROUNDING_LAMBDA: f64 = 0.12;
 
 /// Other multipliers each candidate the rate control keeps is also rounded with
 /// ([`crate::Analysis`]): a leaf's control steps are a factor of 1.33 to 1.5 apart, and the
 /// same step rounded with fewer zeros (or more) fills the gaps between them on the leaf's
-/// rate/distortion curve. On six Kodak images (kodim01, 05, 08, 13, 19, 23) these four gained
-/// +0.029 / +0.051 / +0.084 / +0.098 dB at 0.05 / 0.1 / 0.25 / 0.5 bpp; 0.02, 0.04, 0.07
-/// gained +0.029 / +0.040 / +0.064 / +0.092, 0.25, 0.5, 1.0 only +0.005 / +0.024 / +0.033 /
-/// +0.022.
+/// rate/distortion curve (see docs/decisions.md).
 pub const ROUNDING_VARIANTS: [f64; 4] = [0.03, 0.06, 0.25, 0.5];
 
 /// Targets below this many steps become zero without pricing the alternatives: a nonzero
-/// index there adds at least 0.2 of its weight in error, which its bits hardly ever repay (on
-/// six Kodak images the same PSNR to within 0.01 dB; their analyses took 53 s in all instead
-/// of 62 s, on a machine whose timings vary by 10-20%).
+/// index there adds at least 0.2 of its weight in error, which its bits hardly ever repay, and
+/// skipping the pricing saves analysis time (see docs/decisions.md).
 const SURE_ZERO: f64 = 0.4;
 
 /// How the control indices of one leaf are rounded: each index but the first is the one next
@@ -681,9 +676,8 @@ impl IndexRounding {
     ) -> i32 {
         if i == 0 {
             // The first index's residual is coded against a prediction from earlier leaves that
-            // is not known here: it is rounded to nearest. (Version 7's dead zone for it, of
-            // gain 0.15 by its weight, cost 0.002 to 0.013 dB on six Kodak images at each rate
-            // with version 8's synthesis.)
+            // is not known here: it is rounded to nearest, not through a dead zone (see
+            // docs/decisions.md).
             let magnitude = (v.abs() + 0.5) as i32;
             return if v < 0.0 { -magnitude } else { magnitude };
         }
@@ -1000,8 +994,7 @@ mod tests {
     /// lowers the error that quantising the 9x9 model's grid transform adds to its exact fits
     /// (summed over blocks and mid-range steps) by more than a tenth, for no more bits (as the
     /// rounding prices them), against rounding each coefficient on its own with equal weights
-    /// (measured with the rate-distortion rounding: 19% less error, 1.5% fewer bits; the
-    /// rate/distortion gain itself is measured on Kodak by `bench/kodak.sh`).
+    /// (the margins measured are in docs/decisions.md).
     #[test]
     fn error_feedback_lowers_the_added_error() {
         use super::super::fit::fit_default;
@@ -1056,8 +1049,7 @@ mod tests {
 
     /// On the bundled sample image, DPCM pixel grids of 8 px quantised and coded against the
     /// pixels beside them (the image's own, as the analysis takes them) take fewer bits than
-    /// without them, for no more error (measured at step 96: 7.0% fewer bits, 0.8% less added
-    /// error).
+    /// without them, for no more error (the margins measured are in docs/decisions.md).
     #[test]
     fn dpcm_edges_are_coded_against_the_pixels_beside_them() {
         use super::super::analysis::ImagePrediction;
