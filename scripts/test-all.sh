@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test of the project, the QEMU (Cortex-M3 and Cortex-M0) firmware tests included,
 # installing first what a fresh machine lacks: the Cortex-M Rust targets and qemu-system-arm.
+# Every test binary runs even when one fails; the last line gives the totals, and the exit
+# status is non-zero when any test failed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,8 +18,10 @@ fi
 cargo build -p decoder-core --release --target thumbv6m-none-eabi
 
 # Host tests, integration tests and the firmware under QEMU (tests/tests/qemu.rs), then one
-# closing line with the totals over every test binary.
+# closing line with the totals over every test binary, whatever happened before it.
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
-cargo test --workspace 2>&1 | tee "$log"
+status=0
+cargo test --workspace --no-fail-fast 2>&1 | tee "$log" || status=$?
 awk '/^test result:/ { p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' "$log"
+exit "$status"
