@@ -159,7 +159,8 @@ pub enum EncodeError {
     QualityUnreachable {
         /// Requested PSNR, dB.
         requested: f64,
-        /// Best reachable, dB.
+        /// Best reachable, dB: the PSNR of the analysis's highest-quality stream (the one a
+        /// budget of unlimited bytes writes from it), so that any target up to it is met.
         best: f64,
     },
     /// The shared syntax code refused what the encoder asked it to write (a bug).
@@ -180,6 +181,8 @@ impl fmt::Display for EncodeError {
                 write!(f, "budget of {budget} bytes is too small: the smallest stream for this image is {smallest} bytes")
             }
             EncodeError::QualityUnreachable { requested, best } => {
+                // Rounded down: a target of the figure shown is reachable.
+                let best = (best * 100.0).floor() / 100.0;
                 write!(f, "PSNR {requested:.2} dB is unreachable: the best this encoder reaches is {best:.2} dB")
             }
             EncodeError::Syntax(_) => {
@@ -396,13 +399,14 @@ impl Analysis {
 
     /// Smallest stream whose PSNR reaches `db`. The plan's error is an estimate (exact fits'
     /// quadratic forms): while the real stream misses the target, the plan aims lower by the
-    /// miss.
+    /// miss. When no pass reaches it, the highest-quality stream ([`Analysis::best_stream`])
+    /// is the last resort: a target up to its PSNR is always met, and its PSNR is the best
+    /// that [`EncodeError::QualityUnreachable`] reports.
     fn encode_quality(&self, header: &Header, db: f64) -> Result<Encoded, EncodeError> {
         let pixels = self.header.pixel_count() as f64;
         let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
         let mut aim = max_sse;
         let mut anchor = self.trial;
-        let mut best: Option<Encoded> = None;
         for _ in 0..QUALITY_PASSES {
             let plan = self.rates.plan_for_sse(self, header, aim, Some(anchor));
             let written = self.write(header, &plan)?;
@@ -413,14 +417,40 @@ impl Analysis {
             // At least a little lower each pass, in case the plan did not change.
             aim *= (max_sse / encoded.sse).min(0.995);
             anchor = plan.anchor();
+        }
+        let best = self.best_stream()?;
+        // A target given as the PSNR shown (rounded down) is met despite the rounding of the
+        // conversion to an error.
+        if best.sse <= max_sse * (1.0 + 1e-9) {
+            return Ok(best);
+        }
+        Err(EncodeError::QualityUnreachable {
+            requested: db,
+            best: best.psnr,
+        })
+    }
+
+    /// The stream of least error this analysis writes, with or without the codebooks: the
+    /// plan of the smallest multiplier, which spends all the rate it wants (what a budget of
+    /// unlimited bytes writes). The same whichever header variant asks.
+    fn best_stream(&self) -> Result<Encoded, EncodeError> {
+        let mut variants = vec![Header {
+            codebooks: [Codebook::EMPTY; 2],
+            ..self.header
+        }];
+        if self.header.has_codebooks() {
+            variants.push(self.header);
+        }
+        let mut best: Option<Encoded> = None;
+        for header in &variants {
+            let plan = self.rates.plan_for_bits(self, header, f64::INFINITY, None);
+            let written = self.write(header, &plan)?;
+            let encoded = self.finish(header, &plan, written)?;
             if best.as_ref().is_none_or(|b| encoded.sse < b.sse) {
                 best = Some(encoded);
             }
         }
-        Err(EncodeError::QualityUnreachable {
-            requested: db,
-            best: best.map_or(0.0, |b| b.psnr),
-        })
+        best.ok_or(EncodeError::Internal("no header variant"))
     }
 }
 
