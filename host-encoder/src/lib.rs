@@ -15,6 +15,10 @@
 //! let good = analysis.encode(Target::Psnr(30.0)).unwrap();
 //! # let _ = (small, good);
 //! ```
+//!
+//! The `pifs` tool is behind the default cargo feature `cli`; a library user writes
+//! `host-encoder = { version = "…", default-features = false }` and gets no command-line
+//! dependencies (`clap`, `indicatif`, `plotters`).
 #![deny(
     missing_docs,
     missing_debug_implementations,

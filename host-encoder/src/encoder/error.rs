@@ -30,7 +30,8 @@ pub enum EncodeError {
     QualityUnreachable {
         /// Requested PSNR, dB.
         requested: f64,
-        /// Best reachable, dB.
+        /// Best reachable, dB: the PSNR of the analysis's highest-quality stream (the one a
+        /// budget of unlimited bytes writes from it), so that any target up to it is met.
         best: f64,
     },
     /// The shared syntax code refused what the encoder asked it to write (a bug).
@@ -51,6 +52,8 @@ impl fmt::Display for EncodeError {
                 write!(f, "budget of {budget} bytes is too small: the smallest stream for this image is {smallest} bytes")
             }
             EncodeError::QualityUnreachable { requested, best } => {
+                // Rounded down: a target of the figure shown is reachable.
+                let best = (best * 100.0).floor() / 100.0;
                 write!(f, "PSNR {requested:.2} dB is unreachable: the best this encoder reaches is {best:.2} dB")
             }
             EncodeError::Syntax(_) => {

@@ -214,13 +214,14 @@ impl Analysis {
 
     /// Smallest stream whose PSNR reaches `db`. The plan's error is an estimate (exact fits'
     /// quadratic forms): while the real stream misses the target, the plan aims lower by the
-    /// miss.
+    /// miss. When no pass reaches it, the highest-quality stream ([`Analysis::best_stream`])
+    /// is the last resort: a target up to its PSNR is always met, and its PSNR is the best
+    /// that [`EncodeError::QualityUnreachable`] reports.
     fn encode_quality(&self, header: &Header, db: f64) -> Result<Encoded, EncodeError> {
         let pixels = self.header.pixel_count() as f64;
         let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
         let mut aim = max_sse;
         let mut anchor = self.trial;
-        let mut best: Option<Encoded> = None;
         for _ in 0..QUALITY_PASSES {
             let plan = self.rates.plan_for_sse(self, header, aim, Some(anchor));
             let written = self.write(header, &plan)?;
@@ -231,14 +232,40 @@ impl Analysis {
             // At least a little lower each pass, in case the plan did not change.
             aim *= (max_sse / encoded.sse).min(0.995);
             anchor = plan.anchor();
+        }
+        let best = self.best_stream()?;
+        // A target given as the PSNR shown (rounded down) is met despite the rounding of the
+        // conversion to an error.
+        if best.sse <= max_sse * (1.0 + 1e-9) {
+            return Ok(best);
+        }
+        Err(EncodeError::QualityUnreachable {
+            requested: db,
+            best: best.psnr,
+        })
+    }
+
+    /// The stream of least error this analysis writes, with or without the codebooks: the
+    /// plan of the smallest multiplier, which spends all the rate it wants (what a budget of
+    /// unlimited bytes writes). The same whichever header variant asks.
+    fn best_stream(&self) -> Result<Encoded, EncodeError> {
+        let mut variants = vec![Header {
+            codebooks: [Codebook::EMPTY; 2],
+            ..self.header
+        }];
+        if self.header.has_codebooks() {
+            variants.push(self.header);
+        }
+        let mut best: Option<Encoded> = None;
+        for header in &variants {
+            let plan = self.rates.plan_for_bits(self, header, f64::INFINITY, None);
+            let written = self.write(header, &plan)?;
+            let encoded = self.finish(header, &plan, written)?;
             if best.as_ref().is_none_or(|b| encoded.sse < b.sse) {
                 best = Some(encoded);
             }
         }
-        Err(EncodeError::QualityUnreachable {
-            requested: db,
-            best: best.map_or(0.0, |b| b.psnr),
-        })
+        best.ok_or(EncodeError::Internal("no header variant"))
     }
 }
 
