@@ -653,8 +653,13 @@ mod tests {
                 for v in control.iter_mut().take(side * side) {
                     *v = (next(12288) - 4096) as i16;
                 }
-                let deviations: [i32; crate::model::MAX_WEIGHTS] =
-                    core::array::from_fn(|_| if trial % 2 == 0 { next(8193) - 4096 } else { next(32769) - 16384 });
+                let deviations: [i32; crate::model::MAX_WEIGHTS] = core::array::from_fn(|_| {
+                    if trial % 2 == 0 {
+                        next(8193) - 4096
+                    } else {
+                        next(32769) - 16384
+                    }
+                });
                 let patch = Patch {
                     model,
                     control,
