@@ -65,7 +65,7 @@ pub use error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 pub use format::{MAGIC, VERSION};
 pub use geometry::{Node, Rect};
 pub use syntax::{ControlCoding, Header, MAX_HEADER_LEN};
-pub use synthesis::{PixelSink, Tile, TILE};
+pub use synthesis::{PixelSink, Scale, Tile, TILE};
 pub use walk::LeafInfo;
 
 /// The format's machinery that the host encoder and the project's tests share with this

@@ -7,46 +7,128 @@
 //! tap magnitudes of a rule is at most `3 * 8192 + 28672 = 53248`, and `53248 * 8192 < 2^31`, so
 //! the accumulation never overflows an `i32`.
 //!
-//! Evaluation is depth-first: a control grid is refined one sub-grid at a time and each sub-grid
-//! is refined recursively, so memory is one small grid per level (at most
-//! [`ARENA_LEN`] values), independent of the block size. The last level is not stored: pixels are
-//! computed directly from the parent grid and handed to the [`PixelSink`] in tiles of at most
-//! [`TILE`] x [`TILE`].
+//! Evaluation is depth-first: a control grid is refined one child grid at a time and each child
+//! is refined recursively, so memory is one small grid per level (at most [`ARENA_LEN`] values),
+//! independent of the block size. A grid whose square fits an output tile ([`TILE`] x [`TILE`]
+//! pixels) is refined level by level in one lattice of the tile's points, its child grids side by
+//! side, each mirrored at its own ends (a child grid's points depend only on that child grid);
+//! a grid whose points are at most `N` pixels apart but whose square is larger than a tile is
+//! refined once, one tile's window of points at a time.
+//!
+//! A patch can also be drawn at a [`Scale`] other than the coded size: smaller by stopping the
+//! subdivision earlier (pixel `(X, Y)` of a decode at `1/2^k` is pixel `(X 2^k, Y 2^k)` of the
+//! full decode, exactly), larger by letting it go on below the pixel (pixel `(X, Y)` of a decode
+//! at `2^k` is the patch's point at `(X / 2^k, Y / 2^k)`).
 
 use crate::format::MAX_LEAF_LOG2;
 use crate::geometry::{Node, Rect};
-use crate::model::{
-    tap_point, ModelType, Weights, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_BITS, SAMPLE_MAX,
-    SAMPLE_MIN, WEIGHT_BITS,
-};
+use crate::model::{ModelType, Weights, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
 #[cfg(doc)]
 use crate::model::{SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE};
 
 /// Side of the tiles handed to a [`PixelSink`].
 pub const TILE: usize = 8;
-/// Values of the per-level grid stack below a patch's control grid: the most that any model
-/// needs at the largest leaf (9x9 grids on two levels for the 9x9/4x4 model).
-pub const ARENA_LEN: usize = arena_len();
+
+/// Values of the per-level grid stack below a patch's control grid at the coded size: the most
+/// that any model needs at the largest leaf (four 5x5 grids for the 5x5/2x2 model).
+pub const ARENA_LEN: usize = arena_len(0);
+
+/// The same for decodes at up to four times the coded size ([`Scale::Quadruple`]): two 9x9
+/// grids for the 9x9/4x4 model. Only an enlarged decode uses it.
+const ARENA_LARGE_LEN: usize = arena_len(2);
+
+/// The output size of a decode relative to the coded image. Smaller decodes stop the
+/// subdivision earlier: pixel `(X, Y)` of a decode at `1/2^k` is pixel `(X 2^k, Y 2^k)` of the
+/// full decode (so a leaf smaller than `2^k` pixels draws its top-left control value if that
+/// pixel is one of those, else nothing). Larger decodes continue the subdivision below the
+/// pixel: pixel `(X, Y)` of a decode at `2^k` is the patch's value at `(X / 2^k, Y / 2^k)` (the
+/// fractal detail of the patches at half or quarter pixels). An image of `w x h` pixels decodes
+/// to `ceil(w s) x ceil(h s)` ([`Scale::apply`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Scale {
+    /// One eighth of the coded size.
+    Eighth,
+    /// One quarter.
+    Quarter,
+    /// One half.
+    Half,
+    /// The coded size.
+    #[default]
+    One,
+    /// Twice the coded size.
+    Double,
+    /// Four times the coded size.
+    Quadruple,
+}
+
+impl Scale {
+    /// Every scale, smallest first.
+    pub const ALL: [Scale; 6] = [
+        Scale::Eighth,
+        Scale::Quarter,
+        Scale::Half,
+        Scale::One,
+        Scale::Double,
+        Scale::Quadruple,
+    ];
+
+    /// The scale as a power of two: -3 for [`Scale::Eighth`] up to 2 for [`Scale::Quadruple`].
+    pub const fn log2(self) -> i32 {
+        match self {
+            Scale::Eighth => -3,
+            Scale::Quarter => -2,
+            Scale::Half => -1,
+            Scale::One => 0,
+            Scale::Double => 1,
+            Scale::Quadruple => 2,
+        }
+    }
+
+    /// The scale `2^log2`, if there is one.
+    pub const fn from_log2(log2: i32) -> Option<Scale> {
+        match log2 {
+            -3 => Some(Scale::Eighth),
+            -2 => Some(Scale::Quarter),
+            -1 => Some(Scale::Half),
+            0 => Some(Scale::One),
+            1 => Some(Scale::Double),
+            2 => Some(Scale::Quadruple),
+            _ => None,
+        }
+    }
+
+    /// A length of the coded image at this scale, rounded up: `ceil(length * s)`.
+    pub const fn apply(self, length: u32) -> u32 {
+        let k = self.log2();
+        if k >= 0 {
+            length << k
+        } else {
+            let k = -k as u32;
+            (length >> k) + (length & ((1 << k) - 1) != 0) as u32
+        }
+    }
+}
 
 /// The stored grids below the control grid when `model` tabulates a leaf of side `2^log2`, in
-/// values: one grid per subdivision level whose points are more than `N` pixels apart (the
-/// last level goes straight to pixels).
-const fn stored_values(model: ModelType, log2: u8) -> usize {
+/// values: one grid per subdivision level whose square is larger than a tile and whose points
+/// are more than `N` pixels apart (see [`Patch::walk`]).
+const fn stored_values(model: ModelType, log2: u32) -> usize {
     let n = model.transforms as u32;
-    let mut sp = (1u32 << log2) / model.intervals as u32;
+    let m = model.intervals as u32;
+    let mut sp = (1u32 << log2) / m;
     let mut levels = 0;
-    while sp > n {
+    while m * sp > TILE as u32 && sp > n {
         sp /= n;
         levels += 1;
     }
     levels * model.control_count()
 }
 
-const fn arena_len() -> usize {
+const fn arena_len(enlarge_log2: u32) -> usize {
     let mut max = 0;
     let mut i = 0;
     while i < MODELS.len() {
-        let v = stored_values(MODELS[i], MAX_LEAF_LOG2);
+        let v = stored_values(MODELS[i], MAX_LEAF_LOG2 as u32 + enlarge_log2);
         if v > max {
             max = v;
         }
@@ -146,15 +228,319 @@ pub struct Patch {
     pub weights: Weights,
 }
 
-#[inline]
-fn round_clamp(acc: i32) -> i32 {
-    ((acc + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS).clamp(SAMPLE_MIN, SAMPLE_MAX)
-}
-
 /// Converts a sample value to an 8-bit pixel (round to nearest, saturate).
 #[inline]
 pub fn sample_to_pixel(v: i32) -> u8 {
     ((v + (1 << (SAMPLE_BITS - 1))) >> SAMPLE_BITS).clamp(0, 255) as u8
+}
+
+/// How a rule's new point is made from the four values its taps weigh.
+trait Rule: Copy {
+    /// The new point from the values of the points its taps weigh.
+    fn apply(self, a: i16, b: i16, c: i16, d: i16) -> i16;
+
+    /// The new point as an 8-bit pixel: [`sample_to_pixel`] of [`Rule::apply`], in one
+    /// rounding (the clamp to the sample range cannot change a pixel).
+    fn pixel(self, a: i16, b: i16, c: i16, d: i16) -> u8;
+}
+
+/// A rule with any taps: `(sum of tap * value + 2048) >> 12`, clamped to the sample range.
+/// Wrapping arithmetic: it cannot overflow for a decoded patch (see the module
+/// documentation), and no hand-made patch can make it panic.
+#[derive(Clone, Copy)]
+struct Taps([i32; 4]);
+
+impl Taps {
+    /// A rule's taps, widened.
+    #[inline(always)]
+    fn of(taps: &[i16; 4]) -> Taps {
+        Taps([
+            i32::from(taps[0]),
+            i32::from(taps[1]),
+            i32::from(taps[2]),
+            i32::from(taps[3]),
+        ])
+    }
+}
+
+impl Rule for Taps {
+    #[inline(always)]
+    fn apply(self, a: i16, b: i16, c: i16, d: i16) -> i16 {
+        let t = self.0;
+        let acc = t[0]
+            .wrapping_mul(i32::from(a))
+            .wrapping_add(t[1].wrapping_mul(i32::from(b)))
+            .wrapping_add(t[2].wrapping_mul(i32::from(c)))
+            .wrapping_add(t[3].wrapping_mul(i32::from(d)));
+        clamp_sample(acc.wrapping_add(2048) >> 12)
+    }
+
+    #[inline(always)]
+    fn pixel(self, a: i16, b: i16, c: i16, d: i16) -> u8 {
+        let t = self.0;
+        let acc = t[0]
+            .wrapping_mul(i32::from(a))
+            .wrapping_add(t[1].wrapping_mul(i32::from(b)))
+            .wrapping_add(t[2].wrapping_mul(i32::from(c)))
+            .wrapping_add(t[3].wrapping_mul(i32::from(d)));
+        // floor((floor((acc + 2048) / 4096) + 8) / 16) = floor((acc + 2048 + 8 * 4096) / 65536)
+        (acc.wrapping_add(2048 + (8 << 12)) >> 16).clamp(0, 255) as u8
+    }
+}
+
+/// The default rule of two transforms, taps `(-1, 5, 5, -1) / 8`: `acc = 512 (5 (b + c) - (a
+/// + d))`, so `(acc + 2048) >> 12` is `(5 (b + c) - (a + d) + 4) >> 3`, without multiplies.
+/// (On a bilinear patch's two-point lines, mirrored, it is the rounded midpoint.)
+#[derive(Clone, Copy)]
+struct Midpoint;
+
+/// The taps of [`Midpoint`].
+const MIDPOINT: [i16; 4] = [-512, 2560, 2560, -512];
+
+impl Rule for Midpoint {
+    #[inline(always)]
+    fn apply(self, a: i16, b: i16, c: i16, d: i16) -> i16 {
+        let (a, b, c, d) = (i32::from(a), i32::from(b), i32::from(c), i32::from(d));
+        let inner = b + c;
+        clamp_sample((inner + 4 * inner - (a + d) + 4) >> 3)
+    }
+
+    #[inline(always)]
+    fn pixel(self, a: i16, b: i16, c: i16, d: i16) -> u8 {
+        let (a, b, c, d) = (i32::from(a), i32::from(b), i32::from(c), i32::from(d));
+        let inner = b + c;
+        ((inner + 4 * inner - (a + d) + 4 + (8 << 3)) >> 7).clamp(0, 255) as u8
+    }
+}
+
+/// `v` clamped to the sample range (which fits an `i16`): one unsigned compare when it is in
+/// range, as it nearly always is.
+#[inline(always)]
+fn clamp_sample(v: i32) -> i16 {
+    if (v.wrapping_sub(SAMPLE_MIN) as u32) <= (SAMPLE_MAX - SAMPLE_MIN) as u32 {
+        v as i16
+    } else {
+        saturate(v)
+    }
+}
+
+/// [`clamp_sample`] of a value out of range.
+#[cold]
+#[inline(never)]
+fn saturate(v: i32) -> i16 {
+    if v < 0 {
+        SAMPLE_MIN as i16
+    } else {
+        SAMPLE_MAX as i16
+    }
+}
+
+/// Runs `$body` with `$rule` bound to the fastest [`Rule`] for the taps `$taps`.
+macro_rules! with_rule {
+    ($taps:expr, |$rule:ident| $body:expr) => {{
+        let taps: &[i16; 4] = $taps;
+        if *taps == MIDPOINT {
+            let $rule = Midpoint;
+            $body
+        } else {
+            let $rule = Taps::of(taps);
+            $body
+        }
+    }};
+}
+
+/// `out[x] = rule(a[x], b[x], c[x], d[x])` for `x = start, start + step, ...` up to `end`
+/// (inclusive): a new row of a lattice from four old rows.
+#[inline(never)]
+fn across<R: Rule>(
+    rule: R,
+    out: &mut [i16; LATTICE],
+    [a, b, c, d]: [&[i16; LATTICE]; 4],
+    start: usize,
+    end: usize,
+    step: usize,
+) {
+    let end = end.min(TILE);
+    let mut x = start;
+    while x <= end {
+        out[x] = rule.apply(a[x], b[x], c[x], d[x]);
+        x += step;
+    }
+}
+
+/// `out[i] = rule(a[i], b[i], c[i], d[i])` as pixels, for every `i` of `out` (at most a row
+/// of the lattice): a row of output pixels from four old rows.
+#[inline(never)]
+fn across_pixels<R: Rule>(rule: R, out: &mut [u8], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
+    for ((((p, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+        *p = rule.pixel(a, b, c, d);
+    }
+}
+
+/// `out[i] = rule(a[i], b[i], c[i], d[i])` for every `i` of `out` (at most a row of the
+/// lattice).
+#[inline(never)]
+fn across_samples<R: Rule>(rule: R, out: &mut [i16], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
+    for ((((v, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+        *v = rule.apply(a, b, c, d);
+    }
+}
+
+/// `out[i] = sample_to_pixel(src[i])` for every `i` of `out`.
+#[inline(never)]
+fn to_pixels(out: &mut [u8], src: &[i16]) {
+    for (p, &v) in out.iter_mut().zip(src) {
+        *p = sample_to_pixel(i32::from(v));
+    }
+}
+
+/// The old point itself (phase 0 of a refinement): a [`Rule`] with the taps `(0, 1, 0, 0)`.
+#[derive(Clone, Copy)]
+struct Keep;
+
+impl Rule for Keep {
+    #[inline(always)]
+    fn apply(self, _a: i16, b: i16, _c: i16, _d: i16) -> i16 {
+        b
+    }
+
+    #[inline(always)]
+    fn pixel(self, _a: i16, b: i16, _c: i16, _d: i16) -> u8 {
+        sample_to_pixel(i32::from(b))
+    }
+}
+
+/// `out[i] = rule(pad[a..a + 4])` for `i = start, start + period, ...`, `a` growing by `step`
+/// from `a`: the new points of one phase of a padded old row.
+#[inline(never)]
+fn pad_points<R: Rule>(
+    rule: R,
+    out: &mut [i16],
+    pad: &[i16; LATTICE + 3],
+    mut a: usize,
+    (start, period, step): (usize, usize, usize),
+) {
+    let mut i = start;
+    while let (Some(v), Some(&[p0, p1, p2, p3])) = (out.get_mut(i), pad.get(a..a + 4)) {
+        *v = rule.apply(p0, p1, p2, p3);
+        i += period;
+        a += step;
+    }
+}
+
+/// `pad` = the old row `row` (`m + 1` points, `m >= 1`) between its mirrored end points:
+/// `row[1], row[0], ..., row[m], row[m - 1]`, so that the taps of interval `a` are
+/// `pad[a..a + 4]`.
+#[inline(always)]
+fn fill_pad(pad: &mut [i16; LATTICE + 3], row: &[i16]) {
+    copy_short(&mut pad[1..], row);
+    let m = row.len().saturating_sub(1);
+    pad[0] = row.get(1).copied().unwrap_or(0);
+    if let (Some(p), Some(&v)) = (pad.get_mut(m + 2), row.get(m.wrapping_sub(1))) {
+        *p = v;
+    }
+}
+
+/// Copies `src` into `dst` (as much as both hold) one value at a time: for the short rows
+/// here a call to `memcpy` costs more than the copy (the compiler fence, which emits nothing,
+/// keeps the loop from becoming one).
+#[inline(always)]
+fn copy_short(dst: &mut [i16], src: &[i16]) {
+    for (d, &s) in dst.iter_mut().zip(src) {
+        *d = s;
+        core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// Row `y` of `lattice` (mutable) and its rows `taps` (which must not include `y`).
+#[inline(always)]
+fn split_rows(
+    lattice: &mut Lattice,
+    y: usize,
+    taps: [usize; 4],
+) -> Option<(&mut [i16; LATTICE], [&[i16; LATTICE]; 4])> {
+    let (above, rest) = lattice.split_at_mut(y);
+    let (new, below) = rest.split_first_mut()?;
+    let pick = |t: usize| {
+        if t < y {
+            above.get(t)
+        } else {
+            below.get(t.wrapping_sub(y + 1))
+        }
+    };
+    let [t0, t1, t2, t3] = taps;
+    Some((new, [pick(t0)?, pick(t1)?, pick(t2)?, pick(t3)?]))
+}
+
+/// `row[x] = rule(row[p0], row[p1], row[p2], row[p3])` in the rows `first, first + step, ...`
+/// up to `last` (inclusive) of `lattice`: a new column of old rows.
+#[inline(never)]
+fn along<R: Rule>(
+    rule: R,
+    lattice: &mut Lattice,
+    x: usize,
+    [p0, p1, p2, p3]: [usize; 4],
+    first: usize,
+    last: usize,
+    step: usize,
+) {
+    let (x, p0, p1, p2, p3) = (
+        x.min(TILE),
+        p0.min(TILE),
+        p1.min(TILE),
+        p2.min(TILE),
+        p3.min(TILE),
+    );
+    let mut y = first;
+    while y <= last {
+        let Some(row) = lattice.get_mut(y) else {
+            return;
+        };
+        row[x] = rule.apply(row[p0], row[p1], row[p2], row[p3]);
+        y += step;
+    }
+}
+
+/// Side of the lattice of a tile's points: its pixels and the points on its far edges.
+const LATTICE: usize = TILE + 1;
+
+/// The points of a tile (or the row rule's points of a refinement window), by row.
+type Lattice = [[i16; LATTICE]; LATTICE];
+
+/// Where a grid lies in the output: its top-left point and the output pixels between its
+/// points (at least 1).
+#[derive(Debug, Clone, Copy)]
+struct Square {
+    x: u32,
+    y: u32,
+    sp: u32,
+}
+
+impl Square {
+    /// The square of child grid `(i, j)` of a grid with `m` intervals refined by `n`.
+    fn child(&self, m: u32, n: u32, i: u32, j: u32) -> Square {
+        let sp = self.sp / n;
+        Square {
+            x: self.x + j * m * sp,
+            y: self.y + i * m * sp,
+            sp,
+        }
+    }
+}
+
+/// What one rendering of a patch draws into: the clip, the tile output and its pixels.
+struct Job<'a> {
+    clip: Rect,
+    out: &'a mut dyn TileOut,
+    pixels: [u8; TILE * TILE],
+}
+
+impl Job<'_> {
+    /// Hands the first `len` pixels on as the tile `area`.
+    fn put(&mut self, area: Rect, len: usize) -> Result<(), Stop> {
+        let pixels = self.pixels.get(..len).unwrap_or(&[]);
+        self.out.put(Tile { area, pixels })
+    }
 }
 
 impl Patch {
@@ -167,53 +553,6 @@ impl Patch {
             cell: [[[0; 4]; 3]; 3],
         },
     };
-
-    /// The refined value at refined coordinates `(q1, q2)` (row, column; `0..=N*m`) of the
-    /// control grid `g` (row-major, side `m+1`), point by point as the specification states
-    /// it: the reference [`Patch::refine`] is tested against.
-    #[cfg(test)]
-    fn point(&self, g: &[i16], q1: usize, q2: usize) -> i32 {
-        // N is 2 or 4: shifts and masks instead of divisions.
-        let shift = self.model.transforms.trailing_zeros();
-        let mask = (1usize << shift) - 1;
-        let (a1, r1) = (q1 >> shift, q1 & mask);
-        let (a2, r2) = (q2 >> shift, q2 & mask);
-        match (r1, r2) {
-            (0, 0) => i32::from(g[a1 * self.model.grid() + a2]),
-            (0, _) => self.line(g, 0, a1, a2, r2),
-            (_, 0) => self.line(g, 1, a2, a1, r1),
-            _ => {
-                // The tensor product: the line rule across the new points of the nearest rows.
-                let taps = &self.weights.cell[r1 - 1][r2 - 1];
-                let m = self.model.grid() - 1;
-                let mut acc = 0i32;
-                for (t, &tap) in taps.iter().enumerate() {
-                    acc += i32::from(tap) * self.line(g, 0, tap_point(a1, t, m), a2, r2);
-                }
-                round_clamp(acc)
-            }
-        }
-    }
-
-    /// New point at phase `r` between points `a` and `a+1` of line `fixed` (a row when `dir` is
-    /// 0, a column when 1); taps on points `a-1..=a+2`, mirrored at the line's ends.
-    #[cfg(test)]
-    fn line(&self, g: &[i16], dir: usize, fixed: usize, a: usize, r: usize) -> i32 {
-        let side = self.model.grid();
-        let m = side - 1;
-        let taps = &self.weights.line[dir][r - 1];
-        let mut acc = 0i32;
-        for (t, &tap) in taps.iter().enumerate() {
-            let idx = tap_point(a, t, m);
-            let v = if dir == 0 {
-                g[fixed * side + idx]
-            } else {
-                g[idx * side + fixed]
-            };
-            acc += i32::from(tap) * i32::from(v);
-        }
-        round_clamp(acc)
-    }
 
     /// Renders the pixels of the leaf `node` that fall inside `clip`, tile by tile, into
     /// `sink`, stopping at the sink's first error. The leaf must be at least as wide as the
@@ -231,192 +570,331 @@ impl Patch {
     }
 
     /// [`Patch::render`] into a [`TileOut`] trait object.
-    #[inline(never)]
+    #[inline]
     pub fn render_to(&self, node: &Node, clip: Rect, out: &mut dyn TileOut) -> Result<(), Stop> {
-        let log2 = node.log2;
-        if log2 >= 16 || (1u32 << log2) < u32::from(self.model.intervals) || clip.is_empty() {
-            return Ok(());
-        }
-        let mut arena = [0i16; ARENA_LEN];
-        let mut scratch = Scratch::EMPTY;
-        let n2 = self.model.control_count();
-        let spacing = (1u32 << log2) / u32::from(self.model.intervals);
-        let square = Square {
-            x: node.x,
-            y: node.y,
-            sp: spacing,
-        };
-        self.walk(
-            &self.control[..n2],
-            &mut arena,
-            &square,
-            &clip,
-            &mut scratch,
-            out,
-        )
+        self.render_scaled(node, Scale::One, clip, out)
     }
 
-    /// Draws the pixels of grid `g` (its square `at`) inside `clip`: a square that fits an
-    /// output tile is filled whole ([`Patch::fill`]) and handed on as one tile; a larger one
-    /// is subdivided, each child grid stored at the front of `below` while it is drawn, until
-    /// its points are at most `N` pixels apart ([`Patch::emit`]).
+    /// Renders the leaf `node` at `scale` (see [`Scale`]): the pixels of its square in the
+    /// scaled image (`node`'s coordinates times the scale) that fall inside `clip` (scaled
+    /// image coordinates), tile by tile.
+    #[inline(never)]
+    pub fn render_scaled(
+        &self,
+        node: &Node,
+        scale: Scale,
+        clip: Rect,
+        out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
+        let m = self.model.intervals;
+        let log2 = i32::from(node.log2);
+        if log2 >= 16 || m == 0 || (1u32 << log2) < u32::from(m) || clip.is_empty() {
+            return Ok(());
+        }
+        let k = scale.log2();
+        let sp_log2 = log2 + k - m.trailing_zeros() as i32;
+        if sp_log2 < 0 {
+            return self.subsample(node, k.unsigned_abs(), clip, out);
+        }
+        let (x, y) = if k >= 0 {
+            (node.x << k, node.y << k)
+        } else {
+            (node.x >> -k, node.y >> -k)
+        };
+        let at = Square {
+            x,
+            y,
+            sp: 1 << sp_log2,
+        };
+        let mut job = Job {
+            clip,
+            out,
+            pixels: [0; TILE * TILE],
+        };
+        let g = &self.control[..self.model.control_count()];
+        if at.sp * u32::from(m) > TILE as u32 {
+            self.walk_root(at, k > 0, &mut job)
+        } else if at.sp == 1 {
+            self.tile(g, &at, &mut job, None)
+        } else {
+            let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
+            self.tile(g, &at, &mut job, Some(&mut lattice))
+        }
+    }
+
+    /// [`Patch::walk`] from the control grid of a leaf larger than a tile, with the arena of
+    /// the coded size, or of four times it when `large` (out of line, so that a leaf that fits
+    /// a tile clears neither).
+    #[inline(never)]
+    fn walk_root(&self, at: Square, large: bool, job: &mut Job<'_>) -> Result<(), Stop> {
+        let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
+        let n2 = self.model.control_count();
+        if large {
+            let mut arena = [0i16; ARENA_LARGE_LEN];
+            self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
+        } else {
+            let mut arena = [0i16; ARENA_LEN];
+            self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
+        }
+    }
+
+    /// Draws the pixels of grid `g` (its square `at`) inside the clip: a square that fits a
+    /// tile is refined whole ([`Patch::tile`]); a larger one whose points are at most `N`
+    /// pixels apart is refined once, tile by tile ([`Patch::emit`]); any other is subdivided,
+    /// each child grid stored at the front of `below` while it is drawn. `lattice` is scratch
+    /// space.
     fn walk(
         &self,
         g: &[i16],
         below: &mut [i16],
-        at: &Square,
-        clip: &Rect,
-        scratch: &mut Scratch,
-        out: &mut dyn TileOut,
+        at: Square,
+        job: &mut Job<'_>,
+        lattice: &mut Lattice,
     ) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
         let n = u32::from(self.model.transforms);
-        let side = self.model.grid();
         let ext = m * at.sp;
-        if !clip.overlaps_square(at.x, at.y, ext) {
+        if !job.clip.overlaps_square(at.x, at.y, ext) {
             return Ok(());
         }
         if ext <= TILE as u32 {
-            return self.fill_tile(g, below, at, clip, scratch, out);
+            return self.tile(g, &at, job, Some(lattice));
         }
         if at.sp <= n {
-            return self.emit(g, at, clip, scratch, out);
+            return self.emit(g, &at, job, lattice);
         }
-        let n2 = side * side;
-        if below.len() < n2 {
+        let Some((child, deeper)) = below.split_at_mut_checked(self.model.control_count()) else {
             return Ok(());
-        }
-        let (child, deeper) = below.split_at_mut(n2);
+        };
         for i in 0..n {
             for j in 0..n {
                 let child_at = at.child(m, n, i, j);
-                if !clip.overlaps_square(child_at.x, child_at.y, ext / n) {
+                if !job.clip.overlaps_square(child_at.x, child_at.y, ext / n) {
                     continue;
                 }
-                let window = Window::child(m, i, j);
-                self.refine(g, &window, child, side, &mut scratch.h);
-                self.walk(child, deeper, &child_at, clip, scratch, out)?;
+                self.child(g, i as usize, j as usize, lattice, child);
+                self.walk(child, deeper, child_at, job, lattice)?;
             }
         }
         Ok(())
     }
 
-    /// Draws a square that fits an output tile: fills its pixels ([`Patch::fill`]) and hands
-    /// the part inside `clip` on as one tile.
+    /// Draws a square of grid `g` that fits a tile, as one tile: places the grid's points in
+    /// `lattice` (the tile's points) and refines them level by level ([`Patch::level`]) down
+    /// to one pixel apart, then hands on the part inside the clip. A grid whose points are one
+    /// pixel apart is its pixels (no lattice needed).
     #[inline(never)]
-    fn fill_tile(
+    fn tile(
         &self,
         g: &[i16],
-        below: &mut [i16],
         at: &Square,
-        clip: &Rect,
-        scratch: &mut Scratch,
-        out: &mut dyn TileOut,
+        job: &mut Job<'_>,
+        lattice: Option<&mut Lattice>,
     ) -> Result<(), Stop> {
-        let ext = u32::from(self.model.intervals) * at.sp;
-        let mut values = [0i16; TILE * TILE];
-        self.fill(g, below, at.sp, 0, &mut values, &mut scratch.h);
-        let area = Rect {
+        let m = usize::from(self.model.intervals);
+        let n = usize::from(self.model.transforms);
+        let side = m + 1;
+        let sp = at.sp as usize;
+        let ext = m * sp;
+        let square = Rect {
             x: at.x,
             y: at.y,
-            w: ext,
-            h: ext,
+            w: ext as u32,
+            h: ext as u32,
+        };
+        let area = square.intersect(&job.clip);
+        if area.is_empty() || ext > TILE || g.len() < side * side {
+            return Ok(());
         }
-        .intersect(clip);
-        let (dx, dy) = ((area.x - at.x) as usize, (area.y - at.y) as usize);
-        let mut k = 0;
-        for j in 0..area.h as usize {
-            let row = &values[(dy + j) * TILE + dx..(dy + j) * TILE + dx + area.w as usize];
-            for &v in row {
-                scratch.pixels[k] = sample_to_pixel(i32::from(v));
-                k += 1;
+        let (c0, r0) = ((area.x - at.x) as usize, (area.y - at.y) as usize);
+        let (cols, rows) = (area.w as usize, area.h as usize);
+        let len = cols * rows;
+        let Some(lattice) = lattice.filter(|_| sp > 1) else {
+            // A pixel grid: its points are the pixels.
+            let src = g.chunks_exact(side).skip(r0);
+            for (dst, src) in job.pixels.chunks_exact_mut(cols).zip(src).take(rows) {
+                for (p, &v) in dst.iter_mut().zip(&src[c0..]) {
+                    *p = sample_to_pixel(i32::from(v));
+                }
+            }
+            return job.put(area, len);
+        };
+        for (row, src) in g.chunks_exact(side).enumerate() {
+            let dst = &mut lattice[(row * sp).min(TILE)];
+            for (col, &v) in src.iter().enumerate() {
+                dst[(col * sp).min(TILE)] = v;
             }
         }
-        out.put(Tile {
-            area,
-            pixels: &scratch.pixels[..k],
-        })
+        let mut d = sp;
+        while d > 1 {
+            let nd = if d >= n { d / n } else { 1 };
+            if nd == 1 {
+                // The last level: only the pixels inside the clip.
+                let (last_row, last_col) = (r0 + rows - 1, c0 + cols - 1);
+                self.level(lattice, d, nd, ext, (r0, last_row), (c0, last_col));
+            } else {
+                self.level(lattice, d, nd, ext, (0, ext), (0, ext));
+            }
+            d = nd;
+        }
+        let src = lattice.iter().skip(r0);
+        for (dst, src) in job.pixels.chunks_exact_mut(cols).zip(src).take(rows) {
+            for (p, &v) in dst.iter_mut().zip(&src[c0..]) {
+                *p = sample_to_pixel(i32::from(v));
+            }
+        }
+        job.put(area, len)
     }
 
-    /// The pixels of grid `g` (points `sp` pixels apart, `m * sp` at most [`TILE`]) into
-    /// `values` from offset `at` (row-major, [`TILE`] per row): refined straight to pixels when
-    /// its points are at most `N` apart, else through its child grids (stored at the front of
-    /// `below`).
-    fn fill(
+    /// One subdivision level of a tile's lattice: its points `d` apart become points `nd`
+    /// apart (`nd = d / N`; or 1 when `d < N`, the points of phases that are multiples of
+    /// `N / d`), each child grid (`m` intervals, `m d` pixels) refined on its own, mirrored at
+    /// its ends. Only the points in rows `rows` and columns `cols` (inclusive bounds) are
+    /// made, with the row rule's points they are made from.
+    fn level(
         &self,
-        g: &[i16],
-        below: &mut [i16],
-        sp: u32,
-        at: usize,
-        values: &mut [i16; TILE * TILE],
-        h: &mut [i16; MAX_GRID * MAX_WINDOW],
+        lattice: &mut Lattice,
+        d: usize,
+        nd: usize,
+        ext: usize,
+        rows: (usize, usize),
+        cols: (usize, usize),
     ) {
-        let m = u32::from(self.model.intervals);
-        let n = u32::from(self.model.transforms);
-        let side = self.model.grid();
-        if sp <= n {
-            let ext = (m * sp) as usize;
-            let window = Window {
-                q1: 0,
-                q2: 0,
-                rows: ext,
-                cols: ext,
-                stride: (n / sp.max(1)) as usize,
-            };
-            self.refine(g, &window, &mut values[at..], TILE, h);
-            return;
+        let m = usize::from(self.model.intervals);
+        let (shift_n, shift_d) = (self.model.transforms.trailing_zeros(), d.trailing_zeros());
+        let phase = |offset: usize| ((offset << shift_n) >> shift_d).wrapping_sub(1).min(2);
+        let intervals = (ext / d).min(TILE);
+        let last = m - 1;
+        // The lattice positions of the taps of interval k: points k - 1 ..= k + 2 of its child
+        // grid, mirrored at the child grid's ends.
+        let taps_of = |k: usize| {
+            let a = k % m;
+            let before = if a == 0 { k + 1 } else { k.wrapping_sub(1) };
+            let after = if a == last { k } else { k + 2 };
+            [before, k, k + 1, after].map(|t| (t * d).min(TILE))
+        };
+        let (c_lo, c_hi) = (cols.0, cols.1.min(TILE));
+        let (r_lo, r_hi) = (rows.0, rows.1.min(TILE));
+        // The row rule on the old rows the needed rows are made from, in place (it writes
+        // between the points it reads), one new column at a time.
+        let first = (r_lo / d).saturating_sub(1) * d;
+        let end = ((r_hi / d + 2) * d).min(ext);
+        let mut offset = nd;
+        while offset < d {
+            with_rule!(&self.weights.line[0][phase(offset)], |rule| {
+                for k in 0..intervals {
+                    let x = k * d + offset;
+                    if (c_lo..=c_hi).contains(&x) {
+                        along(rule, lattice, x, taps_of(k), first, end, d);
+                    }
+                }
+            });
+            offset += nd;
         }
-        let n2 = side * side;
-        if below.len() < n2 {
-            return;
-        }
-        let (child, deeper) = below.split_at_mut(n2);
-        let child_ext = (m * sp / n) as usize;
-        for i in 0..n {
-            for j in 0..n {
-                self.refine(g, &Window::child(m, i, j), child, side, h);
-                let child_at = at + i as usize * child_ext * TILE + j as usize * child_ext;
-                self.fill(child, deeper, sp / n, child_at, values, h);
+        // The new rows, across the old ones: the column rule on old columns, the cell rule
+        // between them. With the default weights (or any whose column and cell rules agree)
+        // one rule makes a whole row; otherwise one column phase at a time.
+        let mut offset = nd;
+        while offset < d {
+            let r1 = phase(offset);
+            let column_rule = &self.weights.line[1][r1];
+            let cells = &self.weights.cell[r1];
+            let mut uniform = true;
+            let mut column = nd;
+            while column < d {
+                uniform &= cells[phase(column)] == *column_rule;
+                column += nd;
             }
+            for k in 0..intervals {
+                let y = k * d + offset;
+                if !(r_lo..=r_hi).contains(&y) {
+                    continue;
+                }
+                let Some((new, from)) = split_rows(lattice, y, taps_of(k)) else {
+                    continue;
+                };
+                if uniform {
+                    with_rule!(column_rule, |rule| across(rule, new, from, c_lo, c_hi, nd));
+                    continue;
+                }
+                let mut column = 0;
+                while column < d {
+                    let taps = if column == 0 {
+                        column_rule
+                    } else {
+                        &cells[phase(column)]
+                    };
+                    // The first column of this phase at or after c_lo.
+                    let x = c_lo + (column + d - c_lo % d) % d;
+                    column += nd;
+                    with_rule!(taps, |rule| across(rule, new, from, x, c_hi, d));
+                }
+            }
+            offset += nd;
         }
     }
 
-    /// Emits the `m*sp` square of pixels covered by grid `g` (points at most `N` pixels apart),
-    /// each the refined point at stride `N / sp` of `g` ([`Patch::refine`]), tile by tile.
+    /// Draws the square of grid `g` (points at most `N` pixels apart, larger than a tile) in
+    /// strips of [`TILE`] columns, each cut into tiles: each pixel is the refined point of `g`
+    /// at stride `N / sp`. The row rule makes a strip's columns on every old row it needs, once
+    /// (into `h`); then each tile row is an old row's or, across four old rows, the column or
+    /// cell rule's, made straight into pixels.
     #[inline(never)]
     fn emit(
         &self,
         g: &[i16],
         at: &Square,
-        clip: &Rect,
-        scratch: &mut Scratch,
-        out: &mut dyn TileOut,
+        job: &mut Job<'_>,
+        h: &mut Lattice,
     ) -> Result<(), Stop> {
+        let m = usize::from(self.model.intervals);
+        let side = m + 1;
+        let shift = self.model.transforms.trailing_zeros();
+        let mask = (1usize << shift) - 1;
         let (x, y, sp) = (at.x, at.y, at.sp);
         let ext = u32::from(self.model.intervals) * sp;
-        let stride = (u32::from(self.model.transforms) / sp.max(1)) as usize;
+        let stride = (u32::from(self.model.transforms) / sp.max(1)).max(1) as usize;
+        let clip = job.clip;
         let x_lo = x.max(clip.x);
         let y_lo = y.max(clip.y);
         let x_hi = (u64::from(x) + u64::from(ext)).min(clip.right()) as u32;
         let y_hi = (u64::from(y) + u64::from(ext)).min(clip.bottom()) as u32;
-        let mut values = [0i16; TILE * TILE];
-        let mut ty = y_lo;
-        while ty < y_hi {
-            let th = (y_hi - ty).min(TILE as u32);
-            let mut tx = x_lo;
-            while tx < x_hi {
-                let tw = (x_hi - tx).min(TILE as u32);
-                let window = Window {
-                    q1: (ty - y) as usize * stride,
-                    q2: (tx - x) as usize * stride,
-                    rows: th as usize,
-                    cols: tw as usize,
-                    stride,
+        if x_lo >= x_hi || y_lo >= y_hi || g.len() < side * side {
+            return Ok(());
+        }
+        // The old rows the strip's rows need: a - 1 ..= a + 2 around each row's.
+        let k_lo = (((y_lo - y) as usize * stride) >> shift).saturating_sub(1);
+        let k_hi = ((((y_hi - 1 - y) as usize * stride) >> shift) + 2).min(m);
+        let mut pad = [0i16; LATTICE + 3];
+        let mut tx = x_lo;
+        while tx < x_hi {
+            let tw = (x_hi - tx).min(TILE as u32);
+            let cols = tw as usize;
+            let q2 = (tx - x) as usize * stride;
+            for (k, dst) in (k_lo..=k_hi).zip(h.iter_mut()) {
+                let Some(row) = g.get(k * side..k * side + side) else {
+                    return Ok(());
                 };
-                self.refine(g, &window, &mut values, tw as usize, &mut scratch.h);
-                let k = (tw * th) as usize;
-                for (p, &v) in scratch.pixels.iter_mut().zip(&values).take(k) {
-                    *p = sample_to_pixel(i32::from(v));
+                fill_pad(&mut pad, row);
+                self.row_points(&pad, q2, stride, &mut dst[..cols]);
+            }
+            let mut ty = y_lo;
+            while ty < y_hi {
+                let th = (y_hi - ty).min(TILE as u32);
+                for (j, out) in job.pixels.chunks_exact_mut(cols).take(th as usize).enumerate() {
+                    let q1 = (ty - y) as usize * stride + j * stride;
+                    let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
+                    if r1 == 0 {
+                        if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
+                            to_pixels(out, row);
+                        }
+                        continue;
+                    }
+                    let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
+                    let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
+                        continue;
+                    };
+                    self.pixel_row(out, [v0, v1, v2, v3], r1, q2, stride);
                 }
                 let area = Rect {
                     x: tx,
@@ -424,176 +902,189 @@ impl Patch {
                     w: tw,
                     h: th,
                 };
-                out.put(Tile {
-                    area,
-                    pixels: &scratch.pixels[..k],
-                })?;
-                tx += tw;
+                job.put(area, (tw * th) as usize)?;
+                ty += th;
             }
-            ty += th;
+            tx += tw;
         }
         Ok(())
     }
 
-    /// The refined points of grid `g` in `window` (see [`Window`]), into `out` row-major,
-    /// `out_stride` values per row: each [`Patch::point`], computed separably. First the row
-    /// rule gives the window's columns on the old rows its rows need (each row padded with its
-    /// mirrored end points, so the taps read four consecutive values), into `h`; then each
-    /// point is the old row's value (on an old row), the column rule (on an old column) or the
-    /// cell rule (between them) across those: at most four multiply-adds per point. The cell
-    /// rule weighs the row rule's rounded points, as [`Patch::point`] does.
-    #[inline(never)]
-    fn refine(
+    /// The refined points of a padded old row `pad` (its points `1..=m+1`, mirrored end points
+    /// at 0 and `m + 2`) at columns `q2, q2 + stride, ...`, one per entry of `out`.
+    fn row_points(&self, pad: &[i16; LATTICE + 3], q2: usize, stride: usize, out: &mut [i16]) {
+        let shift = self.model.transforms.trailing_zeros();
+        let mask = (1usize << shift) - 1;
+        // Entries c, c + period, ... have one phase; their intervals follow each other `step`
+        // apart.
+        let period = (mask + 1).div_ceil(stride).min(out.len());
+        let step = (period * stride) >> shift;
+        for c in 0..period {
+            let q = q2 + c * stride;
+            let a = q >> shift;
+            let run = (c, period, step);
+            match q & mask {
+                0 => pad_points(Keep, out, pad, a, run),
+                r => with_rule!(&self.weights.line[0][(r - 1).min(2)], |rule| {
+                    pad_points(rule, out, pad, a, run)
+                }),
+            }
+        }
+    }
+
+    /// A row of pixels at row phase `r1` (1 or more) from the old rows `from` (each holding
+    /// the columns `q2, q2 + stride, ...`): the column rule at old columns, the cell rule
+    /// between them; one rule for the whole row when they agree (the default weights).
+    fn pixel_row(
         &self,
-        g: &[i16],
-        window: &Window,
-        out: &mut [i16],
-        out_stride: usize,
-        h: &mut [i16; MAX_GRID * MAX_WINDOW],
+        out: &mut [u8],
+        from: [&[i16; LATTICE]; 4],
+        r1: usize,
+        q2: usize,
+        stride: usize,
     ) {
+        let mask = usize::from(self.model.transforms) - 1;
+        let r1 = (r1 - 1).min(2);
+        let column_rule = &self.weights.line[1][r1];
+        let cells = &self.weights.cell[r1];
+        let rule_of = |q: usize| match q & mask {
+            0 => column_rule,
+            r => &cells[(r - 1).min(2)],
+        };
+        let first = rule_of(q2);
+        let period = (mask + 1).div_ceil(stride).min(out.len());
+        if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
+            with_rule!(first, |rule| across_pixels(rule, out, from));
+            return;
+        }
+        // Column phases one at a time (weights whose cell rules differ).
+        for (i, p) in out.iter_mut().enumerate() {
+            let [a, b, c, d] = from.map(|row| row.get(i).copied().unwrap_or(0));
+            *p = Taps::of(rule_of(q2 + i * stride)).pixel(a, b, c, d);
+        }
+    }
+
+    /// Child grid `(i, j)` of grid `g` (one subdivision of the whole grid; `out` holds
+    /// `(m + 1)^2` values, row-major): the row rule gives its columns on the old rows it needs
+    /// (into `h`), then each row is an old row's or the column or cell rule's across four old
+    /// rows.
+    #[inline(never)]
+    fn child(&self, g: &[i16], i: usize, j: usize, h: &mut Lattice, out: &mut [i16]) {
         let m = usize::from(self.model.intervals);
         let side = m + 1;
         let shift = self.model.transforms.trailing_zeros();
         let mask = (1usize << shift) - 1;
-        let (rows, cols) = (window.rows.min(MAX_WINDOW), window.cols.min(MAX_WINDOW));
-        if rows == 0
-            || cols == 0
-            || g.len() < side * side
-            || out.len() < (rows - 1) * out_stride + cols
-        {
-            return;
+        let (q1, q2) = (i * m, j * m);
+        let k_lo = (q1 >> shift).saturating_sub(1);
+        let k_hi = (((q1 + m) >> shift) + 2).min(m);
+        let mut pad = [0i16; LATTICE + 3];
+        for (k, dst) in (k_lo..=k_hi).zip(h.iter_mut()) {
+            let Some(row) = g.get(k * side..k * side + side) else {
+                return;
+            };
+            fill_pad(&mut pad, row);
+            self.row_points(&pad, q2, 1, &mut dst[..side.min(LATTICE)]);
         }
-        // Where each column is: the old column before it and its phase.
-        let mut col_a = [0u8; MAX_WINDOW];
-        let mut col_r = [0u8; MAX_WINDOW];
-        for i in 0..cols {
-            let q2 = window.q2 + i * window.stride;
-            col_a[i] = (q2 >> shift).min(m) as u8;
-            col_r[i] = (q2 & mask) as u8;
-        }
-        // The row rule on the old rows the window needs: a - 1 ..= a + 2 around each row's.
-        let q1_last = window.q1 + (rows - 1) * window.stride;
-        let k_lo = (window.q1 >> shift).saturating_sub(1);
-        let k_hi = ((q1_last >> shift) + 2).min(m);
-        let mut padded = [0i16; MAX_GRID + 3];
-        for k in k_lo..=k_hi {
-            let row = &g[k * side..k * side + side];
-            padded[1..=side].copy_from_slice(row);
-            padded[0] = row[1.min(m)];
-            padded[side + 1] = row[m.saturating_sub(1)];
-            let dst = &mut h[(k - k_lo) * MAX_WINDOW..(k - k_lo + 1) * MAX_WINDOW];
-            for i in 0..cols {
-                let a = usize::from(col_a[i]);
-                dst[i] = match col_r[i] {
-                    0 => padded[a + 1],
-                    r => {
-                        let taps = &self.weights.line[0][usize::from(r) - 1];
-                        let p = &padded[a..a + 4];
-                        rule(taps, [p[0], p[1], p[2], p[3]])
-                    }
-                };
-            }
-        }
-        // Each point across the old rows.
-        for j in 0..rows {
-            let q1 = window.q1 + j * window.stride;
-            let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
-            let dst = &mut out[j * out_stride..j * out_stride + cols];
+        for (r, dst) in out.chunks_exact_mut(side).take(side).enumerate() {
+            let q = q1 + r;
+            let (a1, r1) = ((q >> shift).min(m), q & mask);
             if r1 == 0 {
-                let at = (a1 - k_lo) * MAX_WINDOW;
-                dst.copy_from_slice(&h[at..at + cols]);
+                if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
+                    copy_short(dst, row);
+                }
                 continue;
             }
-            let at = |t: usize| (tap_point(a1, t, m) - k_lo) * MAX_WINDOW;
-            let (o0, o1, o2, o3) = (at(0), at(1), at(2), at(3));
-            let cell = &self.weights.cell[r1 - 1];
-            let sets = [&self.weights.line[1][r1 - 1], &cell[0], &cell[1], &cell[2]];
-            for (i, v) in dst.iter_mut().enumerate() {
-                let taps = sets[usize::from(col_r[i]) & 3];
-                *v = rule(taps, [h[o0 + i], h[o1 + i], h[o2 + i], h[o3 + i]]);
+            let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
+            let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
+                continue;
+            };
+            self.sample_row(dst, [v0, v1, v2, v3], r1, q2, 1);
+        }
+    }
+
+    /// [`Patch::pixel_row`] into samples.
+    fn sample_row(
+        &self,
+        out: &mut [i16],
+        from: [&[i16; LATTICE]; 4],
+        r1: usize,
+        q2: usize,
+        stride: usize,
+    ) {
+        let mask = usize::from(self.model.transforms) - 1;
+        let r1 = (r1 - 1).min(2);
+        let column_rule = &self.weights.line[1][r1];
+        let cells = &self.weights.cell[r1];
+        let rule_of = |q: usize| match q & mask {
+            0 => column_rule,
+            r => &cells[(r - 1).min(2)],
+        };
+        let first = rule_of(q2);
+        let period = (mask + 1).div_ceil(stride).min(out.len());
+        if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
+            with_rule!(first, |rule| across_samples(rule, out, from));
+            return;
+        }
+        for (i, v) in out.iter_mut().enumerate() {
+            let [a, b, c, d] = from.map(|row| row.get(i).copied().unwrap_or(0));
+            *v = Taps::of(rule_of(q2 + i * stride)).apply(a, b, c, d);
+        }
+    }
+
+    /// Draws the leaf `node` at `1/2^k` of its size when its control points are closer than
+    /// an output pixel: output pixel `(X, Y)` is the leaf's pixel `(X 2^k, Y 2^k)`, which is a
+    /// control point; a leaf smaller than `2^k` pixels draws its first control point if that
+    /// pixel is one of those, else nothing.
+    #[inline(never)]
+    fn subsample(&self, node: &Node, k: u32, clip: Rect, out: &mut dyn TileOut) -> Result<(), Stop> {
+        let m = u32::from(self.model.intervals);
+        let side = m as usize + 1;
+        let unit = 1u32 << k;
+        if node.x % unit != 0 || node.y % unit != 0 {
+            return Ok(());
+        }
+        let size = node.size();
+        let (s, step) = if size >= unit {
+            (size >> k, (unit * m / size) as usize)
+        } else {
+            (1, 0)
+        };
+        let square = Rect {
+            x: node.x >> k,
+            y: node.y >> k,
+            w: s,
+            h: s,
+        };
+        let area = square.intersect(&clip);
+        if area.is_empty() {
+            return Ok(());
+        }
+        let (c0, r0) = ((area.x - square.x) as usize, (area.y - square.y) as usize);
+        let mut pixels = [0u8; TILE * TILE];
+        let mut len = 0;
+        for j in r0..r0 + area.h as usize {
+            for i in c0..c0 + area.w as usize {
+                let v = self.control.get(j * step * side + i * step).copied().unwrap_or(0);
+                if let Some(p) = pixels.get_mut(len) {
+                    *p = sample_to_pixel(i32::from(v));
+                }
+                len += 1;
             }
         }
+        let pixels = pixels.get(..len).unwrap_or(&[]);
+        out.put(Tile { area, pixels })
     }
 }
-
-/// Where a grid lies in the image: its top-left point and the pixels between its points.
-struct Square {
-    x: u32,
-    y: u32,
-    sp: u32,
-}
-
-impl Square {
-    /// The square of child grid `(i, j)` of a grid with `m` intervals refined by `n`.
-    fn child(&self, m: u32, n: u32, i: u32, j: u32) -> Square {
-        let csp = self.sp / n;
-        Square {
-            x: self.x + j * m * csp,
-            y: self.y + i * m * csp,
-            sp: csp,
-        }
-    }
-}
-
-/// Buffers the synthesis of one patch reuses: the row rule's points for [`Patch::refine`] and
-/// an output tile's pixels.
-struct Scratch {
-    h: [i16; MAX_GRID * MAX_WINDOW],
-    pixels: [u8; TILE * TILE],
-}
-
-impl Scratch {
-    const EMPTY: Scratch = Scratch {
-        h: [0; MAX_GRID * MAX_WINDOW],
-        pixels: [0; TILE * TILE],
-    };
-}
-
-/// Largest side of a window of refined points computed at once: a child grid (9) or an output
-/// tile (8).
-const MAX_WINDOW: usize = if MAX_GRID > TILE { MAX_GRID } else { TILE };
-
-/// A rectangle of refined points of a grid: rows `q1, q1 + stride, ...` (`rows` of them) by
-/// columns `q2, q2 + stride, ...` (`cols`), at most [`MAX_WINDOW`] each way.
-struct Window {
-    q1: usize,
-    q2: usize,
-    rows: usize,
-    cols: usize,
-    stride: usize,
-}
-
-impl Window {
-    /// The points of child grid `(i, j)` of a grid with `m` intervals: its whole grid.
-    fn child(m: u32, i: u32, j: u32) -> Window {
-        let side = m as usize + 1;
-        Window {
-            q1: (i * m) as usize,
-            q2: (j * m) as usize,
-            rows: side,
-            cols: side,
-            stride: 1,
-        }
-    }
-}
-
-/// A rule's new point: `rc(sum of tap * value)` over its four taps.
-#[inline(always)]
-fn rule(taps: &[i16; 4], values: [i16; 4]) -> i16 {
-    let mut acc = 0i32;
-    for (&tap, v) in taps.iter().zip(values) {
-        acc += i32::from(tap) * i32::from(v);
-    }
-    // Clamped to the sample range, which fits in an i16.
-    round_clamp(acc) as i16
-}
-
 #[cfg(test)]
 mod tests {
+    extern crate std;
+
     use super::*;
     use crate::format::MIN_LEAF_LOG2;
-    use crate::model::SAMPLE_ONE;
+    use crate::model::{tap_point, SAMPLE_ONE};
     use core::convert::Infallible;
+    use std::vec;
+    use std::vec::Vec;
 
     /// Counts the pixels a render delivers and checks each lies in its leaf.
     struct Count {
@@ -634,69 +1125,298 @@ mod tests {
         }
     }
 
-    /// The separable refinement gives the point-by-point values of the specification, for
-    /// every model, window and stride, with random control values and random (also extreme)
-    /// weights.
-    #[test]
-    fn separable_refinement_is_the_specifications_points() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move |range: i32| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed % range as u64) as i32
-        };
-        for model in MODELS {
-            for trial in 0..40 {
-                let side = model.grid();
-                let mut control = [0i16; MAX_CONTROL];
-                for v in control.iter_mut().take(side * side) {
-                    *v = (next(12288) - 4096) as i16;
+    /// Collects every tile into an image of `width x height`, counting how often each pixel
+    /// is drawn and checking the sink contract (tiles of at most TILE x TILE inside `clip`).
+    struct Image {
+        width: usize,
+        pixels: Vec<u8>,
+        drawn: Vec<u8>,
+        clip: Rect,
+    }
+
+    impl Image {
+        fn new(width: usize, height: usize, clip: Rect) -> Image {
+            Image {
+                width,
+                pixels: vec![0; width * height],
+                drawn: vec![0; width * height],
+                clip,
+            }
+        }
+    }
+
+    impl PixelSink for Image {
+        type Error = Infallible;
+
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+            let Rect { x, y, w, h } = tile.area;
+            assert!(w as usize <= TILE && h as usize <= TILE && w > 0 && h > 0);
+            assert!(self.clip.contains(&tile.area), "{:?} outside {:?}", tile.area, self.clip);
+            assert_eq!(tile.pixels.len() as u32, w * h);
+            for r in 0..h as usize {
+                for c in 0..w as usize {
+                    let k = (y as usize + r) * self.width + x as usize + c;
+                    self.pixels[k] = tile.pixels[r * w as usize + c];
+                    self.drawn[k] += 1;
                 }
-                let deviations: [i32; crate::model::MAX_WEIGHTS] = core::array::from_fn(|_| {
-                    if trial % 2 == 0 {
-                        next(8193) - 4096
-                    } else {
-                        next(32769) - 16384
+            }
+            Ok(())
+        }
+    }
+
+    /// A small xorshift generator.
+    struct Rng(u64);
+
+    impl Rng {
+        fn below(&mut self, range: u32) -> u32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 % u64::from(range)) as u32
+        }
+    }
+
+    /// A patch of `model` with random control values over the sample range and random
+    /// weights: moderate deviations when `wild` is false, up to the clamp when it is true.
+    fn random_patch(rng: &mut Rng, model: ModelType, wild: bool) -> Patch {
+        let mut control = [0i16; MAX_CONTROL];
+        for v in control.iter_mut().take(model.control_count()) {
+            *v = (rng.below(12288) as i32 - 4096) as i16;
+        }
+        let deviations: [i32; crate::model::MAX_WEIGHTS] = core::array::from_fn(|_| {
+            if wild {
+                rng.below(32769) as i32 - 16384
+            } else {
+                rng.below(2049) as i32 - 1024
+            }
+        });
+        Patch {
+            model,
+            control,
+            weights: Weights::from_deviations(model, &deviations),
+        }
+    }
+
+    /// The refined value at refined coordinates `(q1, q2)` (row, column; `0..=N*m`) of the
+    /// control grid `g` (row-major, side `m+1`), point by point as the specification states
+    /// it.
+    fn point(patch: &Patch, g: &[i16], q1: usize, q2: usize) -> i32 {
+        let shift = patch.model.transforms.trailing_zeros();
+        let mask = (1usize << shift) - 1;
+        let (a1, r1) = (q1 >> shift, q1 & mask);
+        let (a2, r2) = (q2 >> shift, q2 & mask);
+        match (r1, r2) {
+            (0, 0) => i32::from(g[a1 * patch.model.grid() + a2]),
+            (0, _) => line(patch, g, 0, a1, a2, r2),
+            (_, 0) => line(patch, g, 1, a2, a1, r1),
+            _ => {
+                // The tensor product: the line rule across the new points of the nearest rows.
+                let taps = &patch.weights.cell[r1 - 1][r2 - 1];
+                let m = patch.model.grid() - 1;
+                let mut acc = 0i32;
+                for (t, &tap) in taps.iter().enumerate() {
+                    acc += i32::from(tap) * line(patch, g, 0, tap_point(a1, t, m), a2, r2);
+                }
+                ((acc + 2048) >> 12).clamp(SAMPLE_MIN, SAMPLE_MAX)
+            }
+        }
+    }
+
+    /// New point at phase `r` between points `a` and `a+1` of line `fixed` (a row when `dir` is
+    /// 0, a column when 1); taps on points `a-1..=a+2`, mirrored at the line's ends.
+    fn line(patch: &Patch, g: &[i16], dir: usize, fixed: usize, a: usize, r: usize) -> i32 {
+        let side = patch.model.grid();
+        let m = side - 1;
+        let taps = &patch.weights.line[dir][r - 1];
+        let mut acc = 0i32;
+        for (t, &tap) in taps.iter().enumerate() {
+            let idx = tap_point(a, t, m);
+            let v = if dir == 0 {
+                g[fixed * side + idx]
+            } else {
+                g[idx * side + fixed]
+            };
+            acc += i32::from(tap) * i32::from(v);
+        }
+        ((acc + 2048) >> 12).clamp(SAMPLE_MIN, SAMPLE_MAX)
+    }
+
+    /// The patch's value at `(p1, p2) / 2^den` (row, column, in intervals of the control grid),
+    /// straight from the specification: subdivide the grid, keep the child grid that holds the
+    /// point (its points by [`point`]), until the point is a grid point.
+    fn reference(patch: &Patch, mut p1: u64, mut p2: u64, den: u32) -> i32 {
+        let m = u64::from(patch.model.intervals);
+        let n = u64::from(patch.model.transforms);
+        let side = patch.model.grid();
+        let mut g: Vec<i16> = patch.control[..side * side].to_vec();
+        let one = 1u64 << den;
+        loop {
+            if p1 % one == 0 && p2 % one == 0 {
+                return i32::from(g[(p1 / one) as usize * side + (p2 / one) as usize]);
+            }
+            p1 *= n;
+            p2 *= n;
+            let i = ((p1 / one) / m).min(n - 1);
+            let j = ((p2 / one) / m).min(n - 1);
+            p1 -= i * m * one;
+            p2 -= j * m * one;
+            let mut child = vec![0i16; side * side];
+            for r in 0..side {
+                for c in 0..side {
+                    let q1 = (i * m) as usize + r;
+                    let q2 = (j * m) as usize + c;
+                    child[r * side + c] = point(patch, &g, q1, q2) as i16;
+                }
+            }
+            g = child;
+        }
+    }
+
+    /// The leaf at `(x, y)` of side `2^log2` drawn at `scale` inside `clip` (scaled image
+    /// coordinates), into an image of the scaled leaf's bottom-right corner's size.
+    fn draw(patch: &Patch, node: &Node, scale: Scale, clip: Rect) -> (Image, usize) {
+        let side = scale.apply(node.x.max(node.y) + node.size()) as usize;
+        let mut image = Image::new(side, side, clip);
+        let mut out = Catch::new(&mut image);
+        let result = patch.render_scaled(node, scale, clip, &mut out);
+        let Ok(()) = out.finish(result);
+        (image, side)
+    }
+
+    /// Every model at every leaf size it may code, drawn at every scale with random control
+    /// values and random (also extreme) weights, gives the specification's values: each pixel
+    /// once, each the point the subdivision defines (a pixel of a decode at `s` is the patch's
+    /// point at the pixel's position divided by `s`).
+    #[test]
+    fn every_pixel_is_the_specifications_point_at_every_scale() {
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let mut checked = 0u64;
+        for model in MODELS {
+            for log2 in MIN_LEAF_LOG2..=MAX_LEAF_LOG2 {
+                if !model.fits_block(log2) {
+                    continue;
+                }
+                for trial in 0..3 {
+                    let patch = random_patch(&mut rng, model, trial == 2);
+                    // At an offset, so that a leaf is not always at the origin.
+                    let size = 1u32 << log2;
+                    let node = Node {
+                        x: size * (1 + rng.below(3)),
+                        y: size * rng.below(3),
+                        log2,
+                    };
+                    for scale in Scale::ALL {
+                        let (image, width) = draw(&patch, &node, scale, Rect::EVERYTHING);
+                        let k = scale.log2();
+                        // The leaf's pixels at this scale.
+                        let (x0, y0) = (scale.apply(node.x), scale.apply(node.y));
+                        let (x1, y1) = (scale.apply(node.x + size), scale.apply(node.y + size));
+                        let m = u64::from(model.intervals);
+                        // Pixel (x0 + i) is at i / 2^k pixels of the leaf: i * m / (size * 2^k)
+                        // control intervals.
+                        let den = log2 as i32 + k.max(0);
+                        for y in 0..image.pixels.len() / width {
+                            for x in 0..width {
+                                let drawn = image.drawn[y * width + x];
+                                let inside = (x0..x1).contains(&(x as u32))
+                                    && (y0..y1).contains(&(y as u32));
+                                assert_eq!(drawn, u8::from(inside), "{model:?} 2^{log2} {scale:?} at ({x}, {y})");
+                                if !inside {
+                                    continue;
+                                }
+                                // Pixels sampled: all of small outputs, a fixed share of large.
+                                if (x1 - x0) * (y1 - y0) > 4096 && rng.below(16) != 0 {
+                                    continue;
+                                }
+                                let (i, j) = ((x as u32 - x0) as u64, (y as u32 - y0) as u64);
+                                let (i, j) = if k < 0 { (i << -k, j << -k) } else { (i, j) };
+                                let value = reference(&patch, j * m, i * m, den as u32);
+                                assert_eq!(
+                                    image.pixels[y * width + x],
+                                    sample_to_pixel(value),
+                                    "{model:?} 2^{log2} {scale:?} trial {trial} at ({x}, {y})"
+                                );
+                                checked += 1;
+                            }
+                        }
                     }
-                });
-                let patch = Patch {
-                    model,
-                    control,
-                    weights: Weights::from_deviations(model, &deviations),
+                }
+            }
+        }
+        assert!(checked > 100_000, "{checked}");
+    }
+
+    /// A decode cut to a clip draws exactly the full decode's pixels inside the clip, each
+    /// once, in tiles inside the clip (at every scale).
+    #[test]
+    fn clipped_rendering_is_the_full_rendering_cut() {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        for model in MODELS {
+            for log2 in MIN_LEAF_LOG2..=MAX_LEAF_LOG2 {
+                if !model.fits_block(log2) {
+                    continue;
+                }
+                let patch = random_patch(&mut rng, model, false);
+                let node = Node { x: 0, y: 0, log2 };
+                for scale in Scale::ALL {
+                    let (full, width) = draw(&patch, &node, scale, Rect::EVERYTHING);
+                    let side = width as u32;
+                    for _ in 0..12 {
+                        let thin = rng.below(4) == 0;
+                        let clip = Rect {
+                            x: rng.below(side),
+                            y: rng.below(side),
+                            w: 1 + rng.below(side),
+                            h: 1 + rng.below(if thin { 2 } else { side }),
+                        };
+                        let (cut, _) = draw(&patch, &node, scale, clip);
+                        for k in 0..full.pixels.len() {
+                            let (x, y) = ((k % width) as u32, (k / width) as u32);
+                            let pixel = Rect { x, y, w: 1, h: 1 };
+                            let want = u8::from(clip.contains(&pixel));
+                            assert_eq!(cut.drawn[k], want, "{model:?} 2^{log2} {scale:?} {clip:?}");
+                            if want == 1 {
+                                assert_eq!(cut.pixels[k], full.pixels[k]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A decode at `1/2^k` is the full decode's pixels at multiples of `2^k`, and one at `2^k`
+    /// has the full decode's pixels at multiples of `2^k`.
+    #[test]
+    fn scaled_renderings_agree_with_the_full_one() {
+        let mut rng = Rng(0x1234_5678_9abc_def1);
+        for model in MODELS {
+            for log2 in MIN_LEAF_LOG2..=6 {
+                if !model.fits_block(log2) {
+                    continue;
+                }
+                let patch = random_patch(&mut rng, model, true);
+                let node = Node {
+                    x: 64,
+                    y: 128,
+                    log2,
                 };
-                let g = &patch.control[..side * side];
-                let n = usize::from(model.transforms);
-                let full = n * (side - 1) + 1;
-                for stride in [1usize, 2, 4] {
-                    for _ in 0..8 {
-                        let rows = 1 + next(MAX_WINDOW as i32) as usize;
-                        let cols = 1 + next(MAX_WINDOW as i32) as usize;
-                        let span = |count: usize| (count - 1) * stride;
-                        if span(rows) >= full || span(cols) >= full {
+                let (full, width) = draw(&patch, &node, Scale::One, Rect::EVERYTHING);
+                for scale in Scale::ALL {
+                    let (scaled, w) = draw(&patch, &node, scale, Rect::EVERYTHING);
+                    let k = scale.log2();
+                    for (i, (&p, &drawn)) in scaled.pixels.iter().zip(&scaled.drawn).enumerate() {
+                        if drawn == 0 {
                             continue;
                         }
-                        let q1 = next((full - span(rows)) as i32) as usize;
-                        let q2 = next((full - span(cols)) as i32) as usize;
-                        let window = Window {
-                            q1,
-                            q2,
-                            rows,
-                            cols,
-                            stride,
+                        let (x, y) = (i % w, i / w);
+                        let (fx, fy, exact) = if k >= 0 {
+                            (x >> k, y >> k, x % (1 << k) == 0 && y % (1 << k) == 0)
+                        } else {
+                            (x << -k, y << -k, true)
                         };
-                        let mut out = [0i16; MAX_WINDOW * MAX_WINDOW];
-                        let mut h = [0i16; MAX_GRID * MAX_WINDOW];
-                        patch.refine(g, &window, &mut out, cols, &mut h);
-                        for j in 0..rows {
-                            for i in 0..cols {
-                                let expected = patch.point(g, q1 + j * stride, q2 + i * stride);
-                                assert_eq!(
-                                    i32::from(out[j * cols + i]),
-                                    expected,
-                                    "{model:?} window {q1},{q2} {rows}x{cols}/{stride} at {j},{i}"
-                                );
-                            }
+                        if exact {
+                            assert_eq!(p, full.pixels[fy * width + fx], "{model:?} {scale:?}");
                         }
                     }
                 }
