@@ -95,6 +95,17 @@ pub trait Coder {
     fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError>;
     /// Codes one equiprobable bit (no context).
     fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError>;
+
+    /// Codes a signed integer with the contexts `ints` ([`IntContexts::code`], which calls
+    /// this): by default bit by bit through [`Coder::bit`] and [`Coder::bypass`]; a decoder
+    /// overrides it with a path where one inlined binary decision serves every context-coded
+    /// bit.
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError>
+    where
+        Self: Sized,
+    {
+        ints.code_bits(self, ctx, v)
+    }
 }
 
 /// Sequential source of payload bytes for the [`RangeDecoder`].
@@ -190,40 +201,120 @@ impl<S: ByteSource> RangeDecoder<S> {
     }
 }
 
+impl<S: ByteSource> RangeDecoder<S> {
+    /// Decodes one bit with the adaptive context `p` (and updates it): the one binary decision
+    /// of the decoder, inlined where it is used. No division: the split is a shift and a
+    /// multiply, the adaptation a shift by a table entry.
+    #[inline(always)]
+    fn decision(&mut self, p: &mut Prob) -> Result<bool, DecodeError> {
+        let stored = p.0;
+        let n = stored & COUNT_MAX;
+        let mut prob = (stored >> COUNT_BITS) ^ HALF;
+        let bound = (self.range >> PROB_BITS) * u32::from(prob);
+        let bit = self.code >= bound;
+        let shift = ADAPT_SHIFTS[usize::from(n)];
+        if bit {
+            self.code -= bound;
+            self.range -= bound;
+            prob -= prob >> shift;
+        } else {
+            self.range = bound;
+            prob += (PROB_ONE - prob) >> shift;
+        }
+        p.0 = ((prob ^ HALF) << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
+        if self.range < RANGE_TOP {
+            self.refill()?;
+        }
+        Ok(bit)
+    }
+
+    /// Decodes one equiprobable bit.
+    #[inline(always)]
+    fn even(&mut self) -> Result<bool, DecodeError> {
+        self.range >>= 1;
+        let bit = self.code >= self.range;
+        if bit {
+            self.code -= self.range;
+        }
+        if self.range < RANGE_TOP {
+            self.refill()?;
+        }
+        Ok(bit)
+    }
+
+    /// Shifts payload bytes in until the range is at least [`RANGE_TOP`] again (out of line:
+    /// about one decision in eight needs it).
+    #[inline(never)]
+    fn refill(&mut self) -> Result<(), DecodeError> {
+        self.normalize()
+    }
+}
+
 impl<S: ByteSource> Coder for RangeDecoder<S> {
     #[inline]
     fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
-        let bound = p.bound(self.range);
-        *bit = self.code >= bound;
-        if *bit {
-            self.code -= bound;
-            self.range -= bound;
-        } else {
-            self.range = bound;
-        }
-        p.update(*bit);
-        self.normalize()
+        *bit = self.decision(p)?;
+        Ok(())
     }
 
     #[inline]
     fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
-        self.range >>= 1;
-        *bit = self.code >= self.range;
-        if *bit {
-            self.code -= self.range;
+        *bit = self.even()?;
+        Ok(())
+    }
+
+    /// The zero flag, the sign and the prefix bits are decided in one loop, so that the
+    /// binary decision is inlined once: a zero (the commonest value) costs one decision.
+    #[inline(never)]
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
+        let probs = &mut ints.probs;
+        let mut at = ctx.min(ZERO_CONTEXTS - 1);
+        // Decisions so far: 0 the zero flag, 1 the sign, then 2 + k for prefix bit k.
+        let mut stage = 0usize;
+        let mut negative = false;
+        loop {
+            let Some(p) = probs.get_mut(at) else {
+                return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
+            };
+            let bit = self.decision(p)?;
+            match stage {
+                0 if !bit => {
+                    *v = 0;
+                    return Ok(());
+                }
+                0 => at = SIGN,
+                1 => {
+                    negative = bit;
+                    at = PREFIX;
+                }
+                _ if !bit => break,
+                _ => {
+                    if stage - 1 >= MAX_PREFIX {
+                        return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
+                    }
+                    at = PREFIX + (stage - 1).min(PREFIX_CONTEXTS - 1);
+                }
+            }
+            stage += 1;
         }
-        self.normalize()
+        // stage - 2 prefix bits were ones: the magnitude has that many suffix bits.
+        let mut mag: u32 = 1;
+        for _ in 2..stage {
+            mag = (mag << 1) | u32::from(self.even()?);
+        }
+        // mag < 2^MAX_PREFIX, so the cast is lossless.
+        *v = if negative { -(mag as i32) } else { mag as i32 };
+        Ok(())
     }
 }
 
 /// Contexts for one class of signed integers (residuals), binarised as: zero flag, sign, then
 /// an Exp-Golomb magnitude whose unary prefix bits are context coded and whose suffix bits are
-/// bypass coded.
+/// bypass coded. The contexts are one array (the zero flags, the sign, the prefix bits), so
+/// that a decoder reaches any of them by an index from one base address.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IntContexts {
-    zero: [Prob; ZERO_CONTEXTS],
-    sign: Prob,
-    prefix: [Prob; PREFIX_CONTEXTS],
+    probs: [Prob; IntContexts::COUNT],
 }
 
 /// Neighbourhood classes of the zero flag (see [`IntContexts::code`]).
@@ -233,6 +324,10 @@ pub const MAX_PREFIX: usize = 12;
 /// Prefix bits with a context of their own; later prefix bits (magnitudes of `2^5` and more,
 /// rare) share the last one.
 pub const PREFIX_CONTEXTS: usize = 6;
+/// Where the sign's context is in [`IntContexts`].
+const SIGN: usize = ZERO_CONTEXTS;
+/// Where the prefix bits' contexts start in [`IntContexts`].
+const PREFIX: usize = ZERO_CONTEXTS + 1;
 
 impl Default for IntContexts {
     fn default() -> Self {
@@ -243,25 +338,32 @@ impl Default for IntContexts {
 impl IntContexts {
     /// Fresh contexts ([`Prob::FRESH`]).
     pub const FRESH: IntContexts = IntContexts {
-        zero: [Prob::FRESH; ZERO_CONTEXTS],
-        sign: Prob::FRESH,
-        prefix: [Prob::FRESH; PREFIX_CONTEXTS],
+        probs: [Prob::FRESH; IntContexts::COUNT],
     };
 
     /// Number of contexts ([`IntContexts::for_each_prob`]).
     pub const COUNT: usize = ZERO_CONTEXTS + 1 + PREFIX_CONTEXTS;
 
     /// Calls `f` on every context, in a fixed order: the zero flags, the sign, the prefix bits.
-    pub fn for_each_prob(&mut self, mut f: impl FnMut(&mut Prob)) {
-        self.zero.iter_mut().for_each(&mut f);
-        f(&mut self.sign);
-        self.prefix.iter_mut().for_each(&mut f);
+    pub fn for_each_prob(&mut self, f: impl FnMut(&mut Prob)) {
+        self.probs.iter_mut().for_each(f);
     }
 
     /// Codes a signed integer `v` with `|v| < 2^MAX_PREFIX`. `ctx` (below [`ZERO_CONTEXTS`];
     /// larger values count as the last class) selects the neighbourhood class of the zero flag,
     /// from the sizes of earlier values of the same kind.
+    #[inline]
     pub fn code<C: Coder>(
+        &mut self,
+        c: &mut C,
+        ctx: usize,
+        v: &mut i32,
+    ) -> Result<(), DecodeError> {
+        c.int(self, ctx, v)
+    }
+
+    /// [`IntContexts::code`] bit by bit (the default of [`Coder::int`]).
+    pub fn code_bits<C: Coder>(
         &mut self,
         c: &mut C,
         ctx: usize,
@@ -269,24 +371,23 @@ impl IntContexts {
     ) -> Result<(), DecodeError> {
         let ctx = ctx.min(ZERO_CONTEXTS - 1);
         let mut nonzero = *v != 0;
-        c.bit(&mut self.zero[ctx], &mut nonzero)?;
+        c.bit(&mut self.probs[ctx], &mut nonzero)?;
         if !nonzero {
             *v = 0;
             return Ok(());
         }
         let mut negative = *v < 0;
-        c.bit(&mut self.sign, &mut negative)?;
+        c.bit(&mut self.probs[SIGN], &mut negative)?;
         // Exp-Golomb of magnitude m >= 1: k = floor(log2 m) in unary, then k low bits.
         let m = v.unsigned_abs();
         let k_in = 31 - m.max(1).leading_zeros() as usize;
-        let prefix = &mut self.prefix;
         let mut k = 0usize;
         loop {
             if k >= MAX_PREFIX {
                 return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
             }
             let mut more = k < k_in;
-            c.bit(&mut prefix[k.min(PREFIX_CONTEXTS - 1)], &mut more)?;
+            c.bit(&mut self.probs[PREFIX + k.min(PREFIX_CONTEXTS - 1)], &mut more)?;
             if !more {
                 break;
             }

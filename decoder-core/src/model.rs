@@ -244,17 +244,26 @@ const fn narrow(taps: [i32; 4]) -> [i16; 4] {
 impl Weights {
     /// The smooth default scheme of model `model`.
     pub fn default_for(model: ModelType) -> Self {
-        let n = model.transforms;
+        // A copy of a table built at compile time (a leaf's weights start from it).
+        DEFAULT_WEIGHTS[usize::from(model.transforms == 4)]
+    }
+
+    /// [`Weights::default_for`] the models of `n` transforms.
+    const fn default_of(n: u8) -> Self {
         let mut w = Weights {
             line: [[[0; 4]; 3]; 2],
             cell: [[[0; 4]; 3]; 3],
         };
-        for r in 1..n as usize {
+        let mut r = 1;
+        while r < n as usize {
             w.line[0][r - 1] = narrow(default_line_taps(n, r));
             w.line[1][r - 1] = narrow(default_line_taps(n, r));
-            for r2 in 1..n as usize {
+            let mut r2 = 1;
+            while r2 < n as usize {
                 w.cell[r - 1][r2 - 1] = narrow(default_cell_taps(n, r, r2));
+                r2 += 1;
             }
+            r += 1;
         }
         w
     }
@@ -304,6 +313,9 @@ impl Weights {
         }
     }
 }
+
+/// The default weights of the models of two and of four transforms.
+const DEFAULT_WEIGHTS: [Weights; 2] = [Weights::default_of(2), Weights::default_of(4)];
 
 /// Address of one free weight.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -846,6 +846,10 @@ fn reconstruct_weights(
         .get(usize::from(leaf.wquant))
         .ok_or(DecodeError::InvalidData(SyntaxElement::WeightQuantiser))?;
     patch.weights = Weights::default_for(model);
+    if kind == WeightQuantiser::Default {
+        // No deviation: the default taps, already balanced.
+        return Ok(());
+    }
     let mut i = 0;
     let mut result = Ok(());
     for_each_free_tap(model, |slot| {

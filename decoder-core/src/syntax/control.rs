@@ -26,7 +26,17 @@ pub const fn grid_sizes(side: usize) -> ([usize; MAX_GRID_LEVELS + 1], usize) {
 
 /// The transform level of position `(r, c)` of a control grid of side `side`: 0 for the
 /// finest detail band, up to the number of levels for the single low-band value at `(0, 0)`.
+/// A table lookup for the coded grid sides.
 pub const fn band_level(side: usize, r: usize, c: usize) -> usize {
+    if r < side && c < side && side <= MAX_GRID && GRID_SIDES[GRID_SLOTS[side] as usize] == side {
+        let at = GRID_OFFSETS[GRID_SLOTS[side] as usize] as usize + r * side + c;
+        return BAND_LEVELS[at] as usize;
+    }
+    band_level_of(side, r, c)
+}
+
+/// [`band_level`], computed.
+const fn band_level_of(side: usize, r: usize, c: usize) -> usize {
     let (sizes, levels) = grid_sizes(side);
     let mut k = 0;
     while k < levels {
@@ -37,6 +47,20 @@ pub const fn band_level(side: usize, r: usize, c: usize) -> usize {
     }
     levels
 }
+
+/// The band level of every position of a grid of side `side` ([`band_level_of`]).
+const fn band_levels(side: usize) -> [u8; MAX_CONTROL] {
+    let mut out = [0u8; MAX_CONTROL];
+    let mut i = 0;
+    while i < side * side {
+        out[i] = band_level_of(side, i / side, i % side) as u8;
+        i += 1;
+    }
+    out
+}
+
+/// [`band_levels`] of every coded grid side.
+const BAND_LEVELS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandLevels);
 
 /// The coding order of a control grid of side `side` under the grid transform: the low-band
 /// value `(0, 0)` first, then for each level from the coarsest to the finest the positions that
@@ -51,7 +75,7 @@ const fn transform_scan(side: usize) -> [u8; MAX_CONTROL] {
         k -= 1;
         let mut i = 0;
         while i < side * side {
-            if band_level(side, i / side, i % side) == k {
+            if band_level_of(side, i / side, i % side) == k {
                 out[n] = i as u8;
                 n += 1;
             }
@@ -110,6 +134,8 @@ enum GridTable {
     Scans,
     /// [`band_multipliers`].
     BandMultipliers,
+    /// [`band_levels`].
+    BandLevels,
 }
 
 /// A per-side table: the first `side * side` entries of `table` for every side of
@@ -121,6 +147,7 @@ const fn per_side_table(table: GridTable) -> [u8; GRID_TABLE_LEN] {
         let entries = match table {
             GridTable::Scans => transform_scan(GRID_SIDES[k]),
             GridTable::BandMultipliers => band_multipliers(GRID_SIDES[k]),
+            GridTable::BandLevels => band_levels(GRID_SIDES[k]),
         };
         let mut i = 0;
         while i < GRID_SIDES[k] * GRID_SIDES[k] {
@@ -177,53 +204,59 @@ const fn raster_order() -> [u8; MAX_CONTROL] {
 /// One inverse lifting step of the reversible 5/3 wavelet (LeGall, as in JPEG 2000's
 /// lossless path, with symmetric extension) on the `m` values of `g` at `start`, `start +
 /// stride`, ...: low-band values first, then high-band values; replaced by the signal, each
-/// value saturated to the `i16` range it is stored in.
+/// value saturated to the `i16` range it is stored in. (The intermediate values are sums of a
+/// few 16-bit values, so 32 bits hold them exactly.)
 const fn inverse_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, m: usize) {
+    if m < 2 || m > MAX_GRID || start + (m - 1) * stride >= MAX_CONTROL {
+        return;
+    }
     let nl = m.div_ceil(2);
     let nh = m / 2;
-    let mut y = [0i32; MAX_GRID];
+    // The band values, read once (the signal is written over them).
+    let mut y = [0i16; MAX_GRID];
     let mut i = 0;
     while i < m {
-        y[i] = g[start + i * stride] as i32;
+        y[i] = g[start + i * stride];
         i += 1;
     }
-    let mut x = [0i32; MAX_GRID];
-    // Even samples: low band minus the update from the neighbouring details.
-    i = 0;
-    while i < nl {
-        let (left, right) = if nh == 0 {
-            (0, 0)
-        } else {
-            let l = if i == 0 { 0 } else { i - 1 };
-            let r = if i < nh { i } else { nh - 1 };
-            (y[nl + l], y[nl + r])
-        };
-        x[2 * i] = y[i].saturating_sub(left.saturating_add(right).saturating_add(2) >> 2);
-        i += 1;
-    }
-    // Odd samples: detail plus the prediction from the neighbouring even samples.
+    // Even samples: low band minus the update from the neighbouring details; odd samples:
+    // detail plus the prediction from the neighbouring even samples (the one to the right is
+    // made first).
+    let mut left = even_sample(&y, 0, nl, nh);
+    g[start] = narrow(left);
     i = 0;
     while i < nh {
-        let right = if 2 * i + 2 < m {
-            x[2 * i + 2]
+        let more = 2 * i + 2 < m;
+        let right = if more {
+            even_sample(&y, i + 1, nl, nh)
         } else {
-            x[2 * i]
+            left
         };
-        x[2 * i + 1] =
-            y[nl + i].saturating_add(x[2 * i].saturating_add(right).saturating_add(1) >> 1);
+        g[start + (2 * i + 1) * stride] = narrow(y[nl + i] as i32 + ((left + right + 1) >> 1));
+        if more {
+            g[start + (2 * i + 2) * stride] = narrow(right);
+        }
+        left = right;
         i += 1;
     }
-    i = 0;
-    while i < m {
-        let v = x[i];
-        g[start + i * stride] = if v > i16::MAX as i32 {
-            i16::MAX
-        } else if v < i16::MIN as i32 {
-            i16::MIN
-        } else {
-            v as i16
-        };
-        i += 1;
+}
+
+/// Even sample `i` of the inverse lifting step: low-band value `i` minus the update from the
+/// neighbouring details (high-band values `nl + i - 1` and `nl + i`, mirrored at the ends).
+const fn even_sample(y: &[i16; MAX_GRID], i: usize, nl: usize, nh: usize) -> i32 {
+    let l = if i == 0 { 0 } else { i - 1 };
+    let r = if i < nh { i } else { nh - 1 };
+    y[i] as i32 - ((y[nl + l] as i32 + y[nl + r] as i32 + 2) >> 2)
+}
+
+/// `v` saturated to the `i16` range.
+const fn narrow(v: i32) -> i16 {
+    if v > i16::MAX as i32 {
+        i16::MAX
+    } else if v < i16::MIN as i32 {
+        i16::MIN
+    } else {
+        v as i16
     }
 }
 
