@@ -21,7 +21,8 @@ use crate::model::{
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
 use crate::synthesis::Patch;
 use control::{
-    band_level, coefficient_step, expand_pixel_grid, inverse_grid_transform, transform_order,
+    band_level, coefficient_step, expand_pixel_grid, grid_position, inverse_grid_transform,
+    transform_order,
     WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, RASTER_ORDER, WEIGHT_QUANTISERS,
     WEIGHT_QUANTISER_KINDS,
 };
@@ -601,7 +602,8 @@ pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i3
     let base = if i == 0 {
         0
     } else {
-        intra_prediction(values, side, i / side, i % side)
+        let (r, c) = grid_position(i, side);
+        intra_prediction(values, side, r, c)
     };
     dequantise_control(base, step, index)
 }
@@ -610,7 +612,8 @@ pub fn control_value(values: &[i16], side: usize, i: usize, step: i32, index: i3
 #[inline]
 pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
     // The sample range fits in an i16.
-    base.saturating_add(index.saturating_mul(step))
+    // An index beyond 2^16 steps saturates either way; within, the product fits 32 bits.
+    base.saturating_add(index.clamp(-(1 << 16), 1 << 16) * step)
         .clamp(SAMPLE_MIN, SAMPLE_MAX) as i16
 }
 
@@ -627,7 +630,8 @@ pub fn transform_control_values(
 ) {
     *out = [0; MAX_CONTROL];
     for (i, (v, &k)) in out.iter_mut().zip(indices).take(side * side).enumerate() {
-        let c = i32::from(k).saturating_mul(coefficient_step(side, i, step));
+        // A 16-bit index times a step below 2^14: no overflow.
+        let c = i32::from(k) * coefficient_step(side, i, step);
         *v = c.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
     }
     inverse_grid_transform(out, side);
@@ -679,7 +683,7 @@ fn code_control<C: Coder, P: SamplePrediction>(
     let (mut row_value, mut column_value) = (0, 0);
     for (n, &i) in order.iter().enumerate() {
         let i = usize::from(i);
-        let (r, col) = (i / side, i % side);
+        let (r, col) = grid_position(i, side);
         let base = match (n, r) {
             (0, _) => 0,
             (_, 0) => row_value,

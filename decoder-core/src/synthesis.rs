@@ -519,7 +519,7 @@ struct Square {
 impl Square {
     /// The square of child grid `(i, j)` of a grid with `m` intervals refined by `n`.
     fn child(&self, m: u32, n: u32, i: u32, j: u32) -> Square {
-        let sp = self.sp / n;
+        let sp = self.sp >> n.trailing_zeros();
         Square {
             x: self.x + j * m * sp,
             y: self.y + i * m * sp,
@@ -669,7 +669,7 @@ impl Patch {
         for i in 0..n {
             for j in 0..n {
                 let child_at = at.child(m, n, i, j);
-                if !job.clip.overlaps_square(child_at.x, child_at.y, ext / n) {
+                if !job.clip.overlaps_square(child_at.x, child_at.y, ext >> n.trailing_zeros()) {
                     continue;
                 }
                 self.child(g, i as usize, j as usize, lattice, child);
@@ -711,23 +711,23 @@ impl Patch {
         let len = cols * rows;
         let Some(lattice) = lattice.filter(|_| sp > 1) else {
             // A pixel grid: its points are the pixels.
-            let src = g.chunks_exact(side).skip(r0);
-            for (dst, src) in job.pixels.chunks_exact_mut(cols).zip(src).take(rows) {
-                for (p, &v) in dst.iter_mut().zip(&src[c0..]) {
-                    *p = sample_to_pixel(i32::from(v));
+            for j in 0..rows {
+                let from = (r0 + j) * side + c0;
+                if let (Some(dst), Some(src)) = (job.pixels.get_mut(j * cols..j * cols + cols), g.get(from..)) {
+                    to_pixels(dst, src);
                 }
             }
             return job.put(area, len);
         };
-        for (row, src) in g.chunks_exact(side).enumerate() {
+        for row in 0..side {
             let dst = &mut lattice[(row * sp).min(TILE)];
-            for (col, &v) in src.iter().enumerate() {
-                dst[(col * sp).min(TILE)] = v;
+            for col in 0..side {
+                dst[(col * sp).min(TILE)] = g.get(row * side + col).copied().unwrap_or(0);
             }
         }
         let mut d = sp;
         while d > 1 {
-            let nd = if d >= n { d / n } else { 1 };
+            let nd = if d >= n { d >> n.trailing_zeros() } else { 1 };
             if nd == 1 {
                 // The last level: only the pixels inside the clip.
                 let (last_row, last_col) = (r0 + rows - 1, c0 + cols - 1);
@@ -737,10 +737,9 @@ impl Patch {
             }
             d = nd;
         }
-        let src = lattice.iter().skip(r0);
-        for (dst, src) in job.pixels.chunks_exact_mut(cols).zip(src).take(rows) {
-            for (p, &v) in dst.iter_mut().zip(&src[c0..]) {
-                *p = sample_to_pixel(i32::from(v));
+        for j in 0..rows {
+            if let (Some(dst), Some(src)) = (job.pixels.get_mut(j * cols..j * cols + cols), lattice.get(r0 + j)) {
+                to_pixels(dst, &src[c0.min(TILE)..]);
             }
         }
         job.put(area, len)
@@ -763,12 +762,12 @@ impl Patch {
         let m = usize::from(self.model.intervals);
         let (shift_n, shift_d) = (self.model.transforms.trailing_zeros(), d.trailing_zeros());
         let phase = |offset: usize| ((offset << shift_n) >> shift_d).wrapping_sub(1).min(2);
-        let intervals = (ext / d).min(TILE);
+        let intervals = (ext >> shift_d).min(TILE);
         let last = m - 1;
         // The lattice positions of the taps of interval k: points k - 1 ..= k + 2 of its child
         // grid, mirrored at the child grid's ends.
         let taps_of = |k: usize| {
-            let a = k % m;
+            let a = k & (m - 1);
             let before = if a == 0 { k + 1 } else { k.wrapping_sub(1) };
             let after = if a == last { k } else { k + 2 };
             [before, k, k + 1, after].map(|t| (t * d).min(TILE))
@@ -777,8 +776,8 @@ impl Patch {
         let (r_lo, r_hi) = (rows.0, rows.1.min(TILE));
         // The row rule on the old rows the needed rows are made from, in place (it writes
         // between the points it reads), one new column at a time.
-        let first = (r_lo / d).saturating_sub(1) * d;
-        let end = ((r_hi / d + 2) * d).min(ext);
+        let first = ((r_lo >> shift_d).saturating_sub(1)) << shift_d;
+        let end = (((r_hi >> shift_d) + 2) << shift_d).min(ext);
         let mut offset = nd;
         while offset < d {
             with_rule!(&self.weights.line[0][phase(offset)], |rule| {
@@ -825,7 +824,7 @@ impl Patch {
                         &cells[phase(column)]
                     };
                     // The first column of this phase at or after c_lo.
-                    let x = c_lo + (column + d - c_lo % d) % d;
+                    let x = c_lo + ((column + d - (c_lo & (d - 1))) & (d - 1));
                     column += nd;
                     with_rule!(taps, |rule| across(rule, new, from, x, c_hi, d));
                 }
@@ -853,7 +852,7 @@ impl Patch {
         let mask = (1usize << shift) - 1;
         let (x, y, sp) = (at.x, at.y, at.sp);
         let ext = u32::from(self.model.intervals) * sp;
-        let stride = (u32::from(self.model.transforms) / sp.max(1)).max(1) as usize;
+        let stride = (u32::from(self.model.transforms) >> sp.trailing_zeros()).max(1) as usize;
         let clip = job.clip;
         let x_lo = x.max(clip.x);
         let y_lo = y.max(clip.y);
@@ -881,7 +880,10 @@ impl Patch {
             let mut ty = y_lo;
             while ty < y_hi {
                 let th = (y_hi - ty).min(TILE as u32);
-                for (j, out) in job.pixels.chunks_exact_mut(cols).take(th as usize).enumerate() {
+                for j in 0..th as usize {
+                    let Some(out) = job.pixels.get_mut(j * cols..j * cols + cols) else {
+                        break;
+                    };
                     let q1 = (ty - y) as usize * stride + j * stride;
                     let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
                     if r1 == 0 {
@@ -917,7 +919,7 @@ impl Patch {
         let mask = (1usize << shift) - 1;
         // Entries c, c + period, ... have one phase; their intervals follow each other `step`
         // apart.
-        let period = (mask + 1).div_ceil(stride).min(out.len());
+        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, out.len().max(1));
         let step = (period * stride) >> shift;
         for c in 0..period {
             let q = q2 + c * stride;
@@ -952,7 +954,7 @@ impl Patch {
             r => &cells[(r - 1).min(2)],
         };
         let first = rule_of(q2);
-        let period = (mask + 1).div_ceil(stride).min(out.len());
+        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, out.len().max(1));
         if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
             with_rule!(first, |rule| across_pixels(rule, out, from));
             return;
@@ -985,7 +987,10 @@ impl Patch {
             fill_pad(&mut pad, row);
             self.row_points(&pad, q2, 1, &mut dst[..side.min(LATTICE)]);
         }
-        for (r, dst) in out.chunks_exact_mut(side).take(side).enumerate() {
+        for r in 0..side {
+            let Some(dst) = out.get_mut(r * side..r * side + side) else {
+                break;
+            };
             let q = q1 + r;
             let (a1, r1) = ((q >> shift).min(m), q & mask);
             if r1 == 0 {
@@ -1020,7 +1025,7 @@ impl Patch {
             r => &cells[(r - 1).min(2)],
         };
         let first = rule_of(q2);
-        let period = (mask + 1).div_ceil(stride).min(out.len());
+        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, out.len().max(1));
         if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
             with_rule!(first, |rule| across_samples(rule, out, from));
             return;
@@ -1045,7 +1050,7 @@ impl Patch {
         }
         let size = node.size();
         let (s, step) = if size >= unit {
-            (size >> k, (unit * m / size) as usize)
+            (size >> k, ((unit * m) >> node.log2) as usize)
         } else {
             (1, 0)
         };

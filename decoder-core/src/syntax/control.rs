@@ -24,6 +24,27 @@ pub const fn grid_sizes(side: usize) -> ([usize; MAX_GRID_LEVELS + 1], usize) {
     (sizes, k)
 }
 
+/// Row and column of the row-major index `i` of a grid of side `side` (at most [`MAX_GRID`]):
+/// `(i / side, i % side)` by a multiply and a shift (no division, which a Cortex-M0 lacks):
+/// `i * ceil(1024 / side) >> 10` is `i / side` exactly for every index of such a grid.
+#[inline]
+pub fn grid_position(i: usize, side: usize) -> (usize, usize) {
+    const RECIPROCALS: [u16; MAX_GRID + 1] = {
+        let mut out = [0u16; MAX_GRID + 1];
+        let mut s = 1;
+        while s <= MAX_GRID {
+            out[s] = 1024u32.div_ceil(s as u32) as u16;
+            s += 1;
+        }
+        out
+    };
+    let Some(&reciprocal) = RECIPROCALS.get(side) else {
+        return (0, 0);
+    };
+    let r = (i * usize::from(reciprocal)) >> 10;
+    (r, i.wrapping_sub(r * side))
+}
+
 /// The transform level of position `(r, c)` of a control grid of side `side`: 0 for the
 /// finest detail band, up to the number of levels for the single low-band value at `(0, 0)`.
 /// A table lookup for the coded grid sides.
@@ -371,6 +392,16 @@ pub const WEIGHT_QUANTISER_KINDS: [WeightQuantiser; WEIGHT_QUANTISERS] = [
 mod tests {
     use super::*;
     use crate::model::MODELS;
+
+    /// `grid_position` divides exactly for every index of every grid side.
+    #[test]
+    fn grid_positions_are_divisions() {
+        for side in 1..=MAX_GRID {
+            for i in 0..side * side {
+                assert_eq!(grid_position(i, side), (i / side, i % side), "{i} / {side}");
+            }
+        }
+    }
 
     /// A pixel grid's `m x m` values land at their grid positions, and the row and column past
     /// the block repeat the last ones.
