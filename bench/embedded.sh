@@ -5,9 +5,13 @@
 #           16 KiB RAM);
 #   flash = code + read-only data the decoder adds: firmware with the decoder call minus the
 #           same firmware without it (`baseline` feature), size-optimised release build;
-#   speed = instructions per output pixel on Cortex-M3 (SysTick under `-icount shift=0`).
+#   speed = instructions per output pixel on Cortex-M3 and Cortex-M0 (SysTick under
+#           `-icount shift=0`, from decode entry to return), and the instructions of decodes at
+#           1/2, 1/4 and 1/8 of the size as a share of the full decode's.
 # Images: kodim23 as 128x128, 320x240 and 768x512 grayscale, encoded at 0.1 and 0.5 bpp with the
-# host `pifs` encoder. Generated files go to target/bench-embedded/. Prints a markdown table.
+# host `pifs` encoder. Generated files go to target/bench-embedded/. Prints markdown tables
+# (with ChaN's TJpgDec R0.03 beside ours when ../shared/bench/tjpgdec/out/compare.md is there)
+# and writes bench/results/embedded.csv: one row per target, image and rate.
 #
 #   bash bench/embedded.sh [KODIM23.png]      (default: ../shared/images/kodak/kodim23.png)
 #
@@ -67,7 +71,7 @@ run() { # target elf -> PIFS-BENCH lines on stdout; QEMU's status in $out/status
     grep '^PIFS-BENCH' "$out/qemu.err" || true
 }
 field() { sed -n "s/.* $1=\([^ ]*\).*/\1/p"; }
-declare -A stack instr static flash base_flash
+declare -A stack instr static flash base_flash scaled
 for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     elf=$(build $target bench "${streams[@]}")
     read -r text data bss _ < <(size "$elf" | tail -1)
@@ -81,14 +85,17 @@ for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     todo=("${streams[@]}")
     while [ ${#todo[@]} -gt 0 ]; do
         lines=$(run $target "$elf")
-        done_names=$(echo "$lines" | field name)
+        done_names=$(echo "$lines" | grep '^PIFS-BENCH ' | field name)
         rest=()
         for s in "${todo[@]}"; do
             n=$(basename "$s")
             if echo "$done_names" | grep -qx "$n"; then
-                l=$(echo "$lines" | grep " name=$n ")
+                l=$(echo "$lines" | grep "^PIFS-BENCH name=$n ")
                 stack[$target/$n]=$(echo "$l" | field stack)
                 instr[$target/$n]=$(echo "$l" | field instr)
+                for k in -1 -2 -3; do
+                    scaled[$target/$n/$k]=$(echo "$lines" | grep "^PIFS-BENCH-SCALED name=$n scale=$k " | field instr)
+                done
             else
                 rest+=("$s")
             fi
@@ -107,28 +114,40 @@ for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     done
 done
 
-# 3. The table.
+# 3. The tables and the CSV.
 v7=thumbv7m-none-eabi
 v6=thumbv6m-none-eabi
 ram() { # target name
     local s=${stack[$1/$2]:-}
     if [[ $s =~ ^[0-9]+$ ]]; then echo "$((s + static[$1])) ($s + ${static[$1]})"; else echo "${s:-n/a}"; fi
 }
+per_px() { # instructions pixels
+    if [[ ${1:-} =~ ^[0-9]+$ ]]; then awk -v i="$1" -v p="$2" 'BEGIN { printf "%.1f", i / p }'; else echo n/a; fi
+}
+share() { # part whole
+    if [[ ${1:-} =~ ^[0-9]+$ && ${2:-} =~ ^[0-9]+$ ]]; then awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; else echo n/a; fi
+}
+csv=$root/bench/results/embedded.csv
+mkdir -p "$root/bench/results"
+echo "target,image,bpp,stream_bytes,ram_static,ram_stack,ram_total,decoder_flash,instructions,instr_per_pixel,half_share,quarter_share,eighth_share" >"$csv"
 echo
 echo "### PIFS decoder on Cortex-M (QEMU), firmware-example \`bench\` build, opt-level \"s\", LTO"
 echo
-echo "| image | bpp | stream bytes | M3 RAM: static + stack (bytes) | M0 RAM: static + stack (bytes) | M3 instructions | M3 instr/pixel |"
-echo "|---|---:|---:|---:|---:|---:|---:|"
+echo "| image | bpp | stream bytes | M3 RAM: static + stack (bytes) | M0 RAM: static + stack (bytes) | M3 instr/pixel | M0 instr/pixel | M3 1/4 decode / full | M0 1/4 decode / full |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
     size=$(echo "$n" | sed 's/kodim23_\([0-9x]*\)_.*/\1/')
     bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
     bytes=$(stat -c %s "$s")
     px=$(( ${size%x*} * ${size#*x} ))
-    i=${instr[$v7/$n]:-}
-    ipp=n/a
-    [[ $i =~ ^[0-9]+$ ]] && ipp=$(awk -v i="$i" -v p="$px" 'BEGIN { printf "%.1f", i / p }')
-    echo "| kodim23 $size | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | ${i:-n/a} | $ipp |"
+    echo "| kodim23 $size | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | $(per_px "${instr[$v7/$n]:-}" $px) | $(per_px "${instr[$v6/$n]:-}" $px) | $(share "${scaled[$v7/$n/-2]:-}" "${instr[$v7/$n]:-}") | $(share "${scaled[$v6/$n/-2]:-}" "${instr[$v6/$n]:-}") |"
+    for t in $v7 $v6; do
+        st=${stack[$t/$n]:-}
+        total=n/a
+        [[ $st =~ ^[0-9]+$ ]] && total=$((st + static[$t]))
+        echo "$t,kodim23_$size,$bpp,$bytes,${static[$t]},$st,$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}")" >>"$csv"
+    done
 done
 echo
 echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) |"
@@ -137,6 +156,63 @@ for t in $v7 $v6; do
     echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) |"
 done
 echo
-echo "Budgets: RAM (static + stack) <= 4096 bytes, decoder code <= 16384 bytes. Anchors: TJpgDec"
-echo "3.1 KiB work area + 3.1 KiB code (Cortex-M0); JPEGDEC ~18 KiB RAM. Static RAM is the whole"
-echo "firmware's (SysTick counter, loggers); the decoder itself has no static data."
+echo "Scaled decodes (share of the full decode's instructions; every leaf's edge pixels are still"
+echo "made at the coded size, for prediction):"
+echo
+echo "| image | bpp | M3 1/2 | M3 1/4 | M3 1/8 | M0 1/2 | M0 1/4 | M0 1/8 |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for s in "${streams[@]}"; do
+    n=$(basename "$s")
+    size=$(echo "$n" | sed 's/kodim23_\([0-9x]*\)_.*/\1/')
+    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
+    row="| kodim23 $size | $bpp |"
+    for t in $v7 $v6; do
+        for k in -1 -2 -3; do
+            row="$row $(share "${scaled[$t/$n/$k]:-}" "${instr[$t/$n]:-}") |"
+        done
+    done
+    echo "$row"
+done
+tj=$root/../shared/bench/tjpgdec/out/compare.md
+if [ -f "$tj" ]; then
+    echo
+    echo "Beside ChaN's TJpgDec R0.03 (instructions per output pixel, fastest configuration of"
+    echo "each, from $tj; same images, JPEG at the nearest rate; M3 then M0):"
+    echo
+    python3 - "$tj" "$csv" <<'PY'
+import csv, re, sys
+tj, ours = sys.argv[1], sys.argv[2]
+rows = {}
+core = None
+for line in open(tj):
+    if line.startswith("### M3"):
+        core = "thumbv7m-none-eabi"
+    elif line.startswith("### M0"):
+        core = "thumbv6m-none-eabi"
+    elif core and line.startswith("| ") and "x" in line.split("|")[1]:
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        m = re.match(r"(\d+x\d+) ~([0-9.]+)", cells[0])
+        if not m:
+            continue
+        fastest = min(float(c) for c in cells[3:7])
+        rows[(core, m.group(1), float(m.group(2)))] = (cells[3], fastest, cells[2])
+print("| image | bpp | TJpgDec M3 (f0t0 / fastest) | PIFS M3 | TJpgDec M0 (f0t0 / fastest) | PIFS M0 |")
+print("|---|---:|---:|---:|---:|---:|")
+data = {}
+for r in csv.DictReader(open(ours)):
+    data[(r["target"], r["image"].split("_")[1], float(r["bpp"]))] = r["instr_per_pixel"]
+for size in ["128x128", "320x240", "768x512"]:
+    for bpp in [0.1, 0.5]:
+        cells = []
+        for t in ["thumbv7m-none-eabi", "thumbv6m-none-eabi"]:
+            tjr = rows.get((t, size, bpp))
+            cells.append(f"{tjr[0]} / {tjr[1]:.1f}" if tjr else "n/a")
+            cells.append(data.get((t, size, bpp), "n/a"))
+        print(f"| kodim23 {size} | {bpp} | " + " | ".join(cells) + " |")
+PY
+fi
+echo
+echo "Targets (issue 24): <= 80 instr/pixel on Cortex-M3, <= 110 on Cortex-M0, RAM <= 3072 bytes,"
+echo "decoder flash <= 16384 bytes on thumbv6m, a 1/4 decode <= 1/8 of the full decode's"
+echo "instructions. Static RAM is the whole firmware's (SysTick counter, loggers); the decoder itself"
+echo "has no static data. CSV: bench/results/embedded.csv."

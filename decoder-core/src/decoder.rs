@@ -21,7 +21,7 @@ use crate::prediction::Frontier;
 use crate::syntax::{
     stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
 };
-use crate::synthesis::{Catch, Patch, PixelSink, Tile};
+use crate::synthesis::{Catch, Patch, PixelSink, Scale, Tile};
 use crate::walk::{self, LeafInfo, Node, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -211,6 +211,7 @@ pub struct Decoder<I, O = fn(&LeafInfo)> {
     input: I,
     clip: Rect,
     observer: O,
+    scale: Scale,
 }
 
 /// The default observer: ignores every leaf.
@@ -270,6 +271,7 @@ impl<I> Decoder<I> {
             input,
             clip: Rect::EVERYTHING,
             observer: ignore_leaf,
+            scale: Scale::One,
         }
     }
 }
@@ -302,7 +304,27 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
             input: self.input,
             clip: self.clip,
             observer,
+            scale: self.scale,
         }
+    }
+
+    /// Decodes at `scale` of the coded size (see [`Scale`]): an image of
+    /// [`Decoder::output_size`] pixels, whose coordinates the clip ([`Decoder::clip`]) and the
+    /// sink's tiles then use. Smaller decodes stop the subdivision early (their cost falls with
+    /// the output's pixel count, though every leaf's edge pixels are still made at the coded
+    /// size for prediction); larger ones continue it below the pixel.
+    pub fn scale(mut self, scale: Scale) -> Self {
+        self.scale = scale;
+        self
+    }
+
+    /// Width and height of the decoded image: the header's at the decoder's [`Scale`]
+    /// (rounded up).
+    pub fn output_size(&self) -> (u32, u32) {
+        (
+            self.scale.apply(self.header.width.into()),
+            self.scale.apply(self.header.height.into()),
+        )
     }
 
     /// Decodes the stream, handing the pixels inside the clip to `sink` tile by tile (no
@@ -313,12 +335,14 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
         sink: &mut S,
     ) -> Result<Header, DrawError<S::Error>> {
         let header = self.header;
-        let image = Rect::of_size(header.width.into(), header.height.into());
+        let (width, height) = self.output_size();
+        let image = Rect::of_size(width, height);
         let mut drawer = Drawer {
             clip: self.clip.intersect(&image),
             image,
             sink,
             observer: self.observer,
+            scale: self.scale,
         };
         let mut coder = match RangeDecoder::start(self.input) {
             Ok(coder) => coder,
@@ -335,16 +359,19 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
     }
 
     /// Decodes the stream into `out`: row-major, `width` bytes per row, at least
-    /// `width * height * channels` bytes ([`DecodeError::BufferTooSmall`] otherwise). Pixels
-    /// outside the clip are left as they are.
+    /// `width * height * channels` bytes ([`DecodeError::BufferTooSmall`] otherwise), with the
+    /// width and height of [`Decoder::output_size`]. Pixels outside the clip are left as they
+    /// are.
     pub fn decode_into(self, out: &mut [u8]) -> Result<Header, DecodeError> {
         let header = self.header;
-        if out.len() < header.pixel_count() * usize::from(header.channels) {
+        let (width, height) = self.output_size();
+        let needed = u64::from(width) * u64::from(height) * u64::from(header.channels);
+        if (out.len() as u64) < needed {
             return Err(DecodeError::BufferTooSmall);
         }
         let mut buffer = Buffer {
             out,
-            width: usize::from(header.width),
+            width: width as usize,
         };
         Ok(self.decode(&mut buffer)?)
     }
@@ -410,11 +437,13 @@ fn run_walk<B: ByteSource, V: TreeVisitor>(
 /// The one visitor of every decode: draws each leaf's pixels inside the clip into the sink and
 /// keeps the prediction frontier.
 struct Drawer<'s, S: PixelSink + ?Sized, O> {
-    /// What to draw, already cut to the image.
+    /// What to draw, already cut to the image (output coordinates).
     clip: Rect,
+    /// The output image.
     image: Rect,
     sink: &'s mut S,
     observer: O,
+    scale: Scale,
 }
 
 impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O> {
@@ -426,8 +455,8 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
 
     fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
 
-    /// A leaf the clip holds whole fills the frontier as it is drawn; any other leaf has its
-    /// edges rendered apart. Not inlined: the synthesis buffers then live only while a leaf is
+    /// A leaf the clip holds whole fills the frontier as it is drawn; any other leaf, and
+    /// every leaf of a scaled decode, has its edges rendered apart (at the coded size). Not inlined: the synthesis buffers then live only while a leaf is
     /// drawn, instead of in every frame of the quadtree walk.
     #[inline(never)]
     fn leaf(
@@ -439,11 +468,13 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
         (self.observer)(info);
         let node = &info.node;
         let mut out = Catch::new(&mut *self.sink);
-        let result = if self.clip.contains(&node.rect().intersect(&self.image)) {
+        let result = if self.scale == Scale::One
+            && self.clip.contains(&node.rect().intersect(&self.image))
+        {
             patch.render_to(node, self.clip, &mut frontier.capture(node, &mut out))
         } else {
             frontier.record(node, patch);
-            patch.render_to(node, self.clip, &mut out)
+            patch.render_scaled(node, self.scale, self.clip, &mut out)
         };
         out.finish(result).map_err(DrawError::Sink)
     }

@@ -387,7 +387,10 @@ impl IntContexts {
                 return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
             }
             let mut more = k < k_in;
-            c.bit(&mut self.probs[PREFIX + k.min(PREFIX_CONTEXTS - 1)], &mut more)?;
+            c.bit(
+                &mut self.probs[PREFIX + k.min(PREFIX_CONTEXTS - 1)],
+                &mut more,
+            )?;
             if !more {
                 break;
             }

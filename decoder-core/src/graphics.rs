@@ -60,7 +60,7 @@ use crate::entropy::ByteSource;
 use crate::error::{DecodeError, DrawError};
 use crate::geometry::Rect;
 use crate::syntax::Header;
-use crate::synthesis::{PixelSink, Tile};
+use crate::synthesis::{PixelSink, Scale, Tile};
 
 /// A colour type that decoded 8-bit luma can be drawn as.
 pub trait FromGray: PixelColor {
@@ -110,6 +110,7 @@ from_gray8!(Gray2, Gray4, Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888
 pub struct PifsImage<'a, C = Gray8> {
     payload: &'a [u8],
     header: Header,
+    scale: Scale,
     color: PhantomData<C>,
 }
 
@@ -121,8 +122,16 @@ impl<'a, C> PifsImage<'a, C> {
         Ok(PifsImage {
             payload: &data[header.encoded_len()..],
             header,
+            scale: Scale::One,
             color: PhantomData,
         })
+    }
+
+    /// The same image drawn at `scale` of its coded size (see [`Scale`]): its size, and the
+    /// coordinates of [`ImageDrawable::draw_sub_image`], are those of the scaled image. A
+    /// thumbnail at [`Scale::Quarter`] costs a fraction of the full decode.
+    pub fn with_scale(self, scale: Scale) -> Self {
+        PifsImage { scale, ..self }
     }
 
     /// The stream's header.
@@ -133,7 +142,7 @@ impl<'a, C> PifsImage<'a, C> {
     /// A decoder of the stream (already checked: this does not check it again), for decoding
     /// into a sink or a buffer rather than a draw target.
     pub fn decoder(&self) -> Decoder<crate::decoder::InMemory<'a>> {
-        Decoder::verified(self.header, self.payload)
+        Decoder::verified(self.header, self.payload).scale(self.scale)
     }
 }
 
@@ -165,7 +174,10 @@ impl<C: FromGray> PifsImage<'_, C> {
 
 impl<C> OriginDimensions for PifsImage<'_, C> {
     fn size(&self) -> Size {
-        Size::new(self.header.width.into(), self.header.height.into())
+        Size::new(
+            self.scale.apply(self.header.width.into()),
+            self.scale.apply(self.header.height.into()),
+        )
     }
 }
 
@@ -229,12 +241,9 @@ where
     D: DrawTarget,
     D::Color: FromGray,
 {
-    let header = decoder.header();
     let offset = area.top_left;
-    let image = Rectangle::new(
-        Point::zero(),
-        Size::new(header.width.into(), header.height.into()),
-    );
+    let (width, height) = decoder.output_size();
+    let image = Rectangle::new(Point::zero(), Size::new(width, height));
     // The target's visible area, in image coordinates.
     let visible = target.bounding_box();
     let visible = Rectangle::new(visible.top_left + offset, visible.size);

@@ -22,9 +22,8 @@ use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction
 use crate::synthesis::Patch;
 use control::{
     band_level, coefficient_step, expand_pixel_grid, grid_position, inverse_grid_transform,
-    transform_order,
-    WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, RASTER_ORDER, WEIGHT_QUANTISERS,
-    WEIGHT_QUANTISER_KINDS,
+    transform_order, WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, RASTER_ORDER,
+    WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use initial_contexts::INITIAL_PROBABILITIES;
 

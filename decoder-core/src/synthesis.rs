@@ -669,7 +669,10 @@ impl Patch {
         for i in 0..n {
             for j in 0..n {
                 let child_at = at.child(m, n, i, j);
-                if !job.clip.overlaps_square(child_at.x, child_at.y, ext >> n.trailing_zeros()) {
+                if !job
+                    .clip
+                    .overlaps_square(child_at.x, child_at.y, ext >> n.trailing_zeros())
+                {
                     continue;
                 }
                 self.child(g, i as usize, j as usize, lattice, child);
@@ -713,7 +716,9 @@ impl Patch {
             // A pixel grid: its points are the pixels.
             for j in 0..rows {
                 let from = (r0 + j) * side + c0;
-                if let (Some(dst), Some(src)) = (job.pixels.get_mut(j * cols..j * cols + cols), g.get(from..)) {
+                if let (Some(dst), Some(src)) =
+                    (job.pixels.get_mut(j * cols..j * cols + cols), g.get(from..))
+                {
                     to_pixels(dst, src);
                 }
             }
@@ -738,7 +743,10 @@ impl Patch {
             d = nd;
         }
         for j in 0..rows {
-            if let (Some(dst), Some(src)) = (job.pixels.get_mut(j * cols..j * cols + cols), lattice.get(r0 + j)) {
+            if let (Some(dst), Some(src)) = (
+                job.pixels.get_mut(j * cols..j * cols + cols),
+                lattice.get(r0 + j),
+            ) {
                 to_pixels(dst, &src[c0.min(TILE)..]);
             }
         }
@@ -839,13 +847,7 @@ impl Patch {
     /// (into `h`); then each tile row is an old row's or, across four old rows, the column or
     /// cell rule's, made straight into pixels.
     #[inline(never)]
-    fn emit(
-        &self,
-        g: &[i16],
-        at: &Square,
-        job: &mut Job<'_>,
-        h: &mut Lattice,
-    ) -> Result<(), Stop> {
+    fn emit(&self, g: &[i16], at: &Square, job: &mut Job<'_>, h: &mut Lattice) -> Result<(), Stop> {
         let m = usize::from(self.model.intervals);
         let side = m + 1;
         let shift = self.model.transforms.trailing_zeros();
@@ -893,7 +895,8 @@ impl Patch {
                         continue;
                     }
                     let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
-                    let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
+                    let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3))
+                    else {
                         continue;
                     };
                     self.pixel_row(out, [v0, v1, v2, v3], r1, q2, stride);
@@ -1041,7 +1044,13 @@ impl Patch {
     /// control point; a leaf smaller than `2^k` pixels draws its first control point if that
     /// pixel is one of those, else nothing.
     #[inline(never)]
-    fn subsample(&self, node: &Node, k: u32, clip: Rect, out: &mut dyn TileOut) -> Result<(), Stop> {
+    fn subsample(
+        &self,
+        node: &Node,
+        k: u32,
+        clip: Rect,
+        out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
         let side = m as usize + 1;
         let unit = 1u32 << k;
@@ -1069,7 +1078,11 @@ impl Patch {
         let mut len = 0;
         for j in r0..r0 + area.h as usize {
             for i in c0..c0 + area.w as usize {
-                let v = self.control.get(j * step * side + i * step).copied().unwrap_or(0);
+                let v = self
+                    .control
+                    .get(j * step * side + i * step)
+                    .copied()
+                    .unwrap_or(0);
                 if let Some(p) = pixels.get_mut(len) {
                     *p = sample_to_pixel(i32::from(v));
                 }
@@ -1156,7 +1169,12 @@ mod tests {
         fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
             let Rect { x, y, w, h } = tile.area;
             assert!(w as usize <= TILE && h as usize <= TILE && w > 0 && h > 0);
-            assert!(self.clip.contains(&tile.area), "{:?} outside {:?}", tile.area, self.clip);
+            assert!(
+                self.clip.contains(&tile.area),
+                "{:?} outside {:?}",
+                tile.area,
+                self.clip
+            );
             assert_eq!(tile.pixels.len() as u32, w * h);
             for r in 0..h as usize {
                 for c in 0..w as usize {
@@ -1325,7 +1343,11 @@ mod tests {
                                 let drawn = image.drawn[y * width + x];
                                 let inside = (x0..x1).contains(&(x as u32))
                                     && (y0..y1).contains(&(y as u32));
-                                assert_eq!(drawn, u8::from(inside), "{model:?} 2^{log2} {scale:?} at ({x}, {y})");
+                                assert_eq!(
+                                    drawn,
+                                    u8::from(inside),
+                                    "{model:?} 2^{log2} {scale:?} at ({x}, {y})"
+                                );
                                 if !inside {
                                     continue;
                                 }

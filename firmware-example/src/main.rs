@@ -121,8 +121,6 @@ fn run(counter: &measure::Counter) -> bool {
 
 #[cfg(feature = "bench")]
 fn run(counter: &measure::Counter) -> bool {
-    use core::hint::black_box;
-
     /// Sums the pixels, so that the decode cannot be optimised away.
     struct Sum(u32);
 
@@ -140,12 +138,12 @@ fn run(counter: &measure::Counter) -> bool {
     /// The measured call, not inlined so that all its stack is below the caller's.
     #[inline(never)]
     fn decode_once(data: &'static [u8], sum: &mut Sum) -> bool {
+        // The same (one) instantiation of the decoder as the scaled decodes below.
         #[cfg(not(feature = "baseline"))]
-        let ok = decoder_core::Decoder::new(black_box(data))
-            .is_ok_and(|decoder| decoder.decode(sum).is_ok());
+        let ok = decode_scaled(data, decoder_core::Scale::One, sum);
         #[cfg(feature = "baseline")]
         let ok = {
-            for &b in black_box(data) {
+            for &b in core::hint::black_box(data) {
                 sum.0 = sum.0.wrapping_add(u32::from(b));
             }
             true
@@ -175,6 +173,38 @@ fn run(counter: &measure::Counter) -> bool {
             ok
         );
         all_ok &= ok;
+        #[cfg(not(feature = "baseline"))]
+        for scale in [
+            decoder_core::Scale::Half,
+            decoder_core::Scale::Quarter,
+            decoder_core::Scale::Eighth,
+        ] {
+            let mut sum = Sum(0);
+            let t0 = measure::ticks();
+            let ok = decode_scaled(v.data, scale, &mut sum);
+            let t1 = measure::ticks();
+            heprintln!(
+                "PIFS-BENCH-SCALED name={} scale={} instr={} checksum={} ok={}",
+                v.name,
+                scale.log2(),
+                counter.instructions(t1 - t0),
+                sum.0,
+                ok
+            );
+            all_ok &= ok;
+        }
     }
     all_ok
+}
+
+/// A decode at `scale` (every decode of the bench), not inlined.
+#[cfg(all(feature = "bench", not(feature = "baseline")))]
+#[inline(never)]
+fn decode_scaled<S: decoder_core::PixelSink>(
+    data: &'static [u8],
+    scale: decoder_core::Scale,
+    sink: &mut S,
+) -> bool {
+    decoder_core::Decoder::new(core::hint::black_box(data))
+        .is_ok_and(|decoder| decoder.scale(scale).decode(sink).is_ok())
 }

@@ -6,6 +6,7 @@ use cortex_m_semihosting::heprintln;
 use decoder_core::graphics::{draw_stream, PifsImage};
 use decoder_core::ByteSource;
 use decoder_core::DrawError;
+use decoder_core::Scale;
 use embedded_graphics::image::{Image, ImageDrawableExt};
 use embedded_graphics::pixelcolor::{Gray8, GrayColor};
 use embedded_graphics::prelude::*;
@@ -266,7 +267,64 @@ pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
     if v.name == FRAME_BUFFER_VECTOR {
         frame_buffer(v, &img);
     }
+    for scale in [Scale::Quarter, Scale::Half, Scale::Double] {
+        scaled_hash(v, &img.with_scale(scale), scale);
+    }
     true
+}
+
+/// The row-major hash of the image drawn at `scale` (`PIFS-SCALED name=<file> scale=<log2>
+/// w=<width> h=<height> sha256=<hex>`): scaled decoding through embedded-graphics.
+#[inline(never)]
+fn scaled_hash(v: &Vector, img: &PifsImage<'static, Gray8>, scale: Scale) {
+    let size = img.size();
+    let mut row = WideRow {
+        width: size.width.min(2 * MAX_WIDTH as u32),
+        row: [0; 2 * MAX_WIDTH],
+    };
+    let mut sha = Sha256::new();
+    for y in 0..size.height {
+        let area = Rectangle::new(Point::new(0, y as i32), Size::new(size.width, 1));
+        let Ok(()) = Image::new(&img.sub_image(&area), Point::zero()).draw(&mut row);
+        sha.update(&row.row[..row.width as usize]);
+    }
+    heprintln!(
+        "PIFS-SCALED name={} scale={} w={} h={} sha256={}",
+        v.name,
+        scale.log2(),
+        size.width,
+        size.height,
+        Hex(sha.finalize().into())
+    );
+}
+
+/// A one-row display as wide as twice the widest image (a row of a decode at twice the size).
+struct WideRow {
+    width: u32,
+    row: [u8; 2 * MAX_WIDTH],
+}
+
+impl OriginDimensions for WideRow {
+    fn size(&self) -> Size {
+        Size::new(self.width, 1)
+    }
+}
+
+impl DrawTarget for WideRow {
+    type Color = Gray8;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Infallible> {
+        for Pixel(p, c) in pixels {
+            if p.y == 0 && p.x >= 0 && (p.x as u32) < self.width {
+                self.row[p.x as usize] = c.luma();
+            }
+        }
+        Ok(())
+    }
 }
 
 /// One full decode onto [`SumDisplay`], with peak stack and instructions.

@@ -198,6 +198,30 @@ fn host_hashes() -> BTreeMap<String, (u16, u16, String, String)> {
         .collect()
 }
 
+/// Per golden vector and scale (1/4, 1/2, 2): the row-major sha256 of the host's scaled decode,
+/// keyed `name scale-log2`, with the scaled width and height.
+fn host_scaled_hashes() -> BTreeMap<String, (u32, u32, String)> {
+    let mut out = BTreeMap::new();
+    for g in golden_list() {
+        let stream = std::fs::read(golden_dir().join(&g.file)).unwrap();
+        for scale in [
+            decoder_core::Scale::Quarter,
+            decoder_core::Scale::Half,
+            decoder_core::Scale::Double,
+        ] {
+            let decoder = decoder_core::Decoder::new(&stream).unwrap().scale(scale);
+            let (w, h) = decoder.output_size();
+            let mut pixels = vec![0u8; (w * h) as usize];
+            decoder.decode_into(&mut pixels).unwrap();
+            out.insert(
+                format!("{} {}", g.file, scale.log2()),
+                (w, h, sha256_hex(&pixels)),
+            );
+        }
+    }
+    out
+}
+
 fn check_board(board: &Board) {
     require_qemu();
     let expected = host_hashes();
@@ -265,6 +289,31 @@ fn check_board(board: &Board) {
     }
     let missing: Vec<&String> = expected.keys().filter(|k| !seen.contains_key(*k)).collect();
     assert!(missing.is_empty(), "{context}: no result for {missing:?}");
+
+    let scaled = host_scaled_hashes();
+    let mut seen_scaled = 0;
+    for l in lines.iter().filter(|l| l.starts_with("PIFS-SCALED ")) {
+        let f = fields(l);
+        let key = format!("{} {}", f["name"], f["scale"]);
+        let (w, h, sha) = scaled
+            .get(&key)
+            .unwrap_or_else(|| panic!("{context}: unknown scaled decode in {l:?}"));
+        assert_eq!(
+            (f["w"], f["h"]),
+            (&*w.to_string(), &*h.to_string()),
+            "{context}: {key}"
+        );
+        assert_eq!(
+            f["sha256"], sha,
+            "{context}: {key}: scaled decode differs from the host's"
+        );
+        seen_scaled += 1;
+    }
+    assert_eq!(
+        seen_scaled,
+        scaled.len(),
+        "{context}: scaled decodes missing"
+    );
 
     let fb: Vec<&&str> = lines.iter().filter(|l| l.starts_with("PIFS-FB ")).collect();
     assert_eq!(fb.len(), 1, "{context}: frame-buffer lines {fb:?}");

@@ -46,6 +46,12 @@ enum Command {
         /// allocated).
         #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
         max_pixels: u64,
+        /// Decode at this scale of the coded size: 1/8, 1/4, 1/2 (the full decode's pixels at
+        /// even, fourth or eighth positions, for a fraction of the work), 1, 2 or 4 (the
+        /// patches refined below the pixel). The image is ceil(width x scale) by
+        /// ceil(height x scale).
+        #[arg(long, default_value = "1", value_parser = decode::parse_scale)]
+        scale: decoder_core::Scale,
     },
     /// Describe a PIFS stream; with --svg, draw its quadtree over the decoded image.
     ///
@@ -117,7 +123,13 @@ fn main() -> ExitCode {
             input,
             output,
             max_pixels,
-        }) => decode::run(&input, &output, &decoder_core::Limits::pixels(max_pixels)),
+            scale,
+        }) => decode::run_scaled(
+            &input,
+            &output,
+            &decoder_core::Limits::pixels(max_pixels),
+            scale,
+        ),
         Some(Command::Info {
             input,
             svg,

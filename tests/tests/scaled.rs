@@ -1,0 +1,166 @@
+//! Scaled decoding (`Decoder::scale`): decodes at 1/8, 1/4, 1/2, 2 and 4 times the coded size
+//! keep the sink contract, agree with the full decode where they must, and a half-size decode
+//! looks like the full decode box-downscaled.
+
+mod common;
+
+use common::{decode_all, golden_dir, golden_list, psnr_u8, synthetic, CoverageSink};
+use decoder_core::{Decoder, Rect, Scale, SliceSource};
+use host_encoder::{EncoderConfig, Target};
+
+/// Every golden stream, and a textured synthetic image encoded at two rates (busier leaves
+/// than the golden vectors, which are small).
+fn streams() -> Vec<(String, Vec<u8>)> {
+    let mut out: Vec<(String, Vec<u8>)> = golden_list()
+        .into_iter()
+        .map(|g| {
+            let data = std::fs::read(golden_dir().join(&g.file)).unwrap();
+            (g.file, data)
+        })
+        .collect();
+    let analysis = common::analyse_with(synthetic(96, 80, 7, 12), &EncoderConfig::default());
+    for bpp in [0.3, 1.5] {
+        let encoded = analysis.encode(Target::Bpp(bpp)).expect("encode");
+        out.push((format!("synthetic@{bpp}"), encoded.bytes));
+    }
+    out
+}
+
+/// A decode at `scale` into a coverage sink of the scaled size, clipped to `clip`.
+fn decode_scaled(data: &[u8], scale: Scale, clip: Rect) -> CoverageSink {
+    let decoder = Decoder::new(data).unwrap().scale(scale);
+    let (w, h) = decoder.output_size();
+    let mut sink = CoverageSink::new(w, h);
+    decoder.clip(clip).decode(&mut sink).unwrap();
+    sink
+}
+
+#[test]
+fn scaled_decodes_draw_every_pixel_once_in_legal_tiles() {
+    for (name, data) in streams() {
+        let header = decoder_core::Header::read(&data).unwrap();
+        for scale in Scale::ALL {
+            let sink = decode_scaled(&data, scale, Rect::EVERYTHING);
+            assert_eq!(
+                sink.width,
+                scale.apply(header.width.into()),
+                "{name} {scale:?}"
+            );
+            assert!(
+                sink.violations.is_empty(),
+                "{name} {scale:?}: {:?}",
+                sink.violations
+            );
+            assert!(
+                sink.not_once(1).is_empty(),
+                "{name} {scale:?}: {:?}",
+                sink.not_once(5)
+            );
+        }
+    }
+}
+
+#[test]
+fn smaller_decodes_are_the_full_decode_subsampled_and_larger_ones_contain_it() {
+    for (name, data) in streams() {
+        let (header, full) = decode_all(&data).unwrap();
+        let width = usize::from(header.width);
+        for scale in Scale::ALL {
+            let sink = decode_scaled(&data, scale, Rect::EVERYTHING);
+            let k = scale.log2();
+            let (w, h) = (sink.width as usize, sink.height as usize);
+            for y in 0..h {
+                for x in 0..w {
+                    let got = sink.pixels[y * w + x];
+                    if k <= 0 {
+                        let (fx, fy) = (x << -k, y << -k);
+                        assert_eq!(got, full[fy * width + fx], "{name} {scale:?} ({x}, {y})");
+                    } else if x % (1 << k) == 0 && y % (1 << k) == 0 {
+                        let (fx, fy) = (x >> k, y >> k);
+                        assert_eq!(got, full[fy * width + fx], "{name} {scale:?} ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn clipped_and_streamed_scaled_decodes_agree_with_the_whole_one() {
+    for (name, data) in streams() {
+        for scale in [Scale::Quarter, Scale::Half, Scale::Double] {
+            let whole = decode_scaled(&data, scale, Rect::EVERYTHING);
+            let (w, h) = (whole.width, whole.height);
+            let clip = Rect {
+                x: w / 3,
+                y: h / 5,
+                w: w / 2 + 1,
+                h: h / 2 + 1,
+            };
+            let cut = decode_scaled(&data, scale, clip);
+            let inside = clip.intersect(&Rect::of_size(w, h));
+            for y in 0..h {
+                for x in 0..w {
+                    let i = (y * w + x) as usize;
+                    let pixel = Rect { x, y, w: 1, h: 1 };
+                    let want = u32::from(inside.contains(&pixel));
+                    assert_eq!(cut.counts[i], want, "{name} {scale:?} ({x}, {y})");
+                    if want == 1 {
+                        assert_eq!(cut.pixels[i], whole.pixels[i], "{name} {scale:?}");
+                    }
+                }
+            }
+            let mut streamed = CoverageSink::new(w, h);
+            Decoder::from_source(SliceSource::new(&data))
+                .unwrap()
+                .scale(scale)
+                .decode(&mut streamed)
+                .unwrap();
+            assert_eq!(streamed.pixels, whole.pixels, "{name} {scale:?} streamed");
+        }
+    }
+}
+
+/// A decode at half size is close to the full decode downscaled by 2x2 box averaging (it is
+/// the full decode's even pixels: equal where the image is smooth, aliased in fine texture).
+#[test]
+fn half_size_decode_is_close_to_the_box_downscaled_full_decode() {
+    for (name, data) in streams() {
+        let (header, full) = decode_all(&data).unwrap();
+        let (fw, fh) = (usize::from(header.width), usize::from(header.height));
+        if fw < 16 || fh < 16 {
+            continue;
+        }
+        let (w, h) = (fw / 2, fh / 2);
+        let mut boxed = Vec::with_capacity(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                let at = |dx: usize, dy: usize| u32::from(full[(2 * y + dy) * fw + 2 * x + dx]);
+                boxed.push(((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1) + 2) / 4) as u8);
+            }
+        }
+        let half = decode_scaled(&data, Scale::Half, Rect::of_size(w as u32, h as u32));
+        let stride = half.width as usize;
+        let mut cut = Vec::with_capacity(w * h);
+        for y in 0..h {
+            cut.extend_from_slice(&half.pixels[y * stride..y * stride + w]);
+        }
+        let psnr = psnr_u8(&cut, &boxed);
+        println!("{name}: half-size decode against the box-downscaled full decode: {psnr:.2} dB");
+        assert!(psnr > 26.0, "{name}: {psnr:.2} dB");
+    }
+}
+
+#[test]
+fn buffers_are_sized_by_the_scaled_image() {
+    let data = std::fs::read(golden_dir().join(&golden_list()[0].file)).unwrap();
+    let decoder = Decoder::new(&data).unwrap().scale(Scale::Double);
+    let (w, h) = decoder.output_size();
+    let mut small = vec![0u8; (w * h) as usize - 1];
+    assert_eq!(
+        decoder.clone().decode_into(&mut small),
+        Err(decoder_core::DecodeError::BufferTooSmall)
+    );
+    let mut out = vec![0u8; (w * h) as usize];
+    decoder.decode_into(&mut out).unwrap();
+}
