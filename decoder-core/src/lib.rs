@@ -30,6 +30,29 @@
 //! - [`graphics`] (cargo feature `embedded-graphics`): a stream as an embedded-graphics
 //!   `ImageDrawable` in any colour type.
 //!
+//! ## Scaled decoding
+//!
+//! [`Decoder::scale`] decodes at 1/8, 1/4 or 1/2 of the coded size by stopping the subdivision
+//! early (pixel `(X, Y)` is pixel `(X 2^k, Y 2^k)` of the full decode), or at 2 or 4 times it by
+//! letting the subdivision continue below the pixel ([`Scale`]); the embedded-graphics image
+//! has [`graphics::PifsImage::with_scale`].
+//!
+//! ## The patches are IFS attractors
+//!
+//! A leaf's patch is a projected IFS (Guérin's thesis, II.1): the attractor of the maps
+//! `W_k(s, t, x) = ((j + s) / N, (i + t) / N, T_k x)`, one per child `k = (i, j)`, with `T_k` the
+//! subdivision matrices acting on barycentric coordinates `x` over the control points, seen
+//! through the control values (`F(s, t) = P x`). This crate tabulates it by recursive
+//! subdivision in integers. The host encoder's `ifs` module draws the same attractor the
+//! classic ways, in floating point from matrices it builds from the specification's rules: by
+//! the chaos game (random iteration from a control point, which lies on the attractor) and by
+//! the Hutchinson iteration (the union of the images under every map). Its tests
+//! (`host-encoder/tests/ifs.rs`) check, for every model with random control points and
+//! random non-default weights, that every point both draw is within one grey level of this
+//! crate's pixel at that parameter (the tabulation rounds each level to 1/16 grey level), and
+//! that the chaos game draws the Sierpinski triangle and Barnsley's fern of the seed paper;
+//! `cargo run -p host-encoder --example ifs` draws them.
+//!
 //! ## Inside
 //!
 //! The modules are layered, each using only those below it: the format's shared vocabulary

@@ -16,6 +16,12 @@
 //! # let _ = (small, good);
 //! ```
 //!
+//! [`ifs`] draws iterated function systems the classic ways (the chaos game and the Hutchinson
+//! iteration): the Sierpinski triangle and Barnsley's fern, and any decoder patch as the
+//! attractor of its projected IFS. Its tests check that decoder-core's integer tabulation of a
+//! patch is that attractor, up to the tabulation's roundings (`cargo run --example ifs` draws
+//! them).
+//!
 //! The `pifs` tool is behind the default cargo feature `cli`; a library user writes
 //! `host-encoder = { version = "…", default-features = false }` and gets no command-line
 //! dependencies (`clap`, `indicatif`, `plotters`).
@@ -27,6 +33,7 @@
 
 mod encoder;
 mod entropy;
+pub mod ifs;
 pub mod io;
 
 pub use encoder::{
