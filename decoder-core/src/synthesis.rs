@@ -501,6 +501,10 @@ fn along<R: Rule>(
     }
 }
 
+/// Deepest subdivision below a leaf's control grid that the walk stores (a 128 px leaf of the
+/// bilinear model drawn four times larger), plus one for the control grid.
+const MAX_DEPTH: usize = 10;
+
 /// Side of the lattice of a tile's points: its pixels and the points on its far edges.
 const LATTICE: usize = TILE + 1;
 
@@ -613,73 +617,125 @@ impl Patch {
         };
         let g = &self.control[..self.model.control_count()];
         if at.sp * u32::from(m) > TILE as u32 {
-            self.walk_root(at, k > 0, &mut job)
+            if k > 0 {
+                self.walk_large(at, &mut job)
+            } else {
+                self.walk_root(at, &mut job)
+            }
         } else if at.sp == 1 {
             self.tile(g, &at, &mut job, None)
         } else {
-            let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
-            self.tile(g, &at, &mut job, Some(&mut lattice))
+            self.tile_root(g, &at, &mut job)
         }
+    }
+
+    /// [`Patch::tile`] with a lattice of its own (out of line, so that the lattice is not on
+    /// the stack while a larger leaf is drawn).
+    #[inline(never)]
+    fn tile_root(&self, g: &[i16], at: &Square, job: &mut Job<'_>) -> Result<(), Stop> {
+        let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
+        self.tile(g, at, job, Some(&mut lattice))
     }
 
     /// [`Patch::walk`] from the control grid of a leaf larger than a tile, with the arena of
-    /// the coded size, or of four times it when `large` (out of line, so that a leaf that fits
-    /// a tile clears neither).
+    /// the coded size (out of line, so that a leaf that fits a tile clears neither).
     #[inline(never)]
-    fn walk_root(&self, at: Square, large: bool, job: &mut Job<'_>) -> Result<(), Stop> {
+    fn walk_root(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
         let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
+        let mut arena = [0i16; ARENA_LEN];
         let n2 = self.model.control_count();
-        if large {
-            let mut arena = [0i16; ARENA_LARGE_LEN];
-            self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
-        } else {
-            let mut arena = [0i16; ARENA_LEN];
-            self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
-        }
+        self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
     }
 
-    /// Draws the pixels of grid `g` (its square `at`) inside the clip: a square that fits a
-    /// tile is refined whole ([`Patch::tile`]); a larger one whose points are at most `N`
-    /// pixels apart is refined once, tile by tile ([`Patch::emit`]); any other is subdivided,
-    /// each child grid stored at the front of `below` while it is drawn. `lattice` is scratch
-    /// space.
+    /// [`Patch::walk_root`] with the arena of a decode at up to four times the coded size
+    /// (out of line: only enlarged decodes need its extra stack).
+    #[inline(never)]
+    fn walk_large(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
+        let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
+        let mut arena = [0i16; ARENA_LARGE_LEN];
+        let n2 = self.model.control_count();
+        self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
+    }
+
+    /// Draws the pixels of grid `root` (its square `at`) inside the clip, depth first without
+    /// recursion: a square that fits a tile is refined whole ([`Patch::tile`]); a larger one
+    /// whose points are at most `N` pixels apart is refined once, tile by tile
+    /// ([`Patch::emit`]); any other is subdivided, the child grid of depth `d` stored in the
+    /// `d`-th grid of `arena` while it is drawn (a child grid is drawn before its next sibling
+    /// is made). `lattice` is scratch space.
     fn walk(
         &self,
-        g: &[i16],
-        below: &mut [i16],
+        root: &[i16],
+        arena: &mut [i16],
         at: Square,
         job: &mut Job<'_>,
         lattice: &mut Lattice,
     ) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
         let n = u32::from(self.model.transforms);
-        let ext = m * at.sp;
-        if !job.clip.overlaps_square(at.x, at.y, ext) {
-            return Ok(());
-        }
-        if ext <= TILE as u32 {
-            return self.tile(g, &at, job, Some(lattice));
-        }
-        if at.sp <= n {
-            return self.emit(g, &at, job, lattice);
-        }
-        let Some((child, deeper)) = below.split_at_mut_checked(self.model.control_count()) else {
-            return Ok(());
-        };
-        for i in 0..n {
-            for j in 0..n {
-                let child_at = at.child(m, n, i, j);
-                if !job
-                    .clip
-                    .overlaps_square(child_at.x, child_at.y, ext >> n.trailing_zeros())
-                {
-                    continue;
+        let shift = n.trailing_zeros();
+        let n2 = self.model.control_count();
+        // Per depth: the grid's corner and the next of its children to visit (N^2: done); its
+        // points are `at.sp >> (depth log2 N)` pixels apart.
+        let mut corners = [(at.x, at.y); MAX_DEPTH];
+        let mut next = [0u8; MAX_DEPTH];
+        let done = (n * n) as u8;
+        let mut depth = 0;
+        let mut entering = true;
+        loop {
+            let (x, y) = corners[depth];
+            let at = Square {
+                x,
+                y,
+                sp: at.sp >> (shift * depth as u32),
+            };
+            let ext = m * at.sp;
+            if entering {
+                entering = false;
+                let grid = match depth {
+                    0 => root,
+                    d => arena.get((d - 1) * n2..d * n2).unwrap_or(&[]),
+                };
+                if !job.clip.overlaps_square(at.x, at.y, ext) {
+                    next[depth] = done;
+                } else if ext <= TILE as u32 {
+                    self.tile(grid, &at, job, Some(lattice))?;
+                    next[depth] = done;
+                } else if at.sp <= n {
+                    self.emit(grid, &at, job, lattice)?;
+                    next[depth] = done;
+                } else {
+                    next[depth] = 0;
                 }
-                self.child(g, i as usize, j as usize, lattice, child);
-                self.walk(child, deeper, child_at, job, lattice)?;
             }
+            if next[depth] >= done || depth + 1 >= MAX_DEPTH || arena.len() < (depth + 1) * n2 {
+                // This grid is done: back to its parent's next child.
+                if depth == 0 {
+                    return Ok(());
+                }
+                depth -= 1;
+                continue;
+            }
+            let c = u32::from(next[depth]);
+            next[depth] += 1;
+            let (i, j) = (c >> shift, c & (n - 1));
+            let child_at = at.child(m, n, i, j);
+            if !job.clip.overlaps_square(child_at.x, child_at.y, ext >> shift) {
+                continue;
+            }
+            let (parents, children) = arena.split_at_mut(depth * n2);
+            let parent = match depth {
+                0 => root,
+                d => parents.get((d - 1) * n2..).unwrap_or(&[]),
+            };
+            let Some(child) = children.get_mut(..n2) else {
+                return Ok(());
+            };
+            self.child(parent, i as usize, j as usize, lattice, child);
+            depth += 1;
+            corners[depth] = (child_at.x, child_at.y);
+            entering = true;
         }
-        Ok(())
     }
 
     /// Draws a square of grid `g` that fits a tile, as one tile: places the grid's points in
@@ -940,6 +996,7 @@ impl Patch {
     /// A row of pixels at row phase `r1` (1 or more) from the old rows `from` (each holding
     /// the columns `q2, q2 + stride, ...`): the column rule at old columns, the cell rule
     /// between them; one rule for the whole row when they agree (the default weights).
+    #[inline(never)]
     fn pixel_row(
         &self,
         out: &mut [u8],
@@ -1011,6 +1068,7 @@ impl Patch {
     }
 
     /// [`Patch::pixel_row`] into samples.
+    #[inline(never)]
     fn sample_row(
         &self,
         out: &mut [i16],
