@@ -52,9 +52,18 @@ def write_pgm(path, img):
 def read_pgm(path):
     with open(path, "rb") as f:
         data = f.read()
-    parts = data.split(maxsplit=4)
-    w, h = int(parts[1]), int(parts[2])
-    return np.frombuffer(parts[4][: w * h], dtype=np.uint8).reshape(h, w).astype(np.float64)
+    # Four whitespace-separated fields (magic, width, height, maxval), then one whitespace byte.
+    fields, pos = [], 0
+    while len(fields) < 4:
+        while data[pos:pos + 1].isspace():
+            pos += 1
+        start = pos
+        while not data[pos:pos + 1].isspace():
+            pos += 1
+        fields.append(data[start:pos])
+    w, h = int(fields[1]), int(fields[2])
+    pixels = data[pos + 1:pos + 1 + w * h]
+    return np.frombuffer(pixels, dtype=np.uint8).reshape(h, w).astype(np.float64)
 
 
 def downscale(img, factor, geometry):

@@ -30,7 +30,7 @@ timeout 600 qemu-system-arm -cpu $cpu -machine $machine -display none -monitor n
     -semihosting-config enable=on,target=native -icount shift=0 -kernel "$elf" \
     -plugin "$out/libprofile.so,start=0x$entry,end=0x$ret,out=$out/profile-$target.txt" \
     2>"$out/qemu.err" >/dev/null || true
-line=$(grep '^PIFS-BENCH' "$out/qemu.err")
+line=$(grep '^PIFS-BENCH ' "$out/qemu.err")
 echo "$line"
 w=$(echo "$line" | sed 's/.* w=\([0-9]*\).*/\1/')
 h=$(echo "$line" | sed 's/.* h=\([0-9]*\).*/\1/')

@@ -289,7 +289,7 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
                 }
                 _ if !bit => break,
                 _ => {
-                    if stage - 1 >= MAX_PREFIX {
+                    if stage > MAX_PREFIX {
                         return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
                     }
                     at = PREFIX + (stage - 1).min(PREFIX_CONTEXTS - 1);

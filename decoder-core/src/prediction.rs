@@ -208,8 +208,12 @@ impl core::fmt::Debug for Capture<'_> {
 impl TileOut for Capture<'_> {
     fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
         let f = &mut *self.frontier;
-        let Rect { x, y, w, .. } = tile.area;
+        let Rect { x, y, w, h } = tile.area;
         let on_right = x + w - 1 == self.right;
+        // Most tiles hold neither the leaf's right column nor its bottom row.
+        if !on_right && !(y..y + h).contains(&self.bottom) {
+            return self.out.put(tile);
+        }
         for (j, row) in tile.pixels.chunks(w as usize).enumerate() {
             let py = y + j as u32;
             if let (true, Some(&p)) = (on_right, row.last()) {

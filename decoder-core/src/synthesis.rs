@@ -288,9 +288,9 @@ impl Rule for Taps {
     }
 }
 
-/// The default rule of two transforms, taps `(-1, 5, 5, -1) / 8`: `acc = 512 (5 (b + c) - (a
-/// + d))`, so `(acc + 2048) >> 12` is `(5 (b + c) - (a + d) + 4) >> 3`, without multiplies.
-/// (On a bilinear patch's two-point lines, mirrored, it is the rounded midpoint.)
+/// The default rule of two transforms, taps `(-1, 5, 5, -1) / 8`: the sum is
+/// `512 (5 (b + c) - a - d)`, so `(sum + 2048) >> 12` is `(5 (b + c) - a - d + 4) >> 3`, without
+/// multiplies; on a bilinear patch's two-point lines, mirrored, it is the rounded midpoint.
 #[derive(Clone, Copy)]
 struct Midpoint;
 
@@ -720,7 +720,10 @@ impl Patch {
             next[depth] += 1;
             let (i, j) = (c >> shift, c & (n - 1));
             let child_at = at.child(m, n, i, j);
-            if !job.clip.overlaps_square(child_at.x, child_at.y, ext >> shift) {
+            if !job
+                .clip
+                .overlaps_square(child_at.x, child_at.y, ext >> shift)
+            {
                 continue;
             }
             let (parents, children) = arena.split_at_mut(depth * n2);
@@ -1112,7 +1115,7 @@ impl Patch {
         let m = u32::from(self.model.intervals);
         let side = m as usize + 1;
         let unit = 1u32 << k;
-        if node.x % unit != 0 || node.y % unit != 0 {
+        if (node.x | node.y) & (unit - 1) != 0 {
             return Ok(());
         }
         let size = node.size();
@@ -1332,7 +1335,7 @@ mod tests {
         let mut g: Vec<i16> = patch.control[..side * side].to_vec();
         let one = 1u64 << den;
         loop {
-            if p1 % one == 0 && p2 % one == 0 {
+            if p1.is_multiple_of(one) && p2.is_multiple_of(one) {
                 return i32::from(g[(p1 / one) as usize * side + (p2 / one) as usize]);
             }
             p1 *= n;

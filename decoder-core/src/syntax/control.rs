@@ -264,6 +264,7 @@ const fn inverse_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, m
 
 /// Even sample `i` of the inverse lifting step: low-band value `i` minus the update from the
 /// neighbouring details (high-band values `nl + i - 1` and `nl + i`, mirrored at the ends).
+#[inline(always)]
 const fn even_sample(y: &[i16; MAX_GRID], i: usize, nl: usize, nh: usize) -> i32 {
     let l = if i == 0 { 0 } else { i - 1 };
     let r = if i < nh { i } else { nh - 1 };
