@@ -288,31 +288,6 @@ impl Rule for Taps {
     }
 }
 
-/// The default rule of two transforms, taps `(-1, 5, 5, -1) / 8`: the sum is
-/// `512 (5 (b + c) - a - d)`, so `(sum + 2048) >> 12` is `(5 (b + c) - a - d + 4) >> 3`, without
-/// multiplies; on a bilinear patch's two-point lines, mirrored, it is the rounded midpoint.
-#[derive(Clone, Copy)]
-struct Midpoint;
-
-/// The taps of [`Midpoint`].
-const MIDPOINT: [i16; 4] = [-512, 2560, 2560, -512];
-
-impl Rule for Midpoint {
-    #[inline(always)]
-    fn apply(self, a: i16, b: i16, c: i16, d: i16) -> i16 {
-        let (a, b, c, d) = (i32::from(a), i32::from(b), i32::from(c), i32::from(d));
-        let inner = b + c;
-        clamp_sample((inner + 4 * inner - (a + d) + 4) >> 3)
-    }
-
-    #[inline(always)]
-    fn pixel(self, a: i16, b: i16, c: i16, d: i16) -> u8 {
-        let (a, b, c, d) = (i32::from(a), i32::from(b), i32::from(c), i32::from(d));
-        let inner = b + c;
-        ((inner + 4 * inner - (a + d) + 4 + (8 << 3)) >> 7).clamp(0, 255) as u8
-    }
-}
-
 /// `v` clamped to the sample range (which fits an `i16`): one unsigned compare when it is in
 /// range, as it nearly always is.
 #[inline(always)]
@@ -335,17 +310,13 @@ fn saturate(v: i32) -> i16 {
     }
 }
 
-/// Runs `$body` with `$rule` bound to the fastest [`Rule`] for the taps `$taps`.
+/// Runs `$body` with `$rule` bound to the [`Rule`] of the taps `$taps` (one kind of rule for
+/// every tap set: a second, multiply-free kind for the default taps of two transforms saved
+/// 1-3% of the instructions for about 1 KiB of flash, see docs/decisions.md).
 macro_rules! with_rule {
     ($taps:expr, |$rule:ident| $body:expr) => {{
-        let taps: &[i16; 4] = $taps;
-        if *taps == MIDPOINT {
-            let $rule = Midpoint;
-            $body
-        } else {
-            let $rule = Taps::of(taps);
-            $body
-        }
+        let $rule = Taps::of($taps);
+        $body
     }};
 }
 
@@ -511,6 +482,12 @@ const LATTICE: usize = TILE + 1;
 /// The points of a tile (or the row rule's points of a refinement window), by row.
 type Lattice = [[i16; LATTICE]; LATTICE];
 
+/// A row a new row of points goes to: pixels, or samples (of a child grid).
+enum Row<'a> {
+    Pixels(&'a mut [u8]),
+    Samples(&'a mut [i16]),
+}
+
 /// Where a grid lies in the output: its top-left point and the output pixels between its
 /// points (at least 1).
 #[derive(Debug, Clone, Copy)]
@@ -597,8 +574,28 @@ impl Patch {
         }
         let k = scale.log2();
         let sp_log2 = log2 + k - m.trailing_zeros() as i32;
+        let mut job = Job {
+            clip,
+            out,
+            pixels: [0; TILE * TILE],
+        };
         if sp_log2 < 0 {
-            return self.subsample(node, k.unsigned_abs(), clip, out);
+            // Control points closer than an output pixel: output pixel (X, Y) is control point
+            // (X, Y) times the points per pixel; a leaf smaller than a pixel draws its first
+            // point if its corner is one of the output's pixels, else nothing.
+            let unit = 1u32 << -k;
+            if (node.x | node.y) & (unit - 1) != 0 {
+                return Ok(());
+            }
+            let at = Square {
+                x: node.x >> -k,
+                y: node.y >> -k,
+                sp: 1,
+            };
+            let side = (node.size() >> -k).max(1);
+            let step = ((unit * u32::from(m)) >> node.log2).max(1) as usize;
+            let g = &self.control[..self.model.control_count()];
+            return self.points(g, &at, side, step, &mut job);
         }
         let (x, y) = if k >= 0 {
             (node.x << k, node.y << k)
@@ -609,11 +606,6 @@ impl Patch {
             x,
             y,
             sp: 1 << sp_log2,
-        };
-        let mut job = Job {
-            clip,
-            out,
-            pixels: [0; TILE * TILE],
         };
         let g = &self.control[..self.model.control_count()];
         if at.sp * u32::from(m) > TILE as u32 {
@@ -773,15 +765,7 @@ impl Patch {
         let len = cols * rows;
         let Some(lattice) = lattice.filter(|_| sp > 1) else {
             // A pixel grid: its points are the pixels.
-            for j in 0..rows {
-                let from = (r0 + j) * side + c0;
-                if let (Some(dst), Some(src)) =
-                    (job.pixels.get_mut(j * cols..j * cols + cols), g.get(from..))
-                {
-                    to_pixels(dst, src);
-                }
-            }
-            return job.put(area, len);
+            return self.points(g, at, ext as u32, 1, job);
         };
         for row in 0..side {
             let dst = &mut lattice[(row * sp).min(TILE)];
@@ -958,7 +942,7 @@ impl Patch {
                     else {
                         continue;
                     };
-                    self.pixel_row(out, [v0, v1, v2, v3], r1, q2, stride);
+                    self.new_row(Row::Pixels(out), [v0, v1, v2, v3], r1, q2, stride);
                 }
                 let area = Rect {
                     x: tx,
@@ -996,13 +980,14 @@ impl Patch {
         }
     }
 
-    /// A row of pixels at row phase `r1` (1 or more) from the old rows `from` (each holding
-    /// the columns `q2, q2 + stride, ...`): the column rule at old columns, the cell rule
-    /// between them; one rule for the whole row when they agree (the default weights).
+    /// A new row at row phase `r1` (1 or more) from the old rows `from` (each holding the
+    /// columns `q2, q2 + stride, ...`), as pixels or samples: the column rule at old columns,
+    /// the cell rule between them; one rule for the whole row when they agree (the default
+    /// weights).
     #[inline(never)]
-    fn pixel_row(
+    fn new_row(
         &self,
-        out: &mut [u8],
+        out: Row<'_>,
         from: [&[i16; LATTICE]; 4],
         r1: usize,
         q2: usize,
@@ -1017,15 +1002,36 @@ impl Patch {
             r => &cells[(r - 1).min(2)],
         };
         let first = rule_of(q2);
-        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, out.len().max(1));
+        let len = match &out {
+            Row::Pixels(p) => p.len(),
+            Row::Samples(v) => v.len(),
+        };
+        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, len.max(1));
         if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
-            with_rule!(first, |rule| across_pixels(rule, out, from));
+            match out {
+                Row::Pixels(p) => with_rule!(first, |rule| across_pixels(rule, p, from)),
+                Row::Samples(v) => with_rule!(first, |rule| across_samples(rule, v, from)),
+            }
             return;
         }
         // Column phases one at a time (weights whose cell rules differ).
-        for (i, p) in out.iter_mut().enumerate() {
+        let point = |i: usize| {
             let [a, b, c, d] = from.map(|row| row.get(i).copied().unwrap_or(0));
-            *p = Taps::of(rule_of(q2 + i * stride)).pixel(a, b, c, d);
+            (Taps::of(rule_of(q2 + i * stride)), [a, b, c, d])
+        };
+        match out {
+            Row::Pixels(p) => {
+                for (i, p) in p.iter_mut().enumerate() {
+                    let (t, [a, b, c, d]) = point(i);
+                    *p = t.pixel(a, b, c, d);
+                }
+            }
+            Row::Samples(v) => {
+                for (i, v) in v.iter_mut().enumerate() {
+                    let (t, [a, b, c, d]) = point(i);
+                    *v = t.apply(a, b, c, d);
+                }
+            }
         }
     }
 
@@ -1066,92 +1072,44 @@ impl Patch {
             let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
                 continue;
             };
-            self.sample_row(dst, [v0, v1, v2, v3], r1, q2, 1);
+            self.new_row(Row::Samples(dst), [v0, v1, v2, v3], r1, q2, 1);
         }
     }
 
-    /// [`Patch::pixel_row`] into samples.
+    /// Draws grid `g`'s points as pixels, `step` points apart: the square of `side` pixels at
+    /// `at` (a pixel grid, or a leaf drawn smaller than its control points are apart).
     #[inline(never)]
-    fn sample_row(
+    fn points(
         &self,
-        out: &mut [i16],
-        from: [&[i16; LATTICE]; 4],
-        r1: usize,
-        q2: usize,
-        stride: usize,
-    ) {
-        let mask = usize::from(self.model.transforms) - 1;
-        let r1 = (r1 - 1).min(2);
-        let column_rule = &self.weights.line[1][r1];
-        let cells = &self.weights.cell[r1];
-        let rule_of = |q: usize| match q & mask {
-            0 => column_rule,
-            r => &cells[(r - 1).min(2)],
-        };
-        let first = rule_of(q2);
-        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, out.len().max(1));
-        if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
-            with_rule!(first, |rule| across_samples(rule, out, from));
-            return;
-        }
-        for (i, v) in out.iter_mut().enumerate() {
-            let [a, b, c, d] = from.map(|row| row.get(i).copied().unwrap_or(0));
-            *v = Taps::of(rule_of(q2 + i * stride)).apply(a, b, c, d);
-        }
-    }
-
-    /// Draws the leaf `node` at `1/2^k` of its size when its control points are closer than
-    /// an output pixel: output pixel `(X, Y)` is the leaf's pixel `(X 2^k, Y 2^k)`, which is a
-    /// control point; a leaf smaller than `2^k` pixels draws its first control point if that
-    /// pixel is one of those, else nothing.
-    #[inline(never)]
-    fn subsample(
-        &self,
-        node: &Node,
-        k: u32,
-        clip: Rect,
-        out: &mut dyn TileOut,
+        g: &[i16],
+        at: &Square,
+        side: u32,
+        step: usize,
+        job: &mut Job<'_>,
     ) -> Result<(), Stop> {
-        let m = u32::from(self.model.intervals);
-        let side = m as usize + 1;
-        let unit = 1u32 << k;
-        if (node.x | node.y) & (unit - 1) != 0 {
-            return Ok(());
-        }
-        let size = node.size();
-        let (s, step) = if size >= unit {
-            (size >> k, ((unit * m) >> node.log2) as usize)
-        } else {
-            (1, 0)
-        };
+        let grid = self.model.grid();
         let square = Rect {
-            x: node.x >> k,
-            y: node.y >> k,
-            w: s,
-            h: s,
+            x: at.x,
+            y: at.y,
+            w: side,
+            h: side,
         };
-        let area = square.intersect(&clip);
-        if area.is_empty() {
+        let area = square.intersect(&job.clip);
+        if area.is_empty() || side as usize > TILE {
             return Ok(());
         }
-        let (c0, r0) = ((area.x - square.x) as usize, (area.y - square.y) as usize);
-        let mut pixels = [0u8; TILE * TILE];
-        let mut len = 0;
-        for j in r0..r0 + area.h as usize {
-            for i in c0..c0 + area.w as usize {
-                let v = self
-                    .control
-                    .get(j * step * side + i * step)
-                    .copied()
-                    .unwrap_or(0);
-                if let Some(p) = pixels.get_mut(len) {
+        let (c0, r0) = ((area.x - at.x) as usize, (area.y - at.y) as usize);
+        let (cols, rows) = (area.w as usize, area.h as usize);
+        for j in 0..rows {
+            let row = (r0 + j) * step * grid + c0 * step;
+            for i in 0..cols {
+                let v = g.get(row + i * step).copied().unwrap_or(0);
+                if let Some(p) = job.pixels.get_mut(j * cols + i) {
                     *p = sample_to_pixel(i32::from(v));
                 }
-                len += 1;
             }
         }
-        let pixels = pixels.get(..len).unwrap_or(&[]);
-        out.put(Tile { area, pixels })
+        job.put(area, cols * rows)
     }
 }
 #[cfg(test)]
