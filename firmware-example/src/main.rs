@@ -19,7 +19,8 @@
 //!   `-icount shift=0`) of one full decode drawn onto a display that only sums the pixels.
 //!
 //! The smallest image is also drawn into a real frame buffer (`PIFS-FB name=<file>
-//! sha256=<hex>`, row-major like `sha256`), and every image is also decoded from a byte-at-a-time
+//! sha256=<hex>`, row-major like `sha256`), every image is drawn at 1/4, 1/2 and 2 times its size
+//! (`PIFS-SCALED name=<file> scale=<log2> w=<width> h=<height> sha256=<hex>`, row-major), and every image is also decoded from a byte-at-a-time
 //! stream source (`draw_stream`), which must give the same tiles. The human-readable log goes
 //! through `defmt` (semihosting stdout; decode it with `defmt-print -e <elf>`). QEMU exits with
 //! status 0 when everything decoded, 1 otherwise.
@@ -27,7 +28,9 @@
 //! With the `bench` feature (see `bench/embedded.sh`) it embeds the streams listed in
 //! `PIFS_BENCH_STREAMS` (a path list, `:`-separated), decodes each once with
 //! `decoder_core::Decoder` into a sink that sums the pixels, and prints
-//! `PIFS-BENCH name=… w=… h=… bytes=… stack=… instr=… checksum=… ok=…` per stream;
+//! `PIFS-BENCH name=… w=… h=… bytes=… stack=… instr=… checksum=… ok=…` per stream, then
+//! `PIFS-BENCH-SCALED name=… scale=… instr=… checksum=… ok=…` for its decodes at 1/2, 1/4 and
+//! 1/8;
 //! `baseline` builds the same firmware without the decoder call (for the flash and RAM
 //! deltas).
 #![no_std]

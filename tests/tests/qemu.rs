@@ -8,7 +8,9 @@
 //!
 //! - `sha256`: the row-major decoded pixels (also checked against `golden.txt`);
 //! - `tiles`: the tiles in arrival order (per tile `x, y, w, h` as u32 LE, then the pixels);
-//! - `PIFS-FB`: the frame-buffer decode of the smallest vector.
+//! - `PIFS-FB`: the frame-buffer decode of the smallest vector;
+//! - `PIFS-SCALED`: the row-major hash of every vector decoded at 1/4, 1/2 and 2 times its size
+//!   (`PifsImage::with_scale`).
 //!
 //! QEMU is required: without `qemu-system-arm` these tests fail (CI installs it with
 //! `apt-get install -y --no-install-recommends qemu-system-arm`).
