@@ -19,9 +19,10 @@
 //!   `-icount shift=0`) of one full decode drawn onto a display that only sums the pixels.
 //!
 //! The smallest image is also drawn into a real frame buffer (`PIFS-FB name=<file>
-//! sha256=<hex>`, row-major like `sha256`), every image is drawn at 1/4, 1/2 and 2 times its size
-//! (`PIFS-SCALED name=<file> scale=<log2> w=<width> h=<height> sha256=<hex>`, row-major), and every image is also decoded from a byte-at-a-time
-//! stream source (`draw_stream`), which must give the same tiles. The human-readable log goes
+//! sha256=<hex>`, row-major like `sha256`), every image is drawn at 1/4, 1/2 and 2 times its
+//! size (`PIFS-SCALED name=<file> scale=<log2> w=<width> h=<height> sha256=<hex>`,
+//! row-major), and every image is also decoded from a byte-at-a-time stream source
+//! (`draw_stream`), which must give the same tiles. The human-readable log goes
 //! through `defmt` (semihosting stdout; decode it with `defmt-print -e <elf>`). QEMU exits with
 //! status 0 when everything decoded, 1 otherwise.
 //!
