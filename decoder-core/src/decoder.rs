@@ -17,7 +17,8 @@ use crate::checksum::Crc32;
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 use crate::geometry::Rect;
-use crate::prediction::Frontier;
+use crate::format::DEFAULT_STRIPE;
+use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
     stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
 };
@@ -205,8 +206,12 @@ impl<B: ByteSource> Streamed<B> {
 ///     .decode_into(&mut corner)?;
 /// # Ok(()) }
 /// ```
+///
+/// `STRIPE` is the widest stripe the decoder holds prediction memory for (one byte per column,
+/// on the stack while decoding; [`Header::stripe_width`]): streams coded in wider stripes are
+/// refused with [`DecodeError::StripeTooWide`]. [`Decoder::stripe_capacity`] changes it.
 #[derive(Debug, Clone)]
-pub struct Decoder<I, O = fn(&LeafInfo)> {
+pub struct Decoder<I, O = fn(&LeafInfo), const STRIPE: usize = DEFAULT_STRIPE> {
     header: Header,
     input: I,
     clip: Rect,
@@ -274,7 +279,7 @@ impl<I> Decoder<I> {
     }
 }
 
-impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
+impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
     /// The stream's header.
     pub fn header(&self) -> &Header {
         &self.header
@@ -296,12 +301,23 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
 
     /// Calls `observer` for every leaf, in coding order, before its pixels (for inspection
     /// tools).
-    pub fn observe<P: FnMut(&LeafInfo)>(self, observer: P) -> Decoder<I, P> {
+    pub fn observe<P: FnMut(&LeafInfo)>(self, observer: P) -> Decoder<I, P, STRIPE> {
         Decoder {
             header: self.header,
             input: self.input,
             clip: self.clip,
             observer,
+        }
+    }
+
+    /// Holds prediction memory for stripes of up to `CAPACITY` pixels instead (`CAPACITY` bytes
+    /// on the stack while decoding): a host decoding any stream uses 65536.
+    pub fn stripe_capacity<const CAPACITY: usize>(self) -> Decoder<I, O, CAPACITY> {
+        Decoder {
+            header: self.header,
+            input: self.input,
+            clip: self.clip,
+            observer: self.observer,
         }
     }
 
@@ -324,7 +340,7 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
             Ok(coder) => coder,
             Err((input, e)) => return Err(input.after_error(&header, e).into()),
         };
-        match run_walk(&header, &mut coder, &mut drawer) {
+        match run_walk::<_, _, STRIPE>(&header, &mut coder, &mut drawer) {
             Ok(()) => coder.into_source().finish(&header)?,
             Err(DrawError::Decode(e)) => {
                 return Err(coder.into_source().after_error(&header, e).into())
@@ -397,12 +413,12 @@ fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeE
 /// that the walk's state (the adaptive contexts and the prediction memory) stays in this one
 /// frame instead of being copied into every caller's.
 #[inline(never)]
-fn run_walk<B: ByteSource, V: TreeVisitor>(
+fn run_walk<B: ByteSource, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut RangeDecoder<B>,
     visitor: &mut V,
 ) -> Result<(), V::Error> {
-    let mut state = WalkState::FRESH;
+    let mut state = WalkState::<STRIPE>::FRESH;
     state.contexts.start();
     walk::walk_with(header, coder, visitor, &mut state)
 }
@@ -424,17 +440,23 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
         false
     }
 
-    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
+    fn prepare_leaf<P: SamplePrediction>(
+        &mut self,
+        _node: &Node,
+        _prediction: &P,
+        _leaf: &mut LeafSyntax,
+    ) {
+    }
 
     /// A leaf the clip holds whole fills the frontier as it is drawn; any other leaf has its
     /// edges rendered apart. Not inlined: the synthesis buffers then live only while a leaf is
     /// drawn, instead of in every frame of the quadtree walk.
     #[inline(never)]
-    fn leaf(
+    fn leaf<const CAPACITY: usize>(
         &mut self,
         info: &LeafInfo,
         patch: &Patch,
-        frontier: &mut Frontier,
+        frontier: &mut Frontier<CAPACITY>,
     ) -> Result<(), Self::Error> {
         (self.observer)(info);
         let node = &info.node;

@@ -43,6 +43,14 @@ pub enum DecodeError {
     },
     /// The caller's output buffer is smaller than `width * height * channels` bytes.
     BufferTooSmall,
+    /// The stream is coded in stripes wider than the decoder holds prediction memory for
+    /// (one byte per column of a stripe).
+    StripeTooWide {
+        /// Width of the stream's stripes, pixels.
+        stripe: u32,
+        /// Widest stripe the decoder holds, pixels.
+        capacity: u32,
+    },
 }
 
 /// The header field a [`DecodeError::InvalidHeader`] is about.
@@ -157,6 +165,10 @@ impl fmt::Display for DecodeError {
                 "the image ({width}x{height}) exceeds the decoder's size limit"
             ),
             DecodeError::BufferTooSmall => write!(f, "output buffer too small for the image"),
+            DecodeError::StripeTooWide { stripe, capacity } => write!(
+                f,
+                "the stream is coded in stripes of {stripe} pixels; this decoder holds {capacity}"
+            ),
         }
     }
 }
