@@ -16,8 +16,8 @@
 use crate::format::MAX_LEAF_LOG2;
 use crate::geometry::{Node, Rect};
 use crate::model::{
-    tap_point, ModelType, Weights, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN,
-    WEIGHT_BITS,
+    tap_point, ModelType, Weights, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_BITS, SAMPLE_MAX,
+    SAMPLE_MIN, WEIGHT_BITS,
 };
 #[cfg(doc)]
 use crate::model::{SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE};
@@ -169,8 +169,9 @@ impl Patch {
     };
 
     /// The refined value at refined coordinates `(q1, q2)` (row, column; `0..=N*m`) of the
-    /// control grid `g` (row-major, side `m+1`).
-    #[inline]
+    /// control grid `g` (row-major, side `m+1`), point by point as the specification states
+    /// it: the reference [`Patch::refine`] is tested against.
+    #[cfg(test)]
     fn point(&self, g: &[i16], q1: usize, q2: usize) -> i32 {
         // N is 2 or 4: shifts and masks instead of divisions.
         let shift = self.model.transforms.trailing_zeros();
@@ -196,7 +197,7 @@ impl Patch {
 
     /// New point at phase `r` between points `a` and `a+1` of line `fixed` (a row when `dir` is
     /// 0, a column when 1); taps on points `a-1..=a+2`, mirrored at the line's ends.
-    #[inline]
+    #[cfg(test)]
     fn line(&self, g: &[i16], dir: usize, fixed: usize, a: usize, r: usize) -> i32 {
         let side = self.model.grid();
         let m = side - 1;
@@ -237,99 +238,185 @@ impl Patch {
             return Ok(());
         }
         let mut arena = [0i16; ARENA_LEN];
+        let mut scratch = Scratch::EMPTY;
         let n2 = self.model.control_count();
         let spacing = (1u32 << log2) / u32::from(self.model.intervals);
+        let square = Square {
+            x: node.x,
+            y: node.y,
+            sp: spacing,
+        };
         self.walk(
             &self.control[..n2],
             &mut arena,
-            node.x,
-            node.y,
-            spacing,
+            &square,
             &clip,
+            &mut scratch,
             out,
         )
     }
 
-    /// Subdivides grid `g` (pixel spacing `sp` between its points), storing each child grid at
-    /// the front of `below` while that child is refined.
-    #[allow(clippy::too_many_arguments)]
+    /// Draws the pixels of grid `g` (its square `at`) inside `clip`: a square that fits an
+    /// output tile is filled whole ([`Patch::fill`]) and handed on as one tile; a larger one
+    /// is subdivided, each child grid stored at the front of `below` while it is drawn, until
+    /// its points are at most `N` pixels apart ([`Patch::emit`]).
     fn walk(
         &self,
         g: &[i16],
         below: &mut [i16],
-        x: u32,
-        y: u32,
-        sp: u32,
+        at: &Square,
         clip: &Rect,
+        scratch: &mut Scratch,
         out: &mut dyn TileOut,
     ) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
         let n = u32::from(self.model.transforms);
         let side = self.model.grid();
-        let n2 = side * side;
-        if !clip.overlaps_square(x, y, m * sp) {
+        let ext = m * at.sp;
+        if !clip.overlaps_square(at.x, at.y, ext) {
             return Ok(());
         }
-        if sp <= n {
-            return self.emit(g, x, y, sp, clip, out);
+        if ext <= TILE as u32 {
+            return self.fill_tile(g, below, at, clip, scratch, out);
         }
-        let csp = sp / n;
+        if at.sp <= n {
+            return self.emit(g, at, clip, scratch, out);
+        }
+        let n2 = side * side;
         if below.len() < n2 {
             return Ok(());
         }
         let (child, deeper) = below.split_at_mut(n2);
         for i in 0..n {
             for j in 0..n {
-                let (cx, cy) = (x + j * m * csp, y + i * m * csp);
-                if !clip.overlaps_square(cx, cy, m * csp) {
+                let child_at = at.child(m, n, i, j);
+                if !clip.overlaps_square(child_at.x, child_at.y, ext / n) {
                     continue;
                 }
-                for u in 0..side {
-                    for v in 0..side {
-                        let q1 = (i * m) as usize + u;
-                        let q2 = (j * m) as usize + v;
-                        child[u * side + v] = self.point(g, q1, q2) as i16;
-                    }
-                }
-                self.walk(child, deeper, cx, cy, csp, clip, out)?;
+                let window = Window::child(m, i, j);
+                self.refine(g, &window, child, side, &mut scratch.h);
+                self.walk(child, deeper, &child_at, clip, scratch, out)?;
             }
         }
         Ok(())
     }
 
-    /// Emits the `m*sp` square of pixels covered by grid `g`, computing each pixel from `g` at
-    /// refined stride `N / sp`.
+    /// Draws a square that fits an output tile: fills its pixels ([`Patch::fill`]) and hands
+    /// the part inside `clip` on as one tile.
+    #[inline(never)]
+    fn fill_tile(
+        &self,
+        g: &[i16],
+        below: &mut [i16],
+        at: &Square,
+        clip: &Rect,
+        scratch: &mut Scratch,
+        out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
+        let ext = u32::from(self.model.intervals) * at.sp;
+        let mut values = [0i16; TILE * TILE];
+        self.fill(g, below, at.sp, 0, &mut values, &mut scratch.h);
+        let area = Rect {
+            x: at.x,
+            y: at.y,
+            w: ext,
+            h: ext,
+        }
+        .intersect(clip);
+        let (dx, dy) = ((area.x - at.x) as usize, (area.y - at.y) as usize);
+        let mut k = 0;
+        for j in 0..area.h as usize {
+            let row = &values[(dy + j) * TILE + dx..(dy + j) * TILE + dx + area.w as usize];
+            for &v in row {
+                scratch.pixels[k] = sample_to_pixel(i32::from(v));
+                k += 1;
+            }
+        }
+        out.put(Tile {
+            area,
+            pixels: &scratch.pixels[..k],
+        })
+    }
+
+    /// The pixels of grid `g` (points `sp` pixels apart, `m * sp` at most [`TILE`]) into
+    /// `values` from offset `at` (row-major, [`TILE`] per row): refined straight to pixels when
+    /// its points are at most `N` apart, else through its child grids (stored at the front of
+    /// `below`).
+    fn fill(
+        &self,
+        g: &[i16],
+        below: &mut [i16],
+        sp: u32,
+        at: usize,
+        values: &mut [i16; TILE * TILE],
+        h: &mut [i16; MAX_GRID * MAX_WINDOW],
+    ) {
+        let m = u32::from(self.model.intervals);
+        let n = u32::from(self.model.transforms);
+        let side = self.model.grid();
+        if sp <= n {
+            let ext = (m * sp) as usize;
+            let window = Window {
+                q1: 0,
+                q2: 0,
+                rows: ext,
+                cols: ext,
+                stride: (n / sp.max(1)) as usize,
+            };
+            self.refine(g, &window, &mut values[at..], TILE, h);
+            return;
+        }
+        let n2 = side * side;
+        if below.len() < n2 {
+            return;
+        }
+        let (child, deeper) = below.split_at_mut(n2);
+        let child_ext = (m * sp / n) as usize;
+        for i in 0..n {
+            for j in 0..n {
+                self.refine(g, &Window::child(m, i, j), child, side, h);
+                let child_at = at + i as usize * child_ext * TILE + j as usize * child_ext;
+                self.fill(child, deeper, sp / n, child_at, values, h);
+            }
+        }
+    }
+
+    /// Emits the `m*sp` square of pixels covered by grid `g` (points at most `N` pixels apart),
+    /// each the refined point at stride `N / sp` of `g` ([`Patch::refine`]), tile by tile.
     #[inline(never)]
     fn emit(
         &self,
         g: &[i16],
-        x: u32,
-        y: u32,
-        sp: u32,
+        at: &Square,
         clip: &Rect,
+        scratch: &mut Scratch,
         out: &mut dyn TileOut,
     ) -> Result<(), Stop> {
+        let (x, y, sp) = (at.x, at.y, at.sp);
         let ext = u32::from(self.model.intervals) * sp;
         let stride = (u32::from(self.model.transforms) / sp.max(1)) as usize;
         let x_lo = x.max(clip.x);
         let y_lo = y.max(clip.y);
         let x_hi = (u64::from(x) + u64::from(ext)).min(clip.right()) as u32;
         let y_hi = (u64::from(y) + u64::from(ext)).min(clip.bottom()) as u32;
-        let mut buf = [0u8; TILE * TILE];
+        let mut values = [0i16; TILE * TILE];
         let mut ty = y_lo;
         while ty < y_hi {
             let th = (y_hi - ty).min(TILE as u32);
             let mut tx = x_lo;
             while tx < x_hi {
                 let tw = (x_hi - tx).min(TILE as u32);
-                let mut k = 0;
-                for py in ty..ty + th {
-                    let q1 = (py - y) as usize * stride;
-                    for px in tx..tx + tw {
-                        let q2 = (px - x) as usize * stride;
-                        buf[k] = sample_to_pixel(self.point(g, q1, q2));
-                        k += 1;
-                    }
+                let window = Window {
+                    q1: (ty - y) as usize * stride,
+                    q2: (tx - x) as usize * stride,
+                    rows: th as usize,
+                    cols: tw as usize,
+                    stride,
+                };
+                self.refine(g, &window, &mut values, tw as usize, &mut scratch.h);
+                let k = (tw * th) as usize;
+                for (p, &v) in scratch.pixels.iter_mut().zip(&values).take(k) {
+                    *p = sample_to_pixel(i32::from(v));
                 }
                 let area = Rect {
                     x: tx,
@@ -339,7 +426,7 @@ impl Patch {
                 };
                 out.put(Tile {
                     area,
-                    pixels: &buf[..k],
+                    pixels: &scratch.pixels[..k],
                 })?;
                 tx += tw;
             }
@@ -347,6 +434,158 @@ impl Patch {
         }
         Ok(())
     }
+
+    /// The refined points of grid `g` in `window` (see [`Window`]), into `out` row-major,
+    /// `out_stride` values per row: each [`Patch::point`], computed separably. First the row
+    /// rule gives the window's columns on the old rows its rows need (each row padded with its
+    /// mirrored end points, so the taps read four consecutive values), into `h`; then each
+    /// point is the old row's value (on an old row), the column rule (on an old column) or the
+    /// cell rule (between them) across those: at most four multiply-adds per point. The cell
+    /// rule weighs the row rule's rounded points, as [`Patch::point`] does.
+    #[inline(never)]
+    fn refine(
+        &self,
+        g: &[i16],
+        window: &Window,
+        out: &mut [i16],
+        out_stride: usize,
+        h: &mut [i16; MAX_GRID * MAX_WINDOW],
+    ) {
+        let m = usize::from(self.model.intervals);
+        let side = m + 1;
+        let shift = self.model.transforms.trailing_zeros();
+        let mask = (1usize << shift) - 1;
+        let (rows, cols) = (window.rows.min(MAX_WINDOW), window.cols.min(MAX_WINDOW));
+        if rows == 0
+            || cols == 0
+            || g.len() < side * side
+            || out.len() < (rows - 1) * out_stride + cols
+        {
+            return;
+        }
+        // Where each column is: the old column before it and its phase.
+        let mut col_a = [0u8; MAX_WINDOW];
+        let mut col_r = [0u8; MAX_WINDOW];
+        for i in 0..cols {
+            let q2 = window.q2 + i * window.stride;
+            col_a[i] = (q2 >> shift).min(m) as u8;
+            col_r[i] = (q2 & mask) as u8;
+        }
+        // The row rule on the old rows the window needs: a - 1 ..= a + 2 around each row's.
+        let q1_last = window.q1 + (rows - 1) * window.stride;
+        let k_lo = (window.q1 >> shift).saturating_sub(1);
+        let k_hi = ((q1_last >> shift) + 2).min(m);
+        let mut padded = [0i16; MAX_GRID + 3];
+        for k in k_lo..=k_hi {
+            let row = &g[k * side..k * side + side];
+            padded[1..=side].copy_from_slice(row);
+            padded[0] = row[1.min(m)];
+            padded[side + 1] = row[m.saturating_sub(1)];
+            let dst = &mut h[(k - k_lo) * MAX_WINDOW..(k - k_lo + 1) * MAX_WINDOW];
+            for i in 0..cols {
+                let a = usize::from(col_a[i]);
+                dst[i] = match col_r[i] {
+                    0 => padded[a + 1],
+                    r => {
+                        let taps = &self.weights.line[0][usize::from(r) - 1];
+                        let p = &padded[a..a + 4];
+                        rule(taps, [p[0], p[1], p[2], p[3]])
+                    }
+                };
+            }
+        }
+        // Each point across the old rows.
+        for j in 0..rows {
+            let q1 = window.q1 + j * window.stride;
+            let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
+            let dst = &mut out[j * out_stride..j * out_stride + cols];
+            if r1 == 0 {
+                let at = (a1 - k_lo) * MAX_WINDOW;
+                dst.copy_from_slice(&h[at..at + cols]);
+                continue;
+            }
+            let at = |t: usize| (tap_point(a1, t, m) - k_lo) * MAX_WINDOW;
+            let (o0, o1, o2, o3) = (at(0), at(1), at(2), at(3));
+            let cell = &self.weights.cell[r1 - 1];
+            let sets = [&self.weights.line[1][r1 - 1], &cell[0], &cell[1], &cell[2]];
+            for (i, v) in dst.iter_mut().enumerate() {
+                let taps = sets[usize::from(col_r[i]) & 3];
+                *v = rule(taps, [h[o0 + i], h[o1 + i], h[o2 + i], h[o3 + i]]);
+            }
+        }
+    }
+}
+
+/// Where a grid lies in the image: its top-left point and the pixels between its points.
+struct Square {
+    x: u32,
+    y: u32,
+    sp: u32,
+}
+
+impl Square {
+    /// The square of child grid `(i, j)` of a grid with `m` intervals refined by `n`.
+    fn child(&self, m: u32, n: u32, i: u32, j: u32) -> Square {
+        let csp = self.sp / n;
+        Square {
+            x: self.x + j * m * csp,
+            y: self.y + i * m * csp,
+            sp: csp,
+        }
+    }
+}
+
+/// Buffers the synthesis of one patch reuses: the row rule's points for [`Patch::refine`] and
+/// an output tile's pixels.
+struct Scratch {
+    h: [i16; MAX_GRID * MAX_WINDOW],
+    pixels: [u8; TILE * TILE],
+}
+
+impl Scratch {
+    const EMPTY: Scratch = Scratch {
+        h: [0; MAX_GRID * MAX_WINDOW],
+        pixels: [0; TILE * TILE],
+    };
+}
+
+/// Largest side of a window of refined points computed at once: a child grid (9) or an output
+/// tile (8).
+const MAX_WINDOW: usize = if MAX_GRID > TILE { MAX_GRID } else { TILE };
+
+/// A rectangle of refined points of a grid: rows `q1, q1 + stride, ...` (`rows` of them) by
+/// columns `q2, q2 + stride, ...` (`cols`), at most [`MAX_WINDOW`] each way.
+struct Window {
+    q1: usize,
+    q2: usize,
+    rows: usize,
+    cols: usize,
+    stride: usize,
+}
+
+impl Window {
+    /// The points of child grid `(i, j)` of a grid with `m` intervals: its whole grid.
+    fn child(m: u32, i: u32, j: u32) -> Window {
+        let side = m as usize + 1;
+        Window {
+            q1: (i * m) as usize,
+            q2: (j * m) as usize,
+            rows: side,
+            cols: side,
+            stride: 1,
+        }
+    }
+}
+
+/// A rule's new point: `rc(sum of tap * value)` over its four taps.
+#[inline(always)]
+fn rule(taps: &[i16; 4], values: [i16; 4]) -> i16 {
+    let mut acc = 0i32;
+    for (&tap, v) in taps.iter().zip(values) {
+        acc += i32::from(tap) * i32::from(v);
+    }
+    // Clamped to the sample range, which fits in an i16.
+    round_clamp(acc) as i16
 }
 
 #[cfg(test)]
@@ -392,6 +631,76 @@ mod tests {
                 }
             }
             Ok(())
+        }
+    }
+
+    /// The separable refinement gives the point-by-point values of the specification, for
+    /// every model, window and stride, with random control values and random (also extreme)
+    /// weights.
+    #[test]
+    fn separable_refinement_is_the_specifications_points() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move |range: i32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % range as u64) as i32
+        };
+        for model in MODELS {
+            for trial in 0..40 {
+                let side = model.grid();
+                let mut control = [0i16; MAX_CONTROL];
+                for v in control.iter_mut().take(side * side) {
+                    *v = (next(12288) - 4096) as i16;
+                }
+                let deviations: [i32; crate::model::MAX_WEIGHTS] = core::array::from_fn(|_| {
+                    if trial % 2 == 0 {
+                        next(8193) - 4096
+                    } else {
+                        next(32769) - 16384
+                    }
+                });
+                let patch = Patch {
+                    model,
+                    control,
+                    weights: Weights::from_deviations(model, &deviations),
+                };
+                let g = &patch.control[..side * side];
+                let n = usize::from(model.transforms);
+                let full = n * (side - 1) + 1;
+                for stride in [1usize, 2, 4] {
+                    for _ in 0..8 {
+                        let rows = 1 + next(MAX_WINDOW as i32) as usize;
+                        let cols = 1 + next(MAX_WINDOW as i32) as usize;
+                        let span = |count: usize| (count - 1) * stride;
+                        if span(rows) >= full || span(cols) >= full {
+                            continue;
+                        }
+                        let q1 = next((full - span(rows)) as i32) as usize;
+                        let q2 = next((full - span(cols)) as i32) as usize;
+                        let window = Window {
+                            q1,
+                            q2,
+                            rows,
+                            cols,
+                            stride,
+                        };
+                        let mut out = [0i16; MAX_WINDOW * MAX_WINDOW];
+                        let mut h = [0i16; MAX_GRID * MAX_WINDOW];
+                        patch.refine(g, &window, &mut out, cols, &mut h);
+                        for j in 0..rows {
+                            for i in 0..cols {
+                                let expected = patch.point(g, q1 + j * stride, q2 + i * stride);
+                                assert_eq!(
+                                    i32::from(out[j * cols + i]),
+                                    expected,
+                                    "{model:?} window {q1},{q2} {rows}x{cols}/{stride} at {j},{i}"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
         }
     }
 

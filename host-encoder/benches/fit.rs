@@ -1,13 +1,12 @@
-//! The fitting kernel: a model fitted to one block, per model and block size (the default-weight
-//! least-squares projection, and the Levenberg-Marquardt fit of the weights), on a textured
-//! synthetic image. `cargo bench -p host-encoder --bench fit`.
+//! The analysis through the public API, on a textured synthetic image: the fitting stage alone
+//! (every model fitted at every node, as [`host_encoder::AnalysisTiming::fits`] times it), with
+//! the default-weight fits and with the weights fitted too, and the whole analysis.
+//! `cargo bench -p host-encoder --bench fit`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use decoder_core::internal::syntax::models_for_block;
-use decoder_core::Node;
-use host_encoder::encoder::fit::{fit_default, fit_weighted};
-use host_encoder::Plane;
+use host_encoder::{analyse, Analysis, EncoderConfig, Plane};
 use std::hint::black_box;
+use std::time::Duration;
 
 fn textured(size: u32) -> Plane {
     let data = (0..size * size)
@@ -21,36 +20,45 @@ fn textured(size: u32) -> Plane {
     Plane::new(size, size, data)
 }
 
+fn analysis_of(plane: &Plane, config: &EncoderConfig) -> Analysis {
+    analyse(black_box(plane.clone()), config, &|_| {}).expect("an analysable image")
+}
+
 fn bench_fits(c: &mut Criterion) {
-    let plane = textured(512);
     let mut group = c.benchmark_group("fit");
-    for log2 in [3u8, 4, 5, 6] {
-        // An interior block, away from the image's edges.
-        let node = Node {
-            x: 128,
-            y: 128,
-            log2,
-        };
-        let (models, count) = models_for_block(log2);
-        for &m in &models[..count] {
-            let id = format!("model{m}/{}px", 1 << log2);
-            group.bench_function(BenchmarkId::new("default", &id), |b| {
-                b.iter(|| fit_default(black_box(&plane), &node, m))
-            });
-            let plain = fit_default(&plane, &node, m);
-            if fit_weighted(&plane, &node, &plain).is_some() {
-                group.bench_function(BenchmarkId::new("weighted", &id), |b| {
-                    b.iter(|| fit_weighted(black_box(&plane), &node, &plain))
-                });
-            }
-        }
+    let default_weights = EncoderConfig::default();
+    let fitted_weights = EncoderConfig {
+        fit_weights: true,
+        ..EncoderConfig::default()
+    };
+    for (name, config, size) in [
+        ("default", &default_weights, 256),
+        ("weighted", &fitted_weights, 64),
+    ] {
+        let plane = textured(size);
+        // The fitting stage's own time, from each analysis's timing.
+        group.bench_function(BenchmarkId::new(name, format!("{size}px")), |b| {
+            b.iter_custom(|iters| {
+                (0..iters)
+                    .map(|_| analysis_of(&plane, config).timing().fits)
+                    .sum::<Duration>()
+            })
+        });
     }
+    group.finish();
+}
+
+fn bench_analysis(c: &mut Criterion) {
+    let mut group = c.benchmark_group("analysis");
+    let plane = textured(256);
+    let config = EncoderConfig::default();
+    group.bench_function("256px", |b| b.iter(|| analysis_of(&plane, &config)));
     group.finish();
 }
 
 criterion_group! {
     name = benches;
-    config = Criterion::default().sample_size(20);
-    targets = bench_fits
+    config = Criterion::default().sample_size(10);
+    targets = bench_fits, bench_analysis
 }
 criterion_main!(benches);

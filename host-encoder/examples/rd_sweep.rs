@@ -52,11 +52,8 @@ fn main() {
 
 /// Encodes `analysis` at `bpp`, decodes it with decoder-core and prints the CSV row.
 fn sweep_one(analysis: &Analysis, name: &str, original: &[u8], bpp: f64, analysis_s: f64) {
-    let (w, h) = (
-        u32::from(analysis.header.width),
-        u32::from(analysis.header.height),
-    );
-    let min_leaf = 1u32 << analysis.header.min_leaf_log2;
+    let (w, h) = (analysis.width(), analysis.height());
+    let min_leaf = 1u32 << analysis.min_leaf_log2();
     let t = Instant::now();
     match analysis.encode(Target::Bpp(bpp)) {
         Ok(e) => {

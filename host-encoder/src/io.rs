@@ -1,36 +1,211 @@
-//! Image files in and out: any format the `image` crate reads, converted to 8-bit luma.
+//! Files in and out: any image format the `image` crate reads, converted to 8-bit luma; decoded
+//! images written as PNG or PNM; any output written atomically.
+//!
+//! Every function here fails with a [`FileError`], which names the user's path and keeps the
+//! underlying cause as its [`source`](std::error::Error::source).
 
 use crate::encoder::Plane;
-use std::path::Path;
+use std::fmt;
+use std::path::{Path, PathBuf};
 
-/// Loads an image file as 8-bit luma, by the rule of [`to_luma`].
-pub fn load_luma(path: &Path) -> Result<Plane, String> {
-    if path.is_dir() {
-        return Err(format!("{} is a directory, not an image", path.display()));
-    }
-    let reader = image::ImageReader::open(path)
-        .map_err(|e| format!("cannot open {}: {e}", path.display()))?
-        .with_guessed_format()
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    if reader.format().is_none() {
-        let mut magic = [0u8; 4];
-        let is_pifs = std::fs::File::open(path)
-            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
-            .is_ok()
-            && magic == decoder_core::internal::format::MAGIC;
-        return Err(if is_pifs {
-            format!(
+/// Why reading or writing a file failed.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum FileError {
+    /// The input path is a directory.
+    IsDirectory {
+        /// The path given.
+        path: PathBuf,
+        /// What was expected there ("an image", "a .pifs stream").
+        expected: &'static str,
+    },
+    /// The image file could not be opened.
+    Open {
+        /// The path given.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// The file could not be read.
+    Read {
+        /// The path given.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// The file is a PIFS stream where an image was expected.
+    AlreadyPifs {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// The file is in no image format this tool reads.
+    Format {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// The image is damaged or uses a feature the decoder lacks.
+    Decode {
+        /// The path given.
+        path: PathBuf,
+        /// The image decoder's reason.
+        source: image::ImageError,
+    },
+    /// The output's name asks for a format that decoded images cannot be written in.
+    UnsupportedOutput {
+        /// The path given.
+        path: PathBuf,
+        /// Its extension, if it has one.
+        extension: Option<String>,
+    },
+    /// A pixel buffer does not hold `width * height` samples.
+    BufferSize {
+        /// Width, pixels.
+        width: u32,
+        /// Height, pixels.
+        height: u32,
+        /// Samples in the buffer.
+        len: usize,
+    },
+    /// The image encoder failed to encode the pixels.
+    Encode {
+        /// The path the image was meant for.
+        path: PathBuf,
+        /// The image encoder's reason.
+        source: image::ImageError,
+    },
+    /// The output could not be written.
+    Write {
+        /// The path given.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+}
+
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FileError::IsDirectory { path, expected } => {
+                write!(f, "{} is a directory, not {expected}", path.display())
+            }
+            FileError::Open { path, source } => {
+                write!(f, "cannot open {}: {source}", path.display())
+            }
+            FileError::Read { path, source } => {
+                write!(f, "cannot read {}: {source}", path.display())
+            }
+            FileError::AlreadyPifs { path } => write!(
+                f,
                 "{} is already a PIFS stream (use 'pifs decode' to turn it into an image)",
                 path.display()
-            )
-        } else {
-            format!("{}: not a supported image format", path.display())
+            ),
+            FileError::Format { path } => {
+                write!(f, "{}: not a supported image format", path.display())
+            }
+            FileError::Decode { path, source } => {
+                write!(f, "cannot decode {}: {source}", path.display())
+            }
+            FileError::UnsupportedOutput { path, extension } => {
+                let list = OutputFormat::list();
+                match extension {
+                    Some(ext) => write!(
+                        f,
+                        "unsupported output format '.{ext}' for {} (use {list})",
+                        path.display()
+                    ),
+                    None => write!(
+                        f,
+                        "{} has no extension to choose the output format by (use {list})",
+                        path.display()
+                    ),
+                }
+            }
+            FileError::BufferSize { width, height, len } => write!(
+                f,
+                "pixel buffer size mismatch: {len} samples for a {width}x{height} image"
+            ),
+            FileError::Encode { path, source } => {
+                write!(f, "cannot encode {}: {source}", path.display())
+            }
+            FileError::Write { path, source } => {
+                write!(f, "cannot write {}: {source}", path.display())
+            }
+        }
+    }
+}
+
+impl std::error::Error for FileError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            FileError::Open { source, .. }
+            | FileError::Read { source, .. }
+            | FileError::Write { source, .. } => Some(source),
+            FileError::Decode { source, .. } | FileError::Encode { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+/// Loads an image file as 8-bit luma, by the rule of [`to_luma`].
+pub fn load_luma(path: &Path) -> Result<Plane, FileError> {
+    if path.is_dir() {
+        return Err(FileError::IsDirectory {
+            path: path.to_path_buf(),
+            expected: "an image",
         });
     }
-    let img = reader
-        .decode()
-        .map_err(|e| format!("cannot decode {}: {e}", path.display()))?;
+    let bytes = std::fs::read(path).map_err(|source| FileError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    decode_luma(&bytes, path)
+}
+
+/// Decodes an image file's contents `bytes` as 8-bit luma, by the rule of [`to_luma`]. `path`
+/// names the file in errors, and its extension is the format's first guess (the contents
+/// decide when they are recognised).
+pub fn decode_luma(bytes: &[u8], path: &Path) -> Result<Plane, FileError> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+    if let Ok(format) = image::ImageFormat::from_path(path) {
+        reader.set_format(format);
+    }
+    let reader = reader
+        .with_guessed_format()
+        .map_err(|source| FileError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    if reader.format().is_none() {
+        let is_pifs = bytes.starts_with(&decoder_core::internal::format::MAGIC);
+        return Err(if is_pifs {
+            FileError::AlreadyPifs {
+                path: path.to_path_buf(),
+            }
+        } else {
+            FileError::Format {
+                path: path.to_path_buf(),
+            }
+        });
+    }
+    let img = reader.decode().map_err(|source| FileError::Decode {
+        path: path.to_path_buf(),
+        source,
+    })?;
     Ok(to_luma(&img))
+}
+
+/// Reads a whole `.pifs` stream into memory (a directory is refused by name).
+pub fn read_stream(path: &Path) -> Result<Vec<u8>, FileError> {
+    if path.is_dir() {
+        return Err(FileError::IsDirectory {
+            path: path.to_path_buf(),
+            expected: "a .pifs stream",
+        });
+    }
+    std::fs::read(path).map_err(|source| FileError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Converts a decoded image to 8-bit luma:
@@ -55,59 +230,234 @@ pub fn to_luma(img: &image::DynamicImage) -> Plane {
     Plane::new(w, h, data)
 }
 
-/// Encodes a grayscale image as PNG or PGM (chosen by the extension of `path`) into memory.
-pub fn encode_gray(path: &Path, width: u32, height: u32, pixels: &[u8]) -> Result<Vec<u8>, String> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    let format = match ext.as_str() {
-        "png" => image::ImageFormat::Png,
-        "pgm" | "pnm" => image::ImageFormat::Pnm,
-        other => {
-            return Err(format!(
-                "unsupported output format '.{other}' (use .png or .pgm)"
-            ))
-        }
-    };
-    let img = image::GrayImage::from_raw(width, height, pixels.to_vec())
-        .ok_or("pixel buffer size mismatch")?;
-    let mut out = std::io::Cursor::new(Vec::new());
-    if format == image::ImageFormat::Pnm {
-        let enc = image::codecs::pnm::PnmEncoder::new(&mut out).with_subtype(
-            image::codecs::pnm::PnmSubtype::Graymap(image::codecs::pnm::SampleEncoding::Binary),
-        );
-        img.write_with_encoder(enc).map_err(|e| e.to_string())?;
-    } else {
-        img.write_to(&mut out, format).map_err(|e| e.to_string())?;
+/// The formats decoded images are written in, chosen by the output's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// PNG, 8-bit grayscale (`.png`).
+    Png,
+    /// Binary PGM, 8-bit (`.pgm`, `.pnm`).
+    Pgm,
+    /// Binary PPM, 8-bit RGB with the grey in every channel (`.ppm`), for tools that read
+    /// colour only.
+    Ppm,
+}
+
+impl OutputFormat {
+    /// Every extension accepted, with its format, in the order the help lists them.
+    pub const EXTENSIONS: [(&'static str, OutputFormat); 4] = [
+        ("png", OutputFormat::Png),
+        ("pgm", OutputFormat::Pgm),
+        ("pnm", OutputFormat::Pgm),
+        ("ppm", OutputFormat::Ppm),
+    ];
+
+    /// The format `path`'s extension names (case-insensitive), or
+    /// [`FileError::UnsupportedOutput`].
+    pub fn from_path(path: &Path) -> Result<OutputFormat, FileError> {
+        let extension = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .filter(|e| !e.is_empty());
+        let found = extension.as_deref().and_then(|ext| {
+            Self::EXTENSIONS
+                .iter()
+                .find(|(name, _)| *name == ext)
+                .map(|&(_, format)| format)
+        });
+        found.ok_or_else(|| FileError::UnsupportedOutput {
+            path: path.to_path_buf(),
+            extension,
+        })
     }
-    Ok(out.into_inner())
+
+    /// The accepted extensions as a phrase: ".png, .pgm, .pnm or .ppm".
+    pub fn list() -> String {
+        let names: Vec<String> = Self::EXTENSIONS
+            .iter()
+            .map(|(e, _)| format!(".{e}"))
+            .collect();
+        match names.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+            _ => names.concat(),
+        }
+    }
+}
+
+/// Whether `path`'s extension names an image format (`.png`, `.jpg`, `.tiff`, …: any the
+/// `image` crate knows, enabled or not), where a PIFS stream does not belong.
+pub fn has_image_extension(path: &Path) -> bool {
+    image::ImageFormat::from_path(path).is_ok()
+}
+
+/// Encodes a grayscale image in the format `path`'s extension names ([`OutputFormat`]) into
+/// memory.
+pub fn encode_gray(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[u8],
+) -> Result<Vec<u8>, FileError> {
+    OutputFormat::from_path(path)?.encode(path, width, height, pixels)
+}
+
+impl OutputFormat {
+    /// Encodes a grayscale image (`width * height` samples, row-major) in this format into
+    /// memory; `path` is where it is going, for the errors.
+    pub fn encode(
+        self,
+        path: &Path,
+        width: u32,
+        height: u32,
+        pixels: &[u8],
+    ) -> Result<Vec<u8>, FileError> {
+        use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
+        let img = image::GrayImage::from_raw(width, height, pixels.to_vec()).ok_or(
+            FileError::BufferSize {
+                width,
+                height,
+                len: pixels.len(),
+            },
+        )?;
+        let mut out = std::io::Cursor::new(Vec::new());
+        let written = match self {
+            OutputFormat::Png => img.write_to(&mut out, image::ImageFormat::Png),
+            OutputFormat::Pgm => img.write_with_encoder(
+                PnmEncoder::new(&mut out).with_subtype(PnmSubtype::Graymap(SampleEncoding::Binary)),
+            ),
+            OutputFormat::Ppm => image::DynamicImage::ImageLuma8(img)
+                .into_rgb8()
+                .write_with_encoder(
+                    PnmEncoder::new(&mut out)
+                        .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary)),
+                ),
+        };
+        written.map_err(|source| FileError::Encode {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(out.into_inner())
+    }
 }
 
 /// Writes `bytes` to `path` atomically: into a temporary file in the same directory, then
 /// renamed over `path`, so an interrupted or failed write never leaves a partial file.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     use std::io::Write;
+    let failed = |source: std::io::Error| FileError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
+        _ => PathBuf::from("."),
     };
-    // The temporary file's random name stays out of the message: the user named `path`.
     let mut tmp = tempfile::Builder::new()
         .prefix(".pifs-tmp-")
         .tempfile_in(&dir)
-        .map_err(|e| {
-            let text = e.to_string();
-            let cause = text.split(" at path ").next().unwrap_or(&text);
-            format!("cannot write {}: {cause}", path.display())
-        })?;
-    tmp.write_all(bytes)
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| format!("cannot write {}: {}", path.display(), e.error))?;
+        .map_err(|e| failed(without_temporary_path(e)))?;
+    tmp.write_all(bytes).map_err(failed)?;
+    tmp.as_file().sync_all().map_err(failed)?;
+    tmp.persist(path).map_err(|e| failed(e.error))?;
     Ok(())
+}
+
+/// The system error under `tempfile`'s wrapper, whose message names the temporary file's random
+/// path: the user named another path, and the message is about that one.
+fn without_temporary_path(e: std::io::Error) -> std::io::Error {
+    let inner = e
+        .get_ref()
+        .and_then(|wrapper| wrapper.source())
+        .and_then(|cause| cause.downcast_ref::<std::io::Error>())
+        .and_then(std::io::Error::raw_os_error);
+    match inner.or_else(|| e.raw_os_error()) {
+        Some(code) => std::io::Error::from_raw_os_error(code),
+        None => {
+            let text = e.to_string();
+            let cause = text.split(" at path ").next().unwrap_or(&text).to_string();
+            std::io::Error::new(e.kind(), cause)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::error::Error;
+
+    #[test]
+    fn output_format_follows_the_extension() {
+        let f = |p: &str| OutputFormat::from_path(Path::new(p));
+        assert_eq!(f("a.png").unwrap(), OutputFormat::Png);
+        assert_eq!(f("dir.x/a.PGM").unwrap(), OutputFormat::Pgm);
+        assert_eq!(f("a.pnm").unwrap(), OutputFormat::Pgm);
+        assert_eq!(f("a.ppm").unwrap(), OutputFormat::Ppm);
+        let none = f("dir.png/out").unwrap_err().to_string();
+        assert_eq!(
+            none,
+            "dir.png/out has no extension to choose the output format by (use .png, .pgm, .pnm or .ppm)"
+        );
+        let jpg = f("o.jpg").unwrap_err().to_string();
+        assert_eq!(
+            jpg,
+            "unsupported output format '.jpg' for o.jpg (use .png, .pgm, .pnm or .ppm)"
+        );
+    }
+
+    #[test]
+    fn ppm_output_repeats_the_grey_in_every_channel() {
+        let bytes = encode_gray(Path::new("x.ppm"), 2, 1, &[10, 200]).unwrap();
+        let img = image::load_from_memory(&bytes).unwrap().into_rgb8();
+        assert_eq!(img.as_raw(), &[10, 10, 10, 200, 200, 200]);
+        let bytes = encode_gray(Path::new("x.pgm"), 2, 1, &[10, 200]).unwrap();
+        assert!(bytes.starts_with(b"P5"));
+        let err = encode_gray(Path::new("x.png"), 2, 2, &[1]).unwrap_err();
+        assert!(matches!(err, FileError::BufferSize { len: 1, .. }), "{err}");
+    }
+
+    #[test]
+    fn errors_name_the_path_and_keep_the_cause() {
+        let missing = Path::new("/nonexistent-pifs-dir/in.png");
+        let err = load_luma(missing).unwrap_err();
+        assert!(matches!(err, FileError::Open { .. }));
+        assert!(err
+            .to_string()
+            .starts_with("cannot open /nonexistent-pifs-dir/in.png: "));
+        let cause = err
+            .source()
+            .unwrap()
+            .downcast_ref::<std::io::Error>()
+            .unwrap();
+        assert_eq!(cause.kind(), std::io::ErrorKind::NotFound);
+
+        let err = write_atomic(Path::new("/nonexistent-pifs-dir/out.pifs"), b"x").unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.starts_with("cannot write /nonexistent-pifs-dir/out.pifs: ")
+                && !text.contains(".pifs-tmp"),
+            "{text}"
+        );
+        assert!(err.source().is_some());
+
+        let mut stream = decoder_core::internal::format::MAGIC.to_vec();
+        stream.extend_from_slice(&[0; 16]);
+        let err = decode_luma(&stream, Path::new("s.bin")).unwrap_err();
+        assert!(matches!(err, FileError::AlreadyPifs { .. }), "{err}");
+        let err = decode_luma(b"hello, world", Path::new("t.txt")).unwrap_err();
+        assert_eq!(err.to_string(), "t.txt: not a supported image format");
+        let err = decode_luma(b"hello, world", Path::new("t.png")).unwrap_err();
+        assert!(matches!(err, FileError::Decode { .. }), "{err}");
+        assert!(err.source().is_some());
+    }
+
+    #[test]
+    fn image_extensions_are_recognised() {
+        for p in [
+            "a.png", "a.JPG", "a.jpeg", "a.tif", "a.bmp", "a.pgm", "a.webp",
+        ] {
+            assert!(has_image_extension(Path::new(p)), "{p}");
+        }
+        for p in ["a.pifs", "a", "a.bin", "a.svg"] {
+            assert!(!has_image_extension(Path::new(p)), "{p}");
+        }
+    }
 }

@@ -3,6 +3,10 @@
 //! The encoder of the PIFS format (a quadtree of projected-IFS patches, after E. Guérin's
 //! thesis) and the library behind the `pifs` command-line tool.
 //!
+//! An image is analysed once ([`analyse`]: every model fitted at every quadtree node, every
+//! quantiser tried); the [`Analysis`] then encodes any number of targets
+//! ([`Analysis::encode`]: a rate, a size or a quality).
+//!
 //! ```no_run
 //! use host_encoder::{analyse, EncoderConfig, Plane, Target};
 //! let plane = Plane::new(2, 2, vec![0, 64, 128, 255]);
@@ -11,13 +15,21 @@
 //! let good = analysis.encode(Target::Psnr(30.0)).unwrap();
 //! # let _ = (small, good);
 //! ```
-#![warn(missing_docs)]
+//!
+//! The `pifs` tool is behind the default cargo feature `cli`; a library user writes
+//! `host-encoder = { version = "…", default-features = false }` and gets no command-line
+//! dependencies (`clap`, `indicatif`, `plotters`).
+#![deny(
+    missing_docs,
+    missing_debug_implementations,
+    rustdoc::broken_intra_doc_links
+)]
 
-pub mod encoder;
-pub mod entropy;
+mod encoder;
+mod entropy;
 pub mod io;
 
-pub use encoder::analysis::Analysis;
 pub use encoder::{
-    analyse, psnr, EncodeError, Encoded, EncoderConfig, Plane, Target, MIN_TRIAL_BPP,
+    analyse, psnr, Analysis, AnalysisTiming, EncodeError, Encoded, EncoderConfig, Plane, Target,
+    MIN_TRIAL_BPP,
 };

@@ -82,3 +82,454 @@ fn encode_decode_info_round_trip() {
         "{info}"
     );
 }
+
+/// A textured test image: waves, an edge and a little deterministic noise.
+fn textured(w: u32, h: u32) -> image::GrayImage {
+    image::GrayImage::from_fn(w, h, |x, y| {
+        let wave = 60.0 * ((x as f64) * 0.45).sin() * ((y as f64) * 0.3).cos();
+        let edge = if x + y > (w + h) / 2 { 50.0 } else { 0.0 };
+        let noise = ((x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(2_246_822_519)) >> 27) as f64;
+        image::Luma([(100.0 + wave + edge + noise).clamp(0.0, 255.0) as u8])
+    })
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The one line a refused command prints on stderr, after checking it is one line and the
+/// exit is non-zero.
+fn refused(out: &Output) -> String {
+    assert!(
+        !out.status.success(),
+        "accepted: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr:?}");
+    assert!(stderr.starts_with("pifs: "), "{stderr:?}");
+    stderr.trim_end().to_string()
+}
+
+/// The pixels the decoder makes of the stream at `path`.
+fn decoded(path: &Path) -> (u32, u32, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap();
+    let decoder = decoder_core::Decoder::new(&bytes).unwrap();
+    let (w, h) = (decoder.header().width, decoder.header().height);
+    let mut px = vec![0u8; decoder.header().pixel_count()];
+    decoder.decode_into(&mut px).unwrap();
+    (u32::from(w), u32::from(h), px)
+}
+
+/// The PSNR figure of an encode's line ("PSNR 31.20 dB").
+fn psnr_of(stdout: &str) -> f64 {
+    let at = stdout.find("PSNR ").expect("a PSNR figure") + 5;
+    stdout[at..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn images_of_any_size_encode_with_the_default_target() {
+    let dir = scratch("tiny");
+    for (w, h) in [(1, 1), (7, 1), (13, 9)] {
+        let png = dir.join(format!("{w}x{h}.png"));
+        textured(w, h).save(&png).unwrap();
+        let stream = dir.join(format!("{w}x{h}.pifs"));
+        let out = pifs(&[
+            "encode",
+            png.to_str().unwrap(),
+            "-o",
+            stream.to_str().unwrap(),
+        ]);
+        let stdout = ok(&out);
+        // Too small for the default rate: the smallest stream, and the line says so.
+        assert!(stdout.contains("wrote the smallest"), "{w}x{h}: {stdout}");
+        assert!(
+            out.stderr.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let back = dir.join(format!("{w}x{h}-back.png"));
+        ok(&pifs(&[
+            "decode",
+            stream.to_str().unwrap(),
+            "-o",
+            back.to_str().unwrap(),
+        ]));
+        let img = image::open(&back).unwrap().to_luma8();
+        let (dw, dh, px) = decoded(&stream);
+        assert_eq!((img.width(), img.height()), (w, h));
+        assert_eq!((dw, dh), (w, h));
+        assert_eq!(img.as_raw(), &px);
+    }
+    // An explicit rate is a hard budget, however small the image.
+    let png = dir.join("13x9.png");
+    let stream = dir.join("hard.pifs");
+    let line = refused(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        stream.to_str().unwrap(),
+        "--bpp",
+        "0.25",
+    ]));
+    assert!(line.contains("budget of 3 bytes is too small"), "{line}");
+    assert!(!stream.exists());
+}
+
+#[test]
+fn the_best_psnr_reported_is_reached() {
+    let dir = scratch("psnr");
+    let png = dir.join("tex.png");
+    textured(48, 40).save(&png).unwrap();
+    let out_path = dir.join("q.pifs");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "encode",
+            png.to_str().unwrap(),
+            "-o",
+            out_path.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        pifs(&args)
+    };
+    let line = refused(&run(&["--psnr", "150"]));
+    assert!(!out_path.exists(), "a refused encode wrote its output");
+    let marker = "the best this encoder reaches is ";
+    let at = line.find(marker).expect(&line) + marker.len();
+    let best: f64 = line[at..].trim_end_matches(" dB").parse().expect(&line);
+    assert!(best > 30.0 && best < 150.0, "{line}");
+    // The figure shown is reached, and anything below it.
+    for target in [best, best - 0.01] {
+        let stdout = ok(&run(&["--psnr", &format!("{target:.2}")]));
+        assert!(psnr_of(&stdout) >= target, "--psnr {target}: {stdout}");
+    }
+    // No other target writes a better stream: the largest budget reaches the same.
+    let stdout = ok(&run(&["--bytes", "10000000"]));
+    let top = psnr_of(&stdout);
+    assert!(
+        top < best + 0.01,
+        "--bytes reaches {top} dB, above the best reported {best}"
+    );
+    let stdout = ok(&run(&["--bpp", "100"]));
+    assert!(psnr_of(&stdout) < best + 0.01, "{stdout}");
+}
+
+#[test]
+fn output_names_must_fit_what_is_written() {
+    let dir = scratch("names");
+    let png = dir.join("in.png");
+    write_png(&png);
+    let image_name = dir.join("out.png");
+    let line = refused(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        image_name.to_str().unwrap(),
+    ]));
+    assert_eq!(
+        line,
+        format!(
+            "pifs: refusing to write a PIFS stream into {}: use a .pifs name",
+            image_name.display()
+        )
+    );
+    assert!(!image_name.exists());
+    // Any other name is a stream's.
+    let stream = dir.join("payload.bin");
+    ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        stream.to_str().unwrap(),
+        "--bytes",
+        "150",
+    ]));
+    // Decode: the extension chooses the format; none or an unknown one is refused, with the
+    // list, before anything is read.
+    for name in ["decoded", "decoded.", "decoded.jpg"] {
+        let out = dir.join(name);
+        let line = refused(&pifs(&[
+            "decode",
+            "/nonexistent/stream.pifs",
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        assert!(line.contains("(use .png, .pgm, .pnm or .ppm)"), "{line}");
+        assert!(line.contains(out.to_str().unwrap()), "{line}");
+        assert!(!out.exists());
+    }
+    let (w, h, px) = decoded(&stream);
+    for (name, magic) in [
+        ("d.png", &b"\x89PNG"[..]),
+        ("d.pgm", b"P5"),
+        ("d.pnm", b"P5"),
+        ("d.ppm", b"P6"),
+    ] {
+        let out = dir.join(name);
+        ok(&pifs(&[
+            "decode",
+            stream.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        let bytes = std::fs::read(&out).unwrap();
+        assert!(bytes.starts_with(magic), "{name}");
+        let img = image::load_from_memory(&bytes).unwrap().to_luma8();
+        assert_eq!((img.width(), img.height()), (w, h));
+        assert_eq!(img.as_raw(), &px, "{name}");
+    }
+}
+
+/// Standard base64 decoding (no line breaks), for the image an SVG embeds.
+fn unbase64(text: &str) -> Vec<u8> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let mut out = Vec::new();
+    for chunk in text.as_bytes().chunks(4) {
+        let digits: Vec<u8> = chunk
+            .iter()
+            .copied()
+            .filter(|&c| c != b'=')
+            .map(value)
+            .collect();
+        let n = digits
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (i, &d)| n | (u32::from(d) << (18 - 6 * i)));
+        out.extend_from_slice(&n.to_be_bytes()[1..digits.len()]);
+    }
+    out
+}
+
+#[test]
+fn info_draws_every_leaf_over_the_decoded_image() {
+    let dir = scratch("svg");
+    let png = dir.join("tex.png");
+    textured(40, 24).save(&png).unwrap();
+    let stream = dir.join("tex.pifs");
+    ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        stream.to_str().unwrap(),
+        "--bpp",
+        "2",
+    ]));
+    let plain = ok(&pifs(&["info", stream.to_str().unwrap()]));
+    let svg_path = dir.join("leaves.svg");
+    let with_svg = ok(&pifs(&[
+        "info",
+        stream.to_str().unwrap(),
+        "--svg",
+        svg_path.to_str().unwrap(),
+    ]));
+    // The same figures, plus where the drawing is.
+    assert!(with_svg.starts_with(&plain), "{plain}\n---\n{with_svg}");
+    assert!(with_svg.contains("leaves.svg"));
+    let leaves: usize = plain
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("leaves"))
+        .and_then(|n| n.trim().parse().ok())
+        .expect("a leaf count");
+    let svg = std::fs::read_to_string(&svg_path).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert_eq!(svg.matches("class=\"leaf\"").count(), leaves);
+    assert!(leaves > 1, "a quadtree worth drawing");
+    // Each model in the legend, and the leaves' colours are the legend's.
+    for name in ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"] {
+        assert!(svg.contains(name), "{name}");
+    }
+    let marker = "data:image/png;base64,";
+    let at = svg.find(marker).unwrap() + marker.len();
+    let end = at + svg[at..].find('"').unwrap();
+    let embedded = image::load_from_memory(&unbase64(&svg[at..end]))
+        .unwrap()
+        .to_luma8();
+    let (w, h, px) = decoded(&stream);
+    assert_eq!((embedded.width(), embedded.height()), (w, h));
+    assert_eq!(embedded.as_raw(), &px);
+    // An image name for the drawing is refused.
+    let line = refused(&pifs(&[
+        "info",
+        stream.to_str().unwrap(),
+        "--svg",
+        dir.join("l.png").to_str().unwrap(),
+    ]));
+    assert!(line.contains("use a .svg name"), "{line}");
+}
+
+#[test]
+fn rd_prints_writes_and_draws_the_curve_from_one_analysis() {
+    let dir = scratch("rd");
+    let png = dir.join("tex.png");
+    textured(48, 32).save(&png).unwrap();
+    let anchors = dir.join("anchors.csv");
+    std::fs::write(
+        &anchors,
+        "set,image,width,height,codec,target_bpp,status,param,bytes,bpp,psnr,psnr_interp,enc_s,dec_s,n_encodes,note\n\
+         t,tex.png,48,32,jpeg,0.5,ok,q=10,96,0.5,24.5,24.5,0.01,0.01,5,\n\
+         t,tex.png,48,32,jpeg,1,ok,q=30,190,0.99,28.25,28.3,0.01,0.01,5,\n\
+         t,tex.png,48,32,jpeg,0.25,unreachable,q=1,120,0.625,,,,,1,\"lowest setting, too big\"\n\
+         t,other.png,48,32,webp,1,ok,q=30,190,0.99,99.5,28.3,0.01,0.01,5,\n",
+    )
+    .unwrap();
+    let (csv, svg, streams) = (dir.join("rd.csv"), dir.join("rd.svg"), dir.join("streams"));
+    let stdout = ok(&pifs(&[
+        "rd",
+        png.to_str().unwrap(),
+        "--rates",
+        "0.5,1,2",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--plot",
+        svg.to_str().unwrap(),
+        "--compare",
+        anchors.to_str().unwrap(),
+        "--out-dir",
+        streams.to_str().unwrap(),
+    ]));
+    assert!(stdout.contains("one analysis"), "{stdout}");
+    // The CSV: a header, then one row per rate, each a stream that was written.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("codec,bpp,psnr,bytes"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 3, "{text}");
+    let mut last_psnr = 0.0;
+    for (row, rate) in rows.iter().zip(["0.5", "1", "2"]) {
+        assert_eq!(row[0], "pifs");
+        let (bpp, psnr, bytes): (f64, f64, usize) = (
+            row[1].parse().unwrap(),
+            row[2].parse().unwrap(),
+            row[3].parse().unwrap(),
+        );
+        assert!(bpp <= rate.parse::<f64>().unwrap() + 1e-9, "{row:?}");
+        assert!(psnr > last_psnr, "PSNR grows with the rate: {text}");
+        last_psnr = psnr;
+        let stream = streams.join(format!("tex-{rate}bpp.pifs"));
+        assert_eq!(std::fs::metadata(&stream).unwrap().len() as usize, bytes);
+        // The table shows the same figures.
+        assert!(stdout.contains(&format!("{psnr:.2}")), "{stdout}");
+        let (w, h, _) = decoded(&stream);
+        assert_eq!((w, h), (48, 32));
+    }
+    // The plot: our curve and this image's other codec (not the other image's), with a
+    // marker per point (3 of ours, 2 of jpeg's ok rows).
+    let drawing = std::fs::read_to_string(&svg).unwrap();
+    assert!(drawing.starts_with("<svg"));
+    let texts: Vec<&str> = drawing.lines().map(str::trim).collect();
+    assert!(texts.contains(&"pifs") && texts.contains(&"jpeg"), "legend");
+    assert!(!drawing.contains("webp"));
+    assert_eq!(drawing.matches("<circle").count(), 5);
+    // --compare needs --plot; a CSV without the columns is refused before the analysis.
+    refused(&pifs(&[
+        "rd",
+        png.to_str().unwrap(),
+        "--compare",
+        anchors.to_str().unwrap(),
+    ]));
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "name,rate\nx,1\n").unwrap();
+    let line = refused(&pifs(&[
+        "rd",
+        png.to_str().unwrap(),
+        "--plot",
+        dir.join("x.svg").to_str().unwrap(),
+        "--compare",
+        bad.to_str().unwrap(),
+    ]));
+    assert!(
+        line.contains("bad.csv") && line.contains("'codec'"),
+        "{line}"
+    );
+    assert!(!dir.join("x.svg").exists());
+}
+
+/// Files and directories under `dir`, recursively, with their sizes.
+fn listing(dir: &Path) -> Vec<(PathBuf, u64)> {
+    let mut out = Vec::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return out;
+    };
+    for e in entries.flatten() {
+        let path = e.path();
+        if path.is_dir() {
+            out.push((path.clone(), 0));
+            out.extend(listing(&path));
+        } else {
+            out.push((path.clone(), e.metadata().map(|m| m.len()).unwrap_or(0)));
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn the_demo_runs_from_any_directory_and_writes_only_there() {
+    let dir = scratch("demo");
+    let home = dir.join("home");
+    let cwd = dir.join("work");
+    std::fs::create_dir_all(&home).unwrap();
+    std::fs::create_dir_all(&cwd).unwrap();
+    // The source tree's demo and output directories, before.
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = manifest.parent().unwrap();
+    let watched = [
+        root.join("pifs-demo"),
+        root.join("out"),
+        manifest.join("pifs-demo"),
+        manifest.join("out"),
+    ];
+    let before: Vec<_> = watched.iter().map(|d| listing(d)).collect();
+    let out = Command::new(env!("CARGO_BIN_EXE_pifs"))
+        .current_dir(&cwd)
+        .env("HOME", &home)
+        .env("TMPDIR", &home)
+        .output()
+        .expect("pifs runs");
+    let stdout = ok(&out);
+    assert!(stdout.contains("pifs-demo"), "{stdout}");
+    let after: Vec<_> = watched.iter().map(|d| listing(d)).collect();
+    assert_eq!(before, after, "the demo wrote into the source tree");
+    assert!(listing(&home).is_empty(), "{:?}", listing(&home));
+    // Only ./pifs-demo/, with a stream and its decoded image per rate.
+    let top: Vec<_> = std::fs::read_dir(&cwd)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(top, ["pifs-demo"]);
+    for bpp in ["0.05", "0.1", "0.25"] {
+        let stream = cwd.join(format!("pifs-demo/kodim23-{bpp}bpp.pifs"));
+        let size = std::fs::metadata(&stream).unwrap().len() as f64;
+        assert!(size * 8.0 <= bpp.parse::<f64>().unwrap() * 768.0 * 512.0);
+        let (w, h, px) = decoded(&stream);
+        let img = image::open(stream.with_extension("png"))
+            .unwrap()
+            .to_luma8();
+        assert_eq!((img.width(), img.height()), (w, h));
+        assert_eq!(img.as_raw(), &px);
+    }
+    assert_eq!(listing(&cwd.join("pifs-demo")).len(), 6);
+    // `pifs demo` is the same command.
+    let help = ok(&pifs(&["demo", "--help"]));
+    assert!(help.contains("pifs-demo"), "{help}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

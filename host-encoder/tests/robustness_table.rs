@@ -431,6 +431,11 @@ fn cases(dir: &Path) -> Vec<Case> {
             ],
             Some("{dir}/o22.pifs"),
         ),
+        refuse(
+            "stream output named like an image",
+            &["encode", "{dir}/good.png", "-o", "{dir}/o23.png"],
+            Some("{dir}/o23.png"),
+        ),
         refuse("no output given", &["encode", "{dir}/good.png"], None),
         refuse("unknown subcommand", &["compress", "{dir}/good.png"], None),
         // decode and info
@@ -497,6 +502,11 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/d11.jpg"),
         ),
         refuse(
+            "decode: output without an extension",
+            &["decode", "{dir}/good.pifs", "-o", "{dir}/d12"],
+            Some("{dir}/d12"),
+        ),
+        refuse(
             "decode: output in a missing directory",
             &["decode", "{dir}/good.pifs", "-o", "{dir}/missing/d.png"],
             Some("{dir}/missing/d.png"),
@@ -505,6 +515,16 @@ fn cases(dir: &Path) -> Vec<Case> {
         refuse(
             "info: truncated stream",
             &["info", "{dir}/truncated.pifs"],
+            None,
+        ),
+        refuse(
+            "info: drawing named like an image",
+            &["info", "{dir}/good.pifs", "--svg", "{dir}/i1.png"],
+            Some("{dir}/i1.png"),
+        ),
+        refuse(
+            "rd: a rate of 0",
+            &["rd", "{dir}/good.png", "--rates", "0.1,0"],
             None,
         ),
         // unusual but valid images
@@ -613,6 +633,16 @@ fn cases(dir: &Path) -> Vec<Case> {
             "decode of a valid stream",
             &["decode", "{dir}/good.pifs", "-o", "{dir}/a10.png"],
             "{dir}/a10.png",
+        ),
+        accept(
+            "decode to PPM (the grey in every channel)",
+            &["decode", "{dir}/good.pifs", "-o", "{dir}/a11.ppm"],
+            "{dir}/a11.ppm",
+        ),
+        accept(
+            "1x1 image, no target (the smallest stream)",
+            &["encode", "{dir}/one-pixel.png", "-o", "{dir}/a12.pifs"],
+            "{dir}/a12.pifs",
         ),
     ]
 }

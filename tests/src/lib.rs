@@ -4,6 +4,12 @@
 
 pub mod fuzz;
 
+/// The README's code examples, compiled (and run where they can be) by `cargo test`, so that
+/// they cannot drift from the API.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct ReadmeExamples;
+
 use decoder_core::{ByteSource, DecodeError, Decoder, Header, PixelSink, Rect, Tile};
 use std::convert::Infallible;
 

@@ -27,7 +27,7 @@ fn decoded_psnr(what: &str, e: &host_encoder::Encoded) -> f64 {
         pixels == e.reconstruction,
         "{what}: decode != reconstruction"
     );
-    psnr_u8(&pixels, &analysis().plane.data)
+    psnr_u8(&pixels, &analysis().plane().data)
 }
 
 #[test]
@@ -206,7 +206,7 @@ fn one_analysis_serves_many_targets_deterministically() {
     assert_eq!(first[0], first[4]);
     assert!(first[3].is_err());
     // A fresh analysis of the same image gives the same streams too.
-    let fresh = analyse_with(analysis().plane.clone(), &small_config());
+    let fresh = analyse_with(analysis().plane().clone(), &small_config());
     assert_eq!(
         fresh.encode(Target::Bytes(200)).unwrap().bytes,
         *first[0].as_ref().unwrap()

@@ -1,220 +1,136 @@
-//! Exhaustive analysis (thesis Alg. 1): every model that a block can support is fitted at every
-//! quadtree node down to the smallest leaf, then quantised with every quantiser, and each
-//! candidate's distortion is measured through decoder-core's own reconstruction (closed loop).
+//! The analysis (thesis Alg. 1), the driver that runs the stages below it on one image: every
+//! model that a block can support is fitted at every quadtree node down to the smallest leaf
+//! ([`super::fit`]), then quantised with every quantiser ([`super::quantise`]), each candidate's
+//! distortion measured (by an exact fit's quadratic form, or through decoder-core's own
+//! reconstruction); then the candidates are pruned to those rate control can choose
+//! ([`super::rate`]), under the contexts of a trial encode ([`super::writer`]).
+//!
+//! Above every stage; below the public API (`super`), which encodes targets from its result.
 
-use super::fit::{fit_default, fit_weighted, Fit};
+use super::candidates::{
+    Candidate, CandidateSelection, CandidateTree, Level, NodeAnalysis, WithCandidates,
+};
+use super::config::EncoderConfig;
+use super::error::EncodeError;
+use super::fit::{fit_default, fit_weighted, prepare_projections, Fit};
+use super::ids::{ControlQuantiserId, ModelId, WeightQuantiserId};
+use super::plane::{ImagePrediction, Plane};
 use super::quantise::{
     lloyd_max, quantise, weight_classes, ControlTargets, Quantised, ROUNDING_LAMBDA,
     ROUNDING_VARIANTS,
 };
 use super::rate::{Anchor, RateTable};
-use super::{EncoderConfig, Plane};
+use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
-use decoder_core::internal::model::SAMPLE_ONE;
-use decoder_core::internal::model::{WeightClass, MODELS};
-use decoder_core::internal::prediction::{inside_tile, SamplePrediction};
+use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::control::WeightQuantiser;
-use decoder_core::internal::syntax::control::{
-    CONTROL_QUANTISERS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
-};
 use decoder_core::internal::syntax::LeafSyntax;
-use decoder_core::internal::syntax::{models_for_block, Codebook, Header};
-use decoder_core::internal::syntax::{Contexts, ControlCoding};
-use decoder_core::Node;
-use decoder_core::{PixelSink, Rect, Tile};
+use decoder_core::internal::syntax::{reconstruct, Codebook, Contexts, ControlCoding, Header};
+use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
 use std::convert::Infallible;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
-/// One way of coding a node as a leaf.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Candidate {
-    /// Index into the node's fits.
-    pub fit: u8,
-    /// Control quantiser.
-    pub cq: u8,
-    /// Weight quantiser.
-    pub wq: u8,
-    /// Control coding.
-    pub coding: ControlCoding,
-    /// Squared error over the node's in-image pixels.
-    pub sse: f64,
-    /// Where its quantised control indices, then weight indices (when `wq` is not the
-    /// default), start in [`NodeAnalysis::indices`]: kept, as every rate table and the writer
-    /// need them again.
-    pub at: u32,
-}
-
-/// Everything the analysis knows about one node.
-#[derive(Debug, Clone)]
-pub struct NodeAnalysis {
-    /// The node.
-    pub node: Node,
-    /// One fit per model the node supports.
-    pub fits: Vec<Fit>,
-    /// Every (fit, quantiser) pair with its distortion.
-    pub candidates: Vec<Candidate>,
-    /// The candidates' indices, one after the other (one allocation per node).
-    pub indices: Vec<i16>,
-}
-
-impl NodeAnalysis {
-    /// The leaf syntax of candidate `c`.
-    pub fn leaf(&self, c: &Candidate) -> LeafSyntax {
-        let model = self.fits[usize::from(c.fit)].model;
-        let m = MODELS[usize::from(model)];
-        let (nc, nw) = (m.control_count(), m.weight_count());
-        let mut leaf = LeafSyntax {
-            model,
-            cquant: c.cq,
-            wquant: c.wq,
-            coding: c.coding,
-            ..LeafSyntax::default()
-        };
-        let at = c.at as usize;
-        leaf.control[..nc].copy_from_slice(&self.indices[at..at + nc]);
-        if WEIGHT_QUANTISER_KINDS[usize::from(c.wq)] != WeightQuantiser::Default {
-            leaf.weights[..nw].copy_from_slice(&self.indices[at + nc..at + nc + nw]);
-        }
-        leaf
-    }
-}
-
-/// The nodes of one quadtree level.
-#[derive(Debug, Clone)]
-pub struct Level {
-    /// Node side, as a power of two.
-    pub log2: u8,
-    /// Nodes per row.
-    pub cols: u32,
-    /// Analysed nodes, row-major; `None` outside the image.
-    pub nodes: Vec<Option<NodeAnalysis>>,
-}
-
-impl Level {
-    /// The node at `(x, y)` (its top-left pixel), if analysed.
-    pub fn get(&self, x: u32, y: u32) -> Option<&NodeAnalysis> {
-        let i = (y >> self.log2) * self.cols + (x >> self.log2);
-        self.nodes.get(i as usize).and_then(Option::as_ref)
-    }
-}
-
-/// The result of the exhaustive analysis of one image: serves any number of targets.
+/// The result of the exhaustive analysis of one image: serves any number of targets
+/// ([`Analysis::encode`]). Made by [`crate::analyse`].
 #[derive(Debug, Clone)]
 pub struct Analysis {
     /// The image.
-    pub plane: Plane,
+    pub(super) plane: Plane,
     /// Header of the streams written from this analysis (with the Lloyd-Max codebooks).
-    pub header: Header,
-    /// Levels from the smallest leaf (index 0) to the root.
-    pub levels: Vec<Level>,
-    /// Rates of the kept candidates under the contexts of a trial encode (about 0.2 bpp): the
-    /// first pass of every target starts from them.
-    pub rates: RateTable,
+    pub(super) header: Header,
+    /// Every node's candidates, pruned to those rate control can choose.
+    pub(super) tree: CandidateTree,
+    /// Rates of the kept candidates under the contexts of a trial encode: the first pass of
+    /// every target starts from them.
+    pub(super) rates: RateTable,
     /// The trial encode's plan (its multiplier and estimates): where the searches of targets
     /// start.
-    pub trial: Anchor,
+    pub(super) trial: Anchor,
+    /// How long each stage took.
+    timing: AnalysisTiming,
+}
+
+/// How long each stage of an analysis took (wall time), for a caller that reports it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct AnalysisTiming {
+    /// Fitting every model at every node.
+    pub fits: Duration,
+    /// Quantising every fit with every quantiser and measuring each candidate's error.
+    pub candidates: Duration,
+    /// Pruning the candidates, the trial encode included.
+    pub pruning: Duration,
 }
 
 impl Analysis {
-    /// The level of nodes of side `2^log2`.
-    pub fn level(&self, log2: u8) -> Option<&Level> {
-        self.levels
-            .get(usize::from(log2.checked_sub(self.header.min_leaf_log2)?))
+    /// The image analysed.
+    pub fn plane(&self) -> &Plane {
+        &self.plane
+    }
+
+    /// Width of the image, pixels.
+    pub fn width(&self) -> u32 {
+        u32::from(self.header.width)
+    }
+
+    /// Height of the image, pixels.
+    pub fn height(&self) -> u32 {
+        u32::from(self.header.height)
+    }
+
+    /// Side of the smallest leaf, as a power of two ([`EncoderConfig::min_leaf_log2`] as the
+    /// format allows it).
+    pub fn min_leaf_log2(&self) -> u8 {
+        self.header.min_leaf_log2
+    }
+
+    /// Side of the largest leaf, as a power of two ([`EncoderConfig::max_leaf_log2`] as the
+    /// format allows it).
+    pub fn max_leaf_log2(&self) -> u8 {
+        self.header.max_leaf_log2
+    }
+
+    /// How long each stage took.
+    pub fn timing(&self) -> AnalysisTiming {
+        self.timing
     }
 
     /// Analyses `plane`. `progress` is called with the number of nodes analysed so far.
-    pub fn run(plane: Plane, config: &EncoderConfig, progress: &(dyn Fn(u64) + Sync)) -> Analysis {
-        // Leaf sizes the format allows.
-        let min_leaf_log2 = config.min_leaf_log2.clamp(MIN_LEAF_LOG2, MAX_LEAF_LOG2);
-        let mut header = Header {
-            width: plane.width as u16,
-            height: plane.height as u16,
-            channels: 1,
-            bit_depth: 8,
-            min_leaf_log2,
-            max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
-            codebooks: [Codebook::EMPTY; 2],
-            // Set by the writer.
-            payload_len: 0,
-            checksum: 0,
-        };
-        let root = header.root_log2();
-        let t_fit = std::time::Instant::now();
-        super::fit::prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
-        let done = std::sync::atomic::AtomicU64::new(0);
-        let mut levels = Vec::new();
-        for log2 in header.min_leaf_log2..=root {
-            let cols = (plane.width + (1 << log2) - 1) >> log2;
-            let rows = (plane.height + (1 << log2) - 1) >> log2;
-            let analyse = log2 <= header.max_leaf_log2;
-            let nodes: Vec<Option<NodeAnalysis>> = (0..cols * rows)
-                .into_par_iter()
-                .map(|i| {
-                    let node = Node {
-                        x: (i % cols) << log2,
-                        y: (i / cols) << log2,
-                        log2,
-                    };
-                    if !analyse {
-                        return None;
-                    }
-                    let (models, count) = models_for_block(log2);
-                    // Per model: the default-weight fit, and the joint fit with weights where
-                    // there is one (its control values suit its weights, not the default ones,
-                    // so both are kept).
-                    let mut fits = Vec::with_capacity(2 * count);
-                    for &m in &models[..count] {
-                        if !config.fit_weights && !searched_with_default_weights(m) {
-                            continue;
-                        }
-                        let plain = fit_default(&plane, &node, m);
-                        let weighted = if config.fit_weights {
-                            fit_weighted(&plane, &node, &plain)
-                        } else {
-                            None
-                        };
-                        fits.push(plain);
-                        fits.extend(weighted);
-                    }
-                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    progress(n + 1);
-                    Some(NodeAnalysis {
-                        node,
-                        fits,
-                        candidates: Vec::new(),
-                        indices: Vec::new(),
-                    })
-                })
-                .collect();
-            levels.push(Level { log2, cols, nodes });
-        }
-        if std::env::var_os("PIFS_TIMING").is_some() {
-            eprintln!("fits: {:.2} s", t_fit.elapsed().as_secs_f64());
-        }
+    pub(super) fn run(
+        plane: Plane,
+        config: &EncoderConfig,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<Analysis, EncodeError> {
+        let mut header = header_for(&plane, config)?;
+        let started = Instant::now();
+        let levels = fit_levels(&plane, &header, config, progress);
+        let fits = started.elapsed();
         header.codebooks = design_codebooks(&levels, config.codebook_levels);
         let mut analysis = Analysis {
+            tree: CandidateTree::new(levels, header.min_leaf_log2),
             plane,
             header,
-            levels,
             rates: RateTable::empty(),
             trial: Anchor {
                 lambda: 1.0,
                 bits: 1.0,
                 sse: 1.0,
             },
+            timing: AnalysisTiming::default(),
         };
-        let timing = std::env::var_os("PIFS_TIMING").is_some();
-        let t = std::time::Instant::now();
+        let started = Instant::now();
         analysis.measure_candidates();
-        if timing {
-            eprintln!("closed-loop candidates: {:.2} s", t.elapsed().as_secs_f64());
-        }
-        let t = std::time::Instant::now();
+        let candidates = started.elapsed();
+        let started = Instant::now();
         analysis.prune_candidates(config.trial_bpp);
-        if timing {
-            eprintln!("candidate pruning: {:.2} s", t.elapsed().as_secs_f64());
-        }
-        analysis
+        analysis.timing = AnalysisTiming {
+            fits,
+            candidates,
+            pruning: started.elapsed(),
+        };
+        Ok(analysis)
     }
 
     /// Keeps, at every node, only the candidates that are its best leaf for some multiplier of
@@ -222,59 +138,65 @@ impl Analysis {
     /// encode then weighs a handful of candidates per node instead of all of them.
     fn prune_candidates(&mut self, trial_bpp: f64) {
         let pixels = self.header.pixel_count() as f64;
-        let first = RateTable::new(self, &Contexts::default());
+        let first = RateTable::new(&self.tree, &self.plane, &Contexts::default());
         // The trained contexts change the rates only a little: what is far from the hull under
         // the first rates does not reach it under the trained ones, and need not be rated again.
-        let near = first.lambda_optimal(self, 1e-2..=1e6, HULL_LAYERS);
+        let near = first.lambda_optimal(1e-2..=1e6, HULL_LAYERS);
         let first = first.select(&near);
-        self.retain_candidates(&near);
+        self.tree.retain(&near);
         // A rough plan only gathers coding statistics.
-        let plan = first.rough_plan_for_bits(self, &self.header, trial_bpp * pixels);
+        let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
         self.trial = plan.anchor();
-        let snapshot = match super::writer::write(self, &self.header, &plan) {
+        let snapshot = match writer::write(&self.tree, &self.header, &plan) {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };
-        let rates = RateTable::new(self, &snapshot);
-        let keep = rates.lambda_optimal(self, 1e-2..=1e6, 1);
+        let rates = RateTable::new(&self.tree, &self.plane, &snapshot);
+        let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
-        self.retain_candidates(&keep);
+        self.tree.retain(&keep);
         // The kept candidates near the trial's multiplier, rounded with other multipliers,
         // join them, rated under the same contexts; the hull then keeps what pays.
         let window = (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW);
-        let vary = self.rates.lambda_optimal(self, window, 1);
+        let vary = self.rates.lambda_optimal(window, 1);
         self.add_rounding_variants(&vary);
-        let rates = RateTable::new(self, &snapshot);
-        let keep = rates.lambda_optimal(self, 1e-2..=1e6, 1);
+        let rates = RateTable::new(&self.tree, &self.plane, &snapshot);
+        let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
-        self.retain_candidates(&keep);
+        self.tree.retain(&keep);
     }
 
-    /// Adds to every node, for each candidate `vary` lists (indices into its list) that has the
-    /// default weights, the same quantisers rounding its control indices with each of
-    /// [`ROUNDING_VARIANTS`] (where that changes an index): points between those of its control
-    /// steps.
-    fn add_rounding_variants(&mut self, vary: &[Vec<Vec<u16>>]) {
+    /// Adds to every node, for each candidate `vary` lists that has the default weights, the
+    /// same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
+    /// that changes an index): points between those of its control steps.
+    fn add_rounding_variants(&mut self, vary: &CandidateSelection) {
         let plane = &self.plane;
         let header = &self.header;
-        for (level, vary) in self.levels.iter_mut().zip(vary) {
+        for (level, vary) in self.tree.levels_mut().iter_mut().zip(vary) {
             level.nodes.par_iter_mut().zip(vary).for_each(|(na, vary)| {
                 let Some(na) = na else { return };
                 for &k in vary {
                     let c = na.candidates[usize::from(k)];
-                    if c.wq != 0 {
+                    if c.wq != WeightQuantiserId::DEFAULT {
                         continue;
                     }
                     let fit = &na.fits[usize::from(c.fit)];
-                    let n = MODELS[usize::from(fit.model)].control_count();
+                    let n = fit.model.model().control_count();
                     let targets = ControlTargets::of(fit, na.node.log2).with_edges(
                         &ImagePrediction { plane },
                         &na.node,
                         fit.model,
                     );
                     for lambda in ROUNDING_VARIANTS {
-                        let q =
-                            quantise(fit, &targets, c.cq, 0, c.coding, &header.codebooks, lambda);
+                        let q = quantise(
+                            fit,
+                            &targets,
+                            c.cq,
+                            c.wq,
+                            c.coding,
+                            &header.codebooks,
+                            lambda,
+                        );
                         let at = na.indices.len();
                         if na.indices[c.at as usize..][..n] == q.leaf.control[..n] {
                             continue;
@@ -291,137 +213,197 @@ impl Analysis {
         }
     }
 
-    /// Keeps at every node the candidates `keep` lists (indices into its list, ascending).
-    fn retain_candidates(&mut self, keep: &[Vec<Vec<u16>>]) {
-        for (level, keep) in self.levels.iter_mut().zip(keep) {
-            for (na, keep) in level.nodes.iter_mut().zip(keep) {
-                if let Some(na) = na {
-                    let mut all = std::mem::take(&mut na.candidates).into_iter();
-                    let mut at = 0;
-                    na.candidates = keep
-                        .iter()
-                        .map(|&ci| {
-                            let c = all.nth(usize::from(ci) - at).expect("index in range");
-                            at = usize::from(ci) + 1;
-                            c
-                        })
-                        .collect();
-                }
-            }
-        }
-    }
-
-    /// Quantises every fit with every quantiser and measures the closed-loop distortion.
+    /// Quantises every fit with every quantiser and measures each candidate's distortion.
     fn measure_candidates(&mut self) {
         let plane = &self.plane;
         let header = &self.header;
-        for level in &mut self.levels {
+        for level in self.tree.levels_mut() {
             level.nodes.par_iter_mut().flatten().for_each(|na| {
-                let mut out = Vec::new();
-                let mut indices = Vec::new();
-                for (fi, fit) in na.fits.iter().enumerate() {
-                    let model = MODELS[usize::from(fit.model)];
-                    let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-                        &ImagePrediction { plane },
-                        &na.node,
-                        fit.model,
-                    );
-                    let fitted_weights = fit.weighted;
-                    for cq in 0..CONTROL_QUANTISERS as u8 {
-                        for wq in 0..WEIGHT_QUANTISERS as u8 {
-                            let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
-                            let usable = match kind {
-                                WeightQuantiser::Default => !fitted_weights,
-                                WeightQuantiser::Uniform(_) => fitted_weights,
-                                WeightQuantiser::Codebook => {
-                                    fitted_weights && header.has_codebooks()
-                                }
-                            };
-                            // Weighted variants are tried on every other control step (a
-                            // step ratio of 2): they are rarely chosen, and this halves
-                            // their cost.
-                            if !usable || (wq > 0 && (model.weight_count() == 0 || cq % 2 == 1)) {
-                                continue;
-                            }
-                            // Both control codings where the syntax allows a choice, for the
-                            // default weights; weighted variants (rare) with DPCM only.
-                            let codings: &[ControlCoding] = if wq == 0 && model.has_coding_choice()
-                            {
-                                &[ControlCoding::Dpcm, ControlCoding::Transform]
-                            } else {
-                                &[ControlCoding::Dpcm]
-                            };
-                            for &coding in codings {
-                                let q = quantise(
-                                    fit,
-                                    &targets,
-                                    cq,
-                                    wq,
-                                    coding,
-                                    &header.codebooks,
-                                    ROUNDING_LAMBDA,
-                                );
-                                let sse = quantised_sse(plane, header, &na.node, fit, &q);
-                                let leaf = q.leaf;
-                                let (nc, nw) = (model.control_count(), model.weight_count());
-                                let at = indices.len() as u32;
-                                indices.extend_from_slice(&leaf.control[..nc]);
-                                if kind != WeightQuantiser::Default {
-                                    indices.extend_from_slice(&leaf.weights[..nw]);
-                                }
-                                out.push(Candidate {
-                                    fit: fi as u8,
-                                    cq,
-                                    wq,
-                                    coding,
-                                    sse,
-                                    at,
-                                });
-                            }
-                        }
-                    }
-                }
-                na.candidates = out;
+                let (candidates, indices) = node_candidates(plane, header, na);
+                na.candidates = candidates;
                 na.indices = indices;
             });
         }
     }
 }
 
-/// Prediction from earlier leaves, estimated before the stream exists: earlier leaves are taken
-/// to have drawn the image's own pixels, under the decoder's availability rule
-/// ([`decoder_core::internal::prediction::Frontier`]).
-pub struct ImagePrediction<'a> {
-    /// The image.
-    pub plane: &'a Plane,
-}
-
-impl ImagePrediction<'_> {
-    fn sample(&self, x: u32, y: u32) -> i32 {
-        i32::from(self.plane.get(x, y)) * SAMPLE_ONE
+impl WithCandidates for Analysis {
+    fn candidates(&self) -> &CandidateTree {
+        &self.tree
     }
 }
 
-impl SamplePrediction for ImagePrediction<'_> {
-    fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
-        let (width, height) = (self.plane.width, self.plane.height);
-        let known = if above {
-            inside_tile(y, height) && x < width
+/// The header of the streams of `plane` under `config` (without codebooks, its payload yet
+/// unknown), or [`EncodeError::BadDimensions`] if the format cannot hold the image.
+fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeError> {
+    let bad = || EncodeError::BadDimensions {
+        width: plane.width,
+        height: plane.height,
+    };
+    let width = u16::try_from(plane.width).map_err(|_| bad())?;
+    let height = u16::try_from(plane.height).map_err(|_| bad())?;
+    if width == 0 || height == 0 {
+        return Err(bad());
+    }
+    // Leaf sizes the format allows.
+    let min_leaf_log2 = config.min_leaf_log2.clamp(MIN_LEAF_LOG2, MAX_LEAF_LOG2);
+    Ok(Header {
+        width,
+        height,
+        channels: 1,
+        bit_depth: 8,
+        min_leaf_log2,
+        max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
+        codebooks: [Codebook::EMPTY; 2],
+        // Set by the writer.
+        payload_len: 0,
+        checksum: 0,
+    })
+}
+
+/// Every level of the quadtree of `header`, from the smallest leaf to the root, with the fits
+/// of every node of a leaf size (the candidates come later). `progress` is called with the
+/// number of nodes fitted so far.
+fn fit_levels(
+    plane: &Plane,
+    header: &Header,
+    config: &EncoderConfig,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<Level> {
+    let root = header.root_log2();
+    prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
+    let done = AtomicU64::new(0);
+    let mut levels = Vec::new();
+    for log2 in header.min_leaf_log2..=root {
+        let cols = (plane.width + (1 << log2) - 1) >> log2;
+        let rows = (plane.height + (1 << log2) - 1) >> log2;
+        let analyse = log2 <= header.max_leaf_log2;
+        let nodes: Vec<Option<NodeAnalysis>> = (0..cols * rows)
+            .into_par_iter()
+            .map(|i| {
+                let node = Node {
+                    x: (i % cols) << log2,
+                    y: (i / cols) << log2,
+                    log2,
+                };
+                if !analyse {
+                    return None;
+                }
+                let fits = fit_node(plane, &node, config);
+                let n = done.fetch_add(1, Ordering::Relaxed);
+                progress(n + 1);
+                Some(NodeAnalysis {
+                    node,
+                    fits,
+                    candidates: Vec::new(),
+                    indices: Vec::new(),
+                })
+            })
+            .collect();
+        levels.push(Level { log2, cols, nodes });
+    }
+    levels
+}
+
+/// The fits of `node`: per model, the default-weight fit, and the joint fit with weights where
+/// there is one (its control values suit its weights, not the default ones, so both are kept).
+fn fit_node(plane: &Plane, node: &Node, config: &EncoderConfig) -> Vec<Fit> {
+    let mut fits = Vec::with_capacity(2 * ModelId::for_block(node.log2).count());
+    for m in ModelId::for_block(node.log2) {
+        if !config.fit_weights && !searched_with_default_weights(m) {
+            continue;
+        }
+        let plain = fit_default(plane, node, m);
+        let weighted = if config.fit_weights {
+            fit_weighted(plane, node, &plain)
         } else {
-            inside_tile(x, width) && y < height
+            None
         };
-        known.then(|| {
-            let (x, y) = if above { (x, y - 1) } else { (x - 1, y) };
-            self.sample(x, y)
-        })
+        fits.push(plain);
+        fits.extend(weighted);
     }
+    fits
 }
+
+/// Every candidate of the node `na` (its fits quantised with every quantiser that suits them),
+/// with their indices one after the other.
+fn node_candidates(
+    plane: &Plane,
+    header: &Header,
+    na: &NodeAnalysis,
+) -> (Vec<Candidate>, Vec<i16>) {
+    let mut out = Vec::new();
+    let mut indices = Vec::new();
+    for (fi, fit) in na.fits.iter().enumerate() {
+        let model = fit.model.model();
+        let targets = ControlTargets::of(fit, na.node.log2).with_edges(
+            &ImagePrediction { plane },
+            &na.node,
+            fit.model,
+        );
+        let fitted_weights = fit.weighted;
+        for cq in ControlQuantiserId::all() {
+            for wq in WeightQuantiserId::all() {
+                let kind = wq.kind();
+                let usable = match kind {
+                    WeightQuantiser::Default => !fitted_weights,
+                    WeightQuantiser::Uniform(_) => fitted_weights,
+                    WeightQuantiser::Codebook => fitted_weights && header.has_codebooks(),
+                };
+                // Weighted variants are tried on every other control step (a step ratio of
+                // 2): they are rarely chosen, and this halves their cost.
+                let weighted = wq != WeightQuantiserId::DEFAULT;
+                if !usable || (weighted && (model.weight_count() == 0 || cq.get() % 2 == 1)) {
+                    continue;
+                }
+                // Both control codings where the syntax allows a choice, for the default
+                // weights; weighted variants (rare) with DPCM only.
+                let codings: &[ControlCoding] = if !weighted && model.has_coding_choice() {
+                    &[ControlCoding::Dpcm, ControlCoding::Transform]
+                } else {
+                    &[ControlCoding::Dpcm]
+                };
+                for &coding in codings {
+                    let q = quantise(
+                        fit,
+                        &targets,
+                        cq,
+                        wq,
+                        coding,
+                        &header.codebooks,
+                        ROUNDING_LAMBDA,
+                    );
+                    let sse = quantised_sse(plane, header, &na.node, fit, &q);
+                    let leaf = q.leaf;
+                    let (nc, nw) = (model.control_count(), model.weight_count());
+                    let at = indices.len() as u32;
+                    indices.extend_from_slice(&leaf.control[..nc]);
+                    if kind != WeightQuantiser::Default {
+                        indices.extend_from_slice(&leaf.weights[..nw]);
+                    }
+                    out.push(Candidate {
+                        fit: fi as u8,
+                        cq,
+                        wq,
+                        coding,
+                        sse,
+                        at,
+                    });
+                }
+            }
+        }
+    }
+    (out, indices)
+}
+
+/// The 5x5/4x4 model (5x5 control values, 4x4 transforms).
+const MODEL_5X5_4X4: ModelId = ModelId::new(3);
 
 /// Whether the analysis fits model `m` when weights are not fitted. The 5x5/4x4 model's default
 /// scheme makes nearly the same surface as the 5x5/2x2 model's, so searching it too costs
 /// analysis time for hardly any gain (see docs/decisions.md).
-fn searched_with_default_weights(m: u8) -> bool {
-    m != 3
+fn searched_with_default_weights(m: ModelId) -> bool {
+    m != MODEL_5X5_4X4
 }
 
 /// Layers of the lower convex hull (rate, error) that are kept from the first, untrained rates
@@ -445,8 +427,8 @@ const MIN_ESTIMATED_MSE: f64 = 2.0;
 fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
     if let Some(residual) = fit.residual {
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
-            let n = MODELS[usize::from(fit.model)].control_count();
-            let mut control = [0.0f64; decoder_core::internal::model::MAX_CONTROL];
+            let n = fit.model.model().control_count();
+            let mut control = [0.0f64; MAX_CONTROL];
             for (c, &v) in control.iter_mut().zip(&q.values[..n]) {
                 *c = f64::from(v) / f64::from(SAMPLE_ONE);
             }
@@ -466,15 +448,11 @@ fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Qua
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
-pub fn closed_loop_sse(
-    plane: &Plane,
-    header: &Header,
-    node: &Node,
-    leaf: &decoder_core::internal::syntax::LeafSyntax,
-) -> f64 {
-    let Ok(patch) = decoder_core::internal::syntax::reconstruct(header, leaf, node.log2) else {
+fn closed_loop_sse(plane: &Plane, header: &Header, node: &Node, leaf: &LeafSyntax) -> f64 {
+    let Ok(patch) = reconstruct(header, leaf, node.log2) else {
         return f64::INFINITY;
     };
+    /// Adds up the squared errors of the tiles it is given.
     struct Sse<'a> {
         plane: &'a Plane,
         total: u64,
@@ -557,15 +535,16 @@ mod tests {
         for log2 in 2..=4u8 {
             for (x, y) in [(0, 0), (16, 16), (32, 0)] {
                 let node = Node { x, y, log2 };
-                let (models, count) = models_for_block(log2);
-                for &m in &models[..count] {
+                for m in ModelId::for_block(log2) {
                     let fit = fit_default(&plane, &node, m);
                     let targets = ControlTargets::of(&fit, log2);
-                    let n = MODELS[usize::from(m)].control_count();
-                    for cq in [4u8, 7, 10] {
+                    let n = m.model().control_count();
+                    for cq in [4, 7, 10].map(ControlQuantiserId::new) {
                         for coding in [ControlCoding::Dpcm, ControlCoding::Transform] {
                             for (t, &lambda) in totals.iter_mut().zip(&multipliers) {
-                                let q = quantise(&fit, &targets, cq, 0, coding, &codebooks, lambda);
+                                let wq = WeightQuantiserId::DEFAULT;
+                                let q =
+                                    quantise(&fit, &targets, cq, wq, coding, &codebooks, lambda);
                                 let Some(added) = q.added_error else { continue };
                                 t.0 += q.leaf.control[..n].iter().filter(|&&i| i != 0).count();
                                 t.1 += added;
@@ -584,9 +563,11 @@ mod tests {
             "{totals:?}"
         );
 
-        let analysis = Analysis::run(plane, &EncoderConfig::default(), &|_| {});
+        let analysis =
+            Analysis::run(plane, &EncoderConfig::default(), &|_| {}).expect("an analysis");
         let kept_variants = analysis
-            .levels
+            .tree
+            .levels()
             .iter()
             .flat_map(|l| l.nodes.iter().flatten())
             .filter(|na| {
@@ -622,12 +603,12 @@ mod tests {
         let mut checked = 0;
         for log2 in 2..=5u8 {
             let node = Node { x: 16, y: 0, log2 };
-            let (models, count) = models_for_block(log2);
-            for &m in &models[..count] {
+            for m in ModelId::for_block(log2) {
                 let fit = fit_default(&plane, &node, m);
                 let targets = ControlTargets::of(&fit, log2);
                 let codings = [ControlCoding::Dpcm, ControlCoding::Transform];
-                for (cq, coding) in [0u8, 5, 11]
+                for (cq, coding) in [0, 5, 11]
+                    .map(ControlQuantiserId::new)
                     .into_iter()
                     .flat_map(|c| codings.map(|d| (c, d)))
                 {
@@ -635,12 +616,12 @@ mod tests {
                         &fit,
                         &targets,
                         cq,
-                        0,
+                        WeightQuantiserId::DEFAULT,
                         coding,
                         &header.codebooks,
                         ROUNDING_LAMBDA,
                     );
-                    let n = MODELS[usize::from(m)].control_count();
+                    let n = m.model().control_count();
                     let control: Vec<f64> = q.values[..n]
                         .iter()
                         .map(|&v| f64::from(v) / f64::from(SAMPLE_ONE))
@@ -693,9 +674,9 @@ mod tests {
             ..EncoderConfig::default()
         };
         assert_eq!(config.min_leaf_log2, 2, "4 px leaves");
-        let analysis = Analysis::run(plane.clone(), &config, &|_| {});
+        let analysis = Analysis::run(plane.clone(), &config, &|_| {}).expect("an analysis");
         let encoded = analysis
-            .encode(super::super::Target::Bpp(4.0))
+            .encode(super::super::config::Target::Bpp(4.0))
             .expect("an encode");
         let mut pixels = vec![0u8; plane.data.len()];
         decoder_core::Decoder::new(&encoded.bytes)

@@ -1,13 +1,17 @@
 //! The fractal inverse problem for one block: Levenberg-Marquardt on the control values and the
 //! free subdivision weights of a model (thesis II.3), with exact derivatives from
-//! [`Tabulator`].
+//! [`Tabulator`]. The analysis fits every model a node supports here; the fits are then
+//! quantised ([`super::quantise`]).
+//!
+//! Above [`super::synthesis`]; below [`super::quantise`].
 //!
 //! Own LM on `nalgebra` rather than the `levenberg-marquardt` crate: the normal equations are
 //! accumulated directly from the tabulated samples (`J^T J` is at most 126 x 126, while `J` would
 //! be thousands of rows), and the weights are box-bounded by the format.
 
+use super::ids::ModelId;
+use super::plane::Plane;
 use super::synthesis::Tabulator;
-use super::Plane;
 use decoder_core::internal::model::{ModelType, WEIGHT_LIMIT, WEIGHT_ONE};
 use decoder_core::Node;
 use nalgebra::{DMatrix, DVector};
@@ -24,8 +28,8 @@ pub const MAX_ITERATIONS: usize = 5;
 /// Fitted real-valued parameters of one model on one block.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
-    /// Model type index.
-    pub model: u8,
+    /// Model type.
+    pub model: ModelId,
     /// Control values, grey levels, row-major.
     pub control: Vec<f64>,
     /// For a projection fit (an exact least-squares fit, see [`gram`]): the unclamped
@@ -59,11 +63,11 @@ impl Fit {
     }
 }
 
-/// The Gram matrix `G` of model `model_index`'s default-weight patch on interior blocks of side
+/// The Gram matrix `G` of model `model`'s default-weight patch on interior blocks of side
 /// `2^log2` (grey levels): the squared error of control values `c` is an exact fit's residual
 /// plus `(c - exact)^T G (c - exact)` ([`Fit::error_of`]). `None` where there is no projection.
-pub fn gram(model_index: u8, log2: u8) -> Option<&'static DMatrix<f64>> {
-    (log2 <= MAX_PROJECTION_LOG2).then(|| &Projection::of(model_index, log2).gram)
+pub fn gram(model: ModelId, log2: u8) -> Option<&'static DMatrix<f64>> {
+    (log2 <= MAX_PROJECTION_LOG2).then(|| &Projection::of(model, log2).gram)
 }
 
 /// The samples of a block the fit looks at: in-image pixels on a lattice of stride `stride`.
@@ -129,23 +133,24 @@ impl Lattice {
     }
 }
 
-/// Fits model `model_index` to the block `node` of `plane`: its weights too where the block
-/// has enough samples for them ([`fit_weighted`]), else its control values alone.
-pub fn fit_block(plane: &Plane, node: &Node, model_index: u8) -> Fit {
-    let plain = fit_default(plane, node, model_index);
+/// Fits model `model` to the block `node` of `plane`: its weights too where the block has
+/// enough samples for them ([`fit_weighted`]), else its control values alone.
+#[cfg(test)]
+pub fn fit_block(plane: &Plane, node: &Node, model: ModelId) -> Fit {
+    let plain = fit_default(plane, node, model);
     fit_weighted(plane, node, &plain).unwrap_or(plain)
 }
 
-/// The least-squares control values of model `model_index` on `node`, with the default
+/// The least-squares control values of model `model_id` on `node`, with the default
 /// subdivision weights. The patch is linear in its control values, so this is exact: inside
 /// the image one precomputed projection of the block's samples (see [`gram`]), at the image's edges one
 /// Gauss-Newton step.
-pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
-    let model = decoder_core::internal::model::MODELS[usize::from(model_index)];
+pub fn fit_default(plane: &Plane, node: &Node, model_id: ModelId) -> Fit {
+    let model = model_id.model();
     let lattice = Lattice::new(plane, node);
     let (mut control, exact, residual) =
         if lattice.is_interior() && node.log2 <= MAX_PROJECTION_LOG2 {
-            let (c, residual) = Projection::of(model_index, node.log2).apply(plane, node);
+            let (c, residual) = Projection::of(model_id, node.log2).apply(plane, node);
             (c.clone(), c, Some(residual))
         } else {
             let mut c = initial_control(plane, node, model);
@@ -156,7 +161,7 @@ pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
     let nc = control.len();
     clamp_params(&mut control, nc);
     Fit {
-        model: model_index,
+        model: model_id,
         control,
         exact,
         weights: vec![0.0; model.weight_count()],
@@ -171,7 +176,7 @@ pub fn fit_default(plane: &Plane, node: &Node, model_index: u8) -> Fit {
 /// few samples for them (fewer than three per parameter: thesis III.2.3, otherwise the problem
 /// is singular).
 pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
-    let model = decoder_core::internal::model::MODELS[usize::from(plain.model)];
+    let model = plain.model.model();
     let lattice = Lattice::new(plane, node);
     let nc = plain.control.len();
     let nw = model.weight_count();
@@ -214,8 +219,7 @@ pub fn prepare_projections(log2s: impl Iterator<Item = u8>) {
     use rayon::prelude::*;
     let mut pairs = Vec::new();
     for log2 in log2s.filter(|&l| l <= MAX_PROJECTION_LOG2) {
-        let (models, count) = decoder_core::internal::syntax::models_for_block(log2);
-        pairs.extend(models[..count].iter().map(|&m| (m, log2)));
+        pairs.extend(ModelId::for_block(log2).map(|m| (m, log2)));
     }
     // Largest first: they take longest.
     pairs.sort_by_key(|&(m, l)| std::cmp::Reverse((l, m)));
@@ -260,18 +264,17 @@ fn extrapolation_penalty(model: ModelType) -> DMatrix<f64> {
 }
 
 impl Projection {
-    fn of(model_index: u8, log2: u8) -> &'static Projection {
+    fn of(model: ModelId, log2: u8) -> &'static Projection {
         use std::sync::OnceLock;
         const SIZES: usize = decoder_core::internal::format::MAX_LEAF_LOG2 as usize + 1;
         static TABLE: [[OnceLock<Projection>; SIZES]; decoder_core::internal::model::MODEL_COUNT] =
             [const { [const { OnceLock::new() }; SIZES] };
                 decoder_core::internal::model::MODEL_COUNT];
-        TABLE[usize::from(model_index)][usize::from(log2)]
-            .get_or_init(|| Projection::build(model_index, log2))
+        TABLE[model.index()][usize::from(log2)].get_or_init(|| Projection::build(model, log2))
     }
 
-    fn build(model_index: u8, log2: u8) -> Projection {
-        let model = decoder_core::internal::model::MODELS[usize::from(model_index)];
+    fn build(model: ModelId, log2: u8) -> Projection {
+        let model = model.model();
         let nc = model.control_count();
         let size = 1u32 << log2;
         let mut offsets = Vec::with_capacity((size * size) as usize);
@@ -534,8 +537,11 @@ fn levenberg_marquardt(
 }
 
 #[cfg(test)]
+mod inverse_problem;
+
+#[cfg(test)]
 mod tests {
-    use super::Projection;
+    use super::{ModelId, Projection};
 
     /// The factored quadratic form equals the Gram matrix's, for every model and block size
     /// that has a projection.
@@ -548,8 +554,7 @@ mod tests {
         };
         let mut factored = 0;
         for log2 in 1..=6u8 {
-            let (models, count) = decoder_core::internal::syntax::models_for_block(log2);
-            for &m in &models[..count] {
+            for m in ModelId::for_block(log2) {
                 let p = Projection::of(m, log2);
                 factored += usize::from(p.factor.is_some());
                 let d: Vec<f64> = (0..p.gram.nrows()).map(|_| 40.0 * next()).collect();

@@ -1,24 +1,27 @@
 //! Quantisation of fitted parameters into syntax elements: uniform quantisers for control values
-//! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4).
+//! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4). The
+//! analysis quantises every fit with every quantiser; each result is a candidate leaf
+//! ([`super::candidates`]).
+//!
+//! Above [`super::fit`]; below [`super::candidates`].
 
 use super::fit::{gram, Fit};
+use super::ids::{leaf_syntax, ControlQuantiserId, ModelId, WeightQuantiserId};
 use crate::entropy::BitCounter;
 use decoder_core::internal::entropy::ZERO_CONTEXTS;
 use decoder_core::internal::model::{
-    for_each_free_tap, WeightClass, MAX_CONTROL, MAX_GRID, MODELS, SAMPLE_MAX, SAMPLE_MIN,
-    SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE,
+    for_each_free_tap, WeightClass, MAX_CONTROL, MAX_GRID, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE,
+    WEIGHT_LIMIT, WEIGHT_ONE,
 };
 use decoder_core::internal::prediction::{
     edge_context, edge_offset, edge_pixels, SamplePrediction,
 };
 use decoder_core::internal::syntax::control::{
     coefficient_step, expand_pixel_grid, grid_sizes, transform_order, WeightQuantiser,
-    CONTROL_STEPS, WEIGHT_QUANTISER_KINDS,
 };
 use decoder_core::internal::syntax::{
-    control_class, dequantise_control, intra_prediction, step_group, transform_control_values,
-    zero_context, Codebook, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES, MAX_CODEBOOK,
-    STEP_GROUPS,
+    control_class, dequantise_control, intra_prediction, transform_control_values, zero_context,
+    Codebook, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES, MAX_CODEBOOK, STEP_GROUPS,
 };
 use decoder_core::Node;
 use nalgebra::DMatrix;
@@ -49,7 +52,7 @@ struct ExactTargets {
 impl ControlTargets {
     /// The targets of `fit`'s control values, on a block of side `2^log2`.
     pub fn of(fit: &Fit, log2: u8) -> Self {
-        let model = MODELS[usize::from(fit.model)];
+        let model = fit.model.model();
         let (side, grid) = (model.coded_side(log2), model.grid());
         let in_samples = |control: &[f64], clamp: bool| {
             let mut samples = [0.0f64; MAX_CONTROL];
@@ -90,9 +93,9 @@ impl ControlTargets {
         mut self,
         prediction: &P,
         node: &Node,
-        model: u8,
+        model: ModelId,
     ) -> Self {
-        let spacing = MODELS[usize::from(model)].spacing(node.log2);
+        let spacing = model.model().spacing(node.log2);
         for (row, edges) in self.edges.iter_mut().enumerate() {
             for (k, e) in edges.iter_mut().enumerate().take(self.side) {
                 *e = edge_pixels(prediction, node, spacing, row == 0, k);
@@ -224,23 +227,23 @@ struct ErrorFeedback {
 }
 
 impl ErrorFeedback {
-    fn of(model_index: u8, log2: u8) -> Option<&'static ErrorFeedback> {
+    fn of(model: ModelId, log2: u8) -> Option<&'static ErrorFeedback> {
         use std::sync::OnceLock;
         const SIZES: usize = decoder_core::internal::format::MAX_LEAF_LOG2 as usize + 1;
         static TABLE: [[OnceLock<Option<ErrorFeedback>>; SIZES];
             decoder_core::internal::model::MODEL_COUNT] = [const { [const { OnceLock::new() }; SIZES] };
             decoder_core::internal::model::MODEL_COUNT];
-        TABLE[usize::from(model_index)][usize::from(log2)]
-            .get_or_init(|| ErrorFeedback::build(model_index, log2))
+        TABLE[model.index()][usize::from(log2)]
+            .get_or_init(|| ErrorFeedback::build(model, log2))
             .as_ref()
     }
 
-    fn build(model_index: u8, log2: u8) -> Option<ErrorFeedback> {
-        let model = MODELS[usize::from(model_index)];
+    fn build(model_id: ModelId, log2: u8) -> Option<ErrorFeedback> {
+        let model = model_id.model();
         let (side, grid) = (model.coded_side(log2), model.grid());
         let n = side * side;
         // The form over the coded values (on a pixel grid, without the values past the block).
-        let full = gram(model_index, log2)?;
+        let full = gram(model_id, log2)?;
         let at = |i: usize| i / side * grid + i % side;
         let g = &DMatrix::from_fn(n, n, |i, j| full[(at(i), at(j))]);
         // The real-valued inverse transform M (column j: the values of coefficient j alone), as
@@ -285,21 +288,15 @@ pub struct Quantised {
 pub fn quantise(
     fit: &Fit,
     targets: &ControlTargets,
-    cq: u8,
-    wq: u8,
+    cq: ControlQuantiserId,
+    wq: WeightQuantiserId,
     coding: ControlCoding,
     codebooks: &[Codebook; 2],
     rounding_lambda: f64,
 ) -> Quantised {
-    let model = MODELS[usize::from(fit.model)];
-    let mut leaf = LeafSyntax {
-        model: fit.model,
-        cquant: cq,
-        wquant: wq,
-        coding,
-        ..LeafSyntax::default()
-    };
-    let step = CONTROL_STEPS[usize::from(cq)];
+    let model = fit.model.model();
+    let mut leaf = leaf_syntax(fit.model, cq, wq, coding);
+    let step = cq.step();
     let side = targets.side;
     let (mut values, form) = match coding {
         ControlCoding::Dpcm => {
@@ -320,7 +317,7 @@ pub fn quantise(
     // The forms are over errors in sample units.
     let sample = f64::from(SAMPLE_ONE);
     let added_error = form.map(|f| f / (sample * sample));
-    let kind = WEIGHT_QUANTISER_KINDS[usize::from(wq)];
+    let kind = wq.kind();
     if kind == WeightQuantiser::Default {
         // The default weights: every index stays zero.
         return Quantised {
@@ -626,10 +623,10 @@ struct IndexRounding {
 impl IndexRounding {
     /// The rounding of control quantiser `cq` under the grid transform or DPCM, for a grid of
     /// side `side`, with multiplier `lambda`.
-    fn new(cq: u8, transform: bool, side: usize, lambda: f64) -> IndexRounding {
+    fn new(cq: ControlQuantiserId, transform: bool, side: usize, lambda: f64) -> IndexRounding {
         let costs = ResidualCosts::get();
         IndexRounding {
-            bits: &costs.bits[step_group(cq)],
+            bits: &costs.bits[cq.step_group()],
             classes: &costs.classes[usize::from(transform)][side],
             positions: &costs.positions[side],
             side,
@@ -892,16 +889,16 @@ pub fn lloyd_max(samples: &mut [f64], levels: usize) -> Codebook {
 }
 
 /// The weight class of every free weight of model `model`, in coding order.
-pub fn weight_classes(model: u8) -> Vec<WeightClass> {
+pub fn weight_classes(model: ModelId) -> Vec<WeightClass> {
     let mut v = Vec::new();
-    for_each_free_tap(MODELS[usize::from(model)], |slot| v.push(slot.class()));
+    for_each_free_tap(model.model(), |slot| v.push(slot.class()));
     v
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use decoder_core::internal::syntax::control::inverse_grid_transform;
+    use decoder_core::internal::syntax::control::{inverse_grid_transform, CONTROL_STEPS};
     use nalgebra::DVector;
 
     const SIDES: [usize; 4] = [2, 3, 5, 9];
@@ -1001,8 +998,8 @@ mod tests {
         use decoder_core::Node;
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
         let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
-        let (model, log2) = (4u8, 4u8);
-        let side = MODELS[usize::from(model)].grid();
+        let (model, log2) = (ModelId::new(4), 4u8);
+        let side = model.model().grid();
         let n = side * side;
         let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
         for by in (0..plane.height >> log2).step_by(2) {
@@ -1020,7 +1017,8 @@ mod tests {
                     let added = |t: &ControlTargets, sum: &mut (f64, f64)| {
                         let mut indices = [0i16; MAX_CONTROL];
                         let cq = CONTROL_STEPS.iter().position(|&s| s == step).unwrap();
-                        let rounding = IndexRounding::new(cq as u8, true, side, ROUNDING_LAMBDA);
+                        let cq = ControlQuantiserId::new(cq as u8);
+                        let rounding = IndexRounding::new(cq, true, side, ROUNDING_LAMBDA);
                         quantise_coefficients(t, side, step, &rounding, &mut indices);
                         let mut values = [0i16; MAX_CONTROL];
                         transform_control_values(side, step, &indices, &mut values);
@@ -1052,8 +1050,8 @@ mod tests {
     /// without them, for no more error (the margins measured are in docs/decisions.md).
     #[test]
     fn dpcm_edges_are_coded_against_the_pixels_beside_them() {
-        use super::super::analysis::ImagePrediction;
         use super::super::fit::fit_default;
+        use super::super::plane::ImagePrediction;
         use decoder_core::internal::prediction::SamplePrediction;
         use decoder_core::internal::syntax::code_leaf;
         struct Alone;
@@ -1069,13 +1067,13 @@ mod tests {
             prediction: &P,
             sum: &mut (f64, f64),
         ) {
-            let (model, cq) = (fit.model, 4);
+            let (model, cq) = (fit.model, ControlQuantiserId::new(4));
             let targets = ControlTargets::of(fit, node.log2).with_edges(prediction, node, model);
             let q = quantise(
                 fit,
                 &targets,
                 cq,
-                0,
+                WeightQuantiserId::DEFAULT,
                 ControlCoding::Dpcm,
                 &[Codebook::EMPTY; 2],
                 ROUNDING_LAMBDA,
@@ -1096,7 +1094,7 @@ mod tests {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
         let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
         let image = ImagePrediction { plane: &plane };
-        let (model, log2) = (4u8, 3u8);
+        let (model, log2) = (ModelId::new(4), 3u8);
         let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
         for by in 1..plane.height >> log2 {
             for bx in 1..plane.width >> log2 {
@@ -1127,7 +1125,8 @@ mod tests {
     fn rounding_prices_nonzero_indices_by_their_neighbours() {
         let side = 3;
         for transform in [false, true] {
-            let rounding = IndexRounding::new(9, transform, side, ROUNDING_LAMBDA);
+            let rounding =
+                IndexRounding::new(ControlQuantiserId::new(9), transform, side, ROUNDING_LAMBDA);
             let mut indices = [0i16; MAX_CONTROL];
             assert_eq!(rounding.round(&indices, 4, 0.65, 1.0, None), 0);
             assert_eq!(rounding.round(&indices, 4, -0.65, 1.0, None), 0);
@@ -1147,7 +1146,7 @@ mod tests {
     /// is to nearest.
     #[test]
     fn large_indices_round_to_nearest() {
-        let rounding = IndexRounding::new(9, true, 5, ROUNDING_LAMBDA);
+        let rounding = IndexRounding::new(ControlQuantiserId::new(9), true, 5, ROUNDING_LAMBDA);
         let indices = [0i16; MAX_CONTROL];
         assert_eq!(rounding.round(&indices, 12, 5.45, 1.0, None), 5);
         assert_eq!(rounding.round(&indices, 12, 5.55, 1.0, None), 6);

@@ -1,14 +1,17 @@
-//! Rate control: Lagrangian bottom-up pruning of the quadtree (thesis Alg. 2) and the search for
-//! the multiplier that meets a target (thesis III.3.6.3).
+//! Rate control: the rates of the candidates, the Lagrangian bottom-up pruning of the quadtree
+//! (thesis Alg. 2) and the search for the multiplier that meets a target (thesis III.3.6.3).
 //!
 //! Rates come from decoder-core's own syntax code run on a [`BitCounter`] whose contexts start
 //! from a snapshot of the real coder's state (the contexts a trial encode ended with), so the
 //! estimate follows the real coder; each target then corrects its aim by the real coder's size.
+//!
+//! Above [`super::candidates`] (it rates and chooses among them); below [`super::writer`], which
+//! writes the [`Plan`]s it makes.
 
-use super::analysis::Analysis;
+use super::candidates::{CandidateSelection, CandidateTree, WithCandidates};
+use super::plane::{ImagePrediction, Plane};
 use crate::entropy::BitCounter;
 use decoder_core::internal::syntax::control::WeightQuantiser;
-use decoder_core::internal::syntax::control::WEIGHT_QUANTISER_KINDS;
 use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header};
 use decoder_core::internal::walk::{node_kind, NodeKind};
 use decoder_core::Node;
@@ -38,6 +41,11 @@ impl LevelRates {
         self.first[node] as usize..self.first[node + 1] as usize
     }
 
+    /// Number of nodes (analysed or not).
+    fn node_count(&self) -> usize {
+        self.first.len() - 1
+    }
+
     /// The level's candidates `keep` lists per node (indices into each node's list).
     fn select(&self, keep: &[Vec<u16>]) -> LevelRates {
         let mut out = LevelRates {
@@ -56,6 +64,32 @@ impl LevelRates {
         }
         out
     }
+
+    /// The candidate of node `node` with the least cost `sse + lambda * bits` (the first of
+    /// equals), leaving out those that need codebooks unless `codebooks`.
+    fn best_leaf(&self, node: usize, lambda: f64, codebooks: bool) -> Option<LeafChoice> {
+        let range = self.range(node);
+        let start = range.start;
+        let mut best: Option<LeafChoice> = None;
+        for k in range {
+            if self.codebook[k] && !codebooks {
+                continue;
+            }
+            let bits = f64::from(self.bits[k]);
+            let j = self.sse[k] + lambda * bits;
+            if best.is_none_or(|b| j < b.cost.j) {
+                best = Some(LeafChoice {
+                    cost: Cost {
+                        j,
+                        sse: self.sse[k],
+                        bits,
+                    },
+                    candidate: (k - start) as u16,
+                });
+            }
+        }
+        best
+    }
 }
 
 impl RateTable {
@@ -69,7 +103,7 @@ impl RateTable {
 
     /// This table restricted to the candidates `keep` lists per node (as
     /// [`RateTable::lambda_optimal`] returns them), for the candidate lists pruned to them.
-    pub fn select(&self, keep: &[Vec<Vec<u16>>]) -> RateTable {
+    pub fn select(&self, keep: &CandidateSelection) -> RateTable {
         RateTable {
             levels: self
                 .levels
@@ -94,7 +128,7 @@ pub enum Decision {
 /// A quadtree cut with one candidate per leaf.
 #[derive(Debug, Clone)]
 pub struct Plan {
-    /// Decisions per level (same layout as the analysis levels).
+    /// Decisions per level (same layout as the levels of the [`CandidateTree`]).
     pub decisions: Vec<Vec<Decision>>,
     /// Estimated squared error (exact: leaves are reconstructed independently).
     pub sse: f64,
@@ -126,22 +160,121 @@ impl Plan {
         }
     }
 
-    /// The decision for `node`, if it was analysed.
-    pub fn decision(&self, analysis: &Analysis, node: &Node) -> Option<Decision> {
-        let level = analysis.level(node.log2)?;
-        let i = (node.y >> node.log2) * level.cols + (node.x >> node.log2);
+    /// The decision for `node` of `tree` (the tree the plan was made for), if it was analysed.
+    pub fn decision(&self, tree: &CandidateTree, node: &Node) -> Option<Decision> {
+        let level = tree.level(node.log2)?;
         self.decisions
-            .get(usize::from(node.log2 - analysis.header.min_leaf_log2))?
-            .get(i as usize)
+            .get(usize::from(node.log2 - tree.min_leaf_log2()))?
+            .get(level.index(node.x, node.y))
             .copied()
     }
 }
 
+/// The Lagrangian cost `j = sse + lambda * bits` of a node's best cut (of the node as a leaf,
+/// or of its subtree), with its error and bits.
+#[derive(Debug, Clone, Copy)]
+struct Cost {
+    j: f64,
+    sse: f64,
+    bits: f64,
+}
+
+impl Cost {
+    const ZERO: Cost = Cost {
+        j: 0.0,
+        sse: 0.0,
+        bits: 0.0,
+    };
+
+    /// A node with no way of coding it.
+    const INFINITE: Cost = Cost {
+        j: f64::INFINITY,
+        sse: f64::INFINITY,
+        bits: f64::INFINITY,
+    };
+
+    /// The costs of two subtrees together.
+    fn plus(self, other: Cost) -> Cost {
+        Cost {
+            j: self.j + other.j,
+            sse: self.sse + other.sse,
+            bits: self.bits + other.bits,
+        }
+    }
+
+    /// This cost with a split flag of `flag_bits` bits in front.
+    fn with_flag(self, lambda: f64, flag_bits: f64) -> Cost {
+        Cost {
+            j: self.j + lambda * flag_bits,
+            sse: self.sse,
+            bits: self.bits + flag_bits,
+        }
+    }
+}
+
+/// A node's best candidate as a leaf.
+#[derive(Debug, Clone, Copy)]
+struct LeafChoice {
+    cost: Cost,
+    /// Index into the node's candidate list.
+    candidate: u16,
+}
+
+/// The best cuts of one level's nodes, row-major: what splitting a node of the level above
+/// costs.
+struct LevelCosts {
+    costs: Vec<Cost>,
+    cols: u32,
+    rows: u32,
+}
+
+impl LevelCosts {
+    /// The cost of splitting the node at column `cx`, row `cy` of the level above: its
+    /// children's (those in the image) together.
+    fn split(&self, cx: u32, cy: u32) -> Cost {
+        let mut total = Cost::ZERO;
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (bx, by) = (2 * cx + dx, 2 * cy + dy);
+            if bx < self.cols && by < self.rows {
+                total = total.plus(self.costs[(by * self.cols + bx) as usize]);
+            }
+        }
+        total
+    }
+}
+
+/// The better of coding a node of kind `kind` as `leaf` or splitting it at cost `split` (where
+/// either is possible), with the split flag's bits `flag` (`[leaf, split]`) where it is coded.
+fn decide(
+    kind: NodeKind,
+    leaf: Option<LeafChoice>,
+    split: Option<Cost>,
+    lambda: f64,
+    flag: &[f64; 2],
+) -> (Cost, Decision) {
+    match (kind, leaf, split) {
+        (NodeKind::ForcedLeaf, Some(l), _) => (l.cost, Decision::Leaf(l.candidate)),
+        (NodeKind::Flagged, Some(l), Some(s)) => {
+            let as_leaf = l.cost.with_flag(lambda, flag[0]);
+            let as_split = s.with_flag(lambda, flag[1]);
+            if as_leaf.j <= as_split.j {
+                (as_leaf, Decision::Leaf(l.candidate))
+            } else {
+                (as_split, Decision::Split)
+            }
+        }
+        (_, _, Some(s)) => (s, Decision::Split),
+        (_, Some(l), None) => (l.cost, Decision::Leaf(l.candidate)),
+        (_, None, None) => (Cost::INFINITE, Decision::Split),
+    }
+}
+
 impl RateTable {
-    /// Rates of every candidate, coded from the context state `snapshot`.
-    pub fn new(analysis: &Analysis, snapshot: &Contexts) -> RateTable {
-        let levels = analysis
-            .levels
+    /// Rates of every candidate of `tree` (the analysis of `plane`), coded from the context
+    /// state `snapshot`.
+    pub fn new(tree: &CandidateTree, plane: &Plane, snapshot: &Contexts) -> RateTable {
+        let levels = tree
+            .levels()
             .iter()
             .map(|level| {
                 let per_node: Vec<Vec<f32>> = level
@@ -149,9 +282,7 @@ impl RateTable {
                     .par_iter()
                     .map(|na| {
                         let Some(na) = na else { return Vec::new() };
-                        let prediction = super::analysis::ImagePrediction {
-                            plane: &analysis.plane,
-                        };
+                        let prediction = ImagePrediction { plane };
                         // Frozen counters leave the contexts alone: one copy per node.
                         let mut ctx = snapshot.clone();
                         na.candidates
@@ -182,10 +313,9 @@ impl RateTable {
                         rates.bits.extend_from_slice(&bits);
                         for c in &na.candidates {
                             rates.sse.push(c.sse);
-                            rates.codebook.push(
-                                WEIGHT_QUANTISER_KINDS[usize::from(c.wq)]
-                                    == WeightQuantiser::Codebook,
-                            );
+                            rates
+                                .codebook
+                                .push(c.wq.kind() == WeightQuantiser::Codebook);
                         }
                     }
                     rates.first.push(rates.bits.len() as u32);
@@ -208,31 +338,22 @@ impl RateTable {
         RateTable { levels, split_bits }
     }
 
-    /// For every analysed node, the candidates that are the node's best leaf for some
-    /// multiplier in `lambdas` (indices into its candidate list, ascending): the vertices of
-    /// the lower convex hull of its (rate, error) points whose multipliers meet the range.
-    /// With `layers` above one, also those of the hulls of what is left, layer by layer
-    /// (candidates that come close to being best).
+    /// For every node, the candidates that are the node's best leaf for some multiplier in
+    /// `lambdas` (indices into its candidate list, ascending): the vertices of the lower convex
+    /// hull of its (rate, error) points whose multipliers meet the range. With `layers` above
+    /// one, also those of the hulls of what is left, layer by layer (candidates that come close
+    /// to being best).
     pub fn lambda_optimal(
         &self,
-        analysis: &Analysis,
         lambdas: std::ops::RangeInclusive<f64>,
         layers: usize,
-    ) -> Vec<Vec<Vec<u16>>> {
-        analysis
-            .levels
+    ) -> CandidateSelection {
+        self.levels
             .iter()
-            .enumerate()
-            .map(|(li, level)| {
-                level
-                    .nodes
-                    .par_iter()
-                    .enumerate()
-                    .map(|(i, na)| {
-                        if na.is_none() {
-                            return Vec::new();
-                        }
-                        let rates = &self.levels[li];
+            .map(|rates| {
+                (0..rates.node_count())
+                    .into_par_iter()
+                    .map(|i| {
                         let mut points: Vec<(f64, f64)> = rates
                             .range(i)
                             .map(|k| (f64::from(rates.bits[k]), rates.sse[k]))
@@ -254,22 +375,24 @@ impl RateTable {
             .collect()
     }
 
-    /// The best cut for multiplier `lambda` (squared error per bit). Candidates using the
-    /// Lloyd-Max codebooks are allowed only when `header` carries them.
-    pub fn optimise(&self, analysis: &Analysis, header: &Header, lambda: f64) -> Plan {
-        let min = analysis.header.min_leaf_log2;
-        let mut decisions: Vec<Vec<Decision>> = Vec::with_capacity(analysis.levels.len());
-        // (J, sse, bits) per node of the level below.
-        let mut below: Vec<(f64, f64, f64)> = Vec::new();
-        let mut below_cols = 0u32;
-        let mut below_rows = 0u32;
-        for (li, level) in analysis.levels.iter().enumerate() {
+    /// The best cut of `tree` (whose candidates this table rates) for multiplier `lambda`
+    /// (squared error per bit). Candidates using the Lloyd-Max codebooks are allowed only when
+    /// `header` carries them.
+    fn optimise(&self, tree: &CandidateTree, header: &Header, lambda: f64) -> Plan {
+        let min = tree.min_leaf_log2();
+        let codebooks = header.has_codebooks();
+        let mut decisions: Vec<Vec<Decision>> = Vec::with_capacity(tree.levels().len());
+        let mut below = LevelCosts {
+            costs: Vec::new(),
+            cols: 0,
+            rows: 0,
+        };
+        for (level, rates) in tree.levels().iter().zip(&self.levels) {
             let rows = (u32::from(header.height) + (1 << level.log2) - 1) >> level.log2;
+            let flag = &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
             // Nodes of a level are independent given the level below.
             let below_ref = &below;
-            let rates = &self.levels[li];
-            let codebooks = header.has_codebooks();
-            let (here, dec): (Vec<(f64, f64, f64)>, Vec<Decision>) = (0..level.cols * rows)
+            let (costs, level_decisions): (Vec<Cost>, Vec<Decision>) = (0..level.cols * rows)
                 .into_par_iter()
                 // A node is a few nanoseconds of work: hand them out in chunks.
                 .with_min_len(1024)
@@ -280,238 +403,107 @@ impl RateTable {
                         y: cy << level.log2,
                         log2: level.log2,
                     };
-                    let kind = node_kind(header, &node);
-                    let leaf = {
-                        let range = rates.range(i as usize);
-                        let start = range.start;
-                        let mut best: Option<(f64, f64, f64, u16)> = None;
-                        for k in range {
-                            if rates.codebook[k] && !codebooks {
-                                continue;
-                            }
-                            let bits = f64::from(rates.bits[k]);
-                            let j = rates.sse[k] + lambda * bits;
-                            if best.is_none_or(|b| j < b.0) {
-                                best = Some((j, rates.sse[k], bits, (k - start) as u16));
-                            }
-                        }
-                        best
-                    };
-                    let split = (level.log2 > min).then(|| {
-                        let mut acc = (0.0, 0.0, 0.0);
-                        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                            let (bx, by) = (2 * cx + dx, 2 * cy + dy);
-                            if bx < below_cols && by < below_rows {
-                                let b = below_ref[(by * below_cols + bx) as usize];
-                                acc = (acc.0 + b.0, acc.1 + b.1, acc.2 + b.2);
-                            }
-                        }
-                        acc
-                    });
-                    let flag =
-                        &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
-                    match (kind, leaf, split) {
-                        (NodeKind::ForcedLeaf, Some(l), _) => {
-                            ((l.0, l.1, l.2), Decision::Leaf(l.3))
-                        }
-                        (NodeKind::Flagged, Some(l), Some(s)) => {
-                            let jl = l.0 + lambda * flag[0];
-                            let js = s.0 + lambda * flag[1];
-                            if jl <= js {
-                                ((jl, l.1, l.2 + flag[0]), Decision::Leaf(l.3))
-                            } else {
-                                ((js, s.1, s.2 + flag[1]), Decision::Split)
-                            }
-                        }
-                        (_, _, Some(s)) => (s, Decision::Split),
-                        (_, Some(l), None) => ((l.0, l.1, l.2), Decision::Leaf(l.3)),
-                        (_, None, None) => (
-                            (f64::INFINITY, f64::INFINITY, f64::INFINITY),
-                            Decision::Split,
-                        ),
-                    }
+                    let leaf = rates.best_leaf(i as usize, lambda, codebooks);
+                    let split = (level.log2 > min).then(|| below_ref.split(cx, cy));
+                    decide(node_kind(header, &node), leaf, split, lambda, flag)
                 })
                 .unzip();
-            below = here;
-            below_cols = level.cols;
-            below_rows = rows;
-            decisions.push(dec);
+            below = LevelCosts {
+                costs,
+                cols: level.cols,
+                rows,
+            };
+            decisions.push(level_decisions);
         }
-        let root = below.first().copied().unwrap_or((0.0, 0.0, 0.0));
+        let root = below.costs.first().copied().unwrap_or(Cost::ZERO);
         Plan {
             decisions,
-            sse: root.1,
-            bits: root.2,
+            sse: root.sse,
+            bits: root.bits,
             lambda,
         }
     }
 
     /// A plan of roughly `budget_bits` (within about 10% in the multiplier), cheaply: enough
     /// to gather coding statistics.
-    pub fn rough_plan_for_bits(
+    pub fn rough_plan_for_bits<T: WithCandidates + ?Sized>(
         &self,
-        analysis: &Analysis,
+        nodes: &T,
         header: &Header,
         budget_bits: f64,
     ) -> Plan {
         let search = Search::new(Constraint::Rate, budget_bits, 0.1);
-        self.search(analysis, header, search, None)
+        self.search(nodes.candidates(), header, search, None)
     }
 
     /// The plan with the least distortion whose estimated payload fits in `budget_bits`
     /// (the cheapest plan if none fits). `hint`: a plan near the answer, if known.
-    pub fn plan_for_bits(
+    pub fn plan_for_bits<T: WithCandidates + ?Sized>(
         &self,
-        analysis: &Analysis,
+        nodes: &T,
         header: &Header,
         budget_bits: f64,
         hint: Option<Anchor>,
     ) -> Plan {
         let search = Search::new(Constraint::Rate, budget_bits, 1e-3);
-        self.search(analysis, header, search, hint)
+        self.search(nodes.candidates(), header, search, hint)
     }
 
     /// The cheapest plan whose squared error is at most `max_sse` (the best plan if none is).
     /// `hint`: a plan near the answer, if known.
-    pub fn plan_for_sse(
+    pub fn plan_for_sse<T: WithCandidates + ?Sized>(
         &self,
-        analysis: &Analysis,
+        nodes: &T,
         header: &Header,
         max_sse: f64,
         hint: Option<Anchor>,
     ) -> Plan {
         let search = Search::new(Constraint::Distortion, max_sse, 1e-3);
-        self.search(analysis, header, search, hint)
+        self.search(nodes.candidates(), header, search, hint)
     }
 
     /// Search on the logarithm of the multiplier. Plans get cheaper and worse as it grows, so a
     /// rate constraint holds from some multiplier on (we want the smallest such), and a
     /// distortion constraint holds up to some multiplier (we want the largest). The search
-    /// brackets the answer (around `hint` when there is one, widening as needed), then
-    /// interpolates in log-log, where the constrained quantity is close to a straight line
-    /// (false position, Illinois variant); a step that fails to halve the bracket is followed
-    /// by a bisection, which bounds the search by twice bisection's.
+    /// brackets the answer ([`Search::bracket`]), then narrows the bracket
+    /// ([`Search::narrow`]).
     fn search(
         &self,
-        analysis: &Analysis,
+        tree: &CandidateTree,
         header: &Header,
         search: Search,
         hint: Option<Anchor>,
     ) -> Plan {
-        let Search {
-            constraint,
-            limit,
-            tolerance,
-        } = search;
-        let measure = |p: &Plan| match constraint {
-            Constraint::Rate => p.bits,
-            Constraint::Distortion => p.sse,
+        let planner = Planner {
+            rates: self,
+            tree,
+            header,
         };
-        let ok = |p: &Plan| measure(p) <= limit;
-        // Whether a plan lies above the answer's multiplier.
-        let above = |p: &Plan| {
-            matches!(
-                (constraint, ok(p)),
-                (Constraint::Rate, true) | (Constraint::Distortion, false)
-            )
-        };
-        let (floor, ceiling) = (LAMBDA_RANGE.start().ln(), LAMBDA_RANGE.end().ln());
-        let (mut lo, mut hi) = match hint {
-            Some(a) if a.lambda > 0.0 => {
-                // Locally, ln(rate) falls and ln(error) rises by about as much as ln(lambda)
-                // rises: a first guess, the bracket widens when it is off.
-                let (known, slope) = match constraint {
-                    Constraint::Rate => (a.bits, -1.0),
-                    Constraint::Distortion => (a.sse, 1.0),
-                };
-                let guess = a.lambda.ln() + (limit.max(1e-9).ln() - known.max(1e-9).ln()) / slope;
-                let c = guess.clamp(floor, ceiling);
-                ((c - 0.1).max(floor), (c + 0.1).min(ceiling))
-            }
-            _ => (floor, ceiling),
-        };
-        let mut plan_lo = self.optimise(analysis, header, lo.exp());
-        let mut plan_hi = self.optimise(analysis, header, hi.exp());
-        let mut widen = 0.2;
-        loop {
-            if above(&plan_lo) && lo > floor {
-                (hi, plan_hi) = (lo, plan_lo);
-                lo = (lo - widen).max(floor);
-                plan_lo = self.optimise(analysis, header, lo.exp());
-            } else if !above(&plan_hi) && hi < ceiling {
-                (lo, plan_lo) = (hi, plan_hi);
-                hi = (hi + widen).min(ceiling);
-                plan_hi = self.optimise(analysis, header, hi.exp());
-            } else {
-                break;
-            }
-            widen *= 2.0;
-        }
+        let bracket = search.bracket(&planner, hint);
         // No answer inside the range: the end nearest to one (the smallest multiplier when even
         // it meets the constraint or misses it, the largest likewise).
-        if above(&plan_lo) {
-            return plan_lo;
+        if search.above(&bracket.plan_lo) {
+            return bracket.plan_lo;
         }
-        if !above(&plan_hi) {
-            return plan_hi;
+        if !search.above(&bracket.plan_hi) {
+            return bracket.plan_hi;
         }
-        let mut best = match constraint {
-            Constraint::Rate => plan_hi.clone(),
-            Constraint::Distortion => plan_lo.clone(),
-        };
-        // ln of the constrained quantity at the ends; only its differences matter.
-        let log_of = |p: &Plan| measure(p).max(1e-9).ln();
-        let (mut f_lo, mut f_hi) = (log_of(&plan_lo), log_of(&plan_hi));
-        let target = limit.max(1e-9).ln();
-        // Which end the last interpolation replaced (true: the upper; for the Illinois
-        // halving), and whether the next step must bisect.
-        let mut kept: Option<bool> = None;
-        let mut bisect_next = false;
-        // Down to `tolerance` in the log of the multiplier (1e-3: 0.1%; the plans between two
-        // multipliers that close differ by a few leaves at most), or in the constrained
-        // quantity.
-        while hi - lo > tolerance {
-            let width = hi - lo;
-            let mid = if bisect_next || !(f_lo - f_hi).is_normal() {
-                0.5 * (lo + hi)
-            } else {
-                let t = (f_lo - target) / (f_lo - f_hi);
-                // Strictly inside, so that the bracket always shrinks.
-                lo + width * t.clamp(0.02, 0.98)
-            };
-            let p = self.optimise(analysis, header, mid.exp());
-            let good = ok(&p);
-            let f = log_of(&p);
-            let moves_hi = above(&p);
-            if moves_hi {
-                (hi, f_hi) = (mid, f);
-            } else {
-                (lo, f_lo) = (mid, f);
-            }
-            if !bisect_next {
-                // The same end kept by two interpolations in a row: pull its value halfway
-                // to the target (Illinois), or false position creeps up on one side.
-                if kept == Some(moves_hi) {
-                    if moves_hi {
-                        f_lo = target + 0.5 * (f_lo - target);
-                    } else {
-                        f_hi = target + 0.5 * (f_hi - target);
-                    }
-                }
-                kept = Some(moves_hi);
-            }
-            bisect_next = !bisect_next && hi - lo > 0.5 * width;
-            if good {
-                // Close enough in the constrained quantity too: no multiplier in between
-                // can do better by more than the tolerance.
-                let done = measure(&p) >= limit * (1.0 - tolerance);
-                best = p;
-                if done {
-                    break;
-                }
-            }
-        }
-        best
+        search.narrow(&planner, bracket)
+    }
+}
+
+/// Plans for one tree and header, by the logarithm of their multiplier.
+struct Planner<'a> {
+    rates: &'a RateTable,
+    tree: &'a CandidateTree,
+    header: &'a Header,
+}
+
+impl Planner<'_> {
+    /// The best cut for the multiplier `exp(log_lambda)`.
+    fn at(&self, log_lambda: f64) -> Plan {
+        self.rates
+            .optimise(self.tree, self.header, log_lambda.exp())
     }
 }
 
@@ -578,6 +570,26 @@ struct Search {
     tolerance: f64,
 }
 
+/// The multipliers searched (squared error per bit).
+const LAMBDA_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
+
+/// The quantity a search constrains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Constraint {
+    /// The estimated payload bits.
+    Rate,
+    /// The squared error.
+    Distortion,
+}
+
+/// Two plans whose multipliers (by their logarithms `lo < hi`) bracket a search's answer.
+struct Bracket {
+    lo: f64,
+    hi: f64,
+    plan_lo: Plan,
+    plan_hi: Plan,
+}
+
 impl Search {
     fn new(constraint: Constraint, limit: f64, tolerance: f64) -> Search {
         Search {
@@ -586,15 +598,187 @@ impl Search {
             tolerance,
         }
     }
+
+    /// The constrained quantity of `plan`.
+    fn measure(&self, plan: &Plan) -> f64 {
+        match self.constraint {
+            Constraint::Rate => plan.bits,
+            Constraint::Distortion => plan.sse,
+        }
+    }
+
+    /// Whether `plan` meets the constraint.
+    fn meets(&self, plan: &Plan) -> bool {
+        self.measure(plan) <= self.limit
+    }
+
+    /// Whether `plan` lies above the answer's multiplier.
+    fn above(&self, plan: &Plan) -> bool {
+        matches!(
+            (self.constraint, self.meets(plan)),
+            (Constraint::Rate, true) | (Constraint::Distortion, false)
+        )
+    }
+
+    /// The logarithm of the constrained quantity of `plan` (only its differences matter).
+    fn log_measure(&self, plan: &Plan) -> f64 {
+        self.measure(plan).max(1e-9).ln()
+    }
+
+    /// The logarithms of the ends of [`LAMBDA_RANGE`].
+    fn log_range() -> (f64, f64) {
+        (LAMBDA_RANGE.start().ln(), LAMBDA_RANGE.end().ln())
+    }
+
+    /// The first bracket to try: around where `hint` says the answer is, or the whole range.
+    fn first_bracket(&self, hint: Option<Anchor>) -> (f64, f64) {
+        let (floor, ceiling) = Search::log_range();
+        match hint {
+            Some(a) if a.lambda > 0.0 => {
+                // Locally, ln(rate) falls and ln(error) rises by about as much as ln(lambda)
+                // rises: a first guess, the bracket widens when it is off.
+                let (known, slope) = match self.constraint {
+                    Constraint::Rate => (a.bits, -1.0),
+                    Constraint::Distortion => (a.sse, 1.0),
+                };
+                let guess =
+                    a.lambda.ln() + (self.limit.max(1e-9).ln() - known.max(1e-9).ln()) / slope;
+                let c = guess.clamp(floor, ceiling);
+                ((c - 0.1).max(floor), (c + 0.1).min(ceiling))
+            }
+            _ => (floor, ceiling),
+        }
+    }
+
+    /// A bracket of the answer: the first one ([`Search::first_bracket`]), moved and widened
+    /// (by twice as much each time) until it holds the answer or reaches an end of the range.
+    fn bracket(&self, planner: &Planner, hint: Option<Anchor>) -> Bracket {
+        let (floor, ceiling) = Search::log_range();
+        let (mut lo, mut hi) = self.first_bracket(hint);
+        let mut plan_lo = planner.at(lo);
+        let mut plan_hi = planner.at(hi);
+        let mut widen = 0.2;
+        loop {
+            if self.above(&plan_lo) && lo > floor {
+                (hi, plan_hi) = (lo, plan_lo);
+                lo = (lo - widen).max(floor);
+                plan_lo = planner.at(lo);
+            } else if !self.above(&plan_hi) && hi < ceiling {
+                (lo, plan_lo) = (hi, plan_hi);
+                hi = (hi + widen).min(ceiling);
+                plan_hi = planner.at(hi);
+            } else {
+                break;
+            }
+            widen *= 2.0;
+        }
+        Bracket {
+            lo,
+            hi,
+            plan_lo,
+            plan_hi,
+        }
+    }
+
+    /// Narrows `bracket` (which holds the answer) down to the tolerance and returns the best
+    /// plan that meets the constraint. Interpolates in log-log, where the constrained quantity
+    /// is close to a straight line ([`FalsePosition`]).
+    fn narrow(&self, planner: &Planner, bracket: Bracket) -> Plan {
+        let Bracket {
+            lo,
+            hi,
+            plan_lo,
+            plan_hi,
+        } = bracket;
+        let mut steps = FalsePosition {
+            lo,
+            hi,
+            f_lo: self.log_measure(&plan_lo),
+            f_hi: self.log_measure(&plan_hi),
+            target: self.limit.max(1e-9).ln(),
+            kept: None,
+            bisect_next: false,
+        };
+        // The end that meets the constraint.
+        let mut best = match self.constraint {
+            Constraint::Rate => plan_hi,
+            Constraint::Distortion => plan_lo,
+        };
+        // Down to `tolerance` in the log of the multiplier (1e-3: 0.1%; the plans between two
+        // multipliers that close differ by a few leaves at most), or in the constrained
+        // quantity.
+        while steps.hi - steps.lo > self.tolerance {
+            let mid = steps.next();
+            let p = planner.at(mid);
+            let good = self.meets(&p);
+            steps.update(mid, self.log_measure(&p), self.above(&p));
+            if good {
+                // Close enough in the constrained quantity too: no multiplier in between
+                // can do better by more than the tolerance.
+                let done = self.measure(&p) >= self.limit * (1.0 - self.tolerance);
+                best = p;
+                if done {
+                    break;
+                }
+            }
+        }
+        best
+    }
 }
 
-/// The multipliers searched (squared error per bit).
-const LAMBDA_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
+/// The state of false position (Illinois variant) on the logarithms of the multiplier and of
+/// the constrained quantity: a bracket `lo..hi` with the quantity's logarithm at its ends. A
+/// step that fails to halve the bracket is followed by a bisection, which bounds the search by
+/// twice bisection's.
+struct FalsePosition {
+    lo: f64,
+    hi: f64,
+    f_lo: f64,
+    f_hi: f64,
+    /// The logarithm of the limit.
+    target: f64,
+    /// Which end the last interpolation replaced (true: the upper; for the Illinois halving).
+    kept: Option<bool>,
+    /// Whether the next step must bisect.
+    bisect_next: bool,
+}
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Constraint {
-    Rate,
-    Distortion,
+impl FalsePosition {
+    /// The next multiplier to try (its logarithm), strictly inside the bracket.
+    fn next(&self) -> f64 {
+        let (lo, hi) = (self.lo, self.hi);
+        if self.bisect_next || !(self.f_lo - self.f_hi).is_normal() {
+            0.5 * (lo + hi)
+        } else {
+            let t = (self.f_lo - self.target) / (self.f_lo - self.f_hi);
+            // Strictly inside, so that the bracket always shrinks.
+            lo + (hi - lo) * t.clamp(0.02, 0.98)
+        }
+    }
+
+    /// Takes the result of trying `mid`: the quantity's logarithm `f` there, and whether `mid`
+    /// lies above the answer (and so replaces the upper end).
+    fn update(&mut self, mid: f64, f: f64, moves_hi: bool) {
+        let width = self.hi - self.lo;
+        if moves_hi {
+            (self.hi, self.f_hi) = (mid, f);
+        } else {
+            (self.lo, self.f_lo) = (mid, f);
+        }
+        if !self.bisect_next {
+            // The same end kept by two interpolations in a row: pull its value halfway
+            // to the target (Illinois), or false position creeps up on one side.
+            if self.kept == Some(moves_hi) {
+                if moves_hi {
+                    self.f_lo = self.target + 0.5 * (self.f_lo - self.target);
+                } else {
+                    self.f_hi = self.target + 0.5 * (self.f_hi - self.target);
+                }
+            }
+            self.kept = Some(moves_hi);
+        }
+        self.bisect_next = !self.bisect_next && self.hi - self.lo > 0.5 * width;
+    }
 }
 
 #[cfg(test)]

@@ -1,4 +1,7 @@
-//! Floating-point tabulation of a patch, with derivatives, for fitting.
+//! Floating-point tabulation of a patch, with derivatives, for fitting: the model the fitter
+//! ([`super::fit`]) optimises.
+//!
+//! Bottom of the encoder's stages: uses only decoder-core's model.
 //!
 //! It follows decoder-core's integer synthesis rule for rule (same subdivision, same taps, same
 //! mirroring of indices at a line's ends), without rounding. Each sample carries a vector: its value, then its
@@ -110,6 +113,7 @@ impl Tabulator {
     }
 
     /// Floats per emitted sample.
+    #[cfg(test)]
     pub fn sample_len(&self) -> usize {
         self.k
     }

@@ -1,9 +1,12 @@
 //! Writing the stream: decoder-core's quadtree walk driven by a [`Plan`], with the range
-//! encoder as its coder.
+//! encoder as its coder; and the image the stream decodes to, rendered from the plan.
+//!
+//! Above [`super::rate`] (it writes the plans rate control makes); below [`super::analysis`],
+//! whose trial encode it writes.
 
-use super::analysis::Analysis;
+use super::candidates::CandidateTree;
+use super::error::EncodeError;
 use super::rate::{Decision, Plan};
-use super::EncodeError;
 use crate::entropy::RangeEncoder;
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::syntax::{
@@ -28,8 +31,9 @@ pub struct Written {
     pub leaves: usize,
 }
 
+/// The walk's visitor: splits and codes the leaves as the plan says.
 struct PlanVisitor<'a> {
-    analysis: &'a Analysis,
+    tree: &'a CandidateTree,
     plan: &'a Plan,
     leaves: usize,
 }
@@ -38,19 +42,12 @@ impl TreeVisitor for PlanVisitor<'_> {
     type Error = DecodeError;
 
     fn split(&mut self, node: &Node) -> bool {
-        !matches!(
-            self.plan.decision(self.analysis, node),
-            Some(Decision::Leaf(_))
-        )
+        !matches!(self.plan.decision(self.tree, node), Some(Decision::Leaf(_)))
     }
 
     fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax) {
-        let na = self
-            .analysis
-            .level(node.log2)
-            .and_then(|l| l.get(node.x, node.y));
-        if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.analysis, node))
-        {
+        let na = self.tree.node(node);
+        if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.tree, node)) {
             let c = &na.candidates[usize::from(ci)];
             *leaf = na.leaf(c);
         }
@@ -68,10 +65,10 @@ impl TreeVisitor for PlanVisitor<'_> {
     }
 }
 
-/// Writes the stream for `plan` with `header`.
-pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Written, EncodeError> {
+/// Writes the stream for `plan` (of `tree`'s candidates) with `header`.
+pub fn write(tree: &CandidateTree, header: &Header, plan: &Plan) -> Result<Written, EncodeError> {
     let mut visitor = PlanVisitor {
-        analysis,
+        tree,
         plan,
         leaves: 0,
     };
@@ -95,11 +92,12 @@ pub fn write(analysis: &Analysis, header: &Header, plan: &Plan) -> Result<Writte
     })
 }
 
-/// The image a stream written for `plan` decodes to, rendered straight from the analysis: a
-/// leaf's patch depends on its syntax alone (its first control index is coded against a
-/// prediction, but reconstructed from the index), so the leaves are rendered in parallel.
+/// The image a stream written for `plan` decodes to, rendered straight from `tree`'s
+/// candidates: a leaf's patch depends on its syntax alone (its first control index is coded
+/// against a prediction, but reconstructed from the index), so the leaves are rendered in
+/// parallel.
 pub fn reconstruct(
-    analysis: &Analysis,
+    tree: &CandidateTree,
     header: &Header,
     plan: &Plan,
 ) -> Result<Vec<u8>, EncodeError> {
@@ -116,7 +114,7 @@ pub fn reconstruct(
             NodeKind::Outside => continue,
             NodeKind::ForcedSplit => false,
             NodeKind::ForcedLeaf | NodeKind::Flagged => {
-                matches!(plan.decision(analysis, &node), Some(Decision::Leaf(_)))
+                matches!(plan.decision(tree, &node), Some(Decision::Leaf(_)))
             }
         };
         if leaf {
@@ -137,11 +135,10 @@ pub fn reconstruct(
     let tiles: Vec<Tiles> = leaves
         .par_iter()
         .map(|node| {
-            let na = analysis
-                .level(node.log2)
-                .and_then(|l| l.get(node.x, node.y))
+            let na = tree
+                .node(node)
                 .ok_or(EncodeError::Internal("a leaf that was not analysed"))?;
-            let Some(Decision::Leaf(ci)) = plan.decision(analysis, node) else {
+            let Some(Decision::Leaf(ci)) = plan.decision(tree, node) else {
                 return Err(EncodeError::Internal("a leaf without a candidate"));
             };
             let leaf = na.leaf(&na.candidates[usize::from(ci)]);
@@ -154,7 +151,7 @@ pub fn reconstruct(
     let mut image = vec![0u8; header.pixel_count()];
     let row_len = width as usize;
     for t in &tiles {
-        for &(x, y, w, h, start) in &t.rects {
+        for &(Rect { x, y, w, h }, start) in &t.rects {
             let (x, w) = (x as usize, w as usize);
             for row in 0..h as usize {
                 let at = (y as usize + row) * row_len + x;
@@ -166,10 +163,11 @@ pub fn reconstruct(
     Ok(image)
 }
 
-/// The tiles one leaf renders: `(x, y, w, h, start in pixels)` each.
+/// The tiles one leaf renders, their pixels one after the other.
 #[derive(Default)]
 struct Tiles {
-    rects: Vec<(u32, u32, u32, u32, usize)>,
+    /// Each tile's area, and where its pixels start in `pixels`.
+    rects: Vec<(Rect, usize)>,
     pixels: Vec<u8>,
 }
 
@@ -177,8 +175,8 @@ impl PixelSink for Tiles {
     type Error = Infallible;
 
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
-        let Rect { x, y, w, h } = tile.area;
-        self.rects.push((x, y, w, h, self.pixels.len()));
+        let Rect { w, h, .. } = tile.area;
+        self.rects.push((tile.area, self.pixels.len()));
         self.pixels
             .extend_from_slice(&tile.pixels[..(w * h) as usize]);
         Ok(())

@@ -1,6 +1,7 @@
 //! The fractal inverse problem for one block (thesis II.4.1): a block synthesised from known
 //! model parameters, rounded to 8 bits, is fitted back by the encoder's Levenberg-Marquardt
-//! fitter; the fitted parameters must reproduce the synthesised (unrounded) block to >= 50 dB.
+//! fitter ([`super::fit_block`]); the fitted parameters must reproduce the synthesised
+//! (unrounded) block to >= 50 dB.
 //!
 //! Rounding to integers alone costs about 59 dB (a uniform error of variance 1/12), and a
 //! least-squares fit with fewer parameters than samples filters part of that noise, so a fitter
@@ -9,15 +10,116 @@
 //! Two weight perturbations are used: mild (deviations in +-0.05, where the default weights are
 //! already close) and strong (+-0.2, where the default weights with the true control values are
 //! well below 50 dB, so only a real fit of the weights passes).
+//!
+//! Unit tests of the fitter and of [`Tabulator`] (the encoder's internals).
 
-mod common;
-
-use common::Lcg;
+use super::super::ids::ModelId;
+use super::super::plane::{psnr as psnr_of_sse, Plane};
+use super::super::synthesis::Tabulator;
+use super::fit_block;
 use decoder_core::internal::model::{ModelType, MODELS};
-use decoder_core::Node;
-use host_encoder::encoder::fit::fit_block;
-use host_encoder::encoder::synthesis::Tabulator;
-use host_encoder::Plane;
+use decoder_core::{Node, PixelSink, Rect, Tile};
+use std::convert::Infallible;
+
+/// A 32-bit linear congruential generator (Numerical Recipes constants): deterministic on
+/// every platform (as the integration tests' own).
+struct Lcg(u32);
+
+impl Lcg {
+    fn new(seed: u32) -> Self {
+        Lcg(seed ^ 0x9E37_79B9)
+    }
+
+    fn next_u32(&mut self) -> u32 {
+        self.0 = self.0.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        self.0
+    }
+
+    /// Uniform in `[-1, 1)`.
+    fn unit(&mut self) -> f64 {
+        f64::from(self.next_u32() >> 8) / f64::from(1u32 << 23) - 1.0
+    }
+}
+
+/// Records the pixels it is given, how often each was written, and any tile that breaks the
+/// [`PixelSink`] contract (a copy of the integration tests' sink, which this crate cannot use).
+struct CoverageSink {
+    width: u32,
+    height: u32,
+    counts: Vec<u32>,
+    pixels: Vec<u8>,
+    violations: Vec<String>,
+}
+
+impl CoverageSink {
+    fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        CoverageSink {
+            width,
+            height,
+            counts: vec![0; n],
+            pixels: vec![0; n],
+            violations: Vec::new(),
+        }
+    }
+
+    /// Pixels written a number of times other than once: `(x, y, count)`, at most `limit`.
+    fn not_once(&self, limit: usize) -> Vec<(u32, u32, u32)> {
+        self.counts
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| c != 1)
+            .take(limit)
+            .map(|(i, &c)| {
+                (
+                    (i % self.width as usize) as u32,
+                    (i / self.width as usize) as u32,
+                    c,
+                )
+            })
+            .collect()
+    }
+}
+
+impl PixelSink for CoverageSink {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+        let Rect { x, y, w, h } = tile.area;
+        let pixels = tile.pixels;
+        let tile = decoder_core::TILE as u32;
+        if w == 0 || h == 0 || w > tile || h > tile {
+            self.violations
+                .push(format!("tile {w}x{h} at ({x}, {y}): bad tile size"));
+        }
+        if pixels.len() != w as usize * h as usize {
+            self.violations.push(format!(
+                "tile {w}x{h} at ({x}, {y}): {} pixels",
+                pixels.len()
+            ));
+            return Ok(());
+        }
+        if u64::from(x) + u64::from(w) > u64::from(self.width)
+            || u64::from(y) + u64::from(h) > u64::from(self.height)
+        {
+            self.violations.push(format!(
+                "tile {w}x{h} at ({x}, {y}) outside the {}x{} image",
+                self.width, self.height
+            ));
+            return Ok(());
+        }
+        let mut k = 0;
+        for py in y..y + h {
+            for px in x..x + w {
+                let i = py as usize * self.width as usize + px as usize;
+                self.counts[i] += 1;
+                self.pixels[i] = pixels[k];
+                k += 1;
+            }
+        }
+        Ok(())
+    }
+}
 
 /// The PSNR the fitted parameters must reach against the exact synthesised block.
 const REQUIRED_DB: f64 = 50.0;
@@ -75,7 +177,7 @@ fn parameters(model: ModelType, seed: u32, amplitude: f64) -> (Vec<f64>, Vec<f64
 
 fn psnr(a: &[f64], b: &[f64]) -> f64 {
     let sse: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-    host_encoder::psnr(sse, a.len())
+    psnr_of_sse(sse, a.len())
 }
 
 /// PSNRs against the exact synthesised block.
@@ -106,8 +208,8 @@ fn round_trip(model_index: u8, log2: u8, seed: u32, amplitude: f64) -> Outcome {
     let plane = Plane::new(size, size, exact.iter().map(|v| v.round() as u8).collect());
     let rounded: Vec<f64> = plane.data.iter().map(|&p| f64::from(p)).collect();
     let node = Node { x: 0, y: 0, log2 };
-    let fit = fit_block(&plane, &node, model_index);
-    assert_eq!(fit.model, model_index);
+    let fit = fit_block(&plane, &node, ModelId::new(model_index));
+    assert_eq!(fit.model, ModelId::new(model_index));
     assert_eq!(fit.control.len(), model.control_count());
     assert_eq!(fit.weights.len(), model.weight_count());
     let fitted = tabulate(model, &fit.control, &fit.weights, log2);
@@ -210,7 +312,6 @@ fn tabulator_follows_the_integer_synthesis() {
     // level, weights in 1/4096) they agree to within the integer rounding.
     use decoder_core::internal::model::{Weights, MAX_CONTROL, SAMPLE_ONE, WEIGHT_ONE};
     use decoder_core::internal::synthesis::Patch;
-    use decoder_core::{Node, Rect};
     for (mi, &model) in MODELS.iter().enumerate() {
         let log2 = 5;
         let (control, weights) = parameters(model, 9 + mi as u32, MILD);
@@ -238,7 +339,7 @@ fn tabulator_follows_the_integer_synthesis() {
         };
         patch.control[..control_q.len()].copy_from_slice(&control_q);
         let size = 1u32 << log2;
-        let mut sink = common::CoverageSink::new(size, size);
+        let mut sink = CoverageSink::new(size, size);
         let node = Node { x: 0, y: 0, log2 };
         let Ok(()) = patch.render(&node, Rect::of_size(size, size), &mut sink);
         assert!(

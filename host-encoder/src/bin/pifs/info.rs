@@ -1,0 +1,121 @@
+//! `pifs info`: what a stream holds, from its entropy-decoded syntax (no pixels are drawn for
+//! the statistics); with `--svg`, its quadtree drawn over the decoded image.
+
+use crate::error::{CliError, Result};
+use crate::output::{self, Kind};
+use decoder_core::internal::model::{MODELS, MODEL_COUNT};
+use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, CONTROL_STEPS};
+use decoder_core::internal::syntax::ControlCoding;
+use decoder_core::{Decoder, Header, LeafInfo, Limits};
+use host_encoder::io;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The models' names, by model index.
+pub const MODEL_NAMES: [&str; MODEL_COUNT] =
+    ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"];
+
+/// What the leaves of a stream use.
+#[derive(Debug, Default)]
+struct Stats {
+    /// Leaves per side (as a power of two).
+    per_depth: BTreeMap<u8, usize>,
+    /// Leaves per model.
+    models: [usize; MODEL_COUNT],
+    /// Leaves per model coded with DPCM, then with the grid transform.
+    codings: [[usize; MODEL_COUNT]; 2],
+    /// Leaves per control quantiser.
+    cquant: [usize; CONTROL_QUANTISERS],
+    /// Leaves per weight quantiser.
+    wquant: [usize; 4],
+    /// Leaves per model whose control points are one pixel apart.
+    pixel_grids: [usize; MODEL_COUNT],
+}
+
+impl Stats {
+    fn leaf(&mut self, info: &LeafInfo) {
+        let model = usize::from(info.model);
+        *self.per_depth.entry(info.node.log2).or_default() += 1;
+        self.models[model] += 1;
+        if !MODELS[model].subdivides(info.node.log2) {
+            self.pixel_grids[model] += 1;
+        }
+        let coding = usize::from(info.coding == ControlCoding::Transform);
+        self.codings[coding][model] += 1;
+        self.cquant[usize::from(info.cquant)] += 1;
+        self.wquant[usize::from(info.wquant)] += 1;
+    }
+
+    fn print(&self, input: &Path, header: &Header, stream_len: usize) {
+        let px = header.pixel_count() as f64;
+        println!("{}", input.display());
+        println!(
+            "  format version   {}",
+            decoder_core::internal::format::VERSION
+        );
+        println!(
+            "  dimensions       {}x{}, {} channel(s), {} bits",
+            header.width, header.height, header.channels, header.bit_depth
+        );
+        println!(
+            "  size             {stream_len} bytes ({} header), {:.4} bpp",
+            header.encoded_len(),
+            stream_len as f64 * 8.0 / px
+        );
+        println!(
+            "  leaf sizes       {}..{} px",
+            1 << header.min_leaf_log2,
+            1 << header.max_leaf_log2
+        );
+        let codebooks = if header.has_codebooks() {
+            "Lloyd-Max (line, cell)"
+        } else {
+            "none"
+        };
+        println!("  codebooks        {codebooks}");
+        let total: usize = self.per_depth.values().sum();
+        println!("  leaves           {total}");
+        for (log2, n) in self.per_depth.iter().rev() {
+            println!("    {:>3}x{:<3}       {n}", 1 << log2, 1 << log2);
+        }
+        println!("  models           leaves (DPCM + transform) [pixel grids among them]");
+        for (i, (name, n)) in MODEL_NAMES.iter().zip(self.models).enumerate() {
+            let (dpcm, transform) = (self.codings[0][i], self.codings[1][i]);
+            let pixel_grids = self.pixel_grids[i];
+            println!("    {name:<14} {n} ({dpcm} + {transform}) [{pixel_grids}]");
+        }
+        println!(
+            "  control quantiser use (steps {CONTROL_STEPS:?} /16 grey): {:?}",
+            self.cquant
+        );
+        println!(
+            "  weight quantiser use (default, fine, coarse, Lloyd-Max): {:?}",
+            self.wquant
+        );
+    }
+}
+
+/// `pifs info`; with `svg`, also the drawing of the leaves over the decoded image. Only then
+/// are pixels made: the figures need nothing but the entropy-decoded syntax.
+pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
+    if let Some(svg) = svg {
+        output::check(svg, Some(input), Kind::Svg)?;
+    }
+    let data = io::read_stream(input)?;
+    let mut stats = Stats::default();
+    let Some(svg) = svg else {
+        let header = Decoder::new(&data)
+            .and_then(|d| d.observe(|leaf: &LeafInfo| stats.leaf(leaf)).verify())
+            .map_err(|e| CliError::stream(input, e))?;
+        stats.print(input, &header, data.len());
+        return Ok(());
+    };
+    let mut leaves = Vec::new();
+    let (header, pixels) = crate::decode::decode_stream(input, &data, limits, Some(&mut leaves))?;
+    leaves.iter().for_each(|leaf| stats.leaf(leaf));
+    let drawing = crate::leaves_svg::draw(&header, &pixels, &leaves)?;
+    io::write_atomic(svg, drawing.as_bytes())?;
+    stats.print(input, &header, data.len());
+    println!("  leaves drawn in  {}", svg.display());
+    Ok(())
+}

@@ -1,0 +1,140 @@
+//! `pifs`: encode, decode and inspect PIFS images, and draw an image's rate/distortion curve.
+
+mod compare;
+mod decode;
+mod demo;
+mod encode;
+mod error;
+mod info;
+mod leaves_svg;
+mod output;
+mod plot;
+mod progress;
+mod rd;
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Largest image `pifs decode` accepts unless told otherwise: 2^28 pixels (256 MiB of output).
+const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+
+/// Fractal (projected-IFS quadtree) image codec for low-bandwidth links and small displays.
+///
+/// Without a subcommand, runs the demo (see `pifs demo --help`).
+#[derive(Parser, Debug)]
+#[command(name = "pifs", version, about, long_about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Encode an image (PNG, JPEG, PGM/PPM, BMP, TIFF) into a PIFS stream.
+    Encode(encode::EncodeArgs),
+    /// Decode a PIFS stream into an image (.png, .pgm, .pnm or .ppm, by the output's name).
+    ///
+    /// .ppm repeats the grey in three channels, for tools that read colour only.
+    Decode {
+        /// Input stream.
+        input: PathBuf,
+        /// Output image: .png, .pgm, .pnm or .ppm (anything else is refused before decoding).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Refuse streams of more pixels than this (checked on the header, before anything is
+        /// allocated).
+        #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
+        max_pixels: u64,
+    },
+    /// Describe a PIFS stream; with --svg, draw its quadtree over the decoded image.
+    ///
+    /// Dimensions, size, leaves per size, model and quantiser use, read from the entropy-coded
+    /// syntax without drawing a pixel (unless --svg asks for the drawing).
+    Info {
+        /// Input stream.
+        input: PathBuf,
+        /// Also draw the quadtree over the decoded image, leaves outlined in a colour per
+        /// model, into this SVG file.
+        #[arg(long, value_name = "FILE")]
+        svg: Option<PathBuf>,
+        /// With --svg: refuse streams of more pixels than this.
+        #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
+        max_pixels: u64,
+    },
+    /// Rate/distortion curve of an image from one analysis: bytes, bpp and PSNR per rate.
+    ///
+    /// One analysis serves every rate. Optionally writes the points as CSV, draws them beside
+    /// other codecs' points as SVG, and writes the streams.
+    Rd(rd::RdArgs),
+    /// Encode and decode the bundled sample into ./pifs-demo/ (what `pifs` alone does).
+    ///
+    /// The sample is built into the binary; the outputs go under the current directory.
+    Demo,
+}
+
+/// One line on stderr for an argument error (`--help` has the details), clap's own output
+/// for help and version.
+fn parse_arguments() -> Result<Cli, ExitCode> {
+    let e = match Cli::try_parse() {
+        Ok(cli) => return Ok(cli),
+        Err(e) => e,
+    };
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        e.exit();
+    }
+    let text = e.to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let mut first = lines
+        .next()
+        .unwrap_or("invalid arguments")
+        .trim_start_matches("error: ")
+        .to_string();
+    // "the following required arguments were not provided:" names them on the next line.
+    if first.ends_with(':') {
+        if let Some(next) = lines.next() {
+            first = format!("{first} {next}");
+        }
+    }
+    eprintln!("pifs: {first} (see pifs --help)");
+    Err(ExitCode::from(2))
+}
+
+fn main() -> ExitCode {
+    let cli = match parse_arguments() {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
+    let result = match cli.command {
+        Some(Command::Encode(args)) => encode::run(&args),
+        Some(Command::Decode {
+            input,
+            output,
+            max_pixels,
+        }) => decode::run(&input, &output, &decoder_core::Limits::pixels(max_pixels)),
+        Some(Command::Info {
+            input,
+            svg,
+            max_pixels,
+        }) => info::run(
+            &input,
+            svg.as_deref(),
+            &decoder_core::Limits::pixels(max_pixels),
+        ),
+        Some(Command::Rd(args)) => rd::run(&args),
+        Some(Command::Demo) | None => demo::run(),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("pifs: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,216 @@
+//! The analysis's progress on a terminal: a spinner (time and nodes so far) until enough work is
+//! done for an estimate of the time left to mean something, then a bar whose estimate comes from
+//! the work done so far, then a spinner again for the closing steps (the closed-loop
+//! measurement of the candidates, most of the analysis's time), which report no progress and
+//! so get no estimate.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// Share of the fitting work after which the bar replaces the spinner.
+const BAR_AFTER_SHARE: f64 = 0.10;
+
+/// Steps of the bar (it shows the share of the fitting work done).
+const BAR_STEPS: u64 = 1000;
+
+/// Time after which the bar replaces the spinner, whatever the share done.
+const BAR_AFTER: Duration = Duration::from_secs(2);
+
+/// Work of fitting a node, beside its pixels (one unit each): a fixed cost, as measured
+/// (per-node times grow as this plus the pixels).
+const NODE_OVERHEAD: f64 = 96.0;
+
+/// The fitting work of an analysis, level by level in the order it is done (smallest nodes
+/// first): the analysis reports nodes, but a node's work grows with its pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Work {
+    /// Per level: nodes, and work per node.
+    levels: Vec<(u64, f64)>,
+}
+
+impl Work {
+    /// The levels of nodes of side `2^min_log2` to `2^max_log2` on a `width x height` image.
+    pub fn new(width: u32, height: u32, min_log2: u8, max_log2: u8) -> Work {
+        let levels = (min_log2..=max_log2)
+            .map(|l| {
+                let nodes = u64::from(width.div_ceil(1 << l)) * u64::from(height.div_ceil(1 << l));
+                (nodes, NODE_OVERHEAD + 4f64.powi(i32::from(l)))
+            })
+            .collect();
+        Work { levels }
+    }
+
+    /// Nodes in all.
+    pub fn nodes(&self) -> u64 {
+        self.levels.iter().map(|l| l.0).sum()
+    }
+
+    /// The share of the work done once `done` nodes are (levels are done one after the other).
+    pub fn share(&self, done: u64) -> f64 {
+        let total: f64 = self.levels.iter().map(|&(n, w)| n as f64 * w).sum();
+        let mut left = done;
+        let mut work = 0.0;
+        for &(n, w) in &self.levels {
+            let here = left.min(n);
+            work += here as f64 * w;
+            left -= here;
+        }
+        if total > 0.0 {
+            (work / total).min(1.0)
+        } else {
+            1.0
+        }
+    }
+}
+
+/// The time left when `share` of the work took `elapsed`, at the same pace; `None` while
+/// nothing is done.
+pub fn time_left(share: f64, elapsed: Duration) -> Option<Duration> {
+    (share > 0.0).then(|| elapsed.mul_f64((1.0 - share).max(0.0) / share))
+}
+
+/// Whether an estimate made now means something: enough work done, or enough time passed.
+pub fn estimate_is_meaningful(share: f64, elapsed: Duration) -> bool {
+    share >= BAR_AFTER_SHARE || elapsed >= BAR_AFTER
+}
+
+/// "1 min 05 s", "12 s".
+pub fn duration_text(d: Duration) -> String {
+    let s = d.as_secs_f64().round() as u64;
+    if s >= 60 {
+        format!("{} min {:02} s", s / 60, s % 60)
+    } else {
+        format!("{s} s")
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Starting,
+    Fitting,
+    Closing,
+}
+
+/// The progress display of one analysis (drawn on stderr, and only on a terminal).
+#[derive(Debug)]
+pub struct Progress {
+    bar: ProgressBar,
+    work: Work,
+    start: Instant,
+    phase: Mutex<Phase>,
+}
+
+impl Progress {
+    /// A display for `work`, or `None` when stderr is not a terminal.
+    pub fn on_terminal(work: Work) -> Option<Progress> {
+        use std::io::IsTerminal;
+        if !std::io::stderr().is_terminal() {
+            return None;
+        }
+        let bar = ProgressBar::new(BAR_STEPS);
+        bar.set_style(style("{spinner} analysing: {msg}, {elapsed}"));
+        bar.set_message(format!("0/{} nodes fitted", work.nodes()));
+        bar.enable_steady_tick(Duration::from_millis(120));
+        Some(Progress {
+            bar,
+            work,
+            start: Instant::now(),
+            phase: Mutex::new(Phase::Starting),
+        })
+    }
+
+    /// Called by the analysis with the number of nodes fitted so far (from any thread, not
+    /// necessarily in order).
+    pub fn nodes_done(&self, done: u64) {
+        let mut phase = match self.phase.lock() {
+            Ok(p) => p,
+            Err(poisoned) => poisoned.into_inner(),
+        };
+        let total = self.work.nodes();
+        if *phase == Phase::Closing {
+            return;
+        }
+        if done >= total {
+            *phase = Phase::Closing;
+            // The closing steps report nothing: no estimate, only the time so far.
+            self.bar.set_style(style(
+                "{spinner} analysing: nodes fitted; measuring every candidate through the decoder, {elapsed}",
+            ));
+            return;
+        }
+        let elapsed = self.start.elapsed();
+        let share = self.work.share(done);
+        if *phase == Phase::Starting && estimate_is_meaningful(share, elapsed) {
+            *phase = Phase::Fitting;
+            self.bar.set_style(style(
+                "analysing {bar:40} {percent}% of the fitting, {elapsed} so far{msg}",
+            ));
+        }
+        match *phase {
+            Phase::Starting => self.bar.set_message(format!("{done}/{total} nodes fitted")),
+            _ => {
+                // The bar shows work, not nodes: a large node is more work than a small one.
+                self.bar.set_position((share * BAR_STEPS as f64) as u64);
+                if let Some(left) = time_left(share, elapsed) {
+                    self.bar
+                        .set_message(format!(", about {} left", duration_text(left)));
+                }
+            }
+        }
+    }
+
+    /// Removes the display.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+fn style(template: &str) -> ProgressStyle {
+    ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_spinner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn work_weighs_nodes_by_their_pixels() {
+        // 64x64, nodes of 4 and 32 px: 256 small nodes of 96 + 16 units, then 4 large ones of
+        // 96 + 1024.
+        let work = Work::new(64, 64, 2, 5);
+        let work = Work {
+            levels: vec![work.levels[0], work.levels[3]],
+        };
+        assert_eq!(work.nodes(), 260);
+        let total = 256.0 * 112.0 + 4.0 * 1120.0;
+        assert_eq!(work.share(0), 0.0);
+        assert!((work.share(128) - 128.0 * 112.0 / total).abs() < 1e-12);
+        assert!((work.share(258) - (256.0 * 112.0 + 2.0 * 1120.0) / total).abs() < 1e-12);
+        assert_eq!(work.share(260), 1.0);
+        assert_eq!(work.share(999), 1.0);
+        // A large node weighs more than a small one, less than its share of pixels.
+        assert!(work.share(257) - work.share(256) > 5.0 * (work.share(1) - work.share(0)));
+    }
+
+    #[test]
+    fn the_estimate_follows_the_pace_so_far() {
+        assert_eq!(time_left(0.0, Duration::from_secs(1)), None);
+        let left = time_left(0.25, Duration::from_secs(3)).unwrap();
+        assert!((left.as_secs_f64() - 9.0).abs() < 1e-9);
+        assert_eq!(
+            time_left(1.0, Duration::from_secs(3)).unwrap(),
+            Duration::ZERO
+        );
+        // Not shown while a wild guess: little work done, little time passed.
+        assert!(!estimate_is_meaningful(0.01, Duration::from_millis(300)));
+        assert!(estimate_is_meaningful(0.10, Duration::from_millis(300)));
+        assert!(estimate_is_meaningful(0.01, Duration::from_secs(2)));
+    }
+
+    #[test]
+    fn durations_read_naturally() {
+        assert_eq!(duration_text(Duration::from_millis(11_600)), "12 s");
+        assert_eq!(duration_text(Duration::from_secs(65)), "1 min 05 s");
+    }
+}

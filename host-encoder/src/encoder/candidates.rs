@@ -1,0 +1,167 @@
+//! What the analysis keeps: per quadtree node, its fits and its candidates (each a way of
+//! coding the node as a leaf, with its distortion), level by level. Rate control and the writer
+//! read these through [`WithCandidates`], without knowing the analysis that made them.
+//!
+//! Above [`super::quantise`] (a candidate is a quantised fit); below [`super::rate`].
+
+use super::fit::Fit;
+use super::ids::{ControlQuantiserId, WeightQuantiserId};
+use decoder_core::internal::syntax::control::WeightQuantiser;
+use decoder_core::internal::syntax::{ControlCoding, LeafSyntax};
+use decoder_core::Node;
+
+/// One way of coding a node as a leaf.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate {
+    /// Index into the node's fits.
+    pub fit: u8,
+    /// Control quantiser.
+    pub cq: ControlQuantiserId,
+    /// Weight quantiser.
+    pub wq: WeightQuantiserId,
+    /// Control coding.
+    pub coding: ControlCoding,
+    /// Squared error over the node's in-image pixels.
+    pub sse: f64,
+    /// Where its quantised control indices, then weight indices (when `wq` is not the
+    /// default), start in [`NodeAnalysis::indices`]: kept, as every rate table and the writer
+    /// need them again.
+    pub at: u32,
+}
+
+/// Everything the analysis knows about one node.
+#[derive(Debug, Clone)]
+pub struct NodeAnalysis {
+    /// The node.
+    pub node: Node,
+    /// One fit per model the node supports.
+    pub fits: Vec<Fit>,
+    /// Every (fit, quantiser) pair with its distortion.
+    pub candidates: Vec<Candidate>,
+    /// The candidates' indices, one after the other (one allocation per node).
+    pub indices: Vec<i16>,
+}
+
+impl NodeAnalysis {
+    /// The leaf syntax of candidate `c`.
+    pub fn leaf(&self, c: &Candidate) -> LeafSyntax {
+        let model = self.fits[usize::from(c.fit)].model;
+        let m = model.model();
+        let (nc, nw) = (m.control_count(), m.weight_count());
+        let mut leaf = super::ids::leaf_syntax(model, c.cq, c.wq, c.coding);
+        let at = c.at as usize;
+        leaf.control[..nc].copy_from_slice(&self.indices[at..at + nc]);
+        if c.wq.kind() != WeightQuantiser::Default {
+            leaf.weights[..nw].copy_from_slice(&self.indices[at + nc..at + nc + nw]);
+        }
+        leaf
+    }
+}
+
+/// The nodes of one quadtree level.
+#[derive(Debug, Clone)]
+pub struct Level {
+    /// Node side, as a power of two.
+    pub log2: u8,
+    /// Nodes per row.
+    pub cols: u32,
+    /// Analysed nodes, row-major; `None` outside the image.
+    pub nodes: Vec<Option<NodeAnalysis>>,
+}
+
+impl Level {
+    /// The index of the node at `(x, y)` (its top-left pixel) in [`Level::nodes`].
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        ((y >> self.log2) * self.cols + (x >> self.log2)) as usize
+    }
+
+    /// The node at `(x, y)` (its top-left pixel), if analysed.
+    pub fn get(&self, x: u32, y: u32) -> Option<&NodeAnalysis> {
+        self.nodes.get(self.index(x, y)).and_then(Option::as_ref)
+    }
+}
+
+/// For every level (smallest leaf first) and node, a list of candidate indices (into the node's
+/// list, ascending): which candidates a selection keeps.
+pub type CandidateSelection = Vec<Vec<Vec<u16>>>;
+
+/// Every analysed node's candidates, level by level from the smallest leaf to the root.
+#[derive(Debug, Clone)]
+pub struct CandidateTree {
+    levels: Vec<Level>,
+    min_leaf_log2: u8,
+}
+
+impl CandidateTree {
+    /// The tree of `levels`, whose first is of side `2^min_leaf_log2`, the next twice that, and
+    /// so on.
+    pub fn new(levels: Vec<Level>, min_leaf_log2: u8) -> CandidateTree {
+        debug_assert!(levels
+            .iter()
+            .zip(min_leaf_log2..)
+            .all(|(l, log2)| l.log2 == log2));
+        CandidateTree {
+            levels,
+            min_leaf_log2,
+        }
+    }
+
+    /// The levels, from the smallest leaf (index 0) to the root.
+    pub fn levels(&self) -> &[Level] {
+        &self.levels
+    }
+
+    /// The levels, to add or drop candidates.
+    pub fn levels_mut(&mut self) -> &mut [Level] {
+        &mut self.levels
+    }
+
+    /// Side of the smallest leaf, as a power of two (the first level's).
+    pub fn min_leaf_log2(&self) -> u8 {
+        self.min_leaf_log2
+    }
+
+    /// The level of nodes of side `2^log2`.
+    pub fn level(&self, log2: u8) -> Option<&Level> {
+        self.levels
+            .get(usize::from(log2.checked_sub(self.min_leaf_log2)?))
+    }
+
+    /// The analysis of `node`, if it was analysed.
+    pub fn node(&self, node: &Node) -> Option<&NodeAnalysis> {
+        self.level(node.log2).and_then(|l| l.get(node.x, node.y))
+    }
+
+    /// Keeps at every node the candidates `keep` lists.
+    pub fn retain(&mut self, keep: &CandidateSelection) {
+        for (level, keep) in self.levels.iter_mut().zip(keep) {
+            for (na, keep) in level.nodes.iter_mut().zip(keep) {
+                if let Some(na) = na {
+                    let mut all = std::mem::take(&mut na.candidates).into_iter();
+                    let mut at = 0;
+                    na.candidates = keep
+                        .iter()
+                        .map(|&ci| {
+                            let c = all.nth(usize::from(ci) - at).expect("index in range");
+                            at = usize::from(ci) + 1;
+                            c
+                        })
+                        .collect();
+                }
+            }
+        }
+    }
+}
+
+/// Whatever holds a [`CandidateTree`]: rate control and the writer take any of them, so that
+/// the analysis above them can hand itself over.
+pub trait WithCandidates {
+    /// The candidates.
+    fn candidates(&self) -> &CandidateTree;
+}
+
+impl WithCandidates for CandidateTree {
+    fn candidates(&self) -> &CandidateTree {
+        self
+    }
+}

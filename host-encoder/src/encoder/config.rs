@@ -1,0 +1,105 @@
+//! What an analysis and an encode are asked for: the analysis's settings and the targets an
+//! encode must meet.
+//!
+//! Bottom layer of the encoder: uses nothing else of it.
+
+use std::fmt;
+
+/// Settings of the analysis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EncoderConfig {
+    /// Smallest leaf side, as a power of two (1 to 7; other values are taken as the nearest).
+    pub min_leaf_log2: u8,
+    /// Largest leaf side, as a power of two (at most 7, the format's largest; a larger value is
+    /// taken as 7, a smaller one than the smallest leaf as that). Default 7 (128 px): larger
+    /// leaves were not chosen in practice and their projections are costly (see
+    /// docs/decisions.md).
+    pub max_leaf_log2: u8,
+    /// Levels of the Lloyd-Max weight codebooks (0: none).
+    pub codebook_levels: usize,
+    /// Whether to fit the free subdivision weights as well as the control values (the
+    /// thesis's full inverse problem). Off by default: it makes the analysis much longer for
+    /// a negligible gain, since the default scheme fitted exactly (a linear least-squares
+    /// problem) is nearly always the better buy (see docs/decisions.md).
+    pub fit_weights: bool,
+    /// Bit rate of the trial encode whose final contexts train the rate estimates: the closer
+    /// to the targets to come, the closer the estimates (see docs/decisions.md).
+    pub trial_bpp: f64,
+}
+
+impl EncoderConfig {
+    /// The default settings for an analysis that serves `targets` on an image of `pixels`
+    /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`].
+    pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
+        EncoderConfig {
+            trial_bpp: Target::trial_bpp(targets, pixels),
+            ..EncoderConfig::default()
+        }
+    }
+}
+
+impl Default for EncoderConfig {
+    fn default() -> Self {
+        EncoderConfig {
+            min_leaf_log2: 2,
+            max_leaf_log2: 7,
+            codebook_levels: 8,
+            fit_weights: false,
+            trial_bpp: MIN_TRIAL_BPP,
+        }
+    }
+}
+
+/// The lowest trial rate [`Target::trial_bpp`] chooses: below it, trials at the targets' own
+/// rates made no measurable difference (see docs/decisions.md).
+pub const MIN_TRIAL_BPP: f64 = 0.2;
+
+/// What an encode must achieve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// At most this many bits per pixel (whole file).
+    Bpp(f64),
+    /// At most this many bytes (whole file).
+    Bytes(usize),
+    /// The smallest file whose PSNR is at least this many dB.
+    Psnr(f64),
+}
+
+impl Target {
+    /// The bit rate this target asks for on an image of `pixels` pixels (`None` for a
+    /// quality target).
+    pub fn bpp(self, pixels: usize) -> Option<f64> {
+        match self {
+            Target::Bpp(b) => Some(b),
+            Target::Bytes(n) => Some(n as f64 * 8.0 / pixels.max(1) as f64),
+            Target::Psnr(_) => None,
+        }
+    }
+
+    /// The trial rate for an analysis that serves `targets` ([`EncoderConfig::trial_bpp`]):
+    /// the geometric mean of their rates, but at least [`MIN_TRIAL_BPP`].
+    pub fn trial_bpp(targets: &[Target], pixels: usize) -> f64 {
+        let logs: Vec<f64> = targets
+            .iter()
+            .filter_map(|t| t.bpp(pixels))
+            .filter(|b| b.is_finite() && *b > 0.0)
+            .map(f64::ln)
+            .collect();
+        if logs.is_empty() {
+            return MIN_TRIAL_BPP;
+        }
+        (logs.iter().sum::<f64>() / logs.len() as f64)
+            .exp()
+            .max(MIN_TRIAL_BPP)
+    }
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Target::Bpp(b) => write!(f, "{b} bits per pixel"),
+            Target::Bytes(n) => write!(f, "{n} bytes"),
+            Target::Psnr(p) => write!(f, "PSNR {p} dB"),
+        }
+    }
+}

@@ -1,0 +1,153 @@
+//! Typed indices into the format's tables: a model type, a control quantiser, a weight
+//! quantiser. The syntax ([`LeafSyntax`]) carries them as raw bytes; the encoder keeps them
+//! apart by type and converts at that boundary. Each is one byte (`#[repr(transparent)]`), as
+//! they sit in per-candidate vectors.
+//!
+//! Bottom layer of the encoder: uses nothing else of it.
+
+use decoder_core::internal::model::{ModelType, MODELS, MODEL_COUNT};
+use decoder_core::internal::syntax::control::{
+    WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+};
+use decoder_core::internal::syntax::{models_for_block, step_group, LeafSyntax};
+
+/// A model type: an index into [`MODELS`] (the 'model' syntax element).
+#[repr(transparent)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ModelId(u8);
+
+impl ModelId {
+    /// Model `index`; panics if the format has no such model.
+    pub const fn new(index: u8) -> ModelId {
+        assert!((index as usize) < MODEL_COUNT, "no such model");
+        ModelId(index)
+    }
+
+    /// The syntax element's value.
+    pub const fn get(self) -> u8 {
+        self.0
+    }
+
+    /// The index as a `usize`, for tables by model.
+    pub const fn index(self) -> usize {
+        self.0 as usize
+    }
+
+    /// The model type.
+    pub const fn model(self) -> ModelType {
+        MODELS[self.0 as usize]
+    }
+
+    /// The models the format allows on blocks of side `2^log2`, in the syntax's order.
+    pub fn for_block(log2: u8) -> impl Iterator<Item = ModelId> {
+        let (models, count) = models_for_block(log2);
+        (0..count).map(move |i| ModelId(models[i]))
+    }
+}
+
+/// A control quantiser: an index into [`CONTROL_STEPS`] (the 'cquant' syntax element).
+#[repr(transparent)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ControlQuantiserId(u8);
+
+impl ControlQuantiserId {
+    /// Control quantiser `index`; panics if the format has no such quantiser.
+    #[cfg(test)]
+    pub const fn new(index: u8) -> ControlQuantiserId {
+        assert!(
+            (index as usize) < CONTROL_QUANTISERS,
+            "no such control quantiser"
+        );
+        ControlQuantiserId(index)
+    }
+
+    /// Every control quantiser, finest step first.
+    pub fn all() -> impl Iterator<Item = ControlQuantiserId> {
+        (0..CONTROL_QUANTISERS as u8).map(ControlQuantiserId)
+    }
+
+    /// The syntax element's value.
+    pub const fn get(self) -> u8 {
+        self.0
+    }
+
+    /// Its step, in sample units (1/16 grey level).
+    pub const fn step(self) -> i32 {
+        CONTROL_STEPS[self.0 as usize]
+    }
+
+    /// Its group of steps, which selects the residuals' contexts.
+    pub fn step_group(self) -> usize {
+        step_group(self.0)
+    }
+}
+
+/// A weight quantiser: an index into [`WEIGHT_QUANTISER_KINDS`] (the 'wquant' syntax element).
+#[repr(transparent)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct WeightQuantiserId(u8);
+
+impl WeightQuantiserId {
+    /// The default weights (no weight coded): index 0.
+    pub const DEFAULT: WeightQuantiserId = WeightQuantiserId(0);
+
+    /// Every weight quantiser, [`WeightQuantiserId::DEFAULT`] first.
+    pub fn all() -> impl Iterator<Item = WeightQuantiserId> {
+        (0..WEIGHT_QUANTISERS as u8).map(WeightQuantiserId)
+    }
+
+    /// The syntax element's value.
+    pub const fn get(self) -> u8 {
+        self.0
+    }
+
+    /// What kind of quantiser it is.
+    pub const fn kind(self) -> WeightQuantiser {
+        WEIGHT_QUANTISER_KINDS[self.0 as usize]
+    }
+}
+
+/// The leaf syntax of `model` with quantisers `cq` and `wq`, every index zero: where the
+/// typed indices become the syntax's bytes.
+pub fn leaf_syntax(
+    model: ModelId,
+    cq: ControlQuantiserId,
+    wq: WeightQuantiserId,
+    coding: decoder_core::ControlCoding,
+) -> LeafSyntax {
+    LeafSyntax {
+        model: model.get(),
+        cquant: cq.get(),
+        wquant: wq.get(),
+        coding,
+        ..LeafSyntax::default()
+    }
+}
+
+macro_rules! display_as_number {
+    ($($id:ty),*) => {$(
+        impl std::fmt::Display for $id {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "{}", self.0)
+            }
+        }
+    )*};
+}
+
+// As the syntax element's value.
+display_as_number!(ModelId, ControlQuantiserId, WeightQuantiserId);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The typed indices cost no more than the bytes they wrap.
+    #[test]
+    fn ids_are_one_byte() {
+        assert_eq!(std::mem::size_of::<ModelId>(), 1);
+        assert_eq!(std::mem::size_of::<ControlQuantiserId>(), 1);
+        assert_eq!(std::mem::size_of::<WeightQuantiserId>(), 1);
+        assert_eq!(WeightQuantiserId::DEFAULT.kind(), WeightQuantiser::Default);
+        assert_eq!(ControlQuantiserId::all().count(), CONTROL_QUANTISERS);
+    }
+}
