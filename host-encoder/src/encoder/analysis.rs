@@ -25,6 +25,7 @@ use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::control::WeightQuantiser;
 use decoder_core::internal::syntax::LeafSyntax;
+use decoder_core::internal::prediction::LeafPrediction;
 use decoder_core::internal::syntax::{reconstruct, Codebook, Contexts, ControlCoding, Header};
 use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
@@ -138,7 +139,7 @@ impl Analysis {
     /// encode then weighs a handful of candidates per node instead of all of them.
     fn prune_candidates(&mut self, trial_bpp: f64) {
         let pixels = self.header.pixel_count() as f64;
-        let first = RateTable::new(&self.tree, &self.plane, &Contexts::default());
+        let first = RateTable::new(&self.tree, &self.prediction(), &Contexts::default());
         // The trained contexts change the rates only a little: what is far from the hull under
         // the first rates does not reach it under the trained ones, and need not be rated again.
         let near = first.lambda_optimal(1e-2..=1e6, HULL_LAYERS);
@@ -151,7 +152,7 @@ impl Analysis {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };
-        let rates = RateTable::new(&self.tree, &self.plane, &snapshot);
+        let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
         let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);
@@ -160,7 +161,7 @@ impl Analysis {
         let window = (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW);
         let vary = self.rates.lambda_optimal(window, 1);
         self.add_rounding_variants(&vary);
-        let rates = RateTable::new(&self.tree, &self.plane, &snapshot);
+        let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
         let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);
@@ -182,12 +183,16 @@ impl Analysis {
                     }
                     let fit = &na.fits[usize::from(c.fit)];
                     let n = fit.model.model().control_count();
-                    let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-                        &ImagePrediction { plane },
+                    let prediction = ImagePrediction {
+                        plane,
+                        stripe: header.stripe_width(),
+                    };
+                    let targets = ControlTargets::of(fit, na.node.log2).with_prediction(
+                        &prediction,
                         &na.node,
                         fit.model,
                     );
-                    for lambda in ROUNDING_VARIANTS {
+                    for (variant, lambda) in ROUNDING_VARIANTS.into_iter().enumerate() {
                         let q = quantise(
                             fit,
                             &targets,
@@ -202,9 +207,11 @@ impl Analysis {
                             continue;
                         }
                         na.indices.extend_from_slice(&q.leaf.control[..n]);
+                        let predicted = targets.predicted(c.coding);
                         na.candidates.push(Candidate {
-                            sse: quantised_sse(plane, header, &na.node, fit, &q),
+                            sse: quantised_sse(plane, header, &na.node, fit, &q, predicted),
                             at: at as u32,
+                            rounding: 1 + variant as u8,
                             ..c
                         });
                     }
@@ -223,6 +230,16 @@ impl Analysis {
                 na.candidates = candidates;
                 na.indices = indices;
             });
+        }
+    }
+}
+
+impl Analysis {
+    /// Prediction from the image's own pixels, as the analysis estimates it.
+    fn prediction(&self) -> ImagePrediction<'_> {
+        ImagePrediction {
+            plane: &self.plane,
+            stripe: self.header.stripe_width(),
         }
     }
 }
@@ -254,6 +271,7 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
         bit_depth: 8,
         min_leaf_log2,
         max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
+        stripe: config.stripe,
         codebooks: [Codebook::EMPTY; 2],
         // Set by the writer.
         payload_len: 0,
@@ -336,11 +354,12 @@ fn node_candidates(
     let mut indices = Vec::new();
     for (fi, fit) in na.fits.iter().enumerate() {
         let model = fit.model.model();
-        let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-            &ImagePrediction { plane },
-            &na.node,
-            fit.model,
-        );
+        let prediction = ImagePrediction {
+            plane,
+            stripe: header.stripe_width(),
+        };
+        let targets =
+            ControlTargets::of(fit, na.node.log2).with_prediction(&prediction, &na.node, fit.model);
         let fitted_weights = fit.weighted;
         for cq in ControlQuantiserId::all() {
             for wq in WeightQuantiserId::all() {
@@ -373,7 +392,14 @@ fn node_candidates(
                         &header.codebooks,
                         ROUNDING_LAMBDA,
                     );
-                    let sse = quantised_sse(plane, header, &na.node, fit, &q);
+                    let sse = quantised_sse(
+                        plane,
+                        header,
+                        &na.node,
+                        fit,
+                        &q,
+                        targets.predicted(coding),
+                    );
                     let leaf = q.leaf;
                     let (nc, nw) = (model.control_count(), model.weight_count());
                     let at = indices.len() as u32;
@@ -386,6 +412,7 @@ fn node_candidates(
                         cq,
                         wq,
                         coding,
+                        rounding: 0,
                         sse,
                         at,
                     });
@@ -424,7 +451,14 @@ const MIN_ESTIMATED_MSE: f64 = 2.0;
 /// reconstructed control values, or coefficients, exactly and the synthesis in real arithmetic,
 /// so it differs from the closed loop only by the integer synthesis's rounding and clamping),
 /// else by [`closed_loop_sse`].
-fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
+fn quantised_sse(
+    plane: &Plane,
+    header: &Header,
+    node: &Node,
+    fit: &Fit,
+    q: &Quantised,
+    predicted: &LeafPrediction,
+) -> f64 {
     if let Some(residual) = fit.residual {
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
             let n = fit.model.model().control_count();
@@ -444,12 +478,18 @@ fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Qua
             }
         }
     }
-    closed_loop_sse(plane, header, node, &q.leaf)
+    closed_loop_sse(plane, header, node, &q.leaf, predicted)
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
-fn closed_loop_sse(plane: &Plane, header: &Header, node: &Node, leaf: &LeafSyntax) -> f64 {
-    let Ok(patch) = reconstruct(header, leaf, node.log2) else {
+fn closed_loop_sse(
+    plane: &Plane,
+    header: &Header,
+    node: &Node,
+    leaf: &LeafSyntax,
+    predicted: &LeafPrediction,
+) -> f64 {
+    let Ok(patch) = reconstruct(header, leaf, node.log2, predicted) else {
         return f64::INFINITY;
     };
     /// Adds up the squared errors of the tiles it is given.

@@ -108,13 +108,8 @@ impl Analysis {
     }
 
     /// The encoded stream `written` of `plan`, with its reconstruction and figures.
-    fn finish(
-        &self,
-        header: &Header,
-        plan: &rate::Plan,
-        written: writer::Written,
-    ) -> Result<Encoded, EncodeError> {
-        let reconstruction = writer::reconstruct(&self.tree, header, plan)?;
+    fn finish(&self, plan: &rate::Plan, written: writer::Written) -> Result<Encoded, EncodeError> {
+        let reconstruction = decode(&written.bytes)?;
         let pixels = self.header.pixel_count();
         let sse: f64 = reconstruction
             .iter()
@@ -209,7 +204,7 @@ impl Analysis {
             plan = larger;
             written = larger_written;
         }
-        self.finish(header, &plan, written)
+        self.finish(&plan, written)
     }
 
     /// Smallest stream whose PSNR reaches `db`. The plan's error is an estimate (exact fits'
@@ -225,7 +220,7 @@ impl Analysis {
         for _ in 0..QUALITY_PASSES {
             let plan = self.rates.plan_for_sse(self, header, aim, Some(anchor));
             let written = self.write(header, &plan)?;
-            let encoded = self.finish(header, &plan, written)?;
+            let encoded = self.finish(&plan, written)?;
             if encoded.sse <= max_sse {
                 return Ok(encoded);
             }
@@ -260,7 +255,7 @@ impl Analysis {
         for header in &variants {
             let plan = self.rates.plan_for_bits(self, header, f64::INFINITY, None);
             let written = self.write(header, &plan)?;
-            let encoded = self.finish(header, &plan, written)?;
+            let encoded = self.finish(&plan, written)?;
             if best.as_ref().is_none_or(|b| encoded.sse < b.sse) {
                 best = Some(encoded);
             }
@@ -279,4 +274,16 @@ pub fn analyse(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Analysis, EncodeError> {
     Analysis::run(plane, config, progress)
+}
+
+/// The image a stream decodes to, by decoder-core (what every decoder shows).
+fn decode(stream: &[u8]) -> Result<Vec<u8>, EncodeError> {
+    let decoder = decoder_core::Decoder::new(stream)
+        .map_err(EncodeError::Syntax)?
+        .stripe_capacity::<{ 1 << 16 }>();
+    let mut pixels = vec![0u8; decoder.header().pixel_count()];
+    decoder
+        .decode_into(&mut pixels)
+        .map_err(EncodeError::Syntax)?;
+    Ok(pixels)
 }
