@@ -16,13 +16,14 @@ use core::convert::Infallible;
 use crate::checksum::Crc32;
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
-use crate::geometry::Rect;
 use crate::format::DEFAULT_STRIPE;
+use crate::geometry::Rect;
 use crate::prediction::{Frontier, SamplePrediction};
+use crate::syntax::control_step;
 use crate::syntax::{
     stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
 };
-use crate::synthesis::{Catch, Patch, PixelSink, Tile};
+use crate::synthesis::{Catch, Patch, PixelSink, Stop, Tile, TileOut, TILE};
 use crate::walk::{self, LeafInfo, Node, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -460,14 +461,59 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
     ) -> Result<(), Self::Error> {
         (self.observer)(info);
         let node = &info.node;
-        let mut out = Catch::new(&mut *self.sink);
-        let result = if self.clip.contains(&node.rect().intersect(&self.image)) {
-            patch.render_to(node, self.clip, &mut frontier.capture(node, &mut out))
-        } else {
-            frontier.record(node, patch);
-            patch.render_to(node, self.clip, &mut out)
+        let step = control_step(info.cquant);
+        let area = node.rect().intersect(&self.image);
+        // Cut to the clip on the way out: the leaf's pixels, and the pixels beside it it draws.
+        let mut catch = Catch::new(&mut *self.sink);
+        let mut clipped = ClipOut {
+            clip: self.clip,
+            out: &mut catch,
         };
-        out.finish(result).map_err(DrawError::Sink)
+        let result = if area.intersect(&self.clip).is_empty() {
+            frontier.record(node, step, patch, &mut clipped);
+            Ok(())
+        } else {
+            patch.render_to(node, area, &mut frontier.capture(node, step, &mut clipped))
+        };
+        catch.finish(result).map_err(DrawError::Sink)
+    }
+}
+
+/// Hands on the part of every tile inside `clip`.
+struct ClipOut<'a> {
+    clip: Rect,
+    out: &'a mut dyn TileOut,
+}
+
+impl TileOut for ClipOut<'_> {
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+        let area = tile.area.intersect(&self.clip);
+        if area.is_empty() {
+            return Ok(());
+        }
+        if area == tile.area {
+            return self.out.put(tile);
+        }
+        let mut buf = [0u8; TILE * TILE];
+        let (dx, dy) = (
+            (area.x - tile.area.x) as usize,
+            (area.y - tile.area.y) as usize,
+        );
+        let (w, tw) = (area.w as usize, tile.area.w as usize);
+        for j in 0..area.h as usize {
+            let from = (dy + j) * tw + dx;
+            let (Some(dst), Some(src)) = (
+                buf.get_mut(j * w..(j + 1) * w),
+                tile.pixels.get(from..from + w),
+            ) else {
+                return Ok(());
+            };
+            dst.copy_from_slice(src);
+        }
+        self.out.put(Tile {
+            area,
+            pixels: &buf[..w * area.h as usize],
+        })
     }
 }
 
@@ -589,7 +635,8 @@ mod tests {
 
     fn header_with_codebooks() -> Vec<u8> {
         let mut h = Vec::from(*b"PIFS");
-        h.extend_from_slice(&[VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42]);
+        // Version, channels, depth, flags, width, height, leaf sizes, stripe, deblocking.
+        h.extend_from_slice(&[VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42, 0, 0]);
         // Checksum (not checked by the header parser), then a payload length of 300 (two
         // LEB128 bytes).
         h.extend_from_slice(&[1, 2, 3, 4, 0xAC, 0x02]);

@@ -72,6 +72,8 @@ pub enum HeaderField {
     CodebookSize,
     /// A codebook's levels are out of range or not increasing.
     CodebookLevels,
+    /// The edge-smoothing strength is above the format's largest.
+    Deblock,
 }
 
 impl HeaderField {
@@ -84,6 +86,7 @@ impl HeaderField {
             HeaderField::TrailingBytes => "payload length (bytes follow the payload)",
             HeaderField::CodebookSize => "codebook size",
             HeaderField::CodebookLevels => "codebook levels",
+            HeaderField::Deblock => "edge-smoothing strength",
         }
     }
 }

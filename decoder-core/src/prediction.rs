@@ -15,10 +15,12 @@
 //! memory at one byte per column of the stripe and one per row of a band, whatever the image
 //! size.
 
-use crate::format::{med, CODING_TILE, DEFAULT_STRIPE};
+use crate::format::{div_round, med, CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
-use crate::model::{ModelType, MAX_GRID, SAMPLE_ONE};
-use crate::synthesis::{Patch, Stop, Tile, TileOut};
+use crate::model::SAMPLE_ONE;
+#[cfg(test)]
+use crate::synthesis::Discard;
+use crate::synthesis::{Patch, Stop, Tile, TileOut, TILE};
 
 /// Where a leaf's predictions come from: the pixels earlier leaves drew next to it.
 pub trait SamplePrediction {
@@ -77,102 +79,47 @@ pub fn beside_known(above: bool, x: u32, y: u32, width: u32, height: u32, stripe
         }
 }
 
+/// The index a DPCM leaf's first-row or first-column control value is coded against, in steps
+/// of `step`: the LOCO-I median of the value before it in the leaf (`base`, which the value's
+/// index is added to) and the pixels next to the leaf beside it and beside `base` (`outside`,
+/// `outside_before`), as an offset from `base`.
+#[inline]
+pub fn edge_offset(base: i32, outside: i32, outside_before: i32, step: i32) -> i32 {
+    div_round(med(base, outside, outside_before) - base, step)
+}
+
 /// The zero-flag context of a DPCM first-row or first-column residual whose pixels beside are
-/// known: half its neighbourhood context `context` (twice the magnitude of the residual before
-/// it) plus the change between those pixels, in steps (at most 2).
+/// known: half its neighbourhood context `context` (twice the magnitude of the index before it)
+/// plus the change between those pixels, in steps (at most 2).
 #[inline]
 pub fn edge_context(context: usize, outside: i32, outside_before: i32, step: i32) -> usize {
     context / 2 + ((outside - outside_before).unsigned_abs() / step.max(1) as u32).min(2) as usize
 }
 
-/// The value a DPCM leaf's first-row or first-column control value is predicted by when the
-/// pixels beside it and beside the value before it are known: the LOCO-I median of the value
-/// before it in the leaf (`before`) and those pixels (`outside`, `outside_before`): the
-/// neighbours' gradient, continued.
+/// The pixels next to a leaf's control point `k` of its first row (`row == true`) or column,
+/// and next to point `k - 1`: `Some` when both are known and point `k` lies in the leaf
+/// (spacing `spacing` pixels).
 #[inline]
-pub fn edge_prediction(before: i32, outside: i32, outside_before: i32) -> i32 {
-    med(before, outside, outside_before)
-}
-
-/// What a leaf's control values are predicted from besides the leaf's own: the pixels its
-/// neighbours drew beside it. Computed once per leaf, after its model and control coding are
-/// known, for both the syntax (contexts) and the reconstruction (values).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LeafPrediction {
-    /// The prediction of the first coded value, sample units: DPCM's top-left control value
-    /// (the mean of the pixels left of and above it), or the grid transform's low band (the
-    /// mean of the pixels along the leaf's top and left edges).
-    pub first: i32,
-    /// Whether pixels of both edges went into `first`.
-    pub shared: bool,
-    /// DPCM: the pixel beside each control point of the first row (`[0]`) and column (`[1]`)
-    /// that lies in the leaf, as 8-bit pixels, where `known` has its bit.
-    beside: [[u8; MAX_GRID]; 2],
-    known: [u16; 2],
-}
-
-impl LeafPrediction {
-    /// Nothing beside the leaf: mid-grey.
-    pub const NONE: LeafPrediction = LeafPrediction {
-        first: 128 * SAMPLE_ONE,
-        shared: false,
-        beside: [[0; MAX_GRID]; 2],
-        known: [0; 2],
-    };
-
-    /// The prediction of the leaf `node` coded with `model`, by DPCM or by the grid transform
-    /// (`transform`), from the pixels `prediction` knows.
-    pub fn of<P: SamplePrediction + ?Sized>(
-        prediction: &P,
-        node: &Node,
-        model: ModelType,
-        transform: bool,
-    ) -> LeafPrediction {
-        let width = if transform { node.size() } else { 1 };
-        let (first, shared) = prediction.predict(node.x, node.y, width);
-        let mut out = LeafPrediction {
-            first,
-            shared,
-            ..LeafPrediction::NONE
+pub fn edge_pixels<P: SamplePrediction + ?Sized>(
+    prediction: &P,
+    node: &Node,
+    spacing: u32,
+    row: bool,
+    k: usize,
+) -> Option<(i32, i32)> {
+    let along = k as u32 * spacing;
+    if k == 0 || along >= node.size() {
+        return None;
+    }
+    let pixel = |d: u32| {
+        let (x, y) = if row {
+            (node.x + d, node.y)
+        } else {
+            (node.x, node.y + d)
         };
-        if transform {
-            return out;
-        }
-        let spacing = model.spacing(node.log2);
-        let side = model.coded_side(node.log2).min(MAX_GRID);
-        for (row, (beside, known)) in out.beside.iter_mut().zip(&mut out.known).enumerate() {
-            for (k, pixel) in beside.iter_mut().enumerate().take(side) {
-                let along = k as u32 * spacing;
-                if along >= node.size() {
-                    break;
-                }
-                let (x, y) = if row == 0 {
-                    (node.x + along, node.y)
-                } else {
-                    (node.x, node.y + along)
-                };
-                if let Some(v) = prediction.beside(row == 0, x, y) {
-                    // Known pixels are 8-bit values in sample units.
-                    *pixel = (v / SAMPLE_ONE).clamp(0, 255) as u8;
-                    *known |= 1 << k;
-                }
-            }
-        }
-        out
-    }
-
-    /// The pixels beside control point `k` of the first row (`row`) or column and beside
-    /// point `k - 1`, sample units, when both are known (`k >= 1`).
-    #[inline]
-    pub fn edge(&self, row: bool, k: usize) -> Option<(i32, i32)> {
-        let i = usize::from(!row);
-        let known = |k: usize| self.known[i] & (1 << k) != 0;
-        if k == 0 || k >= MAX_GRID || !known(k) || !known(k - 1) {
-            return None;
-        }
-        let pixel = |k: usize| i32::from(self.beside[i][k]) * SAMPLE_ONE;
-        Some((pixel(k), pixel(k - 1)))
-    }
+        prediction.beside(row, x, y)
+    };
+    Some((pixel(along)?, pixel(along - spacing)?))
 }
 
 /// The decoder's prediction memory: the last pixel decoded in each column of the current
@@ -185,6 +132,11 @@ pub struct Frontier<const STRIPE: usize = DEFAULT_STRIPE> {
     width: u32,
     height: u32,
     stripe: u32,
+    /// The stream's edge-smoothing strength ([`Capture`]).
+    deblock: u8,
+    /// For each row of a band: whether the pixel `rows` holds is a leaf's bottom-right pixel
+    /// that waits with the leaf's bottom row ([`Capture`]).
+    corners: [u8; CORNER_BYTES],
 }
 
 impl<const STRIPE: usize> Default for Frontier<STRIPE> {
@@ -202,72 +154,120 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
         width: 0,
         height: 0,
         stripe: 0,
+        deblock: 0,
+        corners: [0; CORNER_BYTES],
     };
 
     /// The widest stripe this frontier holds, pixels.
     pub const CAPACITY: u32 = STRIPE as u32;
 
     /// Starts a stream of a `width x height` image coded in stripes of `stripe` pixels (a
-    /// positive multiple of [`CODING_TILE`]); `false`, and nothing set, when such a stripe is
-    /// wider than this frontier holds. The slots keep what they hold: a slot is only read once
-    /// a leaf of the stream has written it ([`beside_known`]).
-    pub fn start(&mut self, width: u32, height: u32, stripe: u32) -> bool {
+    /// positive multiple of [`CODING_TILE`]) whose leaf edges are smoothed with strength
+    /// `deblock` ([`Capture`]); `false`, and nothing set, when such a stripe is wider than
+    /// this frontier holds. The slots keep what they hold: a slot is only read once a leaf of
+    /// the stream has written it ([`beside_known`]).
+    pub fn start(&mut self, width: u32, height: u32, stripe: u32, deblock: u8) -> bool {
         if stripe == 0 || stripe > Self::CAPACITY {
             return false;
         }
         self.width = width;
         self.height = height;
         self.stripe = stripe;
+        self.deblock = deblock;
         true
     }
 
-    /// Remembers the bottom row and the right column of a decoded leaf (as far as they lie in
-    /// the image), rendered from its patch.
+    /// Does for a leaf that is not drawn what drawing it through [`Frontier::capture`] does,
+    /// rendering only the leaf's edges from its patch (each pixel once, the first row and column
+    /// first) and handing `out` only the pixels beside the leaf that it draws (see
+    /// [`Capture`]); the leaf's own pixels go to `out` too, for a caller that cuts them away.
     #[inline(never)]
-    pub fn record(&mut self, node: &Node, patch: &Patch) {
+    pub fn record(&mut self, node: &Node, step: i32, patch: &Patch, out: &mut dyn TileOut) {
         let s = node.size();
         let image = Rect::of_size(self.width, self.height);
-        for row in [true, false] {
-            let edge = Rect {
-                x: if row { node.x } else { node.x + s - 1 },
-                y: if row { node.y + s - 1 } else { node.y },
-                w: if row { s } else { 1 },
-                h: if row { 1 } else { s },
-            };
-            // Capturing into nothing cannot stop.
+        let strip = |x: u32, y: u32, w: u32, h: u32| Rect { x, y, w, h };
+        let strips = [
+            strip(node.x, node.y, s, 1),
+            strip(node.x, node.y + 1, 1, s - 1),
+            strip(node.x + 1, node.y + s - 1, s - 1, 1),
+            strip(node.x + s - 1, node.y + 1, 1, s.saturating_sub(2)),
+        ];
+        for edge in strips {
+            // A stop is the caller's to report: its own out stops it again.
             let _ = patch.render_to(
                 node,
                 edge.intersect(&image),
-                &mut self.capture(node, &mut Discard),
+                &mut self.capture(node, step, out),
             );
         }
     }
 
-    /// A tile output that hands every tile of the leaf `node` on to `out` and remembers the
-    /// pixels of the leaf's bottom row and right column among them: drawing a whole leaf
-    /// through it does what [`Frontier::record`] does, without rendering anything twice.
-    pub fn capture<'a>(&'a mut self, node: &Node, out: &'a mut dyn TileOut) -> Capture<'a> {
+    /// A tile output for drawing the whole leaf `node` (control step `step`) into `out`, in
+    /// synthesis order (a tile holding a pixel of the first row or column before any tile
+    /// right of or below it in those rows and columns); see [`Capture`].
+    pub fn capture<'a>(
+        &'a mut self,
+        node: &Node,
+        step: i32,
+        out: &'a mut dyn TileOut,
+    ) -> Capture<'a> {
         let last = node.size() - 1;
+        let (w, h, stripe) = (self.width, self.height, self.stripe.max(1));
+        let (right, bottom) = (node.x + last, node.y + last);
         Capture {
             columns: &mut self.columns,
             rows: &mut self.rows,
-            stripe: self.stripe.max(1),
+            corners: &mut self.corners,
+            stripe,
             out,
-            right: node.x + last,
-            bottom: node.y + last,
+            left: node.x,
+            top: node.y,
+            right,
+            bottom,
+            defer_row: bottom + 1 < h,
+            defer_column: right + 1 < w && (right + 1) % stripe != 0,
+            above_known: beside_known(true, node.x, node.y, w, h, stripe),
+            left_known: beside_known(false, node.x, node.y, w, h, stripe),
+            limit: i32::from(self.deblock) * step,
         }
     }
 }
 
-/// See [`Frontier::capture`].
+/// Draws a leaf's tiles ([`Frontier::capture`]), keeping the frontier, with **deferred edges
+/// and edge smoothing**.
+///
+/// A leaf's bottom row is not drawn with the leaf when a leaf will come below it (it is not on
+/// the image's last row): it waits in the frontier and the leaf below draws it; likewise its
+/// right column (its bottom pixel excepted when the row waits) when a leaf will come right of
+/// it in the stripe. When a leaf is drawn, the waiting pixels above its first row and left of
+/// its first column are smoothed with it and drawn: with the stream's strength `d` and the
+/// leaf's control step `s` (1/16 grey level), for each such pair of 8-bit pixels, `q` in the
+/// leaf (as synthesised) and `p` beside it, with `D = q - p`: when `32 |D| <= d s`, `c =
+/// round(D / 3)` (half away from zero), `q -= c` and `p += c`, clamped to `0..=255`. Every
+/// pixel is drawn once; the frontier holds the smoothed values, which later leaves are
+/// predicted from.
 pub struct Capture<'a> {
     columns: &'a mut [u8],
     rows: &'a mut [u8],
+    corners: &'a mut [u8; CORNER_BYTES],
     stripe: u32,
     out: &'a mut dyn TileOut,
+    left: u32,
+    top: u32,
     right: u32,
     bottom: u32,
+    /// Whether the leaf's bottom row waits for the leaf below.
+    defer_row: bool,
+    /// Whether the leaf's right column waits for the leaf right of it.
+    defer_column: bool,
+    above_known: bool,
+    left_known: bool,
+    /// `d * s`: a step `D` is smoothed when `32 |D|` is at most this (0: never).
+    limit: i32,
 }
+
+/// Bytes of [`Frontier`]'s corner bits: one per row of a band.
+const CORNER_BYTES: usize = CODING_TILE as usize / 8;
 
 impl core::fmt::Debug for Capture<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
@@ -278,21 +278,140 @@ impl core::fmt::Debug for Capture<'_> {
     }
 }
 
+/// The smoothing of one pixel pair across a leaf edge: `(q, p)` corrected, when `D = q - p`
+/// is small enough (see [`Capture`]).
+#[inline]
+fn smooth(q: u8, p: u8, limit: i32) -> Option<(u8, u8)> {
+    let d = i32::from(q) - i32::from(p);
+    if 32 * d.abs() > limit {
+        return None;
+    }
+    let c = if d >= 0 { (d + 1) / 3 } else { -((-d + 1) / 3) };
+    Some((
+        (i32::from(q) - c).clamp(0, 255) as u8,
+        (i32::from(p) + c).clamp(0, 255) as u8,
+    ))
+}
+
+/// `q` moved by what smoothing moved `q_before` to `q_new` (a pixel smoothed across both
+/// edges moves by both corrections).
+#[inline]
+fn moved(q: u8, q_before: u8, q_new: u8) -> u8 {
+    (i32::from(q) + i32::from(q_new) - i32::from(q_before)).clamp(0, 255) as u8
+}
+
+impl Capture<'_> {
+    /// Whether the frontier's pixel of band row `r` is a leaf's bottom-right pixel that waits
+    /// with its row (not with its column).
+    fn is_corner(&self, r: u32) -> bool {
+        let r = (r % CODING_TILE) as usize;
+        self.corners[r / 8] & (1 << (r % 8)) != 0
+    }
+
+    fn set_corner(&mut self, r: u32, corner: bool) {
+        let r = (r % CODING_TILE) as usize;
+        let bit = 1 << (r % 8);
+        if corner {
+            self.corners[r / 8] |= bit;
+        } else {
+            self.corners[r / 8] &= !bit;
+        }
+    }
+
+    /// The tile's part of the first row (`row`; `original` as synthesised) against the waiting
+    /// pixels above, which are smoothed, drawn and kept.
+    fn top_edge(&mut self, x: u32, y: u32, row: &mut [u8], original: &[u8]) -> Result<(), Stop> {
+        let mut above = [0u8; TILE];
+        for (i, (q, &q_before)) in row.iter_mut().zip(original).enumerate() {
+            let column = ((x + i as u32) % self.stripe) as usize;
+            let Some(slot) = self.columns.get_mut(column) else {
+                continue;
+            };
+            if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
+                *q = moved(*q, q_before, q_new);
+                *slot = p_new;
+            }
+            above[i] = *slot;
+        }
+        let w = row.len();
+        self.out.put(Tile {
+            area: Rect {
+                x,
+                y: y - 1,
+                w: w as u32,
+                h: 1,
+            },
+            pixels: &above[..w],
+        })
+    }
+
+    /// The tile's part of the first column (rows `y..y + h`, column 0 of `buf`, `w` wide;
+    /// `original` as synthesised) against the waiting pixels left of it, which are smoothed,
+    /// drawn and kept; a pixel that waits with its row instead is neither.
+    fn left_edge(
+        &mut self,
+        x: u32,
+        y: u32,
+        (w, h): (usize, usize),
+        buf: &mut [u8],
+        original: &[u8],
+    ) -> Result<(), Stop> {
+        let mut beside = [0u8; TILE];
+        let mut run_start = None;
+        for j in 0..=h {
+            let r = y + j as u32;
+            let waiting = j < h && !self.is_corner(r);
+            if waiting {
+                let slot = &mut self.rows[(r % CODING_TILE) as usize];
+                let q_before = original[j * w];
+                if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
+                    buf[j * w] = moved(buf[j * w], q_before, q_new);
+                    *slot = p_new;
+                }
+                beside[j] = *slot;
+                run_start.get_or_insert(j);
+            } else if let Some(start) = run_start.take() {
+                self.out.put(Tile {
+                    area: Rect {
+                        x: x - 1,
+                        y: y + start as u32,
+                        w: 1,
+                        h: (j - start) as u32,
+                    },
+                    pixels: &beside[start..j],
+                })?;
+            }
+        }
+        Ok(())
+    }
+}
+
 impl TileOut for Capture<'_> {
     fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
-        let Rect { x, y, w, .. } = tile.area;
+        let Rect { x, y, w, h } = tile.area;
+        let (wu, hu) = (w as usize, h as usize);
+        let n = wu * hu;
+        let mut buf = [0u8; TILE * TILE];
+        let (Some(pixels), true) = (tile.pixels.get(..n), n <= buf.len() && n > 0) else {
+            return Ok(());
+        };
+        buf[..n].copy_from_slice(pixels);
+        if self.above_known && y == self.top {
+            self.top_edge(x, y, &mut buf[..wu], &pixels[..wu])?;
+        }
+        if self.left_known && x == self.left {
+            self.left_edge(x, y, (wu, hu), &mut buf, pixels)?;
+        }
+        // The leaf's bottom row and right column, as drawn, wait in the frontier.
         let on_right = x + w - 1 == self.right;
-        for (j, row) in tile.pixels.chunks(w as usize).enumerate() {
+        for j in 0..hu {
             let py = y + j as u32;
-            if let (true, Some(&p), Some(slot)) = (
-                on_right,
-                row.last(),
-                self.rows.get_mut((py % CODING_TILE) as usize),
-            ) {
-                *slot = p;
+            if on_right {
+                self.rows[(py % CODING_TILE) as usize] = buf[j * wu + wu - 1];
+                self.set_corner(py, py == self.bottom && self.defer_row);
             }
             if py == self.bottom {
-                for (i, &p) in row.iter().enumerate() {
+                for (i, &p) in buf[j * wu..(j + 1) * wu].iter().enumerate() {
                     let column = ((x + i as u32) % self.stripe) as usize;
                     if let Some(slot) = self.columns.get_mut(column) {
                         *slot = p;
@@ -300,16 +419,26 @@ impl TileOut for Capture<'_> {
                 }
             }
         }
-        self.out.put(tile)
-    }
-}
-
-/// Takes every tile and keeps nothing.
-struct Discard;
-
-impl TileOut for Discard {
-    fn put(&mut self, _tile: Tile<'_>) -> Result<(), Stop> {
-        Ok(())
+        // The rest of the tile is drawn now.
+        let keep_h = hu - usize::from(self.defer_row && y + h - 1 == self.bottom);
+        let keep_w = wu - usize::from(self.defer_column && on_right);
+        if keep_h == 0 || keep_w == 0 {
+            return Ok(());
+        }
+        if keep_w < wu {
+            for j in 1..keep_h {
+                buf.copy_within(j * wu..j * wu + keep_w, j * keep_w);
+            }
+        }
+        self.out.put(Tile {
+            area: Rect {
+                x,
+                y,
+                w: keep_w as u32,
+                h: keep_h as u32,
+            },
+            pixels: &buf[..keep_w * keep_h],
+        })
     }
 }
 
@@ -351,24 +480,32 @@ mod tests {
     #[test]
     fn a_leaf_predicts_from_the_pixels_its_neighbours_drew() {
         let mut frontier = Frontier::<256>::EMPTY;
-        assert!(!frontier.start(300, 200, 384), "a stripe wider than the frontier");
-        assert!(frontier.start(300, 200, 128));
+        assert!(
+            !frontier.start(300, 200, 384, 0),
+            "a stripe wider than the frontier"
+        );
+        assert!(frontier.start(300, 200, 128, 0));
         let one = SAMPLE_ONE as i16;
         // A 4 px ramp from 0 to 64 grey levels across, at (0, 0): its right column is 48 (the
         // pixel one step short of the corner value 64), its bottom row 0, 16, 32, 48.
-        frontier.record(&node(0, 0, 2), &bilinear([0, 64 * one, 0, 64 * one]));
+        frontier.record(
+            &node(0, 0, 2),
+            24,
+            &bilinear([0, 64 * one, 0, 64 * one]),
+            &mut Discard,
+        );
         let ramp = |k: i32| 16 * k * SAMPLE_ONE;
         assert_eq!(frontier.above(2, 4), Some(ramp(2)));
         assert_eq!(frontier.left(4, 3), Some(ramp(3)));
         // Leaves at (4, 0) and (0, 4), in Z order, draw the pixels the one at (4, 4) is
         // predicted from.
-        frontier.record(&node(4, 0, 2), &bilinear([100 * one; 4]));
+        frontier.record(&node(4, 0, 2), 24, &bilinear([100 * one; 4]), &mut Discard);
         assert_eq!(frontier.left(8, 1), Some(100 * SAMPLE_ONE));
         assert_eq!(frontier.predict(0, 4, 1), (0, false));
         // A grid transform's low band: the mean along the top edge (the left one is the
         // stripe's edge).
         assert_eq!(frontier.predict(0, 4, 4), (ramp(3) / 2, false));
-        frontier.record(&node(0, 4, 2), &bilinear([40 * one; 4]));
+        frontier.record(&node(0, 4, 2), 24, &bilinear([40 * one; 4]), &mut Discard);
         assert_eq!(frontier.predict(4, 4, 1), (70 * SAMPLE_ONE, true));
         assert_eq!(frontier.predict(4, 4, 4), (70 * SAMPLE_ONE, true));
         // Nothing above the image's top, left of a stripe's edge, or outside the image.
@@ -377,49 +514,90 @@ mod tests {
         assert_eq!(frontier.left(0, 2), None);
         assert_eq!(frontier.above(300, 4), None);
         // Across a coding tile's top edge (a band's), the previous band's pixels.
-        frontier.record(&node(0, 124, 2), &bilinear([77 * one; 4]));
+        frontier.record(&node(0, 124, 2), 24, &bilinear([77 * one; 4]), &mut Discard);
         assert_eq!(frontier.above(1, 128), Some(77 * SAMPLE_ONE));
-        assert_eq!(Frontier::<128>::EMPTY.predict(0, 0, 1), (128 * SAMPLE_ONE, false));
+        assert_eq!(
+            Frontier::<128>::EMPTY.predict(0, 0, 1),
+            (128 * SAMPLE_ONE, false)
+        );
     }
 
     #[test]
     fn edges_follow_the_neighbours_gradient() {
         // Flat neighbours: predict the value before.
-        assert_eq!(edge_prediction(160, 800, 800), 160);
+        assert_eq!(edge_offset(160, 800, 800, 16), 0);
         // A vertical edge in the row above (between the two pixels) continues into the leaf:
         // the median is the pixel above.
-        assert_eq!(edge_prediction(160, 800, 160), 800);
+        assert_eq!(edge_offset(160, 800, 160, 16), 40);
         // A horizontal edge (flat pixels above, far from the value before): keep the value
         // before.
-        assert_eq!(edge_prediction(800, 160, 160), 800);
+        assert_eq!(edge_offset(800, 160, 160, 16), 0);
         // A smooth gradient: the value before plus the change along the row above.
-        assert_eq!(edge_prediction(160, 800, 480), 480);
+        assert_eq!(edge_offset(160, 800, 480, 16), 20);
         // The context: half the neighbourhood's, plus the change beside in steps (at most 2).
         assert_eq!(edge_context(4, 800, 800, 16), 2);
         assert_eq!(edge_context(2, 800, 784, 16), 2);
         assert_eq!(edge_context(0, 800, 160, 16), 2);
     }
 
-    /// A leaf's prediction holds the pixels beside its first row and column at its control
-    /// points, and the first value's mean.
+    /// Edge smoothing: a step across a leaf's top edge within the limit moves both pixels a
+    /// third of the way; a larger one is left alone; the corrected pixel above is remembered
+    /// and drawn again.
     #[test]
-    fn leaf_prediction_reads_the_pixels_at_the_control_points() {
-        let mut frontier = Frontier::<128>::EMPTY;
-        assert!(frontier.start(64, 64, 128));
+    fn small_steps_across_an_edge_are_smoothed() {
+        struct Collect(std::vec::Vec<(Rect, std::vec::Vec<u8>)>);
+        impl TileOut for Collect {
+            fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+                self.0.push((tile.area, tile.pixels.to_vec()));
+                Ok(())
+            }
+        }
+        extern crate std;
         let one = SAMPLE_ONE as i16;
-        frontier.record(&node(0, 0, 3), &bilinear([0, 80 * one, 0, 80 * one]));
-        frontier.record(&node(8, 0, 3), &bilinear([90 * one; 4]));
-        frontier.record(&node(0, 8, 3), &bilinear([30 * one; 4]));
-        // A 5x5 grid on 8 px at (8, 8): points 2 px apart; above it the flat 90, left the
-        // flat 30.
-        let p = LeafPrediction::of(&frontier, &node(8, 8, 3), MODELS[2], false);
-        assert_eq!(p.first, 60 * SAMPLE_ONE);
-        assert!(p.shared);
-        assert_eq!(p.edge(true, 1), Some((90 * SAMPLE_ONE, 90 * SAMPLE_ONE)));
-        assert_eq!(p.edge(false, 3), Some((30 * SAMPLE_ONE, 30 * SAMPLE_ONE)));
-        assert_eq!(p.edge(true, 4), None, "point 4 lies past the block");
-        assert_eq!(p.edge(true, 0), None);
-        let t = LeafPrediction::of(&frontier, &node(8, 8, 3), MODELS[2], true);
-        assert_eq!(t.edge(true, 1), None);
+        // Strength 4 with a step of 64 (4 grey levels): steps up to 4 * 64 / 32 = 8 grey.
+        let mut frontier = Frontier::<128>::EMPTY;
+        assert!(frontier.start(16, 16, 128, 4));
+        frontier.record(&node(0, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
+        frontier.record(&node(4, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
+        // Below the first: 106 (a step of 6, smoothed by 2 each side); below the second: 120
+        // (a step of 20, left).
+        let mut out = Collect(std::vec::Vec::new());
+        let patch = bilinear([106 * one; 4]);
+        let leaf = node(0, 4, 2);
+        patch
+            .render_to(
+                &leaf,
+                leaf.rect(),
+                &mut frontier.capture(&leaf, 64, &mut out),
+            )
+            .unwrap();
+        let above = out
+            .0
+            .iter()
+            .find(|(a, _)| a.y == 3)
+            .expect("the row above, again");
+        assert_eq!(above.1, std::vec![102; 4]);
+        // The leaf's right column waits for the leaf right of it: three pixels a row now.
+        let first_row = out.0.iter().find(|(a, _)| a.y == 4).expect("the leaf");
+        assert_eq!(first_row.0.w, 3);
+        assert_eq!(first_row.1[..3], [104; 3]);
+        // The frontier now holds the leaf's own bottom row.
+        assert_eq!(frontier.above(1, 8), Some(106 * SAMPLE_ONE));
+        let mut out = Collect(std::vec::Vec::new());
+        let patch = bilinear([120 * one; 4]);
+        let leaf = node(4, 4, 2);
+        patch
+            .render_to(
+                &leaf,
+                leaf.rect(),
+                &mut frontier.capture(&leaf, 64, &mut out),
+            )
+            .unwrap();
+        let tile = out
+            .0
+            .iter()
+            .find(|(a, _)| a.y == 4 && a.x == 4)
+            .expect("the leaf");
+        assert_eq!(tile.1[..3], [120; 3], "a step of 20 is an edge, not a seam");
     }
 }

@@ -96,6 +96,16 @@ pub trait TileOut {
     fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop>;
 }
 
+/// Takes every tile and keeps nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Discard;
+
+impl TileOut for Discard {
+    fn put(&mut self, _tile: Tile<'_>) -> Result<(), Stop> {
+        Ok(())
+    }
+}
+
 /// A [`PixelSink`] seen as a [`TileOut`]: keeps the sink's first error for [`Catch::finish`].
 pub struct Catch<'s, S: PixelSink + ?Sized> {
     sink: &'s mut S,

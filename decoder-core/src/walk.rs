@@ -13,8 +13,8 @@
 
 use crate::entropy::Coder;
 use crate::error::{DecodeError, SyntaxElement};
-pub use crate::geometry::Node;
 use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
+pub use crate::geometry::Node;
 use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
     code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax,
@@ -132,7 +132,7 @@ pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 ) -> Result<(), V::Error> {
     let (width, height) = (u32::from(header.width), u32::from(header.height));
     let stripe = header.stripe_width();
-    if !state.frontier.start(width, height, stripe) {
+    if !state.frontier.start(width, height, stripe, header.deblock) {
         return Err(DecodeError::StripeTooWide {
             stripe,
             capacity: Frontier::<STRIPE>::CAPACITY,
@@ -250,14 +250,14 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 ) -> Result<LeafInfo, DecodeError> {
     let mut leaf = LeafSyntax::default();
     visitor.prepare_leaf(&node, &state.frontier, &mut leaf);
-    let predicted = code_leaf(
+    code_leaf(
         coder,
         &mut state.contexts,
         &node,
         &state.frontier,
         &mut leaf,
     )?;
-    reconstruct_into(header, &leaf, node.log2, &predicted, patch)?;
+    reconstruct_into(header, &leaf, node.log2, patch)?;
     Ok(LeafInfo {
         node,
         model: leaf.model,

@@ -25,8 +25,9 @@ use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::control::WeightQuantiser;
 use decoder_core::internal::syntax::LeafSyntax;
-use decoder_core::internal::prediction::LeafPrediction;
-use decoder_core::internal::syntax::{reconstruct, Codebook, Contexts, ControlCoding, Header};
+use decoder_core::internal::syntax::{
+    reconstruct, Codebook, Contexts, ControlCoding, Header, MAX_DEBLOCK,
+};
 use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
 use std::convert::Infallible;
@@ -49,6 +50,9 @@ pub struct Analysis {
     /// The trial encode's plan (its multiplier and estimates): where the searches of targets
     /// start.
     pub(super) trial: Anchor,
+    /// The edge-smoothing strength every stream gets, or `None` to choose it per stream
+    /// ([`EncoderConfig::deblock`]).
+    pub(super) deblock: Option<u8>,
     /// How long each stage took.
     timing: AnalysisTiming,
 }
@@ -119,6 +123,7 @@ impl Analysis {
                 bits: 1.0,
                 sse: 1.0,
             },
+            deblock: config.deblock.map(|d| d.min(MAX_DEBLOCK)),
             timing: AnalysisTiming::default(),
         };
         let started = Instant::now();
@@ -183,16 +188,15 @@ impl Analysis {
                     }
                     let fit = &na.fits[usize::from(c.fit)];
                     let n = fit.model.model().control_count();
-                    let prediction = ImagePrediction {
-                        plane,
-                        stripe: header.stripe_width(),
-                    };
-                    let targets = ControlTargets::of(fit, na.node.log2).with_prediction(
-                        &prediction,
+                    let targets = ControlTargets::of(fit, na.node.log2).with_edges(
+                        &ImagePrediction {
+                            plane,
+                            stripe: header.stripe_width(),
+                        },
                         &na.node,
                         fit.model,
                     );
-                    for (variant, lambda) in ROUNDING_VARIANTS.into_iter().enumerate() {
+                    for lambda in ROUNDING_VARIANTS {
                         let q = quantise(
                             fit,
                             &targets,
@@ -207,11 +211,9 @@ impl Analysis {
                             continue;
                         }
                         na.indices.extend_from_slice(&q.leaf.control[..n]);
-                        let predicted = targets.predicted(c.coding);
                         na.candidates.push(Candidate {
-                            sse: quantised_sse(plane, header, &na.node, fit, &q, predicted),
+                            sse: quantised_sse(plane, header, &na.node, fit, &q),
                             at: at as u32,
-                            rounding: 1 + variant as u8,
                             ..c
                         });
                     }
@@ -272,6 +274,7 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
         min_leaf_log2,
         max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
         stripe: config.stripe,
+        deblock: 0,
         codebooks: [Codebook::EMPTY; 2],
         // Set by the writer.
         payload_len: 0,
@@ -354,12 +357,14 @@ fn node_candidates(
     let mut indices = Vec::new();
     for (fi, fit) in na.fits.iter().enumerate() {
         let model = fit.model.model();
-        let prediction = ImagePrediction {
-            plane,
-            stripe: header.stripe_width(),
-        };
-        let targets =
-            ControlTargets::of(fit, na.node.log2).with_prediction(&prediction, &na.node, fit.model);
+        let targets = ControlTargets::of(fit, na.node.log2).with_edges(
+            &ImagePrediction {
+                plane,
+                stripe: header.stripe_width(),
+            },
+            &na.node,
+            fit.model,
+        );
         let fitted_weights = fit.weighted;
         for cq in ControlQuantiserId::all() {
             for wq in WeightQuantiserId::all() {
@@ -392,14 +397,7 @@ fn node_candidates(
                         &header.codebooks,
                         ROUNDING_LAMBDA,
                     );
-                    let sse = quantised_sse(
-                        plane,
-                        header,
-                        &na.node,
-                        fit,
-                        &q,
-                        targets.predicted(coding),
-                    );
+                    let sse = quantised_sse(plane, header, &na.node, fit, &q);
                     let leaf = q.leaf;
                     let (nc, nw) = (model.control_count(), model.weight_count());
                     let at = indices.len() as u32;
@@ -412,7 +410,6 @@ fn node_candidates(
                         cq,
                         wq,
                         coding,
-                        rounding: 0,
                         sse,
                         at,
                     });
@@ -451,14 +448,7 @@ const MIN_ESTIMATED_MSE: f64 = 2.0;
 /// reconstructed control values, or coefficients, exactly and the synthesis in real arithmetic,
 /// so it differs from the closed loop only by the integer synthesis's rounding and clamping),
 /// else by [`closed_loop_sse`].
-fn quantised_sse(
-    plane: &Plane,
-    header: &Header,
-    node: &Node,
-    fit: &Fit,
-    q: &Quantised,
-    predicted: &LeafPrediction,
-) -> f64 {
+fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
     if let Some(residual) = fit.residual {
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
             let n = fit.model.model().control_count();
@@ -478,18 +468,12 @@ fn quantised_sse(
             }
         }
     }
-    closed_loop_sse(plane, header, node, &q.leaf, predicted)
+    closed_loop_sse(plane, header, node, &q.leaf)
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
-fn closed_loop_sse(
-    plane: &Plane,
-    header: &Header,
-    node: &Node,
-    leaf: &LeafSyntax,
-    predicted: &LeafPrediction,
-) -> f64 {
-    let Ok(patch) = reconstruct(header, leaf, node.log2, predicted) else {
+fn closed_loop_sse(plane: &Plane, header: &Header, node: &Node, leaf: &LeafSyntax) -> f64 {
+    let Ok(patch) = reconstruct(header, leaf, node.log2) else {
         return f64::INFINITY;
     };
     /// Adds up the squared errors of the tiles it is given.
@@ -636,6 +620,8 @@ mod tests {
             bit_depth: 8,
             min_leaf_log2: 2,
             max_leaf_log2: 6,
+            stripe: 0,
+            deblock: 0,
             codebooks: [Codebook::EMPTY; 2],
             payload_len: 0,
             checksum: 0,

@@ -21,9 +21,6 @@ pub struct Candidate {
     pub wq: WeightQuantiserId,
     /// Control coding.
     pub coding: ControlCoding,
-    /// Which rounding multiplier its indices were quantised with (an index into
-    /// `quantise::ROUNDINGS`): the writer quantises the leaf again the same way.
-    pub rounding: u8,
     /// Squared error over the node's in-image pixels.
     pub sse: f64,
     /// Where its quantised control indices, then weight indices (when `wq` is not the

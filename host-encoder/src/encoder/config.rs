@@ -31,6 +31,10 @@ pub struct EncoderConfig {
     /// decoder holds one byte per column of a stripe: the default, 4 (512 pixels), is what
     /// decoder-core holds unless told otherwise.
     pub stripe: u8,
+    /// Strength of the smoothing of leaf edges every stream gets (0: none; at most
+    /// decoder-core's `MAX_DEBLOCK`), or `None` to choose it per stream: the strongest that
+    /// does not add to the stream's error.
+    pub deblock: Option<u8>,
 }
 
 /// The default stripe width, in coding tiles: decoder-core's default stripe capacity.
@@ -57,6 +61,7 @@ impl Default for EncoderConfig {
             fit_weights: false,
             trial_bpp: MIN_TRIAL_BPP,
             stripe: DEFAULT_STRIPE_TILES,
+            deblock: None,
         }
     }
 }

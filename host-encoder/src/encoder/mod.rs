@@ -204,7 +204,8 @@ impl Analysis {
             plan = larger;
             written = larger_written;
         }
-        self.finish(&plan, written)
+        let encoded = self.finish(&plan, written)?;
+        self.smooth_edges(header, &plan, encoded, Some(budget))
     }
 
     /// Smallest stream whose PSNR reaches `db`. The plan's error is an estimate (exact fits'
@@ -222,7 +223,7 @@ impl Analysis {
             let written = self.write(header, &plan)?;
             let encoded = self.finish(&plan, written)?;
             if encoded.sse <= max_sse {
-                return Ok(encoded);
+                return self.smooth_edges(header, &plan, encoded, None);
             }
             // At least a little lower each pass, in case the plan did not change.
             aim *= (max_sse / encoded.sse).min(0.995);
@@ -256,13 +257,54 @@ impl Analysis {
             let plan = self.rates.plan_for_bits(self, header, f64::INFINITY, None);
             let written = self.write(header, &plan)?;
             let encoded = self.finish(&plan, written)?;
+            let encoded = self.smooth_edges(header, &plan, encoded, None)?;
             if best.as_ref().is_none_or(|b| encoded.sse < b.sse) {
                 best = Some(encoded);
             }
         }
         best.ok_or(EncodeError::Internal("no header variant"))
     }
+
+    /// The stream of `plan` with the strongest smoothing of leaf edges
+    /// ([`Header::deblock`]) that leaves its error no larger than `unsmoothed`'s (written
+    /// without smoothing) and keeps it within `budget`, or `unsmoothed` itself. Smoothing
+    /// steps across leaf edges makes the picture continuous where the leaves' errors differ;
+    /// among the strengths that do not cost fidelity, the strongest leaves the fewest visible
+    /// edges (see docs/decisions.md).
+    fn smooth_edges(
+        &self,
+        header: &Header,
+        plan: &rate::Plan,
+        unsmoothed: Encoded,
+        budget: Option<usize>,
+    ) -> Result<Encoded, EncodeError> {
+        let strengths: &[u8] = match self.deblock {
+            Some(strength) => &[strength],
+            None => &DEBLOCK_STRENGTHS,
+        };
+        let mut best = None;
+        for &deblock in strengths.iter().rev() {
+            if deblock == 0 {
+                break;
+            }
+            let header = Header { deblock, ..*header };
+            let written = self.write(&header, plan)?;
+            if budget.is_some_and(|b| written.bytes.len() > b) {
+                continue;
+            }
+            let encoded = self.finish(plan, written)?;
+            if self.deblock.is_some() || encoded.sse <= unsmoothed.sse {
+                best = Some(encoded);
+                break;
+            }
+        }
+        Ok(best.unwrap_or(unsmoothed))
+    }
 }
+
+/// The edge-smoothing strengths an encode tries, weakest first ([`Header::deblock`]: a step
+/// is smoothed when it is at most `strength / 2` control steps).
+const DEBLOCK_STRENGTHS: [u8; 8] = [0, 1, 2, 3, 4, 6, 8, 12];
 
 /// Analyses an image with `config`; the result encodes any number of targets. `progress` is
 /// called with the number of quadtree nodes fitted so far. Fails with

@@ -13,12 +13,14 @@ use decoder_core::internal::model::{
     for_each_free_tap, WeightClass, MAX_CONTROL, MAX_GRID, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE,
     WEIGHT_LIMIT, WEIGHT_ONE,
 };
-use decoder_core::internal::prediction::{edge_context, LeafPrediction, SamplePrediction};
+use decoder_core::internal::prediction::{
+    edge_context, edge_offset, edge_pixels, SamplePrediction,
+};
 use decoder_core::internal::syntax::control::{
     coefficient_step, expand_pixel_grid, grid_sizes, transform_order, WeightQuantiser,
 };
 use decoder_core::internal::syntax::{
-    control_class, dequantise_control, dpcm_prediction, transform_control_values, zero_context,
+    control_class, dequantise_control, intra_prediction, transform_control_values, zero_context,
     Codebook, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES, MAX_CODEBOOK, STEP_GROUPS,
 };
 use decoder_core::Node;
@@ -34,9 +36,9 @@ pub struct ControlTargets {
     coefficients: [f64; MAX_CONTROL],
     /// For an exact least-squares fit: what error feedback needs.
     exact: Option<ExactTargets>,
-    /// What the leaf's values are predicted from, under DPCM (`[0]`) and the grid transform
-    /// (`[1]`).
-    predicted: [LeafPrediction; 2],
+    /// The pixels beside each DPCM first-row (`[0]`) and first-column (`[1]`) value and beside
+    /// the one before it, where known ([`edge_pixels`]).
+    edges: [[Option<(i32, i32)>; MAX_GRID]; 2],
 }
 
 /// The unclamped least-squares control values of an exact fit, as samples and coefficients,
@@ -81,27 +83,35 @@ impl ControlTargets {
             samples,
             coefficients,
             exact,
-            predicted: [LeafPrediction::NONE; 2],
+            edges: [[None; MAX_GRID]; 2],
         }
     }
 
-    /// These targets on the leaf `node` of model `model`, predicted from `prediction`'s pixels
-    /// (what the decoder will have drawn beside the leaf).
-    pub fn with_prediction<P: SamplePrediction + ?Sized>(
+    /// These targets on the leaf `node` of model `model`, whose DPCM first row and column are
+    /// predicted from `prediction`'s pixels.
+    pub fn with_edges<P: SamplePrediction>(
         mut self,
         prediction: &P,
         node: &Node,
         model: ModelId,
     ) -> Self {
-        for (transform, p) in self.predicted.iter_mut().enumerate() {
-            *p = LeafPrediction::of(prediction, node, model.model(), transform == 1);
+        let spacing = model.model().spacing(node.log2);
+        for (row, edges) in self.edges.iter_mut().enumerate() {
+            for (k, e) in edges.iter_mut().enumerate().take(self.side) {
+                *e = edge_pixels(prediction, node, spacing, row == 0, k);
+            }
         }
         self
     }
 
-    /// The prediction of the leaf's values under DPCM or the grid transform.
-    pub fn predicted(&self, coding: ControlCoding) -> &LeafPrediction {
-        &self.predicted[usize::from(coding == ControlCoding::Transform)]
+    /// The pixels beside DPCM value `(r, c)` and beside the value before it, where known (only
+    /// on the first row and column).
+    fn beside(&self, r: usize, c: usize) -> Option<(i32, i32)> {
+        match (r, c) {
+            (0, c) => self.edges[0][c],
+            (r, 0) => self.edges[1][r],
+            _ => None,
+        }
     }
 
     /// The zero-flag context of DPCM value `(r, c)` where the pixels beside it are known
@@ -113,12 +123,15 @@ impl ControlTargets {
         c: usize,
         step: i32,
     ) -> Option<usize> {
-        if r > 0 && c > 0 {
-            return None;
-        }
-        self.predicted[0]
-            .edge(r == 0, r + c)
-            .map(|(a, b)| edge_context(zero_context(indices, self.side, r, c), a, b, step))
+        self.beside(r, c)
+            .map(|(a, b)| edge_context(zero_context(indices, 1, self.side, r, c), a, b, step))
+    }
+
+    /// The index offset DPCM codes value `(r, c)` against, given the value before it
+    /// (`base`): nonzero only where the pixels beside it are known.
+    fn edge_offset(&self, r: usize, c: usize, base: i32, step: i32) -> i32 {
+        self.beside(r, c)
+            .map_or(0, |(a, b)| edge_offset(base, a, b, step))
     }
 }
 
@@ -292,11 +305,9 @@ pub fn quantise(
         }
         ControlCoding::Transform => {
             let rounding = IndexRounding::new(cq, true, side, rounding_lambda);
-            let first = targets.predicted[1].first;
-            let form =
-                quantise_coefficients(targets, side, step, first, &rounding, &mut leaf.control);
+            let form = quantise_coefficients(targets, side, step, &rounding, &mut leaf.control);
             let mut values = [0i16; MAX_CONTROL];
-            transform_control_values(side, step, first, &leaf.control, &mut values);
+            transform_control_values(side, step, &leaf.control, &mut values);
             (values, form)
         }
     };
@@ -372,22 +383,31 @@ fn quantise_dpcm(
             _ => (targets.samples[i], 1.0),
         };
         let (r, c) = (i / side, i % side);
-        // The value's prediction: from the pixels beside the leaf (its first value, its first
-        // row and column) or its own values before it.
-        let base = dpcm_prediction(&values, side, i, &targets.predicted[0]);
+        let base = if i == 0 {
+            0
+        } else {
+            intra_prediction(&values, side, r, c)
+        };
+        // The residual is coded against an offset on the first row and column.
+        let offset = if i == 0 {
+            0
+        } else {
+            targets.edge_offset(r, c, base, step)
+        };
         // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
         let context = if i == 0 {
             None
         } else {
             targets.edge_context(indices, r, c, step)
         };
-        let index = rounding.round(
-            indices,
-            i,
-            (target - f64::from(base)) / f64::from(step),
-            relative_weight,
-            context,
-        );
+        let index = offset
+            + rounding.round(
+                indices,
+                i,
+                (target - f64::from(base)) / f64::from(step) - f64::from(offset),
+                relative_weight,
+                context,
+            );
         indices[i] = index as i16;
         values[i] = dequantise_control(base, step, index);
         if let (Some(e), Some((partial, last))) = (exact, feedback) {
@@ -407,7 +427,6 @@ fn quantise_coefficients(
     targets: &ControlTargets,
     side: usize,
     step: i32,
-    first: i32,
     rounding: &IndexRounding,
     indices: &mut [i16; MAX_CONTROL],
 ) -> Option<f64> {
@@ -417,16 +436,12 @@ fn quantise_coefficients(
     for (s, &i) in steps.iter_mut().zip(order) {
         *s = f64::from(coefficient_step(side, usize::from(i), step));
     }
-    // Each coefficient's prediction, in coding order: the low band's (the first) from the
-    // pixels beside the leaf, none for the others.
-    let mut bases = [0.0f64; MAX_CONTROL];
-    bases[0] = f64::from(first);
     let Some(exact) = &targets.exact else {
         for (k, &i) in order.iter().enumerate() {
             let i = usize::from(i);
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-            let v = (targets.coefficients[i] - bases[k]) / steps[k];
-            indices[i] = rounding.round(indices, i, v, 1.0, None) as i16;
+            indices[i] =
+                rounding.round(indices, i, targets.coefficients[i] / steps[k], 1.0, None) as i16;
         }
         return None;
     };
@@ -445,10 +460,9 @@ fn quantise_coefficients(
         let i = usize::from(i);
         let (partial, last) = (f.partial(k, &errors[..k]), f.row(k)[k]);
         let target = exact.coefficients[i] - partial / last;
-        let v = (target - bases[k]) / steps[k];
-        let index = rounding.round(indices, i, v, relative_weights[k], None);
+        let index = rounding.round(indices, i, target / steps[k], relative_weights[k], None);
         indices[i] = index as i16;
-        errors[k] = bases[k] + f64::from(index) * steps[k] - exact.coefficients[i];
+        errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
         rows[k] = partial + last * errors[k];
     }
     let mut gradient = [0.0f64; MAX_CONTROL];
@@ -457,7 +471,6 @@ fn quantise_coefficients(
         rounding,
         order,
         steps: &steps,
-        bases: &bases,
         relative_weights: &relative_weights,
         exact: &exact.coefficients,
         form: &f.form,
@@ -477,8 +490,6 @@ struct CoefficientQuantiser<'a> {
     rounding: &'a IndexRounding,
     order: &'a [u8],
     steps: &'a [f64; MAX_CONTROL],
-    /// Each coefficient's prediction, in coding order.
-    bases: &'a [f64; MAX_CONTROL],
     relative_weights: &'a [f64; MAX_CONTROL],
     /// The exact coefficients, by grid position.
     exact: &'a [f64; MAX_CONTROL],
@@ -509,11 +520,11 @@ impl CoefficientQuantiser<'_> {
                 let index = self.rounding.round(
                     indices,
                     i,
-                    (target - self.bases[k]) / self.steps[k],
+                    target / self.steps[k],
                     self.relative_weights[k],
                     None,
                 );
-                let error = self.bases[k] + f64::from(index) * self.steps[k] - self.exact[i];
+                let error = f64::from(index) * self.steps[k] - self.exact[i];
                 let delta = error - errors[k];
                 if delta != 0.0 {
                     changed = true;
@@ -586,16 +597,6 @@ pub const ROUNDING_LAMBDA: f64 = 0.12;
 /// rate/distortion curve (see docs/decisions.md).
 pub const ROUNDING_VARIANTS: [f64; 4] = [0.03, 0.06, 0.25, 0.5];
 
-/// Every rounding multiplier a candidate may have been quantised with: the default first,
-/// then the variants ([`super::candidates::Candidate::rounding`] indexes this).
-pub const ROUNDINGS: [f64; 1 + ROUNDING_VARIANTS.len()] = [
-    ROUNDING_LAMBDA,
-    ROUNDING_VARIANTS[0],
-    ROUNDING_VARIANTS[1],
-    ROUNDING_VARIANTS[2],
-    ROUNDING_VARIANTS[3],
-];
-
 /// Targets below this many steps become zero without pricing the alternatives: a nonzero
 /// index there adds at least 0.2 of its weight in error, which its bits hardly ever repay, and
 /// skipping the pricing saves analysis time (see docs/decisions.md).
@@ -639,7 +640,7 @@ impl IndexRounding {
         let side = self.side;
         (1..side * side)
             .map(|p| {
-                let context = zero_context(indices, side, p / side, p % side);
+                let context = zero_context(indices, 1, side, p / side, p % side);
                 self.price(p, context, i32::from(indices[p]))
             })
             .sum()
@@ -720,8 +721,15 @@ impl IndexRounding {
         let (r, c) = self.positions[i];
         let (r, c) = (usize::from(r), usize::from(c));
         let low = magnitude as i32;
-        let neighbour = |p: usize| usize::from(indices[p].unsigned_abs().min(2));
-        let context = context.unwrap_or_else(|| zero_context(indices, side, r, c));
+        // The first index's residual is taken as one step, as in the zero-flag contexts.
+        let neighbour = |p: usize| {
+            if p == 0 {
+                1
+            } else {
+                usize::from(indices[p].unsigned_abs().min(2))
+            }
+        };
+        let context = context.unwrap_or_else(|| zero_context(indices, 1, side, r, c));
         // Bits of the index and of its followers (right of and below it, whose zero-flag
         // contexts it sets; on the first row or column it counts twice there), by magnitude.
         let mut bits = [0.0f64; 3];
@@ -1085,7 +1093,10 @@ mod tests {
         }
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
         let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
-        let image = ImagePrediction { plane: &plane };
+        let image = ImagePrediction {
+            plane: &plane,
+            stripe: 128,
+        };
         let (model, log2) = (ModelId::new(4), 3u8);
         let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
         for by in 1..plane.height >> log2 {

@@ -300,7 +300,7 @@ impl RateTable {
                                     prediction,
                                     &mut leaf,
                                 ) {
-                                    Ok(_) => counter.bits() as f32,
+                                    Ok(()) => counter.bits() as f32,
                                     Err(_) => f32::INFINITY,
                                 }
                             })

@@ -1,19 +1,17 @@
 //! Writing the stream: decoder-core's quadtree walk driven by a [`Plan`], with the range
-//! encoder as its coder. Each leaf's control values are quantised again as it is written,
-//! against the pixels the decoder will have drawn beside it (the analysis could only predict
-//! them from the image's own pixels): the stream is closed-loop.
+//! encoder as its coder.
 //!
 //! Above [`super::rate`] (it writes the plans rate control makes); below [`super::analysis`],
 //! whose trial encode it writes.
 
 use super::candidates::CandidateTree;
 use super::error::EncodeError;
-use super::quantise::{quantise, ControlTargets, ROUNDINGS};
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
-use decoder_core::internal::prediction::{Frontier, SamplePrediction};
-use decoder_core::internal::syntax::{seal, Contexts, Header, LeafSyntax};
-use decoder_core::internal::synthesis::Patch;
+use decoder_core::internal::prediction::Frontier;
+use decoder_core::internal::prediction::SamplePrediction;
+use decoder_core::internal::syntax::{control_step, seal, Contexts, Header, LeafSyntax};
+use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
 use decoder_core::{DecodeError, Node};
 
@@ -36,7 +34,6 @@ pub struct Written {
 /// The walk's visitor: splits and codes the leaves as the plan says.
 struct PlanVisitor<'a> {
     tree: &'a CandidateTree,
-    header: &'a Header,
     plan: &'a Plan,
     leaves: usize,
 }
@@ -48,30 +45,16 @@ impl TreeVisitor for PlanVisitor<'_> {
         !matches!(self.plan.decision(self.tree, node), Some(Decision::Leaf(_)))
     }
 
-    /// The plan's candidate for the leaf, quantised again against the pixels beside it.
     fn prepare_leaf<P: SamplePrediction>(
         &mut self,
         node: &Node,
-        prediction: &P,
+        _prediction: &P,
         leaf: &mut LeafSyntax,
     ) {
         let na = self.tree.node(node);
         if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.tree, node)) {
             let c = &na.candidates[usize::from(ci)];
-            let fit = &na.fits[usize::from(c.fit)];
-            let targets =
-                ControlTargets::of(fit, node.log2).with_prediction(prediction, node, fit.model);
-            let rounding = ROUNDINGS[usize::from(c.rounding)];
-            let q = quantise(
-                fit,
-                &targets,
-                c.cq,
-                c.wq,
-                c.coding,
-                &self.header.codebooks,
-                rounding,
-            );
-            *leaf = q.leaf;
+            *leaf = na.leaf(c);
         }
     }
 
@@ -81,7 +64,7 @@ impl TreeVisitor for PlanVisitor<'_> {
         patch: &Patch,
         frontier: &mut Frontier<STRIPE>,
     ) -> Result<(), DecodeError> {
-        frontier.record(&info.node, patch);
+        frontier.record(&info.node, control_step(info.cquant), patch, &mut Discard);
         self.leaves += 1;
         Ok(())
     }
@@ -91,7 +74,6 @@ impl TreeVisitor for PlanVisitor<'_> {
 pub fn write(tree: &CandidateTree, header: &Header, plan: &Plan) -> Result<Written, EncodeError> {
     let mut visitor = PlanVisitor {
         tree,
-        header,
         plan,
         leaves: 0,
     };

@@ -105,7 +105,11 @@ pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
     let mut stats = Stats::default();
     let Some(svg) = svg else {
         let header = Decoder::new(&data)
-            .and_then(|d| d.observe(|leaf: &LeafInfo| stats.leaf(leaf)).verify())
+            .and_then(|d| {
+                d.stripe_capacity::<{ crate::decode::HOST_STRIPE }>()
+                    .observe(|leaf: &LeafInfo| stats.leaf(leaf))
+                    .verify()
+            })
             .map_err(|e| CliError::stream(input, e))?;
         stats.print(input, &header, data.len());
         return Ok(());
