@@ -74,7 +74,7 @@ fn parse_stripe(s: &str) -> std::result::Result<u8, String> {
     let px: u32 = s
         .parse()
         .map_err(|_| format!("'{s}' is not a width in pixels or 'full'"))?;
-    if px == 0 || px % 128 != 0 || px / 128 > 255 {
+    if px == 0 || !px.is_multiple_of(128) || px / 128 > 255 {
         return Err(format!(
             "{px} is not a multiple of 128 from 128 to 32640 (or 'full')"
         ));

@@ -67,6 +67,14 @@ impl Stats {
             1 << header.min_leaf_log2,
             1 << header.max_leaf_log2
         );
+        println!(
+            "  coding           stripes of {} px, edge smoothing {}",
+            header.stripe_width(),
+            match header.deblock {
+                0 => "off".to_string(),
+                d => format!("{d} (steps up to {} control steps)", f64::from(d) / 2.0),
+            }
+        );
         let codebooks = if header.has_codebooks() {
             "Lloyd-Max (line, cell)"
         } else {
