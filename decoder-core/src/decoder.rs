@@ -16,12 +16,14 @@ use core::convert::Infallible;
 use crate::checksum::Crc32;
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
+use crate::format::DEFAULT_STRIPE;
 use crate::geometry::Rect;
-use crate::prediction::Frontier;
+use crate::prediction::{Frontier, SamplePrediction};
+use crate::syntax::control_step;
 use crate::syntax::{
     stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
 };
-use crate::synthesis::{Catch, Patch, PixelSink, Scale, Tile};
+use crate::synthesis::{Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileOut, TILE};
 use crate::walk::{self, LeafInfo, Node, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -205,8 +207,12 @@ impl<B: ByteSource> Streamed<B> {
 ///     .decode_into(&mut corner)?;
 /// # Ok(()) }
 /// ```
+///
+/// `STRIPE` is the widest stripe the decoder holds prediction memory for (one byte per column,
+/// on the stack while decoding; [`Header::stripe_width`]): streams coded in wider stripes are
+/// refused with [`DecodeError::StripeTooWide`]. [`Decoder::stripe_capacity`] changes it.
 #[derive(Debug, Clone)]
-pub struct Decoder<I, O = fn(&LeafInfo)> {
+pub struct Decoder<I, O = fn(&LeafInfo), const STRIPE: usize = DEFAULT_STRIPE> {
     header: Header,
     input: I,
     clip: Rect,
@@ -276,7 +282,7 @@ impl<I> Decoder<I> {
     }
 }
 
-impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
+impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
     /// The stream's header.
     pub fn header(&self) -> &Header {
         &self.header
@@ -298,7 +304,7 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
 
     /// Calls `observer` for every leaf, in coding order, before its pixels (for inspection
     /// tools).
-    pub fn observe<P: FnMut(&LeafInfo)>(self, observer: P) -> Decoder<I, P> {
+    pub fn observe<P: FnMut(&LeafInfo)>(self, observer: P) -> Decoder<I, P, STRIPE> {
         Decoder {
             header: self.header,
             input: self.input,
@@ -327,6 +333,18 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
         )
     }
 
+    /// Holds prediction memory for stripes of up to `CAPACITY` pixels instead (`CAPACITY` bytes
+    /// on the stack while decoding): a host decoding any stream uses 65536.
+    pub fn stripe_capacity<const CAPACITY: usize>(self) -> Decoder<I, O, CAPACITY> {
+        Decoder {
+            header: self.header,
+            input: self.input,
+            clip: self.clip,
+            observer: self.observer,
+            scale: self.scale,
+        }
+    }
+
     /// Decodes the stream, handing the pixels inside the clip to `sink` tile by tile (no
     /// frame buffer needed); stops at the stream's or the sink's first error. Returns the
     /// header.
@@ -348,7 +366,7 @@ impl<I: Input, O: FnMut(&LeafInfo)> Decoder<I, O> {
             Ok(coder) => coder,
             Err((input, e)) => return Err(input.after_error(&header, e).into()),
         };
-        match run_walk(&header, &mut coder, &mut drawer) {
+        match run_walk::<_, _, STRIPE>(&header, &mut coder, &mut drawer) {
             Ok(()) => coder.into_source().finish(&header)?,
             Err(DrawError::Decode(e)) => {
                 return Err(coder.into_source().after_error(&header, e).into())
@@ -424,12 +442,12 @@ fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeE
 /// that the walk's state (the adaptive contexts and the prediction memory) stays in this one
 /// frame instead of being copied into every caller's.
 #[inline(never)]
-fn run_walk<B: ByteSource, V: TreeVisitor>(
+fn run_walk<B: ByteSource, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut RangeDecoder<B>,
     visitor: &mut V,
 ) -> Result<(), V::Error> {
-    let mut state = WalkState::FRESH;
+    let mut state = WalkState::<STRIPE>::FRESH;
     state.contexts.start();
     walk::walk_with(header, coder, visitor, &mut state)
 }
@@ -453,30 +471,150 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
         false
     }
 
-    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
+    fn prepare_leaf<P: SamplePrediction>(
+        &mut self,
+        _node: &Node,
+        _prediction: &P,
+        _leaf: &mut LeafSyntax,
+    ) {
+    }
 
-    /// A leaf the clip holds whole fills the frontier as it is drawn; any other leaf, and
-    /// every leaf of a scaled decode, has its edges rendered apart (at the coded size). Not inlined: the synthesis buffers then live only while a leaf is
-    /// drawn, instead of in every frame of the quadtree walk.
+    /// Every leaf goes through the prediction frontier, which smooths its edges with the
+    /// leaves before it and draws the pixels that were waiting for it (see
+    /// [`crate::prediction::Capture`]). At the coded size the whole leaf is drawn through it (or
+    /// only its edges, when the clip misses the leaf). A smaller decode takes the edges at the
+    /// coded size, keeping those on its pixel grid, and renders the rest of the leaf straight at
+    /// its scale; a larger one renders the leaf at its scale, unsmoothed. Not inlined: the
+    /// synthesis buffers then live only while a leaf is drawn, instead of in every frame of the
+    /// quadtree walk.
     #[inline(never)]
-    fn leaf(
+    fn leaf<const CAPACITY: usize>(
         &mut self,
         info: &LeafInfo,
         patch: &Patch,
-        frontier: &mut Frontier,
+        frontier: &mut Frontier<CAPACITY>,
     ) -> Result<(), Self::Error> {
         (self.observer)(info);
         let node = &info.node;
-        let mut out = Catch::new(&mut *self.sink);
-        let result = if self.scale == Scale::One
-            && self.clip.contains(&node.rect().intersect(&self.image))
-        {
-            patch.render_to(node, self.clip, &mut frontier.capture(node, &mut out))
-        } else {
-            frontier.record(node, patch);
-            patch.render_scaled(node, self.scale, self.clip, &mut out)
+        let step = control_step(info.cquant);
+        let mut catch = Catch::new(&mut *self.sink);
+        // Cut to the clip on the way out: the leaf's pixels, and the pixels beside it it draws.
+        let mut clipped = ClipOut {
+            clip: self.clip,
+            out: &mut catch,
         };
-        out.finish(result).map_err(DrawError::Sink)
+        let k = self.scale.log2();
+        // A stop comes only from the sink, whose error `finish` returns.
+        let _ = if k == 0 {
+            let area = node.rect().intersect(&self.image);
+            if area.intersect(&self.clip).is_empty() {
+                frontier.record(node, step, patch, &mut clipped);
+                Ok(())
+            } else {
+                patch.render_to(node, area, &mut frontier.capture(node, step, &mut clipped))
+            }
+        } else if k < 0 {
+            let shift = k.unsigned_abs();
+            frontier.record(
+                node,
+                step,
+                patch,
+                &mut Subsample {
+                    shift,
+                    out: &mut clipped,
+                },
+            );
+            // The leaf's first row and column are the edges' (its last ones are off the grid).
+            let (x, y, n) = (node.x >> shift, node.y >> shift, node.size() >> shift);
+            let interior = Rect {
+                x: x + 1,
+                y: y + 1,
+                w: n.saturating_sub(1),
+                h: n.saturating_sub(1),
+            };
+            patch.render_scaled(node, self.scale, self.clip.intersect(&interior), &mut catch)
+        } else {
+            frontier.record(node, step, patch, &mut Discard);
+            patch.render_scaled(node, self.scale, self.clip, &mut catch)
+        };
+        catch.finish().map_err(DrawError::Sink)
+    }
+}
+
+/// Hands on the pixels of full-size tiles that lie on the grid of a decode at `1 / 2^shift`
+/// of the coded size, at their place in it.
+struct Subsample<'a> {
+    shift: u32,
+    out: &'a mut dyn TileOut,
+}
+
+impl TileOut for Subsample<'_> {
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+        let unit = 1u32 << self.shift;
+        let Rect { x, y, w, h } = tile.area;
+        let first_x = x.next_multiple_of(unit);
+        if first_x >= x + w {
+            return Ok(());
+        }
+        let mut row = [0u8; TILE];
+        for j in (y.next_multiple_of(unit)..y + h).step_by(unit as usize) {
+            let mut n = 0;
+            for i in (first_x..x + w).step_by(unit as usize) {
+                let at = ((j - y) * w + (i - x)) as usize;
+                if let (Some(&p), Some(slot)) = (tile.pixels.get(at), row.get_mut(n)) {
+                    *slot = p;
+                    n += 1;
+                }
+            }
+            self.out.put(Tile {
+                area: Rect {
+                    x: first_x >> self.shift,
+                    y: j >> self.shift,
+                    w: n as u32,
+                    h: 1,
+                },
+                pixels: &row[..n],
+            })?;
+        }
+        Ok(())
+    }
+}
+
+/// Hands on the part of every tile inside `clip`.
+struct ClipOut<'a> {
+    clip: Rect,
+    out: &'a mut dyn TileOut,
+}
+
+impl TileOut for ClipOut<'_> {
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+        let area = tile.area.intersect(&self.clip);
+        if area.is_empty() {
+            return Ok(());
+        }
+        if area == tile.area {
+            return self.out.put(tile);
+        }
+        let mut buf = [0u8; TILE * TILE];
+        let (dx, dy) = (
+            (area.x - tile.area.x) as usize,
+            (area.y - tile.area.y) as usize,
+        );
+        let (w, tw) = (area.w as usize, tile.area.w as usize);
+        for j in 0..area.h as usize {
+            let from = (dy + j) * tw + dx;
+            let (Some(dst), Some(src)) = (
+                buf.get_mut(j * w..(j + 1) * w),
+                tile.pixels.get(from..from + w),
+            ) else {
+                return Ok(());
+            };
+            dst.copy_from_slice(src);
+        }
+        self.out.put(Tile {
+            area,
+            pixels: &buf[..w * area.h as usize],
+        })
     }
 }
 
@@ -598,7 +736,8 @@ mod tests {
 
     fn header_with_codebooks() -> Vec<u8> {
         let mut h = Vec::from(*b"PIFS");
-        h.extend_from_slice(&[VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42]);
+        // Version, channels, depth, flags, width, height, leaf sizes, stripe, deblocking.
+        h.extend_from_slice(&[VERSION, 1, 8, 1, 5, 0, 3, 0, 0x42, 0, 0]);
         // Checksum (not checked by the header parser), then a payload length of 300 (two
         // LEB128 bytes).
         h.extend_from_slice(&[1, 2, 3, 4, 0xAC, 0x02]);

@@ -43,6 +43,14 @@ pub enum DecodeError {
     },
     /// The caller's output buffer is smaller than `width * height * channels` bytes.
     BufferTooSmall,
+    /// The stream is coded in stripes wider than the decoder holds prediction memory for
+    /// (one byte per column of a stripe).
+    StripeTooWide {
+        /// Width of the stream's stripes, pixels.
+        stripe: u32,
+        /// Widest stripe the decoder holds, pixels.
+        capacity: u32,
+    },
 }
 
 /// The header field a [`DecodeError::InvalidHeader`] is about.
@@ -64,6 +72,8 @@ pub enum HeaderField {
     CodebookSize,
     /// A codebook's levels are out of range or not increasing.
     CodebookLevels,
+    /// The edge-smoothing strength is above the format's largest.
+    Deblock,
 }
 
 impl HeaderField {
@@ -76,6 +86,7 @@ impl HeaderField {
             HeaderField::TrailingBytes => "payload length (bytes follow the payload)",
             HeaderField::CodebookSize => "codebook size",
             HeaderField::CodebookLevels => "codebook levels",
+            HeaderField::Deblock => "edge-smoothing strength",
         }
     }
 }
@@ -157,6 +168,10 @@ impl fmt::Display for DecodeError {
                 "the image ({width}x{height}) exceeds the decoder's size limit"
             ),
             DecodeError::BufferTooSmall => write!(f, "output buffer too small for the image"),
+            DecodeError::StripeTooWide { stripe, capacity } => write!(
+                f,
+                "the stream is coded in stripes of {stripe} pixels; this decoder holds {capacity}"
+            ),
         }
     }
 }

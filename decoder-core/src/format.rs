@@ -5,11 +5,17 @@
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 11;
+pub const VERSION: u8 = 12;
 /// Smallest allowed leaf side, as a power of two.
 pub const MIN_LEAF_LOG2: u8 = 1;
 /// Largest allowed leaf side, as a power of two.
 pub const MAX_LEAF_LOG2: u8 = 7;
+/// Side of the coding tiles, pixels: the largest leaf. The image is coded tile by tile, in bands
+/// of this height, left to right within a stripe (each tile a quadtree in Z order).
+pub const CODING_TILE: u32 = 1 << MAX_LEAF_LOG2;
+/// The stripe width a decoder holds prediction memory for unless told otherwise, pixels: one
+/// byte per column of the stripe.
+pub const DEFAULT_STRIPE: usize = 512;
 
 /// Median edge detector (LOCO-I): the median of `left`, `up` and `left + up - up_left`.
 #[inline]

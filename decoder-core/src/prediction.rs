@@ -1,35 +1,31 @@
 //! Prediction from earlier leaves: the pixel frontier a decoder keeps, and what the syntax
 //! predicts from it (a leaf's first control value, and the first row and column of a DPCM
-//! leaf).
+//! leaf), in the value domain: a leaf whose residuals there are zero continues the pixels its
+//! neighbours drew.
 //!
 //! Control values interpolate the image: a leaf's top row of control values sits on the pixel
 //! row just below its upper neighbours, its left column just right of its left neighbours. The
-//! decoder therefore remembers, for every column of the current [`FRONTIER`]-pixel tile, the
-//! last pixel decoded in it (the bottom row of the leaves above), and for every row the last
-//! pixel decoded in that row (the right column of the leaves to the left). In the quadtree's Z
-//! order, the pixels above and to the left of a leaf are decoded before it and nothing decoded
-//! in between covers them again, so inside a tile these are exactly the neighbours' pixels;
-//! across a tile's top or left edge nothing is predicted (the tile's pixels are contiguous in
-//! Z order, but its upper and left neighbours tiles are not), which bounds the memory at two
-//! rows of [`FRONTIER`] bytes whatever the image size.
+//! decoder therefore remembers, for every column of the current stripe, the last pixel decoded
+//! in it (the bottom row of the leaves above), and for every row of the current band the last
+//! pixel decoded in that row (the right column of the leaves to the left). Coding tiles
+//! ([`CODING_TILE`] pixels) are coded band by band, left to right within a stripe, each in Z
+//! order: the pixels above and to the left of a leaf are decoded before it and nothing decoded
+//! in between covers them again, so these are exactly the neighbours' pixels, across tile edges
+//! too. Only a stripe's left edge (and the image's top) has nothing beside it, which bounds the
+//! memory at one byte per column of the stripe and one per row of a band, whatever the image
+//! size.
 
-use crate::format::{div_round, med, MAX_LEAF_LOG2};
+use crate::format::{div_round, med, CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
 use crate::model::SAMPLE_ONE;
-use crate::synthesis::{Patch, Stop, Tile, TileOut};
-
-/// Side of the tiles the frontier covers, pixels: prediction does not cross their top and left
-/// edges.
-pub const FRONTIER: u32 = 128;
-
-// No leaf is larger than a tile: each tile's leaves are consecutive in Z order.
-const _: () = assert!(1u32 << MAX_LEAF_LOG2 <= FRONTIER);
+#[cfg(test)]
+use crate::synthesis::Discard;
+use crate::synthesis::{Patch, Stop, Tile, TileOut, TILE};
 
 /// Where a leaf's predictions come from: the pixels earlier leaves drew next to it.
 pub trait SamplePrediction {
     /// The pixel just above `(x, y)` (at `(x, y - 1)`) when `above`, else the one just left of
-    /// it (at `(x - 1, y)`), in sample units, if earlier leaves drew it and it is in `(x, y)`'s
-    /// tile ([`FRONTIER`]).
+    /// it (at `(x - 1, y)`), in sample units, if earlier leaves drew it ([`beside_known`]).
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32>;
 
     /// The pixel just above `(x, y)` ([`SamplePrediction::beside`]).
@@ -68,11 +64,19 @@ pub trait SamplePrediction {
     }
 }
 
-/// Whether position `v` along an axis of an image `len` pixels long has a predecessor in its
-/// tile: the frontier's availability rule, shared by decoders and encoders.
+/// Whether the pixel beside `(x, y)` (above it when `above`, else left of it) has been drawn
+/// before the leaf at `(x, y)` in an image of `width x height` pixels coded in stripes of
+/// `stripe` pixels: above, unless `(x, y)` is on the image's top row; left, unless it is on a
+/// stripe's left edge. The frontier's availability rule, shared by decoders and encoders.
 #[inline]
-pub fn inside_tile(v: u32, len: u32) -> bool {
-    !v.is_multiple_of(FRONTIER) && v < len
+pub fn beside_known(above: bool, x: u32, y: u32, width: u32, height: u32, stripe: u32) -> bool {
+    x < width
+        && y < height
+        && if above {
+            y > 0
+        } else {
+            stripe > 0 && !x.is_multiple_of(stripe)
+        }
 }
 
 /// The index a DPCM leaf's first-row or first-column control value is coded against, in steps
@@ -118,83 +122,152 @@ pub fn edge_pixels<P: SamplePrediction + ?Sized>(
     Some((pixel(along)?, pixel(along - spacing)?))
 }
 
-/// The decoder's prediction memory: the last pixel decoded in each column and in each row of
-/// the current tile (modulo [`FRONTIER`]), and the image size.
+/// The decoder's prediction memory: the last pixel decoded in each column of the current
+/// stripe and in each row of the current band, for an image of `width x height` coded in
+/// stripes of `stripe` pixels; holds stripes of up to `STRIPE` pixels.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Frontier {
-    columns: [u8; FRONTIER as usize],
-    rows: [u8; FRONTIER as usize],
+pub struct Frontier<const STRIPE: usize = DEFAULT_STRIPE> {
+    columns: [u8; STRIPE],
+    rows: [u8; CODING_TILE as usize],
     width: u32,
     height: u32,
+    stripe: u32,
+    /// The stream's edge-smoothing strength ([`Capture`]).
+    deblock: u8,
+    /// For each row of a band: whether the pixel `rows` holds is a leaf's bottom-right pixel
+    /// that waits with the leaf's bottom row ([`Capture`]).
+    corners: [u8; CORNER_BYTES],
 }
 
-impl Default for Frontier {
+impl<const STRIPE: usize> Default for Frontier<STRIPE> {
     fn default() -> Self {
         Frontier::EMPTY
     }
 }
 
-impl Frontier {
-    /// Nothing decoded, for an empty image (all zero bits, like
-    /// the syntax's fresh contexts): [`Frontier::start`] sets the size.
-    pub const EMPTY: Frontier = Frontier {
-        columns: [0; FRONTIER as usize],
-        rows: [0; FRONTIER as usize],
+impl<const STRIPE: usize> Frontier<STRIPE> {
+    /// Nothing decoded, for an empty image (all zero bits, like the syntax's fresh contexts):
+    /// [`Frontier::start`] sets the size.
+    pub const EMPTY: Frontier<STRIPE> = Frontier {
+        columns: [0; STRIPE],
+        rows: [0; CODING_TILE as usize],
         width: 0,
         height: 0,
+        stripe: 0,
+        deblock: 0,
+        corners: [0; CORNER_BYTES],
     };
 
-    /// Starts a stream of a `width x height` image. The slots keep what they hold: a slot is
-    /// only read once a leaf of the stream has written it (the availability rule of
-    /// [`SamplePrediction::above`]).
-    pub fn start(&mut self, width: u32, height: u32) {
+    /// The widest stripe this frontier holds, pixels.
+    pub const CAPACITY: u32 = STRIPE as u32;
+
+    /// Starts a stream of a `width x height` image coded in stripes of `stripe` pixels (a
+    /// positive multiple of [`CODING_TILE`]) whose leaf edges are smoothed with strength
+    /// `deblock` ([`Capture`]); `false`, and nothing set, when such a stripe is wider than
+    /// this frontier holds. The slots keep what they hold: a slot is only read once a leaf of
+    /// the stream has written it ([`beside_known`]).
+    pub fn start(&mut self, width: u32, height: u32, stripe: u32, deblock: u8) -> bool {
+        if stripe == 0 || stripe > Self::CAPACITY {
+            return false;
+        }
         self.width = width;
         self.height = height;
+        self.stripe = stripe;
+        self.deblock = deblock;
+        true
     }
 
-    /// Remembers the bottom row and the right column of a decoded leaf (as far as they lie in
-    /// the image), rendered from its patch.
+    /// Does for a leaf that is not drawn what drawing it through [`Frontier::capture`] does,
+    /// rendering only the leaf's edges from its patch (each pixel once, the first row and column
+    /// first) and handing `out` only the pixels beside the leaf that it draws (see
+    /// [`Capture`]); the leaf's own pixels go to `out` too, for a caller that cuts them away.
     #[inline(never)]
-    pub fn record(&mut self, node: &Node, patch: &Patch) {
+    pub fn record(&mut self, node: &Node, step: i32, patch: &Patch, out: &mut dyn TileOut) {
         let s = node.size();
         let image = Rect::of_size(self.width, self.height);
-        for row in [true, false] {
-            let edge = Rect {
-                x: if row { node.x } else { node.x + s - 1 },
-                y: if row { node.y + s - 1 } else { node.y },
-                w: if row { s } else { 1 },
-                h: if row { 1 } else { s },
-            };
-            // Capturing into nothing cannot stop.
+        let strip = |x: u32, y: u32, w: u32, h: u32| Rect { x, y, w, h };
+        let strips = [
+            strip(node.x, node.y, s, 1),
+            strip(node.x, node.y + 1, 1, s - 1),
+            strip(node.x + 1, node.y + s - 1, s - 1, 1),
+            strip(node.x + s - 1, node.y + 1, 1, s.saturating_sub(2)),
+        ];
+        for edge in strips {
+            // A stop is the caller's to report: its own out stops it again.
             let _ = patch.render_to(
                 node,
                 edge.intersect(&image),
-                &mut self.capture(node, &mut Discard),
+                &mut self.capture(node, step, out),
             );
         }
     }
 
-    /// A tile output that hands every tile of the leaf `node` on to `out` and remembers the
-    /// pixels of the leaf's bottom row and right column among them: drawing a whole leaf
-    /// through it does what [`Frontier::record`] does, without rendering anything twice.
-    pub fn capture<'a>(&'a mut self, node: &Node, out: &'a mut dyn TileOut) -> Capture<'a> {
+    /// A tile output for drawing the whole leaf `node` (control step `step`) into `out`, in
+    /// synthesis order (a tile holding a pixel of the first row or column before any tile
+    /// right of or below it in those rows and columns); see [`Capture`].
+    pub fn capture<'a>(
+        &'a mut self,
+        node: &Node,
+        step: i32,
+        out: &'a mut dyn TileOut,
+    ) -> Capture<'a> {
         let last = node.size() - 1;
+        let (w, h, stripe) = (self.width, self.height, self.stripe.max(1));
+        let (right, bottom) = (node.x + last, node.y + last);
         Capture {
-            frontier: self,
+            columns: &mut self.columns,
+            rows: &mut self.rows,
+            corners: &mut self.corners,
+            stripe,
             out,
-            right: node.x + last,
-            bottom: node.y + last,
+            left: node.x,
+            top: node.y,
+            right,
+            bottom,
+            defer_row: bottom + 1 < h,
+            defer_column: right + 1 < w && (right + 1) % stripe != 0,
+            above_known: beside_known(true, node.x, node.y, w, h, stripe),
+            left_known: beside_known(false, node.x, node.y, w, h, stripe),
+            limit: i32::from(self.deblock) * step,
         }
     }
 }
 
-/// See [`Frontier::capture`].
+/// Draws a leaf's tiles ([`Frontier::capture`]), keeping the frontier, with **deferred edges
+/// and edge smoothing**.
+///
+/// A leaf's bottom row is not drawn with the leaf when a leaf will come below it (it is not on
+/// the image's last row): it waits in the frontier and the leaf below draws it; likewise its
+/// right column (its bottom pixel excepted when the row waits) when a leaf will come right of
+/// it in the stripe. When a leaf is drawn, the waiting pixels above its first row and left of
+/// its first column are smoothed with it and drawn: with the stream's strength `d` and the
+/// leaf's control step `s` (1/16 grey level), for each such pair of 8-bit pixels, `q` in the
+/// leaf (as synthesised) and `p` beside it, with `D = q - p`: when `32 |D| <= d s`, `c =
+/// round(D / 3)` (half away from zero), `q -= c` and `p += c`, clamped to `0..=255`. Every
+/// pixel is drawn once; the frontier holds the smoothed values, which later leaves are
+/// predicted from.
 pub struct Capture<'a> {
-    frontier: &'a mut Frontier,
+    columns: &'a mut [u8],
+    rows: &'a mut [u8],
+    corners: &'a mut [u8; CORNER_BYTES],
+    stripe: u32,
     out: &'a mut dyn TileOut,
+    left: u32,
+    top: u32,
     right: u32,
     bottom: u32,
+    /// Whether the leaf's bottom row waits for the leaf below.
+    defer_row: bool,
+    /// Whether the leaf's right column waits for the leaf right of it.
+    defer_column: bool,
+    above_known: bool,
+    left_known: bool,
+    /// `d * s`: a step `D` is smoothed when `32 |D|` is at most this (0: never).
+    limit: i32,
 }
+
+/// Bytes of [`Frontier`]'s corner bits: one per row of a band.
+const CORNER_BYTES: usize = CODING_TILE as usize / 8;
 
 impl core::fmt::Debug for Capture<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
@@ -205,50 +278,187 @@ impl core::fmt::Debug for Capture<'_> {
     }
 }
 
-impl TileOut for Capture<'_> {
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
-        let f = &mut *self.frontier;
-        let Rect { x, y, w, h } = tile.area;
-        let on_right = x + w - 1 == self.right;
-        // Most tiles hold neither the leaf's right column nor its bottom row.
-        if !on_right && !(y..y + h).contains(&self.bottom) {
-            return self.out.put(tile);
-        }
-        for (j, row) in tile.pixels.chunks(w as usize).enumerate() {
-            let py = y + j as u32;
-            if let (true, Some(&p)) = (on_right, row.last()) {
-                f.rows[(py % FRONTIER) as usize] = p;
-            }
-            if py == self.bottom {
-                for (i, &p) in row.iter().enumerate() {
-                    f.columns[((x + i as u32) % FRONTIER) as usize] = p;
-                }
-            }
-        }
-        self.out.put(tile)
+/// The smoothing of one pixel pair across a leaf edge: `(q, p)` corrected, when `D = q - p`
+/// is small enough (see [`Capture`]).
+#[inline]
+fn smooth(q: u8, p: u8, limit: i32) -> Option<(u8, u8)> {
+    let d = i32::from(q) - i32::from(p);
+    if 32 * d.abs() > limit {
+        return None;
     }
+    let c = if d >= 0 { (d + 1) / 3 } else { -((-d + 1) / 3) };
+    Some((
+        (i32::from(q) - c).clamp(0, 255) as u8,
+        (i32::from(p) + c).clamp(0, 255) as u8,
+    ))
 }
 
-/// Takes every tile and keeps nothing.
-struct Discard;
+/// `q` moved by what smoothing moved `q_before` to `q_new` (a pixel smoothed across both
+/// edges moves by both corrections).
+#[inline]
+fn moved(q: u8, q_before: u8, q_new: u8) -> u8 {
+    (i32::from(q) + i32::from(q_new) - i32::from(q_before)).clamp(0, 255) as u8
+}
 
-impl TileOut for Discard {
-    fn put(&mut self, _tile: Tile<'_>) -> Result<(), Stop> {
+impl Capture<'_> {
+    /// Whether the frontier's pixel of band row `r` is a leaf's bottom-right pixel that waits
+    /// with its row (not with its column).
+    fn is_corner(&self, r: u32) -> bool {
+        let r = (r % CODING_TILE) as usize;
+        self.corners[r / 8] & (1 << (r % 8)) != 0
+    }
+
+    fn set_corner(&mut self, r: u32, corner: bool) {
+        let r = (r % CODING_TILE) as usize;
+        let bit = 1 << (r % 8);
+        if corner {
+            self.corners[r / 8] |= bit;
+        } else {
+            self.corners[r / 8] &= !bit;
+        }
+    }
+
+    /// The tile's part of the first row (`row`; `original` as synthesised) against the waiting
+    /// pixels above, which are smoothed, drawn and kept.
+    fn top_edge(&mut self, x: u32, y: u32, row: &mut [u8], original: &[u8]) -> Result<(), Stop> {
+        let mut above = [0u8; TILE];
+        for (i, (q, &q_before)) in row.iter_mut().zip(original).enumerate() {
+            let column = ((x + i as u32) % self.stripe) as usize;
+            let Some(slot) = self.columns.get_mut(column) else {
+                continue;
+            };
+            if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
+                *q = moved(*q, q_before, q_new);
+                *slot = p_new;
+            }
+            above[i] = *slot;
+        }
+        let w = row.len();
+        self.out.put(Tile {
+            area: Rect {
+                x,
+                y: y - 1,
+                w: w as u32,
+                h: 1,
+            },
+            pixels: &above[..w],
+        })
+    }
+
+    /// The tile's part of the first column (rows `y..y + h`, column 0 of `buf`, `w` wide;
+    /// `original` as synthesised) against the waiting pixels left of it, which are smoothed,
+    /// drawn and kept; a pixel that waits with its row instead is neither.
+    fn left_edge(
+        &mut self,
+        x: u32,
+        y: u32,
+        (w, h): (usize, usize),
+        buf: &mut [u8],
+        original: &[u8],
+    ) -> Result<(), Stop> {
+        let mut beside = [0u8; TILE];
+        let mut run_start = None;
+        for j in 0..=h {
+            let r = y + j as u32;
+            let waiting = j < h && !self.is_corner(r);
+            if waiting {
+                let slot = &mut self.rows[(r % CODING_TILE) as usize];
+                let q_before = original[j * w];
+                if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
+                    buf[j * w] = moved(buf[j * w], q_before, q_new);
+                    *slot = p_new;
+                }
+                beside[j] = *slot;
+                run_start.get_or_insert(j);
+            } else if let Some(start) = run_start.take() {
+                self.out.put(Tile {
+                    area: Rect {
+                        x: x - 1,
+                        y: y + start as u32,
+                        w: 1,
+                        h: (j - start) as u32,
+                    },
+                    pixels: &beside[start..j],
+                })?;
+            }
+        }
         Ok(())
     }
 }
 
-impl SamplePrediction for Frontier {
+impl TileOut for Capture<'_> {
+    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+        let Rect { x, y, w, h } = tile.area;
+        let (wu, hu) = (w as usize, h as usize);
+        let n = wu * hu;
+        let mut buf = [0u8; TILE * TILE];
+        let (Some(pixels), true) = (tile.pixels.get(..n), n <= buf.len() && n > 0) else {
+            return Ok(());
+        };
+        let on_right = x + w - 1 == self.right;
+        let on_first = (self.above_known && y == self.top) || (self.left_known && x == self.left);
+        // Most tiles hold none of the leaf's edges: drawn as they are.
+        if !on_right && !on_first && !(y..y + h).contains(&self.bottom) {
+            return self.out.put(tile);
+        }
+        buf[..n].copy_from_slice(pixels);
+        if self.above_known && y == self.top {
+            self.top_edge(x, y, &mut buf[..wu], &pixels[..wu])?;
+        }
+        if self.left_known && x == self.left {
+            self.left_edge(x, y, (wu, hu), &mut buf, pixels)?;
+        }
+        // The leaf's bottom row and right column, as drawn, wait in the frontier.
+        for j in 0..hu {
+            let py = y + j as u32;
+            if on_right {
+                self.rows[(py % CODING_TILE) as usize] = buf[j * wu + wu - 1];
+                self.set_corner(py, py == self.bottom && self.defer_row);
+            }
+            if py == self.bottom {
+                for (i, &p) in buf[j * wu..(j + 1) * wu].iter().enumerate() {
+                    let column = ((x + i as u32) % self.stripe) as usize;
+                    if let Some(slot) = self.columns.get_mut(column) {
+                        *slot = p;
+                    }
+                }
+            }
+        }
+        // The rest of the tile is drawn now.
+        let keep_h = hu - usize::from(self.defer_row && y + h - 1 == self.bottom);
+        let keep_w = wu - usize::from(self.defer_column && on_right);
+        if keep_h == 0 || keep_w == 0 {
+            return Ok(());
+        }
+        if keep_w < wu {
+            for j in 1..keep_h {
+                buf.copy_within(j * wu..j * wu + keep_w, j * keep_w);
+            }
+        }
+        self.out.put(Tile {
+            area: Rect {
+                x,
+                y,
+                w: keep_w as u32,
+                h: keep_h as u32,
+            },
+            pixels: &buf[..keep_w * keep_h],
+        })
+    }
+}
+
+impl<const STRIPE: usize> SamplePrediction for Frontier<STRIPE> {
     #[inline]
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
-        // Along the edge and across it, with the image's size that way.
-        let (slots, along, across, length, breadth) = if above {
-            (&self.columns, x, y, self.width, self.height)
+        if !beside_known(above, x, y, self.width, self.height, self.stripe) {
+            return None;
+        }
+        let slot = if above {
+            self.columns.get((x % self.stripe) as usize)
         } else {
-            (&self.rows, y, x, self.height, self.width)
+            self.rows.get((y % CODING_TILE) as usize)
         };
-        (inside_tile(across, breadth) && along < length)
-            .then(|| i32::from(slots[(along % FRONTIER) as usize]) * SAMPLE_ONE)
+        slot.map(|&p| i32::from(p) * SAMPLE_ONE)
     }
 }
 
@@ -268,54 +478,53 @@ mod tests {
         }
     }
 
+    fn node(x: u32, y: u32, log2: u8) -> Node {
+        Node { x, y, log2 }
+    }
+
     #[test]
     fn a_leaf_predicts_from_the_pixels_its_neighbours_drew() {
-        let mut frontier = Frontier::EMPTY;
-        frontier.start(64, 64);
+        let mut frontier = Frontier::<256>::EMPTY;
+        assert!(
+            !frontier.start(300, 200, 384, 0),
+            "a stripe wider than the frontier"
+        );
+        assert!(frontier.start(300, 200, 128, 0));
         let one = SAMPLE_ONE as i16;
         // A 4 px ramp from 0 to 64 grey levels across, at (0, 0): its right column is 48 (the
         // pixel one step short of the corner value 64), its bottom row 0, 16, 32, 48.
         frontier.record(
-            &Node {
-                x: 0,
-                y: 0,
-                log2: 2,
-            },
+            &node(0, 0, 2),
+            24,
             &bilinear([0, 64 * one, 0, 64 * one]),
+            &mut Discard,
         );
         let ramp = |k: i32| 16 * k * SAMPLE_ONE;
         assert_eq!(frontier.above(2, 4), Some(ramp(2)));
         assert_eq!(frontier.left(4, 3), Some(ramp(3)));
         // Leaves at (4, 0) and (0, 4), in Z order, draw the pixels the one at (4, 4) is
         // predicted from.
-        frontier.record(
-            &Node {
-                x: 4,
-                y: 0,
-                log2: 2,
-            },
-            &bilinear([100 * one; 4]),
-        );
+        frontier.record(&node(4, 0, 2), 24, &bilinear([100 * one; 4]), &mut Discard);
         assert_eq!(frontier.left(8, 1), Some(100 * SAMPLE_ONE));
         assert_eq!(frontier.predict(0, 4, 1), (0, false));
-        // A grid transform's low band: the mean along the top edge (the left one is a tile's).
+        // A grid transform's low band: the mean along the top edge (the left one is the
+        // stripe's edge).
         assert_eq!(frontier.predict(0, 4, 4), (ramp(3) / 2, false));
-        frontier.record(
-            &Node {
-                x: 0,
-                y: 4,
-                log2: 2,
-            },
-            &bilinear([40 * one; 4]),
-        );
+        frontier.record(&node(0, 4, 2), 24, &bilinear([40 * one; 4]), &mut Discard);
         assert_eq!(frontier.predict(4, 4, 1), (70 * SAMPLE_ONE, true));
         assert_eq!(frontier.predict(4, 4, 4), (70 * SAMPLE_ONE, true));
-        // Nothing across a tile's edges or outside the image.
+        // Nothing above the image's top, left of a stripe's edge, or outside the image.
         assert_eq!(frontier.above(2, 0), None);
-        assert_eq!(frontier.above(2, FRONTIER), None);
-        assert_eq!(frontier.left(FRONTIER, 2), None);
-        assert_eq!(frontier.above(64, 4), None);
-        assert_eq!(Frontier::EMPTY.predict(0, 0, 1), (128 * SAMPLE_ONE, false));
+        assert_eq!(frontier.left(128, 2), None);
+        assert_eq!(frontier.left(0, 2), None);
+        assert_eq!(frontier.above(300, 4), None);
+        // Across a coding tile's top edge (a band's), the previous band's pixels.
+        frontier.record(&node(0, 124, 2), 24, &bilinear([77 * one; 4]), &mut Discard);
+        assert_eq!(frontier.above(1, 128), Some(77 * SAMPLE_ONE));
+        assert_eq!(
+            Frontier::<128>::EMPTY.predict(0, 0, 1),
+            (128 * SAMPLE_ONE, false)
+        );
     }
 
     #[test]
@@ -334,5 +543,66 @@ mod tests {
         assert_eq!(edge_context(4, 800, 800, 16), 2);
         assert_eq!(edge_context(2, 800, 784, 16), 2);
         assert_eq!(edge_context(0, 800, 160, 16), 2);
+    }
+
+    /// Edge smoothing: a step across a leaf's top edge within the limit moves both pixels a
+    /// third of the way; a larger one is left alone; the corrected pixel above is remembered
+    /// and drawn again.
+    #[test]
+    fn small_steps_across_an_edge_are_smoothed() {
+        struct Collect(std::vec::Vec<(Rect, std::vec::Vec<u8>)>);
+        impl TileOut for Collect {
+            fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+                self.0.push((tile.area, tile.pixels.to_vec()));
+                Ok(())
+            }
+        }
+        extern crate std;
+        let one = SAMPLE_ONE as i16;
+        // Strength 4 with a step of 64 (4 grey levels): steps up to 4 * 64 / 32 = 8 grey.
+        let mut frontier = Frontier::<128>::EMPTY;
+        assert!(frontier.start(16, 16, 128, 4));
+        frontier.record(&node(0, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
+        frontier.record(&node(4, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
+        // Below the first: 106 (a step of 6, smoothed by 2 each side); below the second: 120
+        // (a step of 20, left).
+        let mut out = Collect(std::vec::Vec::new());
+        let patch = bilinear([106 * one; 4]);
+        let leaf = node(0, 4, 2);
+        patch
+            .render_to(
+                &leaf,
+                leaf.rect(),
+                &mut frontier.capture(&leaf, 64, &mut out),
+            )
+            .unwrap();
+        let above = out
+            .0
+            .iter()
+            .find(|(a, _)| a.y == 3)
+            .expect("the row above, again");
+        assert_eq!(above.1, std::vec![102; 4]);
+        // The leaf's right column waits for the leaf right of it: three pixels a row now.
+        let first_row = out.0.iter().find(|(a, _)| a.y == 4).expect("the leaf");
+        assert_eq!(first_row.0.w, 3);
+        assert_eq!(first_row.1[..3], [104; 3]);
+        // The frontier now holds the leaf's own bottom row.
+        assert_eq!(frontier.above(1, 8), Some(106 * SAMPLE_ONE));
+        let mut out = Collect(std::vec::Vec::new());
+        let patch = bilinear([120 * one; 4]);
+        let leaf = node(4, 4, 2);
+        patch
+            .render_to(
+                &leaf,
+                leaf.rect(),
+                &mut frontier.capture(&leaf, 64, &mut out),
+            )
+            .unwrap();
+        let tile = out
+            .0
+            .iter()
+            .find(|(a, _)| a.y == 4 && a.x == 4)
+            .expect("the leaf");
+        assert_eq!(tile.1[..3], [120; 3], "a step of 20 is an edge, not a seam");
     }
 }

@@ -11,7 +11,7 @@ pub mod initial_contexts;
 use crate::checksum::Crc32;
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::{DecodeError, HeaderField, SyntaxElement};
-use crate::format::{div_round, med};
+use crate::format::{div_round, med, CODING_TILE};
 pub use crate::format::{MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
 use crate::model::{
@@ -28,9 +28,11 @@ use control::{
 use initial_contexts::INITIAL_PROBABILITIES;
 
 /// Size of the fixed part of the header, in bytes (the checksum included).
-pub const FIXED_HEADER_LEN: usize = 17;
+pub const FIXED_HEADER_LEN: usize = 19;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
-pub const CHECKSUM_BYTES: core::ops::Range<usize> = 13..17;
+pub const CHECKSUM_BYTES: core::ops::Range<usize> = 15..19;
+/// Largest edge-smoothing strength ([`Header::deblock`]).
+pub const MAX_DEBLOCK: u8 = 16;
 /// Longest encoding of the payload length (LEB128 of a `u32`).
 pub const MAX_LENGTH_BYTES: usize = 5;
 /// Largest number of levels of a Lloyd-Max codebook.
@@ -86,6 +88,13 @@ pub struct Header {
     pub min_leaf_log2: u8,
     /// Largest leaf side, as a power of two.
     pub max_leaf_log2: u8,
+    /// Width of the stripes the image is coded in, in coding tiles of [`CODING_TILE`] pixels;
+    /// 0 for one stripe as wide as the image ([`Header::stripe_width`]).
+    pub stripe: u8,
+    /// Strength of the smoothing of leaf edges, 0 (none) to [`MAX_DEBLOCK`]: a step across a
+    /// leaf's top or left edge is smoothed when it is at most `deblock / 32` of the leaf's
+    /// control step (see the prediction frontier's `Capture`).
+    pub deblock: u8,
     /// Lloyd-Max codebooks of the weight classes (line, cell); empty when absent.
     pub codebooks: [Codebook; 2],
     /// Length of the payload in bytes: the stream ends right after it.
@@ -139,6 +148,17 @@ impl Header {
             log2 += 1;
         }
         log2.max(self.min_leaf_log2)
+    }
+
+    /// Width of the stripes the image is coded in, pixels: a multiple of [`CODING_TILE`], at
+    /// most the image's width rounded up to one. A decoder holds one byte per column of a
+    /// stripe.
+    pub fn stripe_width(&self) -> u32 {
+        let whole = u32::from(self.width).div_ceil(CODING_TILE) * CODING_TILE;
+        match self.stripe {
+            0 => whole,
+            k => (u32::from(k) * CODING_TILE).min(whole),
+        }
     }
 
     /// Number of pixels.
@@ -209,6 +229,9 @@ impl Header {
         {
             return Err(DecodeError::InvalidHeader(HeaderField::LeafSizes));
         }
+        if fixed[14] > MAX_DEBLOCK {
+            return Err(DecodeError::InvalidHeader(HeaderField::Deblock));
+        }
         let mut header = Header {
             width,
             height,
@@ -216,9 +239,11 @@ impl Header {
             bit_depth,
             min_leaf_log2,
             max_leaf_log2,
+            stripe: fixed[13],
+            deblock: fixed[14],
             codebooks: [Codebook::EMPTY; 2],
             payload_len: 0,
-            checksum: u32::from_le_bytes([fixed[13], fixed[14], fixed[15], fixed[16]]),
+            checksum: u32::from_le_bytes([fixed[15], fixed[16], fixed[17], fixed[18]]),
         };
         let mut pos = FIXED_HEADER_LEN;
         // Payload length: LEB128, at most five bytes, no redundant trailing zero group.
@@ -287,6 +312,8 @@ impl Header {
             h[0],
             h[1],
             (self.max_leaf_log2 << 4) | self.min_leaf_log2,
+            self.stripe,
+            self.deblock,
         ];
         out[..CHECKSUM_BYTES.start].copy_from_slice(&fixed);
         out[CHECKSUM_BYTES].copy_from_slice(&self.checksum.to_le_bytes());
@@ -387,6 +414,11 @@ pub fn control_class(transform: bool, side: usize, r: usize, c: usize) -> usize 
     } else {
         CLASS_INTERIOR
     }
+}
+
+/// The control step of control quantiser `cq`, in sample units (0 for a value no leaf has).
+pub fn control_step(cq: u8) -> i32 {
+    CONTROL_STEPS.get(usize::from(cq)).copied().unwrap_or(0)
 }
 
 /// The context group of control quantiser `cq`.
@@ -519,7 +551,7 @@ const fn block_models() -> [([u8; MODEL_COUNT], u8); MAX_LEAF_LOG2 as usize + 1]
 
 /// Codes a leaf: model type, quantisers, control values, weights (syntax only:
 /// [`reconstruct_into`] makes the patch). `prediction` supplies the values of earlier leaves.
-pub fn code_leaf<C: Coder, P: SamplePrediction>(
+pub fn code_leaf<C: Coder, P: SamplePrediction + ?Sized>(
     c: &mut C,
     ctx: &mut Contexts,
     node: &Node,
@@ -654,7 +686,7 @@ enum Prediction {
 /// every other index of the first row and column is coded as its difference from
 /// [`edge_offset`] where the pixels beside it are known ([`edge_pixels`]); the rest as they
 /// are. Contexts are by position (DPCM: first row and column or interior) or transform level.
-fn code_control<C: Coder, P: SamplePrediction>(
+fn code_control<C: Coder, P: SamplePrediction + ?Sized>(
     c: &mut C,
     ctx: &mut Contexts,
     model: ModelType,

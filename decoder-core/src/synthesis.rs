@@ -178,6 +178,16 @@ pub trait TileOut {
     fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop>;
 }
 
+/// Takes every tile and keeps nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Discard;
+
+impl TileOut for Discard {
+    fn put(&mut self, _tile: Tile<'_>) -> Result<(), Stop> {
+        Ok(())
+    }
+}
+
 /// A [`PixelSink`] seen as a [`TileOut`]: keeps the sink's first error for [`Catch::finish`].
 pub struct Catch<'s, S: PixelSink + ?Sized> {
     sink: &'s mut S,
@@ -190,11 +200,11 @@ impl<'s, S: PixelSink + ?Sized> Catch<'s, S> {
         Catch { sink, error: None }
     }
 
-    /// The sink's error if synthesis stopped for it.
-    pub fn finish(self, result: Result<(), Stop>) -> Result<(), S::Error> {
-        match (result, self.error) {
-            (Err(Stop), Some(e)) => Err(e),
-            _ => Ok(()),
+    /// The sink's first error, if it failed (and synthesis stopped for it).
+    pub fn finish(self) -> Result<(), S::Error> {
+        match self.error {
+            Some(e) => Err(e),
+            None => Ok(()),
         }
     }
 }
@@ -210,6 +220,9 @@ impl<S: PixelSink + ?Sized> core::fmt::Debug for Catch<'_, S> {
 impl<S: PixelSink + ?Sized> TileOut for Catch<'_, S> {
     #[inline]
     fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+        if self.error.is_some() {
+            return Err(Stop);
+        }
         self.sink.tile(tile).map_err(|e| {
             self.error = Some(e);
             Stop
@@ -546,8 +559,9 @@ impl Patch {
         sink: &mut S,
     ) -> Result<(), S::Error> {
         let mut out = Catch::new(sink);
-        let result = self.render_to(node, clip, &mut out);
-        out.finish(result)
+        // A stop comes only from the sink, whose error `finish` returns.
+        let _ = self.render_to(node, clip, &mut out);
+        out.finish()
     }
 
     /// [`Patch::render`] into a [`TileOut`] trait object.
@@ -1320,8 +1334,8 @@ mod tests {
         let side = scale.apply(node.x.max(node.y) + node.size()) as usize;
         let mut image = Image::new(side, side, clip);
         let mut out = Catch::new(&mut image);
-        let result = patch.render_scaled(node, scale, clip, &mut out);
-        let Ok(()) = out.finish(result);
+        let _ = patch.render_scaled(node, scale, clip, &mut out);
+        let Ok(()) = out.finish();
         (image, side)
     }
 

@@ -2,16 +2,20 @@
 //! leaves. The decoder and the encoder's writer both run [`walk`]; they differ only in their
 //! [`Coder`] and [`TreeVisitor`].
 //!
-//! The root is the smallest power-of-two square (at least one smallest leaf) that covers the
-//! image, anchored at the top-left pixel. Children are visited in Z order: top-left, top-right,
-//! bottom-left, bottom-right. Nodes entirely outside the image are skipped (nothing is coded for
-//! them). A node larger than the largest leaf is split without a flag; a node of the smallest
-//! leaf size is a leaf without a flag; every other node codes a split flag.
+//! The image is cut into stripes ([`Header::stripe_width`]) and each stripe into coding tiles
+//! of [`CODING_TILE`] pixels (or one tile, the smallest power-of-two square at least one
+//! smallest leaf that covers the image, when that is smaller). Stripes are coded left to right;
+//! in a stripe, bands of tiles top to bottom; in a band, tiles left to right. Each tile is a
+//! quadtree whose children are visited in Z order: top-left, top-right, bottom-left,
+//! bottom-right. Nodes entirely outside the image are skipped (nothing is coded for them). A
+//! node larger than the largest leaf is split without a flag; a node of the smallest leaf size
+//! is a leaf without a flag; every other node codes a split flag.
 
 use crate::entropy::Coder;
 use crate::error::{DecodeError, SyntaxElement};
+use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
 pub use crate::geometry::Node;
-use crate::prediction::Frontier;
+use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
     code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax,
 };
@@ -51,17 +55,23 @@ pub trait TreeVisitor {
     /// Encoder: whether `node` is split (called before its flag is coded). Decoders may return
     /// anything: the flag read from the stream replaces it.
     fn split(&mut self, node: &Node) -> bool;
-    /// Encoder: fills in the leaf's syntax elements before they are coded. Decoders do nothing.
-    fn prepare_leaf(&mut self, node: &Node, leaf: &mut LeafSyntax);
+    /// Encoder: fills in the leaf's syntax elements before they are coded, knowing the pixels
+    /// earlier leaves drew (`prediction`). Decoders do nothing.
+    fn prepare_leaf<P: SamplePrediction>(
+        &mut self,
+        node: &Node,
+        prediction: &P,
+        leaf: &mut LeafSyntax,
+    );
     /// Called once the leaf is coded, with its reconstruction. The frontier must learn the
     /// leaf's bottom row and right column before the next leaf: [`Frontier::record`] renders
     /// them, or a visitor that draws the whole leaf anyway draws it through
     /// [`Frontier::capture`].
-    fn leaf(
+    fn leaf<const STRIPE: usize>(
         &mut self,
         info: &LeafInfo,
         patch: &Patch,
-        frontier: &mut Frontier,
+        frontier: &mut Frontier<STRIPE>,
     ) -> Result<(), Self::Error>;
 }
 
@@ -80,67 +90,83 @@ pub struct LeafInfo {
     pub coding: ControlCoding,
 }
 
-/// The adaptive state of the walk: contexts and prediction memory.
+/// The adaptive state of the walk: contexts and prediction memory (for stripes of up to
+/// `STRIPE` pixels).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct WalkState {
+pub struct WalkState<const STRIPE: usize = DEFAULT_STRIPE> {
     /// Adaptive contexts.
     pub contexts: Contexts,
     /// Prediction memory.
-    pub frontier: Frontier,
+    pub frontier: Frontier<STRIPE>,
 }
 
-impl WalkState {
+impl<const STRIPE: usize> WalkState<STRIPE> {
     /// Cleared state (fresh contexts, nothing decoded), all zero bits: a decoder clears its
     /// state in place, then sets the contexts with [`Contexts::start`] ([`walk_with`] starts
-    /// the frontier). The state at the
-    /// start of a stream is [`WalkState::default`].
-    pub const FRESH: WalkState = WalkState {
+    /// the frontier). The state at the start of a stream is [`WalkState::default`].
+    pub const FRESH: WalkState<STRIPE> = WalkState {
         contexts: Contexts::FRESH,
         frontier: Frontier::EMPTY,
     };
 }
 
-/// Codes the whole quadtree of a stream with `header`.
-pub fn walk<C: Coder, V: TreeVisitor>(
+/// Codes the whole image of a stream with `header`; returns the final state.
+pub fn walk<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
-) -> Result<WalkState, V::Error> {
+) -> Result<WalkState<STRIPE>, V::Error> {
     let mut state = WalkState::default();
     walk_with(header, coder, visitor, &mut state)?;
     Ok(state)
 }
 
 /// Like [`walk`], with a caller-provided state whose contexts the caller has set (no copy of
-/// it is returned).
-pub fn walk_with<C: Coder, V: TreeVisitor>(
+/// it is returned). Fails before coding anything if the header's stripes are wider than the
+/// state's frontier holds ([`DecodeError::StripeTooWide`]).
+pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
-    state: &mut WalkState,
+    state: &mut WalkState<STRIPE>,
 ) -> Result<(), V::Error> {
-    state
-        .frontier
-        .start(u32::from(header.width), u32::from(header.height));
-    let root = Node {
-        x: 0,
-        y: 0,
-        log2: header.root_log2(),
-    };
-    walk_node(header, coder, visitor, state, root)
+    let (width, height) = (u32::from(header.width), u32::from(header.height));
+    let stripe = header.stripe_width();
+    if !state.frontier.start(width, height, stripe, header.deblock) {
+        return Err(DecodeError::StripeTooWide {
+            stripe,
+            capacity: Frontier::<STRIPE>::CAPACITY,
+        }
+        .into());
+    }
+    let tile_log2 = header.root_log2().min(MAX_LEAF_LOG2);
+    let tile = 1u32 << tile_log2;
+    // The stripe is a multiple of the coding tile, hence of `tile`.
+    for x0 in (0..width).step_by(stripe.max(CODING_TILE) as usize) {
+        for y in (0..height).step_by(tile as usize) {
+            for x in (x0..width.min(x0 + stripe)).step_by(tile as usize) {
+                let root = Node {
+                    x,
+                    y,
+                    log2: tile_log2,
+                };
+                walk_tile(header, coder, visitor, state, root)?;
+            }
+        }
+    }
+    Ok(())
 }
 
-/// Deepest quadtree: a root of side 2^16 down to leaves of side 2.
-const MAX_DEPTH: usize = 16;
+/// Deepest quadtree in a coding tile: a root of side 2^7 down to leaves of side 2.
+const MAX_DEPTH: usize = MAX_LEAF_LOG2 as usize;
 
-/// Depth-first walk in Z order without recursion: the path from the root is one child index
-/// per level, and the current node is updated in place, so the walk's memory does not grow with
-/// the image.
-fn walk_node<C: Coder, V: TreeVisitor>(
+/// Depth-first walk of one coding tile in Z order without recursion: the path from the root is
+/// one child index per level, and the current node is updated in place.
+fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
-    state: &mut WalkState,
+    state: &mut WalkState<STRIPE>,
     root: Node,
 ) -> Result<(), V::Error> {
     let mut node = root;
@@ -199,11 +225,11 @@ fn walk_node<C: Coder, V: TreeVisitor>(
 /// A leaf's reconstruction and drawing: out of line, so that the patch is not part of the walk's
 /// own frame.
 #[inline(never)]
-fn walk_leaf<C: Coder, V: TreeVisitor>(
+fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
-    state: &mut WalkState,
+    state: &mut WalkState<STRIPE>,
     node: Node,
 ) -> Result<(), V::Error> {
     let mut patch = Patch::EMPTY;
@@ -214,16 +240,16 @@ fn walk_leaf<C: Coder, V: TreeVisitor>(
 /// A leaf's syntax, coded and reconstructed into `patch`. Out of line, so that the syntax
 /// elements are gone from the stack while the patch is drawn.
 #[inline(never)]
-fn code_leaf_patch<C: Coder, V: TreeVisitor>(
+fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
-    state: &mut WalkState,
+    state: &mut WalkState<STRIPE>,
     node: Node,
     patch: &mut Patch,
 ) -> Result<LeafInfo, DecodeError> {
     let mut leaf = LeafSyntax::default();
-    visitor.prepare_leaf(&node, &mut leaf);
+    visitor.prepare_leaf(&node, &state.frontier, &mut leaf);
     code_leaf(
         coder,
         &mut state.contexts,

@@ -14,10 +14,10 @@ mod common;
 
 use decoder_core::internal::entropy::RangeDecoder;
 use decoder_core::internal::model::MODELS;
-use decoder_core::internal::prediction::Frontier;
+use decoder_core::internal::prediction::{Frontier, SamplePrediction};
 use decoder_core::internal::syntax::control::CONTROL_STEPS;
-use decoder_core::internal::syntax::{Header, LeafSyntax};
-use decoder_core::internal::synthesis::Patch;
+use decoder_core::internal::syntax::{control_step, Header, LeafSyntax};
+use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk, LeafInfo, TreeVisitor};
 use decoder_core::DecodeError;
 use decoder_core::Node;
@@ -46,15 +46,21 @@ impl TreeVisitor for ControlPoints {
         false
     }
 
-    fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
+    fn prepare_leaf<P: SamplePrediction>(
+        &mut self,
+        _node: &Node,
+        _prediction: &P,
+        _leaf: &mut LeafSyntax,
+    ) {
+    }
 
-    fn leaf(
+    fn leaf<const STRIPE: usize>(
         &mut self,
         info: &LeafInfo,
         patch: &Patch,
-        frontier: &mut Frontier,
+        frontier: &mut Frontier<STRIPE>,
     ) -> Result<(), DecodeError> {
-        frontier.record(&info.node, patch);
+        frontier.record(&info.node, control_step(info.cquant), patch, &mut Discard);
         let intervals = u32::from(MODELS[usize::from(info.model)].intervals);
         let spacing = (1u32 << info.node.log2) / intervals;
         let step = CONTROL_STEPS[usize::from(info.cquant)];
@@ -140,7 +146,7 @@ fn main() {
             let payload = &encoded.bytes[at..at + header.payload_len as usize];
             let mut decoder = RangeDecoder::new(SliceSource::new(payload)).expect("own stream");
             let mut points = ControlPoints::default();
-            walk(&header, &mut decoder, &mut points).expect("own stream");
+            walk::<_, _, { 1 << 16 }>(&header, &mut decoder, &mut points).expect("own stream");
             let c = count(&points);
             let name = std::path::Path::new(path)
                 .file_name()

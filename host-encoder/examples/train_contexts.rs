@@ -10,9 +10,9 @@
 //! the table changes the bitstream: bump its version and regenerate the golden vectors.
 
 use decoder_core::internal::entropy::{RangeDecoder, INITIAL_COUNT, PROB_ONE};
-use decoder_core::internal::prediction::Frontier;
-use decoder_core::internal::syntax::{Contexts, Header, LeafSyntax, CONTEXT_COUNT};
-use decoder_core::internal::synthesis::Patch;
+use decoder_core::internal::prediction::{Frontier, SamplePrediction};
+use decoder_core::internal::syntax::{control_step, Contexts, Header, LeafSyntax, CONTEXT_COUNT};
+use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk, LeafInfo, TreeVisitor};
 use decoder_core::DecodeError;
 use decoder_core::Node;
@@ -106,21 +106,27 @@ fn final_contexts(stream: &[u8]) -> Result<Contexts, DecodeError> {
         fn split(&mut self, _node: &Node) -> bool {
             false
         }
-        fn prepare_leaf(&mut self, _node: &Node, _leaf: &mut LeafSyntax) {}
-        fn leaf(
+        fn prepare_leaf<P: SamplePrediction>(
+            &mut self,
+            _node: &Node,
+            _prediction: &P,
+            _leaf: &mut LeafSyntax,
+        ) {
+        }
+        fn leaf<const STRIPE: usize>(
             &mut self,
             info: &LeafInfo,
             patch: &Patch,
-            frontier: &mut Frontier,
+            frontier: &mut Frontier<STRIPE>,
         ) -> Result<(), DecodeError> {
-            frontier.record(&info.node, patch);
+            frontier.record(&info.node, control_step(info.cquant), patch, &mut Discard);
             Ok(())
         }
     }
     let (header, at) = Header::parse(stream)?;
     let payload = &stream[at..at + header.payload_len as usize];
     let mut decoder = RangeDecoder::new(SliceSource::new(payload))?;
-    Ok(walk(&header, &mut decoder, &mut Reader)?.contexts)
+    Ok(walk::<_, _, { 1 << 16 }>(&header, &mut decoder, &mut Reader)?.contexts)
 }
 
 fn rows(table: &[u8]) -> impl Iterator<Item = String> + '_ {

@@ -7,7 +7,9 @@ mod common;
 
 use common::{golden_streams, sealed_stream, CoverageSink};
 use decoder_core::internal::format::MAGIC;
-use decoder_core::internal::syntax::{seal, Codebook, Header, CHECKSUM_BYTES, FLAG_CODEBOOKS};
+use decoder_core::internal::syntax::{
+    seal, Codebook, Header, CHECKSUM_BYTES, FIXED_HEADER_LEN, FLAG_CODEBOOKS,
+};
 use decoder_core::{DecodeError, Limits};
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -84,6 +86,8 @@ fn header(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Header {
         bit_depth: 8,
         min_leaf_log2: min_leaf,
         max_leaf_log2: max_leaf,
+        stripe: 0,
+        deblock: 0,
         codebooks: [Codebook::EMPTY; 2],
         payload_len: 0,
         checksum: 0,
@@ -173,9 +177,19 @@ fn header_errors_are_typed() {
             DecodeError::UnsupportedVersion(10),
         ),
         (
-            "version 12",
-            with(4, 12),
-            DecodeError::UnsupportedVersion(12),
+            "version 11",
+            with(4, 11),
+            DecodeError::UnsupportedVersion(11),
+        ),
+        (
+            "version 13",
+            with(4, 13),
+            DecodeError::UnsupportedVersion(13),
+        ),
+        (
+            "edge-smoothing strength 17",
+            with(14, 17),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::Deblock),
         ),
         (
             "version 255",
@@ -321,7 +335,7 @@ fn header_errors_are_typed() {
         (
             "payload length in six bytes",
             {
-                let mut h = good[..17].to_vec();
+                let mut h = good[..FIXED_HEADER_LEN].to_vec();
                 h.extend_from_slice(&[0x80, 0x80, 0x80, 0x80, 0x80, 0]);
                 h
             },
@@ -330,7 +344,7 @@ fn header_errors_are_typed() {
         (
             "payload length above 2^32 - 1",
             {
-                let mut h = good[..17].to_vec();
+                let mut h = good[..FIXED_HEADER_LEN].to_vec();
                 h.extend_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF, 0x10]);
                 h
             },
@@ -339,7 +353,7 @@ fn header_errors_are_typed() {
         (
             "payload length with a redundant zero group",
             {
-                let mut h = good[..17].to_vec();
+                let mut h = good[..FIXED_HEADER_LEN].to_vec();
                 h.extend_from_slice(&[0x88, 0x00]);
                 h.extend_from_slice(&[0; 8]);
                 h
@@ -349,14 +363,14 @@ fn header_errors_are_typed() {
         (
             "payload length cut short",
             {
-                let mut h = good[..17].to_vec();
+                let mut h = good[..FIXED_HEADER_LEN].to_vec();
                 h.push(0x88);
                 h
             },
             DecodeError::Truncated,
         ),
-        ("checksum field zero", with(13, 0), {
-            let mut h = with(13, 0);
+        ("checksum field zero", with(CHECKSUM_BYTES.start, 0), {
+            let mut h = with(CHECKSUM_BYTES.start, 0);
             h[CHECKSUM_BYTES].fill(0);
             let computed = decoder_core::internal::syntax::stream_checksum(&h);
             DecodeError::ChecksumMismatch {

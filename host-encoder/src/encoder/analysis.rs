@@ -25,7 +25,9 @@ use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::control::WeightQuantiser;
 use decoder_core::internal::syntax::LeafSyntax;
-use decoder_core::internal::syntax::{reconstruct, Codebook, Contexts, ControlCoding, Header};
+use decoder_core::internal::syntax::{
+    reconstruct, Codebook, Contexts, ControlCoding, Header, MAX_DEBLOCK,
+};
 use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
 use std::convert::Infallible;
@@ -48,6 +50,9 @@ pub struct Analysis {
     /// The trial encode's plan (its multiplier and estimates): where the searches of targets
     /// start.
     pub(super) trial: Anchor,
+    /// The edge-smoothing strength every stream gets, or `None` to choose it per stream
+    /// ([`EncoderConfig::deblock`]).
+    pub(super) deblock: Option<u8>,
     /// How long each stage took.
     timing: AnalysisTiming,
 }
@@ -118,6 +123,7 @@ impl Analysis {
                 bits: 1.0,
                 sse: 1.0,
             },
+            deblock: config.deblock.map(|d| d.min(MAX_DEBLOCK)),
             timing: AnalysisTiming::default(),
         };
         let started = Instant::now();
@@ -138,7 +144,7 @@ impl Analysis {
     /// encode then weighs a handful of candidates per node instead of all of them.
     fn prune_candidates(&mut self, trial_bpp: f64) {
         let pixels = self.header.pixel_count() as f64;
-        let first = RateTable::new(&self.tree, &self.plane, &Contexts::default());
+        let first = RateTable::new(&self.tree, &self.prediction(), &Contexts::default());
         // The trained contexts change the rates only a little: what is far from the hull under
         // the first rates does not reach it under the trained ones, and need not be rated again.
         let near = first.lambda_optimal(1e-2..=1e6, HULL_LAYERS);
@@ -151,7 +157,7 @@ impl Analysis {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };
-        let rates = RateTable::new(&self.tree, &self.plane, &snapshot);
+        let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
         let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);
@@ -160,7 +166,7 @@ impl Analysis {
         let window = (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW);
         let vary = self.rates.lambda_optimal(window, 1);
         self.add_rounding_variants(&vary);
-        let rates = RateTable::new(&self.tree, &self.plane, &snapshot);
+        let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
         let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);
@@ -183,7 +189,10 @@ impl Analysis {
                     let fit = &na.fits[usize::from(c.fit)];
                     let n = fit.model.model().control_count();
                     let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-                        &ImagePrediction { plane },
+                        &ImagePrediction {
+                            plane,
+                            stripe: header.stripe_width(),
+                        },
                         &na.node,
                         fit.model,
                     );
@@ -227,6 +236,16 @@ impl Analysis {
     }
 }
 
+impl Analysis {
+    /// Prediction from the image's own pixels, as the analysis estimates it.
+    fn prediction(&self) -> ImagePrediction<'_> {
+        ImagePrediction {
+            plane: &self.plane,
+            stripe: self.header.stripe_width(),
+        }
+    }
+}
+
 impl WithCandidates for Analysis {
     fn candidates(&self) -> &CandidateTree {
         &self.tree
@@ -254,6 +273,8 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
         bit_depth: 8,
         min_leaf_log2,
         max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
+        stripe: config.stripe,
+        deblock: 0,
         codebooks: [Codebook::EMPTY; 2],
         // Set by the writer.
         payload_len: 0,
@@ -337,7 +358,10 @@ fn node_candidates(
     for (fi, fit) in na.fits.iter().enumerate() {
         let model = fit.model.model();
         let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-            &ImagePrediction { plane },
+            &ImagePrediction {
+                plane,
+                stripe: header.stripe_width(),
+            },
             &na.node,
             fit.model,
         );
@@ -596,6 +620,8 @@ mod tests {
             bit_depth: 8,
             min_leaf_log2: 2,
             max_leaf_log2: 6,
+            stripe: 0,
+            deblock: 0,
             codebooks: [Codebook::EMPTY; 2],
             payload_len: 0,
             checksum: 0,

@@ -3,6 +3,7 @@
 //!
 //! Bottom layer of the encoder: uses nothing else of it.
 
+use decoder_core::internal::format::CODING_TILE;
 use std::fmt;
 
 /// Settings of the analysis.
@@ -25,7 +26,20 @@ pub struct EncoderConfig {
     /// Bit rate of the trial encode whose final contexts train the rate estimates: the closer
     /// to the targets to come, the closer the estimates (see docs/decisions.md).
     pub trial_bpp: f64,
+    /// Width of the stripes the image is coded in, in coding tiles of 128 pixels (0: one
+    /// stripe as wide as the image). Prediction does not cross a stripe's left edge, and a
+    /// decoder holds one byte per column of a stripe: the default, 4 (512 pixels), is what
+    /// decoder-core holds unless told otherwise.
+    pub stripe: u8,
+    /// Strength of the smoothing of leaf edges every stream gets (0: none; at most
+    /// decoder-core's `MAX_DEBLOCK`), or `None` to choose it per stream: the strongest that
+    /// does not add to the stream's error.
+    pub deblock: Option<u8>,
 }
+
+/// The default stripe width, in coding tiles: decoder-core's default stripe capacity.
+pub const DEFAULT_STRIPE_TILES: u8 =
+    (decoder_core::internal::format::DEFAULT_STRIPE as u32 / CODING_TILE) as u8;
 
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
@@ -46,6 +60,8 @@ impl Default for EncoderConfig {
             codebook_levels: 8,
             fit_weights: false,
             trial_bpp: MIN_TRIAL_BPP,
+            stripe: DEFAULT_STRIPE_TILES,
+            deblock: None,
         }
     }
 }

@@ -75,12 +75,17 @@ impl Analysis {
             Target::Psnr(p) if p.is_finite() && p > 0.0 => None,
             other => return Err(EncodeError::BadTarget(other)),
         };
+        // A fixed smoothing strength is every stream's; otherwise each target chooses one.
+        let header = Header {
+            deblock: self.deblock.unwrap_or(0),
+            ..self.header
+        };
         let mut variants = vec![Header {
             codebooks: [Codebook::EMPTY; 2],
-            ..self.header
+            ..header
         }];
-        if self.header.has_codebooks() {
-            variants.push(self.header);
+        if header.has_codebooks() {
+            variants.push(header);
         }
         let mut best: Option<Encoded> = None;
         let mut last_err = None;
@@ -108,13 +113,8 @@ impl Analysis {
     }
 
     /// The encoded stream `written` of `plan`, with its reconstruction and figures.
-    fn finish(
-        &self,
-        header: &Header,
-        plan: &rate::Plan,
-        written: writer::Written,
-    ) -> Result<Encoded, EncodeError> {
-        let reconstruction = writer::reconstruct(&self.tree, header, plan)?;
+    fn finish(&self, plan: &rate::Plan, written: writer::Written) -> Result<Encoded, EncodeError> {
+        let reconstruction = decode(&written.bytes)?;
         let pixels = self.header.pixel_count();
         let sse: f64 = reconstruction
             .iter()
@@ -139,10 +139,32 @@ impl Analysis {
         writer::write(&self.tree, header, plan)
     }
 
-    /// Best stream of at most `budget` bytes. The analysis's rates ([`Analysis::rates`], from
+    /// Best stream of at most `budget` bytes: planned without edge smoothing, then, if a
+    /// smoothing strength lowers that plan's error ([`Analysis::smoothing_for`]), planned again
+    /// with it (smoothing changes the stream's size a little), keeping the better.
+    fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
+        let (plan, unsmoothed) = self.fit_budget(header, budget)?;
+        let Some(deblock) = self.smoothing_for(header, &plan, &unsmoothed)? else {
+            return Ok(unsmoothed);
+        };
+        let smoothed_header = Header { deblock, ..*header };
+        let (_, smoothed) = self.fit_budget(&smoothed_header, budget)?;
+        Ok(if smoothed.sse <= unsmoothed.sse {
+            smoothed
+        } else {
+            unsmoothed
+        })
+    }
+
+    /// Best stream of at most `budget` bytes with `header`'s edge smoothing, and its plan. The
+    /// analysis's rates ([`Analysis::rates`], from
     /// a trial encode's contexts) plan it; the real coder's size then corrects the plan's aim:
     /// down until the stream fits, then up to spend what it left unused.
-    fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
+    fn fit_budget(
+        &self,
+        header: &Header,
+        budget: usize,
+    ) -> Result<(rate::Plan, Encoded), EncodeError> {
         // The header (its payload length at most as long as for a payload of `budget` bytes)
         // and the four bytes of the range coder's flush.
         let longest_header = Header {
@@ -209,7 +231,8 @@ impl Analysis {
             plan = larger;
             written = larger_written;
         }
-        self.finish(header, &plan, written)
+        let encoded = self.finish(&plan, written)?;
+        Ok((plan, encoded))
     }
 
     /// Smallest stream whose PSNR reaches `db`. The plan's error is an estimate (exact fits'
@@ -225,9 +248,9 @@ impl Analysis {
         for _ in 0..QUALITY_PASSES {
             let plan = self.rates.plan_for_sse(self, header, aim, Some(anchor));
             let written = self.write(header, &plan)?;
-            let encoded = self.finish(header, &plan, written)?;
+            let encoded = self.finish(&plan, written)?;
             if encoded.sse <= max_sse {
-                return Ok(encoded);
+                return self.smoothed(header, &plan, encoded);
             }
             // At least a little lower each pass, in case the plan did not change.
             aim *= (max_sse / encoded.sse).min(0.995);
@@ -249,25 +272,80 @@ impl Analysis {
     /// plan of the smallest multiplier, which spends all the rate it wants (what a budget of
     /// unlimited bytes writes). The same whichever header variant asks.
     fn best_stream(&self) -> Result<Encoded, EncodeError> {
+        let header = Header {
+            deblock: self.deblock.unwrap_or(0),
+            ..self.header
+        };
         let mut variants = vec![Header {
             codebooks: [Codebook::EMPTY; 2],
-            ..self.header
+            ..header
         }];
-        if self.header.has_codebooks() {
-            variants.push(self.header);
+        if header.has_codebooks() {
+            variants.push(header);
         }
         let mut best: Option<Encoded> = None;
         for header in &variants {
             let plan = self.rates.plan_for_bits(self, header, f64::INFINITY, None);
             let written = self.write(header, &plan)?;
-            let encoded = self.finish(header, &plan, written)?;
+            let encoded = self.finish(&plan, written)?;
+            let encoded = self.smoothed(header, &plan, encoded)?;
             if best.as_ref().is_none_or(|b| encoded.sse < b.sse) {
                 best = Some(encoded);
             }
         }
         best.ok_or(EncodeError::Internal("no header variant"))
     }
+
+    /// The stream of `plan` with the smoothing strength [`Analysis::smoothing_for`] chooses,
+    /// or `unsmoothed` (the plan's stream without smoothing) when it chooses none.
+    fn smoothed(
+        &self,
+        header: &Header,
+        plan: &rate::Plan,
+        unsmoothed: Encoded,
+    ) -> Result<Encoded, EncodeError> {
+        let Some(deblock) = self.smoothing_for(header, plan, &unsmoothed)? else {
+            return Ok(unsmoothed);
+        };
+        let header = Header { deblock, ..*header };
+        let written = self.write(&header, plan)?;
+        self.finish(plan, written)
+    }
+
+    /// The smoothing of leaf edges ([`Header::deblock`]) for the streams of `plan` when the
+    /// analysis has no fixed strength: the strongest that leaves the error no larger than
+    /// `unsmoothed`'s (the plan's stream without smoothing); `None` for none. Smoothing steps
+    /// across leaf edges makes the picture continuous where the leaves' errors differ; among
+    /// the strengths that do not cost fidelity, the strongest leaves the fewest visible edges
+    /// (see docs/decisions.md).
+    fn smoothing_for(
+        &self,
+        header: &Header,
+        plan: &rate::Plan,
+        unsmoothed: &Encoded,
+    ) -> Result<Option<u8>, EncodeError> {
+        if self.deblock.is_some() {
+            // Fixed: already in the header.
+            return Ok(None);
+        }
+        for &deblock in DEBLOCK_STRENGTHS.iter().rev() {
+            if deblock == 0 {
+                break;
+            }
+            let header = Header { deblock, ..*header };
+            let written = self.write(&header, plan)?;
+            let encoded = self.finish(plan, written)?;
+            if encoded.sse <= unsmoothed.sse {
+                return Ok(Some(deblock));
+            }
+        }
+        Ok(None)
+    }
 }
+
+/// The edge-smoothing strengths an encode tries, weakest first ([`Header::deblock`]: a step
+/// is smoothed when it is at most `strength / 2` control steps).
+const DEBLOCK_STRENGTHS: [u8; 8] = [0, 1, 2, 3, 4, 6, 8, 12];
 
 /// Analyses an image with `config`; the result encodes any number of targets. `progress` is
 /// called with the number of quadtree nodes fitted so far. Fails with
@@ -279,4 +357,16 @@ pub fn analyse(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Analysis, EncodeError> {
     Analysis::run(plane, config, progress)
+}
+
+/// The image a stream decodes to, by decoder-core (what every decoder shows).
+fn decode(stream: &[u8]) -> Result<Vec<u8>, EncodeError> {
+    let decoder = decoder_core::Decoder::new(stream)
+        .map_err(EncodeError::Syntax)?
+        .stripe_capacity::<{ 1 << 16 }>();
+    let mut pixels = vec![0u8; decoder.header().pixel_count()];
+    decoder
+        .decode_into(&mut pixels)
+        .map_err(EncodeError::Syntax)?;
+    Ok(pixels)
 }

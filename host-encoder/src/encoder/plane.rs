@@ -4,7 +4,7 @@
 //! Bottom layer of the encoder: uses nothing else of it.
 
 use decoder_core::internal::model::SAMPLE_ONE;
-use decoder_core::internal::prediction::{inside_tile, SamplePrediction};
+use decoder_core::internal::prediction::{beside_known, SamplePrediction};
 
 /// An 8-bit grayscale image.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -54,6 +54,8 @@ pub fn psnr(sse: f64, pixels: usize) -> f64 {
 pub struct ImagePrediction<'a> {
     /// The image.
     pub plane: &'a Plane,
+    /// Width of the stripes the image is coded in, pixels.
+    pub stripe: u32,
 }
 
 impl ImagePrediction<'_> {
@@ -65,12 +67,7 @@ impl ImagePrediction<'_> {
 impl SamplePrediction for ImagePrediction<'_> {
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
         let (width, height) = (self.plane.width, self.plane.height);
-        let known = if above {
-            inside_tile(y, height) && x < width
-        } else {
-            inside_tile(x, width) && y < height
-        };
-        known.then(|| {
+        beside_known(above, x, y, width, height, self.stripe).then(|| {
             let (x, y) = if above { (x, y - 1) } else { (x - 1, y) };
             self.sample(x, y)
         })

@@ -9,7 +9,7 @@
 //! writes the [`Plan`]s it makes.
 
 use super::candidates::{CandidateSelection, CandidateTree, WithCandidates};
-use super::plane::{ImagePrediction, Plane};
+use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
 use decoder_core::internal::syntax::control::WeightQuantiser;
 use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header};
@@ -270,9 +270,13 @@ fn decide(
 }
 
 impl RateTable {
-    /// Rates of every candidate of `tree` (the analysis of `plane`), coded from the context
-    /// state `snapshot`.
-    pub fn new(tree: &CandidateTree, plane: &Plane, snapshot: &Contexts) -> RateTable {
+    /// Rates of every candidate of `tree` (the analysis of the image `prediction` predicts
+    /// from), coded from the context state `snapshot`.
+    pub fn new(
+        tree: &CandidateTree,
+        prediction: &ImagePrediction,
+        snapshot: &Contexts,
+    ) -> RateTable {
         let levels = tree
             .levels()
             .iter()
@@ -282,7 +286,6 @@ impl RateTable {
                     .par_iter()
                     .map(|na| {
                         let Some(na) = na else { return Vec::new() };
-                        let prediction = ImagePrediction { plane };
                         // Frozen counters leave the contexts alone: one copy per node.
                         let mut ctx = snapshot.clone();
                         na.candidates
@@ -294,7 +297,7 @@ impl RateTable {
                                     &mut counter,
                                     &mut ctx,
                                     &na.node,
-                                    &prediction,
+                                    prediction,
                                     &mut leaf,
                                 ) {
                                     Ok(()) => counter.bits() as f32,

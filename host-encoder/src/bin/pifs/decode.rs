@@ -7,6 +7,10 @@ use host_encoder::io;
 use std::path::Path;
 use std::time::Instant;
 
+/// The widest stripe the tool decodes: any the format allows (one byte per column, on the
+/// stack while decoding).
+pub const HOST_STRIPE: usize = 1 << 16;
+
 /// Decodes the stream `data` read from `path` within `limits`: its header and pixels, and
 /// every leaf when `leaves` is given.
 pub fn decode_stream(
@@ -51,7 +55,9 @@ pub fn decode_scaled(
     leaves: Option<&mut Vec<LeafInfo>>,
     scale: Scale,
 ) -> Result<(Header, u32, u32, Vec<u8>)> {
-    let decoder = Decoder::new(data).map_err(|e| CliError::stream(path, e))?;
+    let decoder = Decoder::new(data)
+        .map_err(|e| CliError::stream(path, e))?
+        .stripe_capacity::<HOST_STRIPE>();
     let decoder = decoder.limits(limits).map_err(|e| CliError::Stream {
         path: path.to_path_buf(),
         source: e,

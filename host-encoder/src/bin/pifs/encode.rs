@@ -49,6 +49,48 @@ pub struct AnalysisArgs {
     /// analysis for very little gain.
     #[arg(long)]
     pub fit_weights: bool,
+    /// Width of the stripes the image is coded in, in pixels (a multiple of 128), or `full` for
+    /// one stripe as wide as the image. A decoder holds one byte per column of a stripe:
+    /// decoder-core holds 512 unless told otherwise, so wider stripes are for decoders that
+    /// hold more (prediction and edge smoothing stop at a stripe's left edge).
+    #[arg(long, default_value = "512", value_parser = parse_stripe)]
+    pub stripe_width: u8,
+    /// Strength of the smoothing of leaf edges: `auto` (the strongest that does not add to
+    /// the error), or 0 (none) to 16.
+    #[arg(long, default_value = "auto", value_parser = parse_deblock)]
+    pub deblock: Deblock,
+}
+
+/// `--deblock`: a fixed edge-smoothing strength, or `None` for the encoder's choice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Deblock(pub Option<u8>);
+
+/// `--stripe-width`: pixels (a positive multiple of 128, at most 255 * 128) or `full`, as the
+/// header's stripe field (tiles of 128 pixels; 0 for the whole width).
+fn parse_stripe(s: &str) -> std::result::Result<u8, String> {
+    if s == "full" {
+        return Ok(0);
+    }
+    let px: u32 = s
+        .parse()
+        .map_err(|_| format!("'{s}' is not a width in pixels or 'full'"))?;
+    if px == 0 || !px.is_multiple_of(128) || px / 128 > 255 {
+        return Err(format!(
+            "{px} is not a multiple of 128 from 128 to 32640 (or 'full')"
+        ));
+    }
+    Ok((px / 128) as u8)
+}
+
+/// `--deblock`: `auto` or a strength from 0 to 16.
+fn parse_deblock(s: &str) -> std::result::Result<Deblock, String> {
+    if s == "auto" {
+        return Ok(Deblock(None));
+    }
+    match s.parse::<u8>() {
+        Ok(v) if v <= 16 => Ok(Deblock(Some(v))),
+        _ => Err(format!("'{s}' is not 'auto' or a strength from 0 to 16")),
+    }
 }
 
 impl Default for AnalysisArgs {
@@ -58,6 +100,8 @@ impl Default for AnalysisArgs {
             min_leaf_log2: d.min_leaf_log2,
             max_leaf_log2: d.max_leaf_log2,
             fit_weights: d.fit_weights,
+            stripe_width: d.stripe,
+            deblock: Deblock(d.deblock),
         }
     }
 }
@@ -70,6 +114,8 @@ impl AnalysisArgs {
             min_leaf_log2: self.min_leaf_log2,
             max_leaf_log2: self.max_leaf_log2.max(self.min_leaf_log2),
             fit_weights: self.fit_weights,
+            stripe: self.stripe_width,
+            deblock: self.deblock.0,
             ..chosen
         }
     }

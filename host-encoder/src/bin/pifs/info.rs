@@ -67,6 +67,14 @@ impl Stats {
             1 << header.min_leaf_log2,
             1 << header.max_leaf_log2
         );
+        println!(
+            "  coding           stripes of {} px, edge smoothing {}",
+            header.stripe_width(),
+            match header.deblock {
+                0 => "off".to_string(),
+                d => format!("{d} (steps up to {} control steps)", f64::from(d) / 2.0),
+            }
+        );
         let codebooks = if header.has_codebooks() {
             "Lloyd-Max (line, cell)"
         } else {
@@ -105,7 +113,11 @@ pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
     let mut stats = Stats::default();
     let Some(svg) = svg else {
         let header = Decoder::new(&data)
-            .and_then(|d| d.observe(|leaf: &LeafInfo| stats.leaf(leaf)).verify())
+            .and_then(|d| {
+                d.stripe_capacity::<{ crate::decode::HOST_STRIPE }>()
+                    .observe(|leaf: &LeafInfo| stats.leaf(leaf))
+                    .verify()
+            })
             .map_err(|e| CliError::stream(input, e))?;
         stats.print(input, &header, data.len());
         return Ok(());

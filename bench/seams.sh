@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Does the block grid show? PSNR, SSIM and the grid measure B_4, B_8, B_16 of PIFS decodes on
+# the 24 grayscale Kodak images at 0.05, 0.1, 0.25 and 0.5 bpp, beside JPEG 2000 (OpenJPEG) at
+# the same bytes and the originals' own B_g. Writes bench/results/seams.csv and seams.md.
+#
+#   bash bench/seams.sh [IMAGES...]      (default: ../shared/images/kodak/*.png)
+#
+# Needs python3 with numpy and Pillow, and opj_compress / opj_decompress (libopenjp2-tools).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+images=("$@")
+[ ${#images[@]} -gt 0 ] || images=(../shared/images/kodak/kodim*.png)
+mkdir -p bench/results
+cargo build --release -q -p host-encoder
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+python3 bench/seams.py --work "$work" --pifs target/release/pifs --jobs 2 \
+    --csv bench/results/seams.csv --md bench/results/seams.md "${images[@]}"
