@@ -27,6 +27,8 @@
 
 mod encoder;
 mod entropy;
+#[doc(hidden)]
+pub mod internal;
 pub mod io;
 
 pub use encoder::{

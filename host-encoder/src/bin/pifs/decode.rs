@@ -1,26 +1,39 @@
-//! `pifs decode`: a stream to an image file whose format the name's extension chooses.
+//! `pifs decode`: a stream to an image file whose format the name's extension (or `--format`)
+//! chooses.
+//!
+//! The stream's header is read first and checked against `--max-pixels`; the image is written
+//! row band by row band ([`io::decode_to_image`]), so memory follows the width, not the image.
 
 use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
-use decoder_core::{Decoder, Header, LeafInfo, Limits};
-use host_encoder::io;
+use crate::say;
+use decoder_core::{Header, LeafInfo, Limits};
+use host_encoder::io::{self, Content, Output, OutputFormat, StreamInput};
 use std::path::Path;
 use std::time::Instant;
 
-/// Decodes the stream `data` read from `path` within `limits`: its header and pixels, and
-/// every leaf when `leaves` is given.
-pub fn decode_stream(
-    path: &Path,
-    data: &[u8],
-    limits: &Limits,
+/// Opens the stream at `path` (`-`: standard input) header first, within `limits`.
+pub fn open_stream(path: &Path, limits: &Limits) -> Result<StreamInput> {
+    StreamInput::open(path, limits).map_err(|e| match e {
+        io::FileError::Stream {
+            path,
+            source: source @ decoder_core::DecodeError::TooLarge { .. },
+        } => CliError::Stream {
+            path,
+            source,
+            hint: Some("--max-pixels"),
+        },
+        other => other.into(),
+    })
+}
+
+/// Decodes `input` into memory: its header and pixels, and every leaf when `leaves` is given
+/// (for the drawing of `info --svg`).
+pub fn decode_pixels(
+    input: &StreamInput,
     leaves: Option<&mut Vec<LeafInfo>>,
 ) -> Result<(Header, Vec<u8>)> {
-    let decoder = Decoder::new(data).map_err(|e| CliError::stream(path, e))?;
-    let decoder = decoder.limits(limits).map_err(|e| CliError::Stream {
-        path: path.to_path_buf(),
-        source: e,
-        hint: Some("--max-pixels"),
-    })?;
+    let (decoder, failure) = input.decoder()?;
     let header = *decoder.header();
     let mut pixels = vec![0u8; header.pixel_count() * usize::from(header.channels)];
     let decoded = match leaves {
@@ -29,26 +42,56 @@ pub fn decode_stream(
             .decode_into(&mut pixels),
         None => decoder.decode_into(&mut pixels),
     };
-    let header = decoded.map_err(|e| CliError::stream(path, e))?;
+    let header = decoded.map_err(|e| input.error(e, &failure))?;
     Ok((header, pixels))
 }
 
-/// `pifs decode`: refuses a bad output name before reading anything.
-pub fn run(input: &Path, output: &Path, limits: &Limits) -> Result<()> {
+/// The format to write: `--format` if given (a name whose extension names another format is
+/// refused), else the name's extension; PNG on standard output.
+pub fn output_format(output: &Path, chosen: Option<OutputFormat>) -> Result<OutputFormat> {
+    if io::is_std_stream(output) {
+        return Ok(chosen.unwrap_or(OutputFormat::Png));
+    }
+    let named = OutputFormat::from_path(output);
+    match (chosen, named) {
+        (None, named) => Ok(named?),
+        (Some(chosen), Ok(named)) if chosen != named => Err(CliError::Refused(format!(
+            "output {} is named as {named:?} but --format asks for {chosen:?}",
+            output.display()
+        ))),
+        (Some(chosen), _) => Ok(chosen),
+    }
+}
+
+/// `pifs decode`: refuses a bad output name before reading anything, a bad stream on its
+/// header, then opens the output and writes the image band by band.
+pub fn run(
+    input: &Path,
+    output: &Path,
+    format: Option<OutputFormat>,
+    limits: &Limits,
+) -> Result<()> {
     let start = Instant::now();
-    output::check(output, Some(input), Kind::Image)?;
-    let data = io::read_stream(input)?;
-    let (header, pixels) = decode_stream(input, &data, limits, None)?;
-    let bytes = io::encode_gray(
-        output,
-        u32::from(header.width),
-        u32::from(header.height),
-        &pixels,
-    )?;
-    io::write_atomic(output, &bytes)?;
-    println!(
+    let chosen = format.is_some();
+    let format = output_format(output, format)?;
+    let kind = if chosen {
+        Kind::ChosenImage
+    } else {
+        Kind::Image
+    };
+    output::check(output, Some(input), kind)?;
+    if io::is_std_stream(output) {
+        say::stdout_is_data();
+    }
+    let stream = open_stream(input, limits)?;
+    let out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    let (decoded, out) = io::decode_to_image(&stream, format, out, &name, io::BAND_BYTES)?;
+    out.commit()?;
+    let header = decoded.header;
+    say!(
         "{}: {}x{} decoded in {:.1} ms",
-        output.display(),
+        name.display(),
         header.width,
         header.height,
         start.elapsed().as_secs_f64() * 1e3
