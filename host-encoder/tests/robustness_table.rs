@@ -853,3 +853,116 @@ fn render(rows: &[String], refused: usize) -> String {
         rows.join("\n")
     )
 }
+
+/// Files in `fuzz/<dir>`, counted.
+fn count_files(dir: &str) -> usize {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fuzz")
+        .join(dir);
+    std::fs::read_dir(path)
+        .map(|d| {
+            d.filter_map(Result::ok)
+                .filter(|e| e.path().is_file() && e.path().extension().is_none_or(|x| x != "md"))
+                .count()
+        })
+        .unwrap_or(0)
+}
+
+/// Thousands separated by spaces: "100 000 000".
+fn grouped(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(' ');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// The fuzzing section: the targets, their seeds, and the last campaign as `fuzz/run.sh
+/// --record` wrote it in `fuzz/campaign.txt`, labelled with the format version it ran on.
+#[test]
+fn the_fuzz_campaign_is_reported() {
+    let fuzz = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz");
+    let record = std::fs::read_to_string(fuzz.join("campaign.txt")).unwrap_or_default();
+    let field = |name: &str| {
+        record
+            .lines()
+            .find_map(|l| l.strip_prefix(name).map(|v| v.trim().to_string()))
+    };
+    let targets = [
+        "decode_bytes",
+        "stream_equals_slice",
+        "roundtrip",
+        "encode_input",
+        "large_dimensions",
+    ];
+    let mut text = format!(
+        "## Fuzzing\n\
+         \n\
+         Five `cargo fuzz` targets (`fuzz/README.md`): `decode_bytes` and `stream_equals_slice`\n\
+         (any bytes as a stream, in memory and byte by byte), `roundtrip` (bytes made an image,\n\
+         encoded and decoded), `encode_input` (image file bytes through the host's input side,\n\
+         as `pifs encode` reads them) and `large_dimensions` (a valid header declaring up to\n\
+         65535 x 65535 pixels over a small payload, read header first by the host and written\n\
+         band by band, compared with `decode_into`). Their checks are in `tests/src/fuzz.rs`;\n\
+         `cargo test` replays them on every seed and regression input and on a few thousand\n\
+         mutations (`tests/tests/fuzz_replay.rs`). The seeds in `fuzz/seeds/` are made by the\n\
+         encoder (`tests/tests/fuzz_seeds.rs`, which also checks that they are of the current\n\
+         format and use every model, both control codings, every control and weight quantiser\n\
+         and every leaf size): {} streams, {} images, {} round-trip and {} large-dimension\n\
+         inputs; {} regression inputs.\n\
+         \n",
+        count_files("seeds/streams"),
+        count_files("seeds/encode_input"),
+        count_files("seeds/roundtrip"),
+        count_files("seeds/large_dimensions"),
+        targets
+            .iter()
+            .map(|t| count_files(&format!("regressions/{t}")))
+            .sum::<usize>(),
+    );
+    let version = field("format_version").and_then(|v| v.parse::<u8>().ok());
+    match version {
+        None => text.push_str(
+            "No campaign is recorded yet: `bash fuzz/run.sh --jobs 2 --record SECONDS` runs one\n\
+             and records it in `fuzz/campaign.txt`.\n",
+        ),
+        Some(v) => {
+            let command = field("# Written by:").unwrap_or_default();
+            let current = decoder_core::VERSION;
+            let label = if v == current {
+                format!("format version {v}, the current one")
+            } else {
+                format!("format version {v}; the format is now version {current}: run it again")
+            };
+            text.push_str(&format!(
+                "Last campaign ({label}), {}, no sanitizer (decoder-core forbids unsafe code), \
+                 inputs up to 64 KiB:\n\
+                 \n\
+                 ```text\n{command}\n```\n\
+                 \n\
+                 | target | executions |\n|---|---|\n",
+                field("date").unwrap_or_default(),
+            ));
+            let mut total = 0u64;
+            for line in record.lines().filter_map(|l| l.strip_prefix("executions ")) {
+                let mut parts = line.split_whitespace();
+                let (Some(t), Some(n)) = (parts.next(), parts.next()) else {
+                    continue;
+                };
+                let n: u64 = n.parse().unwrap_or(0);
+                total += n;
+                text.push_str(&format!("| `{t}` | {} |\n", grouped(n)));
+            }
+            text.push_str(&format!(
+                "| total | {} |\n\nCrashes: {}.\n",
+                grouped(total),
+                field("crashes").unwrap_or_else(|| "?".into())
+            ));
+        }
+    }
+    doc::section(doc::Section::Fuzzing, &text);
+}

@@ -113,7 +113,7 @@ pub struct ImageWriter<W: Write + 'static> {
 }
 
 enum Inner<W: Write + 'static> {
-    Png(png::StreamWriter<'static, Shared<W>>),
+    Png(Box<png::StreamWriter<'static, Shared<W>>>),
     Pnm { rgb: bool, expanded: Vec<u8> },
 }
 
@@ -166,7 +166,7 @@ impl<W: Write + 'static> ImageWriter<W> {
                     .write_header()
                     .and_then(png::Writer::into_stream_writer)
                     .map_err(png_error)?;
-                Inner::Png(stream)
+                Inner::Png(Box::new(stream))
             }
             OutputFormat::Pgm | OutputFormat::Ppm => {
                 let rgb = format == OutputFormat::Ppm;

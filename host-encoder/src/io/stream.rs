@@ -54,98 +54,110 @@ enum Stored {
 
 impl StreamInput {
     /// Reads the stream at `path` (`-`: standard input) header first, by the rules of this
-    /// module, refusing it when its header is beyond `limits`.
+    /// module, refusing it when its header is beyond `limits`. A regular file is checked here
+    /// (length, checksum) and read again for each decode; anything else is held in memory.
     pub fn open(path: &Path, limits: &Limits) -> Result<StreamInput, FileError> {
         let name = input_name(path);
-        let read_failed = |source| FileError::Read {
+        if is_std_stream(path) {
+            return StreamInput::from_reader(std::io::stdin().lock(), &name, limits);
+        }
+        if path.is_dir() {
+            return Err(FileError::IsDirectory {
+                path: name,
+                expected: "a .pifs stream",
+            });
+        }
+        let file = File::open(path).map_err(|source| FileError::Read {
             path: name.clone(),
             source,
+        })?;
+        let len = match file.metadata() {
+            Ok(m) if m.is_file() => m.len(),
+            _ => return StreamInput::from_reader(BufReader::new(file), &name, limits),
         };
+        let mut reader = BufReader::new(file);
+        let (header, _, mut crc) = checked_header(&mut reader, &name, limits)?;
         let refused = |source| FileError::Stream {
             path: name.clone(),
             source,
         };
-        let (mut reader, file_len): (Box<dyn Read>, Option<u64>) = if is_std_stream(path) {
-            (Box::new(std::io::stdin().lock()), None)
-        } else {
-            if path.is_dir() {
-                return Err(FileError::IsDirectory {
-                    path: name,
-                    expected: "a .pifs stream",
-                });
-            }
-            let file = File::open(path).map_err(read_failed)?;
-            let len = file
-                .metadata()
-                .ok()
-                .filter(|m| m.is_file())
-                .map(|m| m.len());
-            (Box::new(BufReader::new(file)), len)
-        };
-        let (header, head) = read_header(&mut reader).map_err(|e| match e {
-            HeaderRead::Io(e) => read_failed(e),
-            HeaderRead::Stream(e) => refused(e),
-        })?;
-        limits.check(&header).map_err(refused)?;
         let stream_len = header.stream_len();
-        let mut crc = Crc32::default();
-        crc.update(&head[..CHECKSUM_BYTES.start]);
-        crc.update(&head[CHECKSUM_BYTES.end..]);
-        let bytes = match file_len {
-            Some(len) => {
-                if len < stream_len {
-                    return Err(refused(DecodeError::Truncated));
-                }
-                if len > stream_len {
-                    return Err(refused(DecodeError::InvalidHeader(
-                        HeaderField::TrailingBytes,
-                    )));
-                }
-                let mut buf = vec![0u8; 1 << 16];
-                let mut left = u64::from(header.payload_len);
-                while left > 0 {
-                    let want = buf.len().min(usize::try_from(left).unwrap_or(usize::MAX));
-                    let n = reader.read(&mut buf[..want]).map_err(read_failed)?;
-                    if n == 0 {
-                        return Err(refused(DecodeError::Truncated));
-                    }
-                    crc.update(&buf[..n]);
-                    left -= n as u64;
-                }
-                Stored::File(path.to_path_buf())
-            }
-            None => {
-                let head_len = head.len();
-                let mut data = head;
-                let payload_len = u64::from(header.payload_len);
-                (&mut reader)
-                    .take(payload_len)
-                    .read_to_end(&mut data)
-                    .map_err(read_failed)?;
-                if (data.len() as u64) < stream_len {
-                    return Err(refused(DecodeError::Truncated));
-                }
-                let mut one = [0u8; 1];
-                if reader.read(&mut one).map_err(read_failed)? != 0 {
-                    return Err(refused(DecodeError::InvalidHeader(
-                        HeaderField::TrailingBytes,
-                    )));
-                }
-                crc.update(&data[head_len..]);
-                Stored::Memory(data)
-            }
-        };
-        let computed = crc.value();
-        if computed != header.checksum {
-            return Err(refused(DecodeError::ChecksumMismatch {
-                stored: header.checksum,
-                computed,
-            }));
+        if len < stream_len {
+            return Err(refused(DecodeError::Truncated));
         }
+        if len > stream_len {
+            return Err(refused(DecodeError::InvalidHeader(
+                HeaderField::TrailingBytes,
+            )));
+        }
+        let mut buf = vec![0u8; 1 << 16];
+        let mut left = u64::from(header.payload_len);
+        while left > 0 {
+            let want = buf.len().min(usize::try_from(left).unwrap_or(usize::MAX));
+            let n = reader
+                .read(&mut buf[..want])
+                .map_err(|source| FileError::Read {
+                    path: name.clone(),
+                    source,
+                })?;
+            if n == 0 {
+                return Err(refused(DecodeError::Truncated));
+            }
+            crc.update(&buf[..n]);
+            left -= n as u64;
+        }
+        check_crc(&header, crc).map_err(refused)?;
         Ok(StreamInput {
             name,
             header,
-            bytes,
+            bytes: Stored::File(path.to_path_buf()),
+        })
+    }
+
+    /// Reads a stream from `reader` header first (`name` names it in errors), refusing it when
+    /// its header is beyond `limits`, then exactly the payload the header declares (held in
+    /// memory, which grows only as bytes arrive) and one byte more, which must not be there.
+    /// At most the header, the payload and that one byte are read.
+    pub fn from_reader(
+        mut reader: impl Read,
+        name: &Path,
+        limits: &Limits,
+    ) -> Result<StreamInput, FileError> {
+        let (header, mut data, mut crc) = checked_header(&mut reader, name, limits)?;
+        let read_failed = |source| FileError::Read {
+            path: name.to_path_buf(),
+            source,
+        };
+        let refused = |source| FileError::Stream {
+            path: name.to_path_buf(),
+            source,
+        };
+        let head_len = data.len();
+        (&mut reader)
+            .take(u64::from(header.payload_len))
+            .read_to_end(&mut data)
+            .map_err(read_failed)?;
+        if (data.len() as u64) < header.stream_len() {
+            return Err(refused(DecodeError::Truncated));
+        }
+        let mut one = [0u8; 1];
+        let extra = loop {
+            match reader.read(&mut one) {
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                other => break other.map_err(read_failed)?,
+            }
+        };
+        if extra != 0 {
+            return Err(refused(DecodeError::InvalidHeader(
+                HeaderField::TrailingBytes,
+            )));
+        }
+        crc.update(&data[head_len..]);
+        check_crc(&header, crc).map_err(refused)?;
+        Ok(StreamInput {
+            name: name.to_path_buf(),
+            header,
+            bytes: Stored::Memory(data),
         })
     }
 
@@ -320,6 +332,45 @@ fn read_header(reader: &mut dyn Read) -> Result<(Header, Vec<u8>), HeaderRead> {
     }
 }
 
+/// Reads and checks a header from `reader` (`name` names it in errors) and checks it against
+/// `limits`; returns it, its bytes and the CRC-32 state after its checksummed bytes.
+fn checked_header(
+    reader: &mut dyn Read,
+    name: &Path,
+    limits: &Limits,
+) -> Result<(Header, Vec<u8>, Crc32), FileError> {
+    let (header, head) = read_header(reader).map_err(|e| match e {
+        HeaderRead::Io(source) => FileError::Read {
+            path: name.to_path_buf(),
+            source,
+        },
+        HeaderRead::Stream(source) => FileError::Stream {
+            path: name.to_path_buf(),
+            source,
+        },
+    })?;
+    limits.check(&header).map_err(|source| FileError::Stream {
+        path: name.to_path_buf(),
+        source,
+    })?;
+    let mut crc = Crc32::default();
+    crc.update(&head[..CHECKSUM_BYTES.start]);
+    crc.update(&head[CHECKSUM_BYTES.end..]);
+    Ok((header, head, crc))
+}
+
+/// `Ok` when `crc` (the whole stream's but the checksum field's) is the header's checksum.
+fn check_crc(header: &Header, crc: Crc32) -> Result<(), DecodeError> {
+    let computed = crc.value();
+    if computed != header.checksum {
+        return Err(DecodeError::ChecksumMismatch {
+            stored: header.checksum,
+            computed,
+        });
+    }
+    Ok(())
+}
+
 /// Reads the stream at `path` whole into memory, header first (see [`StreamInput::open`]),
 /// within `limits`.
 pub fn read_stream(path: &Path, limits: &Limits) -> Result<Vec<u8>, FileError> {
@@ -478,4 +529,193 @@ pub fn decode_to_image<W: Write + 'static>(
     }
     let out = writer.finish().map_err(write_failed)?;
     Ok((Decoded { header, passes }, out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::internal::synthetic_stream;
+
+    /// Counts the bytes a reader hands out.
+    struct Counting<'a> {
+        data: &'a [u8],
+        pulled: usize,
+    }
+
+    impl Read for Counting<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = buf.len().min(self.data.len() - self.pulled);
+            buf[..n].copy_from_slice(&self.data[self.pulled..self.pulled + n]);
+            self.pulled += n;
+            Ok(n)
+        }
+    }
+
+    fn stream(w: u16, h: u16, leaf_log2: u8) -> Vec<u8> {
+        synthetic_stream(w, h, leaf_log2, |node, leaf| {
+            leaf.control[0] = ((node.x / 4 + node.y / 8) % 7) as i16 - 3;
+            leaf.control[1] = ((node.x / 16 + node.y / 4) % 5) as i16 - 2;
+        })
+        .unwrap()
+    }
+
+    fn reference(bytes: &[u8]) -> Vec<u8> {
+        let decoder = Decoder::new(bytes).unwrap();
+        let mut px = vec![0u8; decoder.header().pixel_count()];
+        decoder.decode_into(&mut px).unwrap();
+        px
+    }
+
+    fn name() -> &'static Path {
+        Path::new("test.pifs")
+    }
+
+    #[test]
+    fn what_is_not_a_stream_is_refused_after_four_bytes() {
+        let zeros = vec![0u8; 1 << 16];
+        let mut source = Counting {
+            data: &zeros,
+            pulled: 0,
+        };
+        let err = StreamInput::from_reader(&mut source, name(), &Limits::NONE).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FileError::Stream {
+                    source: DecodeError::BadMagic,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert_eq!(source.pulled, 4);
+    }
+
+    #[test]
+    fn a_stream_beyond_the_limits_is_refused_on_its_header() {
+        let bytes = stream(300, 200, 5);
+        let header = Header::read(&bytes).unwrap();
+        let mut source = Counting {
+            data: &bytes,
+            pulled: 0,
+        };
+        let err =
+            StreamInput::from_reader(&mut source, name(), &Limits::pixels(59_999)).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FileError::Stream {
+                    source: DecodeError::TooLarge { .. },
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert_eq!(source.pulled, header.encoded_len());
+    }
+
+    #[test]
+    fn at_most_the_stream_and_one_byte_are_read() {
+        let bytes = stream(64, 40, 4);
+        let mut longer = bytes.clone();
+        longer.extend_from_slice(&[0; 1000]);
+        let mut source = Counting {
+            data: &longer,
+            pulled: 0,
+        };
+        let err = StreamInput::from_reader(&mut source, name(), &Limits::NONE).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FileError::Stream {
+                    source: DecodeError::InvalidHeader(HeaderField::TrailingBytes),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert_eq!(source.pulled, bytes.len() + 1);
+        let short = &bytes[..bytes.len() - 1];
+        let err = StreamInput::from_reader(short, name(), &Limits::NONE).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FileError::Stream {
+                    source: DecodeError::Truncated,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let mut damaged = bytes.clone();
+        let last = damaged.len() - 1;
+        damaged[last] ^= 1;
+        let err = StreamInput::from_reader(&damaged[..], name(), &Limits::NONE).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FileError::Stream {
+                    source: DecodeError::ChecksumMismatch { .. },
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    /// Band by band, in one pass or several, from memory or from a file: the pixels of
+    /// `decode_into`.
+    #[test]
+    fn the_image_written_by_bands_is_the_decoded_image() {
+        let dir = tempfile::tempdir().unwrap();
+        for (w, h, leaf, band, passes) in [
+            (64u16, 40u16, 4u8, BAND_BYTES, 1u32),
+            (200, 700, 3, 1, 7),
+            (300, 1000, 7, 200 * 300, 9),
+            (1, 300, 2, 1, 4),
+            (513, 129, 6, 1, 3),
+        ] {
+            let bytes = stream(w, h, leaf);
+            let want = reference(&bytes);
+            let path = dir.path().join("s.pifs");
+            std::fs::write(&path, &bytes).unwrap();
+            for input in [
+                StreamInput::from_reader(&bytes[..], name(), &Limits::NONE).unwrap(),
+                StreamInput::open(&path, &Limits::NONE).unwrap(),
+            ] {
+                let (decoded, pgm) =
+                    decode_to_image(&input, OutputFormat::Pgm, Vec::new(), name(), band).unwrap();
+                let head = format!("P5\n{w} {h}\n255\n");
+                assert!(pgm.starts_with(head.as_bytes()));
+                assert!(pgm[head.len()..] == want[..], "{w}x{h} leaf {leaf}");
+                assert!(
+                    decoded.passes <= passes,
+                    "{w}x{h}: {} passes",
+                    decoded.passes
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_failing_output_stops_the_decode_with_its_error() {
+        struct Full;
+        impl std::io::Write for Full {
+            fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+                Err(std::io::Error::from(std::io::ErrorKind::StorageFull))
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let bytes = stream(64, 300, 5);
+        let input = StreamInput::from_reader(&bytes[..], name(), &Limits::NONE).unwrap();
+        let err = decode_to_image(&input, OutputFormat::Pgm, Full, Path::new("out.pgm"), 1)
+            .err()
+            .unwrap();
+        assert!(
+            err.to_string().starts_with("cannot write out.pgm: "),
+            "{err}"
+        );
+    }
 }

@@ -31,10 +31,10 @@ pub const DEFAULT_BPP: f64 = 0.25;
 #[derive(Args, Debug)]
 pub struct EncodeArgs {
     /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; colour is converted to luma, the EXIF
-    /// orientation applied, the first page of a TIFF taken); - reads standard input.
+    /// orientation applied, the first page of a TIFF taken); "-" reads standard input.
     pub input: PathBuf,
     /// Output stream. Any name but an image format's (.png, .jpg, ... are refused, so that a
-    /// stream never poses as an image); .pifs by convention; - writes standard output. An
+    /// stream never poses as an image); .pifs by convention; "-" writes standard output. An
     /// existing file is replaced atomically and keeps its permissions, a symbolic link is
     /// followed, a device or a FIFO is written through.
     #[arg(short, long)]

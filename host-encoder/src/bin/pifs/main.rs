@@ -50,11 +50,11 @@ enum Command {
     /// .ppm repeats the grey in three channels, for tools that read colour only. The image is
     /// written band by band: memory follows the width, not the image.
     Decode {
-        /// Input stream; - reads standard input. Its header is checked before anything else is
+        /// Input stream; "-" reads standard input. Its header is checked before anything else is
         /// read, and no more than the stream it declares is read.
         input: PathBuf,
         /// Output image: .png, .pgm, .pnm or .ppm (anything else is refused before decoding);
-        /// - writes standard output (PNG unless --format says otherwise). An existing file is
+        /// "-" writes standard output (PNG unless --format says otherwise). An existing file is
         /// replaced atomically and keeps its permissions, a symbolic link is followed, a
         /// device or a FIFO is written through.
         #[arg(short, long)]
@@ -72,7 +72,7 @@ enum Command {
     /// Dimensions, size, leaves per size, model and quantiser use, read from the entropy-coded
     /// syntax without drawing a pixel (unless --svg asks for the drawing).
     Info {
-        /// Input stream; - reads standard input.
+        /// Input stream; "-" reads standard input.
         input: PathBuf,
         /// Also draw the quadtree over the decoded image, leaves outlined in a colour per
         /// model, into this SVG file.
