@@ -33,7 +33,10 @@ pub fn decode_bytes(data: &[u8]) {
     decode_checked(data);
     let mut sealed = data.to_vec();
     seal(&mut sealed);
-    decode_checked(&sealed);
+    // Bytes whose checksum already matches were just checked.
+    if sealed != data {
+        decode_checked(&sealed);
+    }
 }
 
 fn decode_checked(data: &[u8]) {
@@ -145,7 +148,9 @@ pub fn stream_equals_slice(data: &[u8]) {
     stream_vs_slice(data);
     let mut sealed = data.to_vec();
     seal(&mut sealed);
-    stream_vs_slice(&sealed);
+    if sealed != data {
+        stream_vs_slice(&sealed);
+    }
 }
 
 fn stream_vs_slice(data: &[u8]) {

@@ -28,6 +28,15 @@ impl OutputFormat {
         ("ppm", OutputFormat::Ppm),
     ];
 
+    /// The format's name, as `--format` takes it: "png", "pgm" or "ppm".
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputFormat::Png => "png",
+            OutputFormat::Pgm => "pgm",
+            OutputFormat::Ppm => "ppm",
+        }
+    }
+
     /// The format named `name` (an extension without its dot, case-insensitive).
     pub fn from_name(name: &str) -> Option<OutputFormat> {
         let name = name.to_ascii_lowercase();

@@ -10,8 +10,10 @@
 //!   same directory, synced, then put in place in one step, so that a reader sees the old file
 //!   or the new one, never part of one, and a failed or interrupted write leaves the old file
 //!   as it was. On Linux the temporary file has no name until it is complete (`O_TMPFILE`,
-//!   then `linkat`), so a process killed at any moment, even by SIGKILL, leaves nothing
-//!   behind. Elsewhere (or on a file system without `O_TMPFILE`) it is a hidden
+//!   then `linkat`), so a process killed while it works or writes, even by SIGKILL, leaves
+//!   nothing behind. (A new path is linked in one step; an existing file is replaced by linking
+//!   the complete file under a hidden name and renaming it over the old one in the next system
+//!   call: only a kill between those two calls could leave the hidden name.) Elsewhere (or on a file system without `O_TMPFILE`) it is a hidden
 //!   `.pifs-tmp-XXXXXX` file, deleted on error and by [`remove_temporary_files`], which a
 //!   program calls when SIGINT or SIGTERM stops it.
 //!

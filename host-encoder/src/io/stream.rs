@@ -12,7 +12,8 @@
 //! memory ([`BAND_BYTES`]): each row is written as soon as every leaf covering it has been
 //! drawn. When the decoder's coding order reaches below the band before the band's top row is
 //! complete (a quadtree in Z order over a large image does), the stream is decoded again for
-//! each band with [`Decoder::clip`], the entropy decoding repeated and the pixels drawn once.
+//! each band with [`Decoder::clip`], the entropy decoding repeated and the pixels drawn once
+//! (measurements: `docs/decisions.md`, "Decoded images written band by band").
 
 use super::image_out::{ImageWriter, OutputFormat};
 use super::{input_name, is_std_stream, FileError};

@@ -56,8 +56,10 @@ pub fn output_format(output: &Path, chosen: Option<OutputFormat>) -> Result<Outp
     match (chosen, named) {
         (None, named) => Ok(named?),
         (Some(chosen), Ok(named)) if chosen != named => Err(CliError::Refused(format!(
-            "output {} is named as {named:?} but --format asks for {chosen:?}",
-            output.display()
+            "output {} is named as {} but --format asks for {}",
+            output.display(),
+            named.name(),
+            chosen.name()
         ))),
         (Some(chosen), _) => Ok(chosen),
     }
@@ -97,4 +99,28 @@ pub fn run(
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_format_comes_from_the_option_or_the_name() {
+        let f = |out: &str, chosen| output_format(Path::new(out), chosen);
+        assert_eq!(f("-", None).unwrap(), OutputFormat::Png);
+        assert_eq!(f("-", Some(OutputFormat::Pgm)).unwrap(), OutputFormat::Pgm);
+        assert_eq!(f("x.ppm", None).unwrap(), OutputFormat::Ppm);
+        assert_eq!(f("x", Some(OutputFormat::Pgm)).unwrap(), OutputFormat::Pgm);
+        assert_eq!(
+            f("x.PGM", Some(OutputFormat::Pgm)).unwrap(),
+            OutputFormat::Pgm
+        );
+        assert!(f("x", None).is_err());
+        let err = f("x.png", Some(OutputFormat::Pgm)).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "output x.png is named as png but --format asks for pgm"
+        );
+    }
 }

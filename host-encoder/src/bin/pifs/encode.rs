@@ -506,3 +506,64 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
 
 /// The target whose analysis reaches the highest quality: a budget of unlimited bytes.
 pub const TOP_TUNING: Target = Target::Bytes(usize::MAX);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_read_naturally() {
+        assert_eq!(number(0.25), "0.25");
+        assert_eq!(number(1e300), "1e300");
+        assert_eq!(number(1e-300), "1e-300");
+        assert_eq!(number(0.0), "0");
+        assert_eq!(number(f64::NAN), "NaN");
+        assert_eq!(bpp_for(18, 9), "16");
+        assert_eq!(bpp_for(18, 64 * 48), "0.0469");
+        assert_eq!(bytes_text(1), "1 byte");
+    }
+
+    #[test]
+    fn refusals_name_the_option_and_what_to_ask_for() {
+        let job = |target| Job {
+            target,
+            is_default: false,
+        };
+        let err = check_target_fits(job(Target::Bpp(1.0)), 3, 3).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "--bpp 1 allows 1 byte for this 3x3 image, and no stream is smaller than 18 bytes (its header): use --bpp 16 or more"
+        );
+        assert!(check_target_fits(job(Target::Bpp(1.0)), 64, 48).is_ok());
+        assert!(check_target_fits(job(Target::Psnr(30.0)), 1, 1).is_ok());
+        let default = Job {
+            target: Target::Bpp(DEFAULT_BPP),
+            is_default: true,
+        };
+        assert!(check_target_fits(default, 1, 1).is_ok());
+        let err = explain(
+            CliError::Encode(EncodeError::BudgetTooSmall {
+                budget: 30,
+                smallest: 45,
+            }),
+            job(Target::Bpp(0.078)),
+            (64, 48),
+        );
+        assert_eq!(
+            err.to_string(),
+            "--bpp 0.078 allows 30 bytes for this 64x48 image, and the smallest stream for this image is 45 bytes: use --bpp 0.118 or more, or --bytes 45"
+        );
+        let err = explain(
+            CliError::Encode(EncodeError::QualityUnreachable {
+                requested: 1e300,
+                best: 41.234,
+            }),
+            job(Target::Psnr(1e300)),
+            (64, 48),
+        );
+        assert_eq!(
+            err.to_string(),
+            "--psnr 1e300 dB is unreachable for this 64x48 image (ask for less): the best this encoder reaches is 41.23 dB"
+        );
+    }
+}
