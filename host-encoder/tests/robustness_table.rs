@@ -931,36 +931,61 @@ fn the_fuzz_campaign_is_reported() {
              and records it in `fuzz/campaign.txt`.\n",
         ),
         Some(v) => {
-            let command = field("# Written by:").unwrap_or_default();
             let current = decoder_core::VERSION;
             let label = if v == current {
                 format!("format version {v}, the current one")
             } else {
                 format!("format version {v}; the format is now version {current}: run it again")
             };
-            text.push_str(&format!(
-                "Last campaign ({label}), {}, no sanitizer (decoder-core forbids unsafe code), \
-                 inputs up to 64 KiB:\n\
-                 \n\
-                 ```text\n{command}\n```\n\
-                 \n\
-                 | target | executions |\n|---|---|\n",
-                field("date").unwrap_or_default(),
-            ));
-            let mut total = 0u64;
-            for line in record.lines().filter_map(|l| l.strip_prefix("executions ")) {
-                let mut parts = line.split_whitespace();
-                let (Some(t), Some(n)) = (parts.next(), parts.next()) else {
+            let commands: Vec<&str> = record
+                .lines()
+                .filter_map(|l| l.strip_prefix("command "))
+                .collect();
+            // run <target> <executions> <seconds> <jobs> <date>
+            let mut per_target: Vec<(String, u64, u64)> = Vec::new();
+            let mut dates = Vec::new();
+            for line in record.lines().filter_map(|l| l.strip_prefix("run ")) {
+                let f: Vec<&str> = line.split_whitespace().collect();
+                let [t, n, secs, jobs, date] = f[..] else {
                     continue;
                 };
                 let n: u64 = n.parse().unwrap_or(0);
-                total += n;
-                text.push_str(&format!("| `{t}` | {} |\n", grouped(n)));
+                let cpu = secs.parse::<u64>().unwrap_or(0) * jobs.parse::<u64>().unwrap_or(0);
+                dates.push(date.to_string());
+                match per_target.iter_mut().find(|(name, ..)| name == t) {
+                    Some(entry) => {
+                        entry.1 += n;
+                        entry.2 += cpu;
+                    }
+                    None => per_target.push((t.to_string(), n, cpu)),
+                }
             }
+            dates.sort();
             text.push_str(&format!(
-                "| total | {} |\n\nCrashes: {}.\n",
+                "Recorded campaign ({label}; {} to {}), no sanitizer (decoder-core forbids unsafe \
+                 code), debug assertions and overflow checks on, inputs up to 64 KiB, no crash:\n\
+                 \n\
+                 ```text\n{}\n```\n\
+                 \n\
+                 | target | executions | process time |\n|---|---|---|\n",
+                dates.first().map(String::as_str).unwrap_or("?"),
+                dates.last().map(String::as_str).unwrap_or("?"),
+                commands.join("\n"),
+            ));
+            let mut total = 0u64;
+            for (t, n, cpu) in &per_target {
+                total += n;
+                text.push_str(&format!(
+                    "| `{t}` | {} | {:.1} h |\n",
+                    grouped(*n),
+                    *cpu as f64 / 3600.0
+                ));
+            }
+            let cpu: u64 = per_target.iter().map(|e| e.2).sum();
+            text.push_str(&format!(
+                "| total | {} | {:.1} h |\n",
                 grouped(total),
-                field("crashes").unwrap_or_else(|| "?".into())
+                cpu as f64 / 3600.0
             ));
         }
     }
