@@ -583,6 +583,22 @@ mod tests {
         }
     }
 
+    #[cfg(unix)]
+    #[test]
+    fn a_socket_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("socket.pifs");
+        let _listener = std::os::unix::net::UnixListener::bind(&path).unwrap();
+        let err = write_atomic(&path, b"x").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "output {} is a socket: refusing to write onto it",
+                path.display()
+            )
+        );
+    }
+
     #[test]
     fn named_temporary_files_are_listed_until_done() {
         let dir = tempfile::tempdir().unwrap();

@@ -424,6 +424,9 @@ impl<W: Write + 'static> PixelSink for Band<'_, W> {
 
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
         let Rect { x, y, w, h } = tile.area;
+        if w == 0 || h == 0 {
+            return Ok(());
+        }
         if y < self.base || y + h > self.base + self.rows {
             return Err(Stop::BelowBand);
         }

@@ -107,6 +107,13 @@ pub fn check_image(path: &Path, limits: &InputLimits, analysis: &AnalysisArgs) -
     let bytes = io::read_input(path, "an image", max_input)?;
     let probe = ImageProbe::read(&bytes, &name)?;
     let (w, h) = (probe.width, probe.height);
+    if !(1..=u32::from(u16::MAX)).contains(&w) || !(1..=u32::from(u16::MAX)).contains(&h) {
+        return Err(EncodeError::BadDimensions {
+            width: w,
+            height: h,
+        }
+        .into());
+    }
     let pixels = probe.pixels();
     let per_pixel = memory::per_pixel(analysis.min_leaf_log2, analysis.fit_weights);
     let need = memory::encode_bytes(
