@@ -34,6 +34,8 @@
 mod encoder;
 mod entropy;
 pub mod ifs;
+#[doc(hidden)]
+pub mod internal;
 pub mod io;
 
 pub use encoder::{

@@ -183,7 +183,10 @@ fn images_of_any_size_encode_with_the_default_target() {
         "--bpp",
         "0.25",
     ]));
-    assert!(line.contains("budget of 3 bytes is too small"), "{line}");
+    assert!(
+        line.contains("--bpp 0.25 allows 3 bytes for this 13x9 image"),
+        "{line}"
+    );
     assert!(!stream.exists());
 }
 

@@ -1,69 +1,39 @@
-//! `pifs decode`: a stream to an image file whose format the name's extension chooses.
+//! `pifs decode`: a stream to an image file whose format the name's extension (or `--format`)
+//! chooses.
+//!
+//! The stream's header is read first and checked against `--max-pixels`; the image is written
+//! row band by row band ([`io::decode_to_image`]), so memory follows the width, not the image.
 
 use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
-use decoder_core::{Decoder, Header, LeafInfo, Limits, Scale};
-use host_encoder::io;
+use crate::say;
+use decoder_core::{Header, LeafInfo, Limits, Scale};
+use host_encoder::io::{self, Content, Output, OutputFormat, StreamInput};
 use std::path::Path;
 use std::time::Instant;
 
-/// The widest stripe the tool decodes: any the format allows (one byte per column, on the
-/// stack while decoding).
-pub const HOST_STRIPE: usize = 1 << 16;
+/// Opens the stream at `path` (`-`: standard input) header first, within `limits`.
+pub fn open_stream(path: &Path, limits: &Limits) -> Result<StreamInput> {
+    StreamInput::open(path, limits).map_err(|e| match e {
+        io::FileError::Stream {
+            path,
+            source: source @ decoder_core::DecodeError::TooLarge { .. },
+        } => CliError::Stream {
+            path,
+            source,
+            hint: Some("--max-pixels"),
+        },
+        other => other.into(),
+    })
+}
 
-/// Decodes the stream `data` read from `path` within `limits`: its header and pixels, and
-/// every leaf when `leaves` is given.
-pub fn decode_stream(
-    path: &Path,
-    data: &[u8],
-    limits: &Limits,
+/// Decodes `input` into memory: its header and pixels, and every leaf when `leaves` is given
+/// (for the drawing of `info --svg`).
+pub fn decode_pixels(
+    input: &StreamInput,
     leaves: Option<&mut Vec<LeafInfo>>,
 ) -> Result<(Header, Vec<u8>)> {
-    decode_scaled(path, data, limits, leaves, Scale::One).map(|(h, _, _, p)| (h, p))
-}
-
-/// A `--scale` value: `1/8`, `1/4`, `1/2`, `1`, `2` or `4` (or the same as a decimal, `0.25`).
-pub fn parse_scale(text: &str) -> std::result::Result<Scale, String> {
-    let value = match text.split_once('/') {
-        Some((num, den)) => {
-            let num: f64 = num
-                .trim()
-                .parse()
-                .map_err(|_| format!("not a scale: {text}"))?;
-            let den: f64 = den
-                .trim()
-                .parse()
-                .map_err(|_| format!("not a scale: {text}"))?;
-            num / den
-        }
-        None => text
-            .trim()
-            .parse()
-            .map_err(|_| format!("not a scale: {text}"))?,
-    };
-    Scale::ALL
-        .into_iter()
-        .find(|s| (2f64.powi(s.log2()) - value).abs() < 1e-9)
-        .ok_or_else(|| format!("scale {text}: one of 1/8, 1/4, 1/2, 1, 2, 4"))
-}
-
-/// [`decode_stream`] at `scale`: also returns the decoded image's width and height.
-pub fn decode_scaled(
-    path: &Path,
-    data: &[u8],
-    limits: &Limits,
-    leaves: Option<&mut Vec<LeafInfo>>,
-    scale: Scale,
-) -> Result<(Header, u32, u32, Vec<u8>)> {
-    let decoder = Decoder::new(data)
-        .map_err(|e| CliError::stream(path, e))?
-        .stripe_capacity::<HOST_STRIPE>();
-    let decoder = decoder.limits(limits).map_err(|e| CliError::Stream {
-        path: path.to_path_buf(),
-        source: e,
-        hint: Some("--max-pixels"),
-    })?;
-    let decoder = decoder.scale(scale);
+    let (decoder, failure) = input.decoder()?;
     let header = *decoder.header();
     let (width, height) = decoder.output_size();
     let mut pixels = vec![0u8; width as usize * height as usize * usize::from(header.channels)];
@@ -73,29 +43,100 @@ pub fn decode_scaled(
             .decode_into(&mut pixels),
         None => decoder.decode_into(&mut pixels),
     };
-    let header = decoded.map_err(|e| CliError::stream(path, e))?;
-    Ok((header, width, height, pixels))
+    let header = decoded.map_err(|e| input.error(e, &failure))?;
+    Ok((header, pixels))
 }
 
-/// `pifs decode`: refuses a bad output name before reading anything.
-pub fn run(input: &Path, output: &Path, limits: &Limits) -> Result<()> {
-    run_scaled(input, output, limits, Scale::One)
+/// A `--scale` value: `1/8`, `1/4`, `1/2`, `1`, `2` or `4` (or the same as a decimal, `0.25`).
+pub fn parse_scale(text: &str) -> std::result::Result<Scale, String> {
+    let number = |t: &str| -> std::result::Result<f64, String> {
+        t.trim().parse().map_err(|_| format!("not a scale: {text}"))
+    };
+    let value = match text.split_once('/') {
+        Some((num, den)) => number(num)? / number(den)?,
+        None => number(text)?,
+    };
+    Scale::ALL
+        .into_iter()
+        .find(|s| (2f64.powi(s.log2()) - value).abs() < 1e-9)
+        .ok_or_else(|| format!("scale {text}: one of 1/8, 1/4, 1/2, 1, 2, 4"))
 }
 
-/// `pifs decode --scale`: [`run`] at `scale` of the coded size.
-pub fn run_scaled(input: &Path, output: &Path, limits: &Limits, scale: Scale) -> Result<()> {
+/// The format to write: `--format` if given (a name whose extension names another format is
+/// refused), else the name's extension; PNG on standard output.
+pub fn output_format(output: &Path, chosen: Option<OutputFormat>) -> Result<OutputFormat> {
+    if io::is_std_stream(output) {
+        return Ok(chosen.unwrap_or(OutputFormat::Png));
+    }
+    let named = OutputFormat::from_path(output);
+    match (chosen, named) {
+        (None, named) => Ok(named?),
+        (Some(chosen), Ok(named)) if chosen != named => Err(CliError::Refused(format!(
+            "output {} is named as {} but --format asks for {}",
+            output.display(),
+            named.name(),
+            chosen.name()
+        ))),
+        (Some(chosen), _) => Ok(chosen),
+    }
+}
+
+/// `pifs decode`: refuses a bad output name before reading anything, a bad stream on its
+/// header, then opens the output and writes the image at `scale` band by band.
+pub fn run(
+    input: &Path,
+    output: &Path,
+    format: Option<OutputFormat>,
+    limits: &Limits,
+    scale: Scale,
+) -> Result<()> {
     let start = Instant::now();
-    output::check(output, Some(input), Kind::Image)?;
-    let data = io::read_stream(input)?;
-    let (_, width, height, pixels) = decode_scaled(input, &data, limits, None, scale)?;
-    let bytes = io::encode_gray(output, width, height, &pixels)?;
-    io::write_atomic(output, &bytes)?;
-    println!(
+    let chosen = format.is_some();
+    let format = output_format(output, format)?;
+    let kind = if chosen {
+        Kind::ChosenImage
+    } else {
+        Kind::Image
+    };
+    output::check(output, Some(input), kind)?;
+    if io::is_std_stream(output) {
+        say::stdout_is_data();
+    }
+    let stream = open_stream(input, limits)?;
+    let out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    let (decoded, out) = io::decode_to_image(&stream, format, scale, out, &name, io::BAND_BYTES)?;
+    out.commit()?;
+    say!(
         "{}: {}x{} decoded in {:.1} ms",
-        output.display(),
-        width,
-        height,
+        name.display(),
+        decoded.width,
+        decoded.height,
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_format_comes_from_the_option_or_the_name() {
+        let f = |out: &str, chosen| output_format(Path::new(out), chosen);
+        assert_eq!(f("-", None).unwrap(), OutputFormat::Png);
+        assert_eq!(f("-", Some(OutputFormat::Pgm)).unwrap(), OutputFormat::Pgm);
+        assert_eq!(f("x.ppm", None).unwrap(), OutputFormat::Ppm);
+        assert_eq!(f("x", Some(OutputFormat::Pgm)).unwrap(), OutputFormat::Pgm);
+        assert_eq!(
+            f("x.PGM", Some(OutputFormat::Pgm)).unwrap(),
+            OutputFormat::Pgm
+        );
+        assert!(f("x", None).is_err());
+        let err = f("x.png", Some(OutputFormat::Pgm)).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "output x.png is named as png but --format asks for pgm"
+        );
+    }
 }

@@ -26,7 +26,7 @@ pub fn run() -> Result<()> {
         path: out.clone(),
         source,
     })?;
-    println!(
+    say!(
         "pifs demo: encoding the bundled sample {SAMPLE_NAME} (Kodak kodim23, as grayscale) at {RATES:?} bpp into {}",
         shown(&out)
     );
@@ -44,10 +44,12 @@ pub fn run() -> Result<()> {
         crate::decode::run(
             &stream,
             &stream.with_extension("png"),
+            None,
             &decoder_core::Limits::NONE,
+            decoder_core::Scale::One,
         )?;
     }
-    println!(
+    say!(
         "streams and decoded images are in {} (see 'pifs --help' for encode, decode, info and rd)",
         shown(&out)
     );

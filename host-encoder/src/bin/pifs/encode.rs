@@ -1,12 +1,28 @@
-//! `pifs encode`, and the analysis and stream writing that `rd` and the demo share with it.
+//! `pifs encode`, and the image loading, analysis and stream writing that `rd` and the demo
+//! share with it.
+//!
+//! An encode is checked before its work: the target's numbers, the output (opened, so that an
+//! unwritable directory is reported at once), and the image's header against `--max-pixels`
+//! and the memory the analysis would need ([`crate::memory`]). Only then are the pixels decoded
+//! (with the `image` crate's allocation limit set) and analysed.
 
 use crate::error::{CliError, Result};
+use crate::memory;
 use crate::output::{self, Kind};
 use crate::progress::{Progress, Work};
+use crate::say;
 use clap::Args;
-use host_encoder::{analyse, io, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target};
-use std::path::PathBuf;
+use host_encoder::io::{self, Content, ImageLimits, ImageProbe, Output};
+use host_encoder::{analyse, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target};
+use std::io::Write;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// Largest image `pifs encode` and `pifs rd` accept unless told otherwise: 2^24 pixels (16.8
+/// megapixels: a 12-megapixel phone photo, a 4K frame). The analysis needs about 1 KB per pixel
+/// ([`crate::memory`]), so this is about 17 GB and a quarter of an hour; a machine with less
+/// memory refuses smaller images by `--max-memory`.
+pub const DEFAULT_MAX_PIXELS: u64 = 1 << 24;
 
 /// The target when none is given: a rate, not a ceiling (see [`encode_stream`]).
 pub const DEFAULT_BPP: f64 = 0.25;
@@ -14,10 +30,13 @@ pub const DEFAULT_BPP: f64 = 0.25;
 /// Arguments of `pifs encode`.
 #[derive(Args, Debug)]
 pub struct EncodeArgs {
-    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; colour is converted to luma).
+    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; colour is converted to luma, the EXIF
+    /// orientation applied, the first page of a TIFF taken); "-" reads standard input.
     pub input: PathBuf,
     /// Output stream. Any name but an image format's (.png, .jpg, ... are refused, so that a
-    /// stream never poses as an image); .pifs by convention.
+    /// stream never poses as an image); .pifs by convention; "-" writes standard output. An
+    /// existing file is replaced atomically and keeps its permissions, a symbolic link is
+    /// followed, a device or a FIFO is written through.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Target bits per pixel, whole file, never exceeded [default: 0.25, or the smallest
@@ -33,6 +52,128 @@ pub struct EncodeArgs {
     pub psnr: Option<f64>,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
+    #[command(flatten)]
+    pub limits: InputLimits,
+}
+
+/// The bounds on the images `encode` and `rd` accept, checked on the image's header before its
+/// pixels are decoded.
+#[derive(Args, Debug, Clone, Default)]
+pub struct InputLimits {
+    /// Refuse images of more pixels than this [default: 16777216, 2^24].
+    #[arg(long, value_name = "PIXELS")]
+    pub max_pixels: Option<u64>,
+    /// Memory the encode may use, such as 800M or 4G [default: what the system has available
+    /// (Linux: free memory, cgroup and ulimit)]. An image whose analysis would need more is
+    /// refused before it is decoded.
+    #[arg(long, value_name = "SIZE", value_parser = memory::parse_size)]
+    pub max_memory: Option<u64>,
+}
+
+impl InputLimits {
+    fn max_pixels(&self) -> u64 {
+        self.max_pixels.unwrap_or(DEFAULT_MAX_PIXELS)
+    }
+
+    /// The memory budget and where it comes from, for messages.
+    fn memory(&self) -> Option<(u64, &'static str)> {
+        match self.max_memory {
+            Some(m) => Some((m, "--max-memory")),
+            None => memory::available().map(|m| (m, "the memory available (see --max-memory)")),
+        }
+    }
+}
+
+/// An image file read and its header checked against the limits, its pixels not yet decoded.
+#[derive(Debug)]
+pub struct Checked {
+    /// The path given.
+    pub path: PathBuf,
+    /// The file's bytes.
+    pub bytes: Vec<u8>,
+    /// What its header says.
+    pub probe: ImageProbe,
+    /// What the image decoder may allocate.
+    max_alloc: u64,
+}
+
+/// Reads the image at `path` (`-`: standard input) and checks its header against `limits` and
+/// the memory an analysis with `analysis` needs: a refusal is one line naming the option that
+/// would let it through.
+pub fn check_image(path: &Path, limits: &InputLimits, analysis: &AnalysisArgs) -> Result<Checked> {
+    let name = io::input_name(path);
+    let budget = limits.memory();
+    let max_input = budget.map_or(u64::MAX, |(b, _)| b);
+    let bytes = io::read_input(path, "an image", max_input)?;
+    let probe = ImageProbe::read(&bytes, &name)?;
+    let (w, h) = (probe.width, probe.height);
+    if !(1..=u32::from(u16::MAX)).contains(&w) || !(1..=u32::from(u16::MAX)).contains(&h) {
+        return Err(EncodeError::BadDimensions {
+            width: w,
+            height: h,
+        }
+        .into());
+    }
+    let pixels = probe.pixels();
+    let per_pixel = memory::per_pixel(analysis.min_leaf_log2, analysis.fit_weights);
+    let need = memory::encode_bytes(
+        pixels,
+        probe.decoded_bytes,
+        analysis.min_leaf_log2,
+        analysis.fit_weights,
+    );
+    if pixels > limits.max_pixels() {
+        return Err(CliError::Refused(format!(
+            "{}: {w}x{h} is {:.1} megapixels, more than --max-pixels {} allows (encoding it needs about {}, {per_pixel} bytes per pixel)",
+            name.display(),
+            pixels as f64 / 1e6,
+            limits.max_pixels(),
+            memory::human(need),
+        )));
+    }
+    if let Some((budget, source)) = budget {
+        if need > budget {
+            return Err(CliError::Refused(format!(
+                "{}: encoding {w}x{h} needs about {} ({per_pixel} bytes per pixel), more than {} allowed by {source}",
+                name.display(),
+                memory::human(need),
+                memory::human(budget),
+            )));
+        }
+    }
+    Ok(Checked {
+        path: name,
+        bytes,
+        probe,
+        max_alloc: budget.map_or(u64::MAX, |(b, _)| b),
+    })
+}
+
+impl Checked {
+    /// Decodes the pixels, as 8-bit luma, orientation applied; a note for a TIFF of several
+    /// pages (the first is taken).
+    pub fn decode(self) -> Result<Plane> {
+        let limits = ImageLimits {
+            max_pixels: u64::MAX,
+            max_alloc: self.max_alloc,
+        };
+        let decoded =
+            io::DecodedImage::decode(&self.bytes, &self.path, &limits).map_err(|e| match e {
+                io::FileError::Decode {
+                    source: image::ImageError::Limits(_),
+                    ..
+                } => CliError::Refused(format!("{e} (see --max-memory)")),
+                other => other.into(),
+            })?;
+        if decoded.pages > 1 {
+            say!(
+                "{}: note: {} pages; encoding the first",
+                self.path.display(),
+                decoded.pages
+            );
+        }
+        Ok(decoded.plane)
+    }
 }
 
 /// The analysis settings of `encode` and `rd`.
@@ -206,19 +347,39 @@ pub fn encode_stream(analysis: &Analysis, job: Job) -> Result<(Encoded, Option<S
     )))
 }
 
-/// Encodes `job` from `analysed`, writes the stream to `output` atomically and prints its
-/// figures.
-pub fn write_stream(analysed: &Analysed, job: Job, output: &std::path::Path) -> Result<Encoded> {
+/// Encodes `job` from `analysed`, writes the stream to `output` (by the rules of
+/// [`io::output`]) and prints its figures.
+pub fn write_stream(analysed: &Analysed, job: Job, output: &Path) -> Result<Encoded> {
+    let out = Output::create(output, Content::Binary("a PIFS stream"))?;
+    write_stream_to(analysed, job, out)
+}
+
+/// Like [`write_stream`], into an output already open.
+pub fn write_stream_to(analysed: &Analysed, job: Job, out: Output) -> Result<Encoded> {
     let t = Instant::now();
-    let (encoded, note) = encode_stream(&analysed.analysis, job)?;
-    io::write_atomic(output, &encoded.bytes)?;
+    let (encoded, note) =
+        encode_stream(&analysed.analysis, job).map_err(|e| explain(e, job, analysed.size()))?;
+    write_encoded(analysed, encoded, note, out, t)
+}
+
+/// Writes `encoded` (encoded from `analysed` since `t`) into `out` and prints its figures.
+fn write_encoded(
+    analysed: &Analysed,
+    encoded: Encoded,
+    note: Option<String>,
+    mut out: Output,
+    t: Instant,
+) -> Result<Encoded> {
+    out.write_all(&encoded.bytes).map_err(|e| out.error(e))?;
+    let name = out.name().to_path_buf();
+    out.commit()?;
     let (w, h) = analysed.size();
     let gap = 100.0 * (encoded.estimated_payload_bits - encoded.actual_payload_bits)
         / encoded.actual_payload_bits.max(1.0);
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
-    println!(
+    say!(
         "{}: {w}x{h} -> {} bytes, {:.4} bpp, PSNR {:.2} dB, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
-        output.display(),
+        name.display(),
         encoded.bytes.len(),
         analysed.bpp(encoded.bytes.len()),
         encoded.psnr,
@@ -229,19 +390,116 @@ pub fn write_stream(analysed: &Analysed, job: Job, output: &std::path::Path) -> 
     Ok(encoded)
 }
 
+/// A number as a person reads it: plain, or in exponent notation when very large or very
+/// small (`1e300`, not three hundred digits).
+pub fn number(x: f64) -> String {
+    if x.is_finite() && x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// The option and value that ask for `target`, as the user wrote them.
+fn option(target: Target) -> String {
+    match target {
+        Target::Bpp(b) => format!("--bpp {}", number(b)),
+        Target::Bytes(n) => format!("--bytes {n}"),
+        Target::Psnr(p) => format!("--psnr {}", number(p)),
+    }
+}
+
+/// "1 byte", "2 bytes".
+fn bytes_text(n: usize) -> String {
+    if n == 1 {
+        "1 byte".into()
+    } else {
+        format!("{n} bytes")
+    }
+}
+
+/// The smallest bits per pixel, to 3 significant digits rounded up, that allows `bytes` bytes
+/// on `pixels` pixels.
+fn bpp_for(bytes: usize, pixels: u64) -> String {
+    let exact = bytes as f64 * 8.0 / pixels.max(1) as f64;
+    let digits = 3 - 1 - exact.log10().floor() as i32;
+    let scale = 10f64.powi(digits);
+    number((exact * scale).ceil() / scale)
+}
+
+/// An encoder refusal of `job` on a `size` image, told in terms of the option the user gave
+/// and what to ask for instead.
+fn explain(e: CliError, job: Job, size: (u32, u32)) -> CliError {
+    let (w, h) = size;
+    let pixels = u64::from(w) * u64::from(h);
+    match e {
+        CliError::Encode(EncodeError::BudgetTooSmall { budget, smallest }) => {
+            let instead = match job.target {
+                Target::Bpp(_) => format!(
+                    "use --bpp {} or more, or --bytes {smallest}",
+                    bpp_for(smallest, pixels)
+                ),
+                _ => format!("use --bytes {smallest} or more"),
+            };
+            CliError::Refused(format!(
+                "{} allows {} for this {w}x{h} image, and the smallest stream for this image is {smallest} bytes: {instead}",
+                option(job.target),
+                bytes_text(budget),
+            ))
+        }
+        CliError::Encode(EncodeError::QualityUnreachable { requested, best }) => {
+            CliError::Refused(format!(
+                "{} dB is unreachable for this {w}x{h} image (ask for less): the best this encoder reaches is {best:.2} dB",
+                option(Target::Psnr(requested)),
+            ))
+        }
+        other => other,
+    }
+}
+
+/// The fewest bytes any stream takes: its header with a one-byte payload length.
+fn smallest_possible_stream() -> usize {
+    decoder_core::internal::syntax::FIXED_HEADER_LEN + 1
+}
+
 /// Refuses a target that is not a positive number, naming the option.
 pub fn validate_target(target: Target) -> Result<()> {
     let why = match target {
         Target::Bpp(b) if !(b.is_finite() && b > 0.0) => {
-            format!("--bpp must be a positive number, got {b}")
+            format!("--bpp must be a positive number, got {}", number(b))
         }
         Target::Bytes(0) => "--bytes must be at least 1".into(),
         Target::Psnr(p) if !(p.is_finite() && p > 0.0) => {
-            format!("--psnr must be a positive number, got {p}")
+            format!("--psnr must be a positive number, got {}", number(p))
         }
         _ => return Ok(()),
     };
     Err(CliError::Refused(why))
+}
+
+/// Refuses, before any analysis, a size target no stream can meet on a `w x h` image.
+fn check_target_fits(job: Job, w: u32, h: u32) -> Result<()> {
+    if job.is_default {
+        return Ok(());
+    }
+    let pixels = u64::from(w) * u64::from(h);
+    let Some(bpp) = job.target.bpp(pixels as usize) else {
+        return Ok(());
+    };
+    let budget = (bpp * pixels as f64 / 8.0).floor();
+    let least = smallest_possible_stream();
+    if budget >= least as f64 {
+        return Ok(());
+    }
+    let instead = match job.target {
+        Target::Bpp(_) => format!("--bpp {} or more", bpp_for(least, pixels)),
+        _ => format!("--bytes {least} or more"),
+    };
+    Err(CliError::Refused(format!(
+        "{} allows {} for this {w}x{h} image, and no stream is smaller than {least} bytes (its header): use {instead}",
+        option(job.target),
+        bytes_text(budget as usize),
+    )))
 }
 
 impl EncodeArgs {
@@ -265,27 +523,100 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let job = args.job();
     validate_target(job.target)?;
     output::check(&args.output, Some(&args.input), Kind::Stream)?;
-    let plane = io::load_luma(&args.input)?;
+    if io::is_std_stream(&args.output) {
+        say::stdout_is_data();
+    }
+    let checked = check_image(&args.input, &args.limits, &args.analysis)?;
+    check_target_fits(job, checked.probe.width, checked.probe.height)?;
+    let out = Output::create(&args.output, Content::Binary("a PIFS stream"))?;
+    let input = checked.path.clone();
+    let plane = checked.decode()?;
     let analysed = analyse_plane(plane.clone(), &args.analysis, &[job.target])?;
-    match write_stream(&analysed, job, &args.output) {
+    let t = Instant::now();
+    match encode_stream(&analysed.analysis, job) {
         Err(CliError::Encode(EncodeError::QualityUnreachable { .. })) => {
             // A quality target's analysis is tuned (its trial encode, which trains the rate
             // estimates and places the finer roundings) for moderate rates, where most
             // targets lie. Tuned for the highest rate instead, as a budget of unlimited bytes
             // tunes it, it reaches the best PSNR of any analysis: that one decides, and the
             // best it reports is what `--bytes` with a large budget writes.
-            println!(
+            say!(
                 "{}: the target is beyond this analysis; analysing again, tuned for the highest rate",
-                args.input.display()
+                input.display()
             );
+            let first_seconds = analysed.seconds;
+            // One analysis in memory at a time.
+            drop(analysed);
             let mut top = analyse_plane(plane, &args.analysis, &[TOP_TUNING])?;
-            top.seconds += analysed.seconds;
-            write_stream(&top, job, &args.output)?;
+            top.seconds += first_seconds;
+            write_stream_to(&top, job, out)?;
             Ok(())
         }
-        other => other.map(|_| ()),
+        Err(e) => Err(explain(e, job, analysed.size())),
+        Ok((encoded, note)) => write_encoded(&analysed, encoded, note, out, t).map(|_| ()),
     }
 }
 
 /// The target whose analysis reaches the highest quality: a budget of unlimited bytes.
 pub const TOP_TUNING: Target = Target::Bytes(usize::MAX);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_read_naturally() {
+        assert_eq!(number(0.25), "0.25");
+        assert_eq!(number(1e300), "1e300");
+        assert_eq!(number(1e-300), "1e-300");
+        assert_eq!(number(0.0), "0");
+        assert_eq!(number(f64::NAN), "NaN");
+        assert_eq!(bpp_for(18, 9), "16");
+        assert_eq!(bpp_for(18, 64 * 48), "0.0469");
+        assert_eq!(bytes_text(1), "1 byte");
+    }
+
+    #[test]
+    fn refusals_name_the_option_and_what_to_ask_for() {
+        let job = |target| Job {
+            target,
+            is_default: false,
+        };
+        let err = check_target_fits(job(Target::Bpp(1.0)), 3, 3).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "--bpp 1 allows 1 byte for this 3x3 image, and no stream is smaller than 18 bytes (its header): use --bpp 16 or more"
+        );
+        assert!(check_target_fits(job(Target::Bpp(1.0)), 64, 48).is_ok());
+        assert!(check_target_fits(job(Target::Psnr(30.0)), 1, 1).is_ok());
+        let default = Job {
+            target: Target::Bpp(DEFAULT_BPP),
+            is_default: true,
+        };
+        assert!(check_target_fits(default, 1, 1).is_ok());
+        let err = explain(
+            CliError::Encode(EncodeError::BudgetTooSmall {
+                budget: 30,
+                smallest: 45,
+            }),
+            job(Target::Bpp(0.078)),
+            (64, 48),
+        );
+        assert_eq!(
+            err.to_string(),
+            "--bpp 0.078 allows 30 bytes for this 64x48 image, and the smallest stream for this image is 45 bytes: use --bpp 0.118 or more, or --bytes 45"
+        );
+        let err = explain(
+            CliError::Encode(EncodeError::QualityUnreachable {
+                requested: 1e300,
+                best: 41.234,
+            }),
+            job(Target::Psnr(1e300)),
+            (64, 48),
+        );
+        assert_eq!(
+            err.to_string(),
+            "--psnr 1e300 dB is unreachable for this 64x48 image (ask for less): the best this encoder reaches is 41.23 dB"
+        );
+    }
+}

@@ -32,17 +32,6 @@ pub enum CliError {
     Refused(String),
 }
 
-impl CliError {
-    /// A decoder error about the stream at `path`.
-    pub fn stream(path: impl Into<PathBuf>, source: decoder_core::DecodeError) -> CliError {
-        CliError::Stream {
-            path: path.into(),
-            source,
-            hint: None,
-        }
-    }
-}
-
 impl fmt::Display for CliError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

@@ -1,14 +1,15 @@
 //! `pifs info`: what a stream holds, from its entropy-decoded syntax (no pixels are drawn for
 //! the statistics); with `--svg`, its quadtree drawn over the decoded image.
 
-use crate::error::{CliError, Result};
+use crate::error::Result;
 use crate::output::{self, Kind};
 use decoder_core::internal::model::{MODELS, MODEL_COUNT};
 use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, CONTROL_STEPS};
 use decoder_core::internal::syntax::ControlCoding;
-use decoder_core::{Decoder, Header, LeafInfo, Limits};
-use host_encoder::io;
+use decoder_core::{Header, LeafInfo, Limits};
+use host_encoder::io::{Content, Output};
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::Path;
 
 /// The models' names, by model index.
@@ -48,21 +49,24 @@ impl Stats {
 
     fn print(&self, input: &Path, header: &Header, stream_len: usize) {
         let px = header.pixel_count() as f64;
-        println!("{}", input.display());
-        println!(
+        say!("{}", input.display());
+        say!(
             "  format version   {}",
             decoder_core::internal::format::VERSION
         );
-        println!(
+        say!(
             "  dimensions       {}x{}, {} channel(s), {} bits",
-            header.width, header.height, header.channels, header.bit_depth
+            header.width,
+            header.height,
+            header.channels,
+            header.bit_depth
         );
-        println!(
+        say!(
             "  size             {stream_len} bytes ({} header), {:.4} bpp",
             header.encoded_len(),
             stream_len as f64 * 8.0 / px
         );
-        println!(
+        say!(
             "  leaf sizes       {}..{} px",
             1 << header.min_leaf_log2,
             1 << header.max_leaf_log2
@@ -80,54 +84,55 @@ impl Stats {
         } else {
             "none"
         };
-        println!("  codebooks        {codebooks}");
+        say!("  codebooks        {codebooks}");
         let total: usize = self.per_depth.values().sum();
-        println!("  leaves           {total}");
+        say!("  leaves           {total}");
         for (log2, n) in self.per_depth.iter().rev() {
-            println!("    {:>3}x{:<3}       {n}", 1 << log2, 1 << log2);
+            say!("    {:>3}x{:<3}       {n}", 1 << log2, 1 << log2);
         }
-        println!("  models           leaves (DPCM + transform) [pixel grids among them]");
+        say!("  models           leaves (DPCM + transform) [pixel grids among them]");
         for (i, (name, n)) in MODEL_NAMES.iter().zip(self.models).enumerate() {
             let (dpcm, transform) = (self.codings[0][i], self.codings[1][i]);
             let pixel_grids = self.pixel_grids[i];
-            println!("    {name:<14} {n} ({dpcm} + {transform}) [{pixel_grids}]");
+            say!("    {name:<14} {n} ({dpcm} + {transform}) [{pixel_grids}]");
         }
-        println!(
+        say!(
             "  control quantiser use (steps {CONTROL_STEPS:?} /16 grey): {:?}",
             self.cquant
         );
-        println!(
+        say!(
             "  weight quantiser use (default, fine, coarse, Lloyd-Max): {:?}",
             self.wquant
         );
     }
 }
 
-/// `pifs info`; with `svg`, also the drawing of the leaves over the decoded image. Only then
-/// are pixels made: the figures need nothing but the entropy-decoded syntax.
+/// `pifs info`; with `svg`, also the drawing of the leaves over the decoded image. The stream's
+/// header is checked against `limits` before anything else; only with `svg` are pixels made:
+/// the figures need nothing but the entropy-decoded syntax.
 pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
     if let Some(svg) = svg {
         output::check(svg, Some(input), Kind::Svg)?;
     }
-    let data = io::read_stream(input)?;
+    let stream = crate::decode::open_stream(input, limits)?;
+    let name = stream.name().to_path_buf();
+    let len = stream.len() as usize;
     let mut stats = Stats::default();
     let Some(svg) = svg else {
-        let header = Decoder::new(&data)
-            .and_then(|d| {
-                d.stripe_capacity::<{ crate::decode::HOST_STRIPE }>()
-                    .observe(|leaf: &LeafInfo| stats.leaf(leaf))
-                    .verify()
-            })
-            .map_err(|e| CliError::stream(input, e))?;
-        stats.print(input, &header, data.len());
+        let header = stream.verify(|leaf: &LeafInfo| stats.leaf(leaf))?;
+        stats.print(&name, &header, len);
         return Ok(());
     };
+    let out = Output::create(svg, Content::Text)?;
     let mut leaves = Vec::new();
-    let (header, pixels) = crate::decode::decode_stream(input, &data, limits, Some(&mut leaves))?;
+    let (header, pixels) = crate::decode::decode_pixels(&stream, Some(&mut leaves))?;
     leaves.iter().for_each(|leaf| stats.leaf(leaf));
     let drawing = crate::leaves_svg::draw(&header, &pixels, &leaves)?;
-    io::write_atomic(svg, drawing.as_bytes())?;
-    stats.print(input, &header, data.len());
-    println!("  leaves drawn in  {}", svg.display());
+    let mut out = out;
+    out.write_all(drawing.as_bytes())
+        .map_err(|e| out.error(e))?;
+    out.commit()?;
+    stats.print(&name, &header, len);
+    say!("  leaves drawn in  {}", svg.display());
     Ok(())
 }

@@ -1,5 +1,8 @@
 //! `pifs`: encode, decode and inspect PIFS images, and draw an image's rate/distortion curve.
 
+#[macro_use]
+mod say;
+
 mod compare;
 mod decode;
 mod demo;
@@ -7,17 +10,26 @@ mod encode;
 mod error;
 mod info;
 mod leaves_svg;
+mod memory;
 mod output;
 mod plot;
 mod progress;
 mod rd;
+mod signals;
 
 use clap::{Parser, Subcommand};
+use host_encoder::io::OutputFormat;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Largest image `pifs decode` accepts unless told otherwise: 2^28 pixels (256 MiB of output).
+/// Largest image `pifs decode` and `pifs info` accept unless told otherwise: 2^28 pixels
+/// (16384 x 16384; 256 MiB of output). Decoding needs memory for a band of rows, not the image.
 const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+
+/// `--format` of `pifs decode`.
+fn parse_format(name: &str) -> Result<OutputFormat, String> {
+    OutputFormat::from_name(name).ok_or_else(|| format!("'{name}' is not png, pgm, pnm or ppm"))
+}
 
 /// Fractal (projected-IFS quadtree) image codec for low-bandwidth links and small displays.
 ///
@@ -35,13 +47,21 @@ enum Command {
     Encode(encode::EncodeArgs),
     /// Decode a PIFS stream into an image (.png, .pgm, .pnm or .ppm, by the output's name).
     ///
-    /// .ppm repeats the grey in three channels, for tools that read colour only.
+    /// .ppm repeats the grey in three channels, for tools that read colour only. The image is
+    /// written band by band: memory follows the width, not the image.
     Decode {
-        /// Input stream.
+        /// Input stream; "-" reads standard input. Its header is checked before anything else is
+        /// read, and no more than the stream it declares is read.
         input: PathBuf,
-        /// Output image: .png, .pgm, .pnm or .ppm (anything else is refused before decoding).
+        /// Output image: .png, .pgm, .pnm or .ppm (anything else is refused before decoding);
+        /// "-" writes standard output (PNG unless --format says otherwise). An existing file is
+        /// replaced atomically and keeps its permissions, a symbolic link is followed, a
+        /// device or a FIFO is written through.
         #[arg(short, long)]
         output: PathBuf,
+        /// Image format, whatever the output's name: png, pgm, pnm or ppm.
+        #[arg(long, value_parser = parse_format)]
+        format: Option<OutputFormat>,
         /// Refuse streams of more pixels than this (checked on the header, before anything is
         /// allocated).
         #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
@@ -58,13 +78,14 @@ enum Command {
     /// Dimensions, size, leaves per size, model and quantiser use, read from the entropy-coded
     /// syntax without drawing a pixel (unless --svg asks for the drawing).
     Info {
-        /// Input stream.
+        /// Input stream; "-" reads standard input.
         input: PathBuf,
         /// Also draw the quadtree over the decoded image, leaves outlined in a colour per
         /// model, into this SVG file.
         #[arg(long, value_name = "FILE")]
         svg: Option<PathBuf>,
-        /// With --svg: refuse streams of more pixels than this.
+        /// Refuse streams of more pixels than this (checked on the header, before the payload
+        /// is read).
         #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
         max_pixels: u64,
     },
@@ -117,16 +138,19 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(code) => return code,
     };
+    signals::clean_up_on_termination();
     let result = match cli.command {
         Some(Command::Encode(args)) => encode::run(&args),
         Some(Command::Decode {
             input,
             output,
+            format,
             max_pixels,
             scale,
-        }) => decode::run_scaled(
+        }) => decode::run(
             &input,
             &output,
+            format,
             &decoder_core::Limits::pixels(max_pixels),
             scale,
         ),

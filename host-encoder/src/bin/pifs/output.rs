@@ -12,6 +12,8 @@ pub enum Kind {
     Stream,
     /// A decoded image: the extension chooses the format ([`io::OutputFormat`]).
     Image,
+    /// A decoded image whose format an option chose: any name.
+    ChosenImage,
     /// An SVG drawing: any name but an image format's.
     Svg,
     /// A CSV table: any name but an image format's.
@@ -19,8 +21,12 @@ pub enum Kind {
 }
 
 /// Refuses, before any work, an output path that cannot be written, that would replace
-/// `input`, or whose name does not fit what is written there.
+/// `input`, or whose name does not fit what is written there. `-` (standard output) is not a
+/// path: nothing to check.
 pub fn check(output: &Path, input: Option<&Path>, kind: Kind) -> Result<()> {
+    if io::is_std_stream(output) {
+        return Ok(());
+    }
     check_writable(output)?;
     if let Some(input) = input {
         let same = match (input.canonicalize(), output.canonicalize()) {
@@ -45,6 +51,7 @@ pub fn check_kind(output: &Path, kind: Kind) -> Result<()> {
                 .map(|_| ())
                 .map_err(Into::into)
         }
+        Kind::ChosenImage => return Ok(()),
         Kind::Stream => ("a PIFS stream", ".pifs"),
         Kind::Svg => ("an SVG drawing", ".svg"),
         Kind::Csv => ("a CSV table", ".csv"),
@@ -60,7 +67,8 @@ pub fn check_kind(output: &Path, kind: Kind) -> Result<()> {
     Ok(())
 }
 
-/// Refuses an output that is a directory or whose directory does not exist.
+/// Refuses an output that is a directory or whose directory does not exist (a symbolic link
+/// is judged by where it points; one to nothing is refused when the output is opened).
 fn check_writable(output: &Path) -> Result<()> {
     if output.is_dir() {
         return Err(CliError::Refused(format!(

@@ -35,6 +35,8 @@ pub struct RdArgs {
     pub out_dir: Option<PathBuf>,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
+    #[command(flatten)]
+    pub limits: encode::InputLimits,
 }
 
 /// One rate's outcome.
@@ -139,7 +141,7 @@ pub fn run(args: &RdArgs) -> Result<()> {
         }
         None => Vec::new(),
     };
-    let plane = io::load_luma(&args.input)?;
+    let plane = encode::check_image(&args.input, &args.limits, &args.analysis)?.decode()?;
     let targets: Vec<Target> = args.rates.iter().map(|&r| Target::Bpp(r)).collect();
     let analysed = encode::analyse_plane(plane, &args.analysis, &targets)?;
     if let Some(dir) = &args.out_dir {
@@ -178,12 +180,12 @@ pub fn run(args: &RdArgs) -> Result<()> {
         points.push(point);
     }
     let (w, h) = analysed.size();
-    println!(
+    say!(
         "{}: {w}x{h}, one analysis in {:.2} s",
         args.input.display(),
         analysed.seconds
     );
-    print!("{}", table(&args.rates, &points));
+    crate::say::text(table(&args.rates, &points));
     let ours: Vec<(f64, f64)> = points
         .iter()
         .filter_map(|p| match p {
@@ -198,7 +200,7 @@ pub fn run(args: &RdArgs) -> Result<()> {
     }
     if let Some(path) = &args.csv {
         io::write_atomic(path, csv(&points).as_bytes())?;
-        println!("points written to {}", path.display());
+        say!("points written to {}", path.display());
     }
     if let Some(path) = &args.plot {
         let mut series = vec![Series {
@@ -218,7 +220,7 @@ pub fn run(args: &RdArgs) -> Result<()> {
             },
         )?;
         io::write_atomic(path, svg.as_bytes())?;
-        println!("curve drawn in {}", path.display());
+        say!("curve drawn in {}", path.display());
     }
     Ok(())
 }

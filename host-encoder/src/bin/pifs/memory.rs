@@ -1,0 +1,189 @@
+//! How much memory an encode may use, and how much it needs.
+//!
+//! The analysis keeps every model's fit at every quadtree node: its memory grows with the
+//! pixels. Measured peaks (`/usr/bin/time`, the default settings, textured images of 500², 1000²
+//! and 2000² pixels: 269 MB, 956 MB, 3.68 GB) fit 40 MB plus 910 bytes per pixel; with
+//! `--min-leaf-log2 1` about 1.9 KB per pixel, with 3 or more about 370 bytes, with
+//! `--fit-weights` about 1.12 KB. [`encode_bytes`] rounds these up, and the test
+//! `encode_memory_estimate_bounds_the_measured_peak` (host-encoder/tests/host_io.rs) checks it
+//! against a measured peak, so that a change in the analysis shows here.
+//!
+//! What may be used is the smallest of: the memory the system has available
+//! (`MemAvailable`), what the process's cgroup may still charge (`memory.max` less
+//! `memory.current`), and what the process's address-space and data limits (`ulimit -v`,
+//! `ulimit -d`, `prlimit`) leave. Linux only; elsewhere nothing is known and only
+//! `--max-pixels` bounds an encode.
+
+/// Bytes of the analysis per pixel, and a fixed part, by the smallest leaf (log2) and whether
+/// weights are fitted.
+fn analysis_bytes_per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
+    let base = match min_leaf_log2 {
+        0 | 1 => 2_100,
+        2 => 1_000,
+        _ => 450,
+    };
+    if fit_weights {
+        base * 13 / 10
+    } else {
+        base
+    }
+}
+
+/// Memory besides the pixels' (the program, its threads, the encoder's tables).
+const FIXED_BYTES: u64 = 64 << 20;
+
+/// Bytes an encode of a `pixels`-pixel image needs at its peak: the decoded image in its own
+/// colour type (`decoded_bytes`, twice while a rotation is applied) and the 8-bit plane, then
+/// the plane (twice: a quality target may analyse again) and the analysis.
+pub fn encode_bytes(pixels: u64, decoded_bytes: u64, min_leaf_log2: u8, fit_weights: bool) -> u64 {
+    let decoding = decoded_bytes.saturating_mul(2).saturating_add(pixels);
+    let analysing = pixels
+        .saturating_mul(analysis_bytes_per_pixel(min_leaf_log2, fit_weights))
+        .saturating_add(pixels.saturating_mul(2));
+    decoding.max(analysing).saturating_add(FIXED_BYTES)
+}
+
+/// Bytes per pixel of the analysis with these settings (for messages).
+pub fn per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
+    analysis_bytes_per_pixel(min_leaf_log2, fit_weights)
+}
+
+/// The memory this process may still use, as far as the system says (Linux), bytes.
+pub fn available() -> Option<u64> {
+    let candidates = [
+        meminfo_available(),
+        cgroup_available(),
+        rlimit_available("Max address space", "VmSize:"),
+        rlimit_available("Max data size", "VmData:"),
+    ];
+    candidates.into_iter().flatten().min()
+}
+
+fn read(path: &str) -> Option<String> {
+    std::fs::read_to_string(path).ok()
+}
+
+/// A `Name:   1234 kB` line of a /proc file, in bytes.
+fn kb_field(text: &str, name: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with(name))?;
+    let kb: u64 = line[name.len()..].split_whitespace().next()?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn meminfo_available() -> Option<u64> {
+    kb_field(&read("/proc/meminfo")?, "MemAvailable:")
+}
+
+/// `memory.max - memory.current` of this process's cgroup (v2), when it has a limit.
+fn cgroup_available() -> Option<u64> {
+    let cgroup = read("/proc/self/cgroup")?;
+    let path = cgroup.lines().find_map(|l| l.strip_prefix("0::"))?;
+    let dir = format!("/sys/fs/cgroup{}", path.trim_end());
+    let max: u64 = read(&format!("{dir}/memory.max"))?.trim().parse().ok()?;
+    let current: u64 = read(&format!("{dir}/memory.current"))?
+        .trim()
+        .parse()
+        .ok()?;
+    Some(max.saturating_sub(current))
+}
+
+/// A soft resource limit of /proc/self/limits (`unlimited`: none) less what the process already
+/// uses of it (the /proc/self/status field `used`).
+fn rlimit_available(limit: &str, used: &str) -> Option<u64> {
+    let limits = read("/proc/self/limits")?;
+    let line = limits.lines().find(|l| l.starts_with(limit))?;
+    let soft = line[limit.len()..].split_whitespace().next()?;
+    let soft: u64 = soft.parse().ok()?;
+    let in_use = kb_field(&read("/proc/self/status")?, used).unwrap_or(0);
+    Some(soft.saturating_sub(in_use))
+}
+
+/// Parses a size: a number of bytes with an optional suffix K, M, G or T (powers of 1024;
+/// `KB`, `KiB` and lower case are the same), such as `500M` or `1.5G`.
+pub fn parse_size(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("'{text}' is not a size (such as 800M or 2G)"))?;
+    let unit = unit.trim().to_ascii_lowercase();
+    let unit = unit.trim_end_matches("ib").trim_end_matches('b');
+    let scale: u64 = match unit {
+        "" => 1,
+        "k" => 1 << 10,
+        "m" => 1 << 20,
+        "g" => 1 << 30,
+        "t" => 1 << 40,
+        _ => return Err(format!("'{text}' is not a size (such as 800M or 2G)")),
+    };
+    let bytes = value * scale as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("'{text}' is not a size (such as 800M or 2G)"));
+    }
+    Ok(bytes as u64)
+}
+
+/// A size for people, in the units `--max-memory` takes: "930 MiB", "58.3 GiB".
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    let (kib, mib, gib, tib) = (
+        1024.0,
+        1024.0 * 1024.0,
+        1024.0f64.powi(3),
+        1024.0f64.powi(4),
+    );
+    if b >= tib {
+        format!("{:.1} TiB", b / tib)
+    } else if b >= 10.0 * gib {
+        format!("{:.0} GiB", b / gib)
+    } else if b >= gib {
+        format!("{:.1} GiB", b / gib)
+    } else if b >= mib {
+        format!("{:.0} MiB", b / mib)
+    } else if b >= kib {
+        format!("{:.0} KiB", b / kib)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_and_print() {
+        assert_eq!(parse_size("1000").unwrap(), 1000);
+        assert_eq!(parse_size("500M").unwrap(), 500 << 20);
+        assert_eq!(parse_size("1.5G").unwrap(), 3 << 29);
+        assert_eq!(parse_size("2GiB").unwrap(), 2 << 30);
+        assert_eq!(parse_size("64kb").unwrap(), 64 << 10);
+        assert!(parse_size("lots").is_err());
+        assert!(parse_size("0").is_err());
+        assert!(parse_size("5X").is_err());
+        assert_eq!(human(930 << 20), "930 MiB");
+        assert_eq!(human(3 << 29), "1.5 GiB");
+        assert_eq!(human(58 << 30), "58 GiB");
+        assert_eq!(human(12), "12 bytes");
+    }
+
+    #[test]
+    fn the_estimate_grows_with_the_pixels_and_the_settings() {
+        let small = encode_bytes(1_000_000, 3_000_000, 2, false);
+        assert!(small > 1_000_000_000 && small < 1_200_000_000, "{small}");
+        assert!(encode_bytes(1_000_000, 3_000_000, 1, false) > small);
+        assert!(encode_bytes(1_000_000, 3_000_000, 3, false) < small);
+        assert!(encode_bytes(1_000_000, 3_000_000, 2, true) > small);
+        assert_eq!(encode_bytes(u64::MAX, u64::MAX, 2, true), u64::MAX);
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn linux_says_what_is_available() {
+        let a = available().expect("/proc tells");
+        assert!(a > 0);
+    }
+}

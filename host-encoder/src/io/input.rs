@@ -1,0 +1,400 @@
+//! Images in: any format the `image` crate reads here (PNG, JPEG, PNM, BMP, TIFF), from a file
+//! or standard input, read within limits and converted to 8-bit luma.
+//!
+//! An image is looked at twice: first its header alone ([`ImageProbe::read`]: format,
+//! dimensions, EXIF orientation, pages), so that a caller can refuse it before a pixel is
+//! decoded; then its pixels ([`DecodedImage::decode`]), with the `image` crate's allocation
+//! limit set, its orientation applied (a phone photo arrives the way it was shown) and, for a
+//! TIFF of several pages, the first page taken.
+
+use super::{input_name, is_std_stream, FileError};
+use crate::encoder::Plane;
+use image::metadata::Orientation;
+use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader};
+use std::io::{Cursor, Read};
+use std::path::Path;
+
+/// Bounds on the images a caller accepts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageLimits {
+    /// Largest `width * height`.
+    pub max_pixels: u64,
+    /// Most bytes the image decoder may allocate (its pixel buffer included).
+    pub max_alloc: u64,
+}
+
+impl ImageLimits {
+    /// The `image` crate's own defaults: any size, 512 MiB of allocations.
+    pub const DEFAULT: ImageLimits = ImageLimits {
+        max_pixels: u64::MAX,
+        max_alloc: 512 << 20,
+    };
+}
+
+/// Reads the whole of an input file, or standard input for `-`, refusing a directory and
+/// anything longer than `max_bytes` (a regular file by its size, before reading it; any other
+/// input once `max_bytes + 1` bytes have arrived). `expected` names what should be there, for
+/// the errors ("an image").
+pub fn read_input(
+    path: &Path,
+    expected: &'static str,
+    max_bytes: u64,
+) -> Result<Vec<u8>, FileError> {
+    let name = input_name(path);
+    let source: Box<dyn Read> = if is_std_stream(path) {
+        Box::new(std::io::stdin().lock())
+    } else {
+        if path.is_dir() {
+            return Err(FileError::IsDirectory {
+                path: name,
+                expected,
+            });
+        }
+        let file = std::fs::File::open(path).map_err(|source| FileError::Open {
+            path: name.clone(),
+            source,
+        })?;
+        if let Ok(meta) = file.metadata() {
+            if meta.is_file() && meta.len() > max_bytes {
+                return Err(FileError::InputTooLong {
+                    path: name,
+                    limit: max_bytes,
+                });
+            }
+        }
+        Box::new(file)
+    };
+    let mut bytes = Vec::new();
+    source
+        .take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|source| FileError::Read {
+            path: name.clone(),
+            source,
+        })?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(FileError::InputTooLong {
+            path: name,
+            limit: max_bytes,
+        });
+    }
+    Ok(bytes)
+}
+
+/// A reader of the image `bytes` whose format is known: `path`'s extension is the first
+/// guess, the contents decide when they are recognised.
+fn reader<'a>(bytes: &'a [u8], path: &Path) -> Result<ImageReader<Cursor<&'a [u8]>>, FileError> {
+    let mut reader = ImageReader::new(Cursor::new(bytes));
+    if let Ok(format) = ImageFormat::from_path(path) {
+        reader.set_format(format);
+    }
+    let reader = reader
+        .with_guessed_format()
+        .map_err(|source| FileError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    if reader.format().is_none() {
+        let is_pifs = bytes.starts_with(&decoder_core::MAGIC);
+        return Err(if is_pifs {
+            FileError::AlreadyPifs {
+                path: path.to_path_buf(),
+            }
+        } else {
+            FileError::Format {
+                path: path.to_path_buf(),
+            }
+        });
+    }
+    Ok(reader)
+}
+
+/// What an image's header says, read without decoding its pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageProbe {
+    /// The format the contents are in.
+    pub format: ImageFormat,
+    /// Width as the image is shown (its EXIF orientation applied), pixels.
+    pub width: u32,
+    /// Height as the image is shown, pixels.
+    pub height: u32,
+    /// Bytes of the decoded pixel buffer, in the file's own colour type.
+    pub decoded_bytes: u64,
+    /// The orientation the file asks for (applied by [`DecodedImage::decode`]).
+    pub orientation: Orientation,
+    /// Pages (TIFF images in one file; 1 for every other format).
+    pub pages: usize,
+}
+
+impl ImageProbe {
+    /// Reads the header of the image `bytes` (`path` names it in errors; its extension is the
+    /// format's first guess).
+    pub fn read(bytes: &[u8], path: &Path) -> Result<ImageProbe, FileError> {
+        let mut reader = reader(bytes, path)?;
+        let format = reader.format().unwrap_or(ImageFormat::Png);
+        // The header is read whatever it announces: the caller's limits decide.
+        reader.no_limits();
+        let failed = |source| FileError::Decode {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut decoder = reader.into_decoder().map_err(failed)?;
+        let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
+        let (w, h) = decoder.dimensions();
+        let (width, height) = if swaps_sides(orientation) {
+            (h, w)
+        } else {
+            (w, h)
+        };
+        Ok(ImageProbe {
+            format,
+            width,
+            height,
+            decoded_bytes: decoder.total_bytes(),
+            orientation,
+            pages: if format == ImageFormat::Tiff {
+                tiff_pages(bytes)
+            } else {
+                1
+            },
+        })
+    }
+
+    /// `width * height`.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+}
+
+/// Whether `orientation` turns the image by a quarter turn (width and height swap).
+fn swaps_sides(orientation: Orientation) -> bool {
+    matches!(
+        orientation,
+        Orientation::Rotate90
+            | Orientation::Rotate270
+            | Orientation::Rotate90FlipH
+            | Orientation::Rotate270FlipH
+    )
+}
+
+/// The number of images in a TIFF file (at least 1; counting stops at 65536). Only the image
+/// directories are read, not the pixels.
+fn tiff_pages(bytes: &[u8]) -> usize {
+    let Ok(mut decoder) = tiff::decoder::Decoder::new(Cursor::new(bytes)) else {
+        return 1;
+    };
+    let mut pages = 1;
+    while pages < 1 << 16 && decoder.more_images() && decoder.next_image().is_ok() {
+        pages += 1;
+    }
+    pages
+}
+
+/// A decoded image as 8-bit luma, and what was done to get it.
+#[derive(Debug, Clone)]
+pub struct DecodedImage {
+    /// The pixels, as shown (orientation applied), by the rule of [`to_luma`].
+    pub plane: Plane,
+    /// The orientation that was applied.
+    pub orientation: Orientation,
+    /// The file's pages: only the first was decoded.
+    pub pages: usize,
+}
+
+impl DecodedImage {
+    /// Decodes the image `bytes` (`path` names it in errors) within `limits`: more pixels
+    /// than `limits.max_pixels` are refused on the header
+    /// ([`image::error::LimitErrorKind::DimensionError`]), and the decoder fails rather than
+    /// allocate more than `limits.max_alloc` bytes
+    /// ([`image::error::LimitErrorKind::InsufficientMemory`]); both come back as
+    /// [`FileError::Decode`] with an [`image::ImageError::Limits`] source.
+    pub fn decode(bytes: &[u8], path: &Path, limits: &ImageLimits) -> Result<Self, FileError> {
+        let probe = ImageProbe::read(bytes, path)?;
+        let failed = |source| FileError::Decode {
+            path: path.to_path_buf(),
+            source,
+        };
+        let limit = |kind| {
+            failed(image::ImageError::Limits(
+                image::error::LimitError::from_kind(kind),
+            ))
+        };
+        if probe.pixels() > limits.max_pixels {
+            return Err(limit(image::error::LimitErrorKind::DimensionError));
+        }
+        // The pixel buffer, checked here: not every decoder counts it against its limit.
+        if probe.decoded_bytes > limits.max_alloc {
+            return Err(limit(image::error::LimitErrorKind::InsufficientMemory));
+        }
+        let mut reader = reader(bytes, path)?;
+        let mut image_limits = image::Limits::default();
+        image_limits.max_alloc = Some(limits.max_alloc);
+        reader.limits(image_limits);
+        let decoder = reader.into_decoder().map_err(failed)?;
+        let mut img = DynamicImage::from_decoder(decoder).map_err(failed)?;
+        img.apply_orientation(probe.orientation);
+        Ok(DecodedImage {
+            plane: to_luma(&img),
+            orientation: probe.orientation,
+            pages: probe.pages,
+        })
+    }
+}
+
+/// Loads an image file as 8-bit luma, by the rule of [`to_luma`], its orientation applied,
+/// within the `image` crate's default limits.
+pub fn load_luma(path: &Path) -> Result<Plane, FileError> {
+    let bytes = read_input(path, "an image", u64::MAX)?;
+    decode_luma(&bytes, path)
+}
+
+/// Decodes an image file's contents `bytes` as 8-bit luma, by the rule of [`to_luma`], its
+/// orientation applied, within the `image` crate's default limits. `path` names the file in
+/// errors, and its extension is the format's first guess (the contents decide when they are
+/// recognised).
+pub fn decode_luma(bytes: &[u8], path: &Path) -> Result<Plane, FileError> {
+    DecodedImage::decode(bytes, path, &ImageLimits::DEFAULT).map(|d| d.plane)
+}
+
+/// Pixels converted at a time by [`to_luma`] (as 32-bit float RGBA, 16 bytes each): the
+/// conversion's own memory stays small whatever the image.
+const CONVERSION_PIXELS: usize = 1 << 18;
+
+/// Converts a decoded image to 8-bit luma:
+/// - colour by the BT.601 weights, `Y = 0.299 R + 0.587 G + 0.114 B` (grey stays grey);
+/// - any bit depth (16-bit, float) from its full range to 0..=255, rounded;
+/// - palette images through their palette;
+/// - transparency composited over white, `Y' = a Y + (1 - a)` with `a` the alpha in 0..=1, as
+///   an image viewer shows it on a white page (a fully transparent pixel becomes white,
+///   whatever colour it carries).
+///
+/// Converted a band of rows at a time, so the conversion needs no copy of the whole image.
+pub fn to_luma(img: &DynamicImage) -> Plane {
+    let (w, h) = (img.width(), img.height());
+    let mut data = Vec::with_capacity(w as usize * h as usize);
+    let rows = (CONVERSION_PIXELS / (w as usize).max(1)).clamp(1, h.max(1) as usize) as u32;
+    let mut y = 0;
+    while y < h {
+        let n = rows.min(h - y);
+        let band = img.crop_imm(0, y, w, n).to_rgba32f();
+        data.extend(band.pixels().map(|p| {
+            let luma = 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+            let a = p[3].clamp(0.0, 1.0);
+            let luma = a * luma + (1.0 - a);
+            (luma * 255.0).round().clamp(0.0, 255.0) as u8
+        }));
+        y += n;
+    }
+    Plane::new(w, h, data)
+}
+
+/// Whether `path`'s extension names an image format (`.png`, `.jpg`, `.tiff`, …: any the
+/// `image` crate knows, enabled or not), where a PIFS stream does not belong.
+pub fn has_image_extension(path: &Path) -> bool {
+    ImageFormat::from_path(path).is_ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn png(img: &DynamicImage) -> Vec<u8> {
+        let mut out = Vec::new();
+        img.write_to(&mut Cursor::new(&mut out), ImageFormat::Png)
+            .unwrap();
+        out
+    }
+
+    #[test]
+    fn image_extensions_are_recognised() {
+        for p in [
+            "a.png", "a.JPG", "a.jpeg", "a.tif", "a.bmp", "a.pgm", "a.webp",
+        ] {
+            assert!(has_image_extension(Path::new(p)), "{p}");
+        }
+        for p in ["a.pifs", "a", "a.bin", "a.svg"] {
+            assert!(!has_image_extension(Path::new(p)), "{p}");
+        }
+    }
+
+    #[test]
+    fn the_conversion_by_bands_is_the_conversion_of_the_whole() {
+        // Wider than one band's worth of rows, and a height that is not a multiple of it.
+        let (w, h) = (700u32, 1000u32);
+        let img = DynamicImage::ImageRgba8(image::RgbaImage::from_fn(w, h, |x, y| {
+            image::Rgba([(x * 7) as u8, (y * 3) as u8, (x ^ y) as u8, (x + y) as u8])
+        }));
+        let whole: Vec<u8> = img
+            .to_rgba32f()
+            .pixels()
+            .map(|p| {
+                let luma = 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+                let a = p[3].clamp(0.0, 1.0);
+                ((a * luma + (1.0 - a)) * 255.0).round().clamp(0.0, 255.0) as u8
+            })
+            .collect();
+        assert_eq!(to_luma(&img).data, whole);
+    }
+
+    #[test]
+    fn the_header_is_read_before_the_pixels_and_limits_hold() {
+        let img =
+            DynamicImage::ImageLuma8(image::GrayImage::from_pixel(300, 200, image::Luma([9])));
+        let bytes = png(&img);
+        let probe = ImageProbe::read(&bytes, Path::new("x.png")).unwrap();
+        assert_eq!((probe.width, probe.height, probe.pages), (300, 200, 1));
+        assert_eq!(probe.decoded_bytes, 60_000);
+        let small = ImageLimits {
+            max_pixels: 59_999,
+            ..ImageLimits::DEFAULT
+        };
+        let err = DecodedImage::decode(&bytes, Path::new("x.png"), &small)
+            .err()
+            .unwrap();
+        assert!(
+            matches!(
+                &err,
+                FileError::Decode {
+                    source: image::ImageError::Limits(_),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let tight = ImageLimits {
+            max_alloc: 1000,
+            ..ImageLimits::DEFAULT
+        };
+        let err = DecodedImage::decode(&bytes, Path::new("x.png"), &tight)
+            .err()
+            .unwrap();
+        assert!(
+            matches!(
+                &err,
+                FileError::Decode {
+                    source: image::ImageError::Limits(_),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let ok = DecodedImage::decode(&bytes, Path::new("x.png"), &ImageLimits::DEFAULT).unwrap();
+        assert_eq!((ok.plane.width, ok.plane.height), (300, 200));
+    }
+
+    #[test]
+    fn input_longer_than_the_limit_is_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.png");
+        std::fs::write(&path, vec![0u8; 1000]).unwrap();
+        let err = read_input(&path, "an image", 999).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{} is longer than 999 bytes, the most this command reads",
+                path.display()
+            )
+        );
+        assert_eq!(read_input(&path, "an image", 1000).unwrap().len(), 1000);
+    }
+}

@@ -1,0 +1,539 @@
+//! The fuzz targets' seeds (`fuzz/seeds/<kind>/`), made by the encoder from the deterministic
+//! images of `common` and committed, so that every fuzz run (and `fuzz_replay`) starts from
+//! streams that use every model, both control codings, every control and weight quantiser, every
+//! leaf size, both header forms and many image sizes:
+//!
+//! ```text
+//! cargo test -p pifs-tests --test fuzz_seeds -- --ignored regenerate
+//! ```
+//!
+//! Regenerate after a format change (the test below fails until then). The kinds:
+//!
+//! - `streams/`: `.pifs` streams, for `decode_bytes` and `stream_equals_slice`;
+//! - `roundtrip/`: inputs of the `roundtrip` check (size bytes, a budget byte, pixels);
+//! - `encode_input/`: image files of every format and kind the host reads (grey, colour,
+//!   alpha, 16-bit, palette, EXIF-oriented JPEG, a TIFF of two pages, PNM, BMP);
+//! - `large_dimensions/`: inputs of that check (declared size, leaf sizes, payload), the
+//!   payloads of the encoder's streams under large declared sizes.
+
+mod common;
+
+use decoder_core::internal::model::MODELS;
+use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, WEIGHT_QUANTISERS};
+use decoder_core::internal::syntax::ControlCoding;
+use decoder_core::{Header, LeafInfo, VERSION};
+use host_encoder::{EncoderConfig, Plane, Target};
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+
+/// Seed files: name and bytes.
+type Files = Vec<(String, Vec<u8>)>;
+
+fn seeds_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fuzz/seeds")
+}
+
+/// An image, the encoder's settings, and the targets each written as a seed stream.
+struct Spec {
+    name: &'static str,
+    plane: Plane,
+    config: EncoderConfig,
+    targets: Vec<Target>,
+}
+
+fn config(
+    min_leaf_log2: u8,
+    max_leaf_log2: u8,
+    codebook_levels: usize,
+    fit: bool,
+) -> EncoderConfig {
+    EncoderConfig {
+        min_leaf_log2,
+        max_leaf_log2,
+        codebook_levels,
+        fit_weights: fit,
+        ..EncoderConfig::default()
+    }
+}
+
+/// A noise image: every pixel independent (the finest quantisers pay here).
+fn noise(width: u32, height: u32, seed: u32) -> Plane {
+    let mut rng = common::Lcg::new(seed);
+    let data = (0..width * height).map(|_| rng.below(256) as u8).collect();
+    Plane::new(width, height, data)
+}
+
+fn specs() -> Vec<Spec> {
+    let bpp = |rates: &[f64]| rates.iter().map(|&r| Target::Bpp(r)).collect::<Vec<_>>();
+    vec![
+        Spec {
+            name: "one-pixel",
+            plane: Plane::new(1, 1, vec![77]),
+            config: config(1, 7, 0, false),
+            targets: vec![Target::Bytes(64)],
+        },
+        Spec {
+            name: "strip-37x3",
+            plane: common::synthetic(37, 3, 3, 8),
+            config: config(1, 3, 0, false),
+            targets: bpp(&[3.0, 8.0]),
+        },
+        Spec {
+            name: "gradient-16x16",
+            plane: common::gradient(16, 16),
+            config: config(2, 4, 0, false),
+            targets: bpp(&[0.5, 2.0]),
+        },
+        Spec {
+            name: "textured-33x17",
+            plane: common::synthetic(33, 17, 5, 12),
+            config: config(1, 4, 8, true),
+            targets: vec![Target::Bytes(160), Target::Bpp(3.0)],
+        },
+        Spec {
+            name: "noise-24x24",
+            plane: noise(24, 24, 9),
+            config: config(1, 3, 0, false),
+            targets: bpp(&[2.0, 8.0]),
+        },
+        Spec {
+            name: "synthetic-64x64",
+            plane: common::synthetic(64, 64, 7, 6),
+            config: config(2, 5, 8, true),
+            targets: bpp(&[0.05, 0.2, 0.5, 1.5]),
+        },
+        Spec {
+            name: "synthetic-100x60",
+            plane: common::synthetic(100, 60, 11, 20),
+            config: config(2, 6, 8, false),
+            targets: vec![Target::Bpp(0.1), Target::Psnr(30.0), Target::Bpp(2.5)],
+        },
+        Spec {
+            name: "codebooks-128x128",
+            plane: common::synthetic(128, 128, 1, 4),
+            config: config(4, 5, 16, true),
+            targets: bpp(&[1.0, 2.0, 3.0]),
+        },
+        Spec {
+            name: "flat-200x150",
+            plane: Plane::new(200, 150, vec![131; 200 * 150]),
+            config: config(2, 7, 8, false),
+            targets: vec![Target::Bytes(64)],
+        },
+        Spec {
+            name: "synthetic-256x192",
+            plane: common::synthetic(256, 192, 13, 10),
+            config: config(3, 7, 8, false),
+            targets: bpp(&[0.02, 0.25, 1.0]),
+        },
+    ]
+}
+
+/// What the leaves of a set of streams use.
+#[derive(Default, Debug)]
+struct Usage {
+    models: BTreeSet<u8>,
+    /// (model, coding) for the models that have a choice.
+    codings: BTreeSet<(u8, u8)>,
+    cquants: BTreeSet<u8>,
+    wquants: BTreeSet<u8>,
+    leaf_sizes: BTreeSet<u8>,
+    sizes: BTreeSet<(u16, u16)>,
+    with_codebooks: bool,
+    without_codebooks: bool,
+}
+
+impl Usage {
+    fn leaf(&mut self, info: &LeafInfo) {
+        self.models.insert(info.model);
+        if MODELS[usize::from(info.model)].has_coding_choice() {
+            self.codings.insert((
+                info.model,
+                u8::from(info.coding == ControlCoding::Transform),
+            ));
+        }
+        self.cquants.insert(info.cquant);
+        self.wquants.insert(info.wquant);
+        self.leaf_sizes.insert(info.node.log2);
+    }
+
+    fn stream(&mut self, name: &str, bytes: &[u8]) {
+        let header = Header::read(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        self.sizes.insert((header.width, header.height));
+        if header.has_codebooks() {
+            self.with_codebooks = true;
+        } else {
+            self.without_codebooks = true;
+        }
+        decoder_core::Decoder::new(bytes)
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+            .observe(|leaf: &LeafInfo| self.leaf(leaf))
+            .verify()
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+
+    /// What is missing from a full set, if anything.
+    fn missing(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let models: BTreeSet<u8> = (0..MODELS.len() as u8).collect();
+        if self.models != models {
+            out.push(format!("models {:?} of {models:?}", self.models));
+        }
+        let codings: BTreeSet<(u8, u8)> = (0..MODELS.len() as u8)
+            .filter(|&m| MODELS[usize::from(m)].has_coding_choice())
+            .flat_map(|m| [(m, 0), (m, 1)])
+            .collect();
+        if self.codings != codings {
+            out.push(format!("codings {:?} of {codings:?}", self.codings));
+        }
+        let cquants: BTreeSet<u8> = (0..CONTROL_QUANTISERS as u8).collect();
+        if self.cquants != cquants {
+            out.push(format!(
+                "control quantisers {:?} of {cquants:?}",
+                self.cquants
+            ));
+        }
+        let wquants: BTreeSet<u8> = (0..WEIGHT_QUANTISERS as u8).collect();
+        if self.wquants != wquants {
+            out.push(format!(
+                "weight quantisers {:?} of {wquants:?}",
+                self.wquants
+            ));
+        }
+        let leaf_sizes: BTreeSet<u8> = (1..=7).collect();
+        if self.leaf_sizes != leaf_sizes {
+            out.push(format!(
+                "leaf sizes {:?} of {leaf_sizes:?}",
+                self.leaf_sizes
+            ));
+        }
+        if self.sizes.len() < 8 {
+            out.push(format!("only {} image sizes", self.sizes.len()));
+        }
+        if !(self.with_codebooks && self.without_codebooks) {
+            out.push("headers with and without codebooks".into());
+        }
+        out
+    }
+}
+
+fn target_name(target: Target) -> String {
+    match target {
+        Target::Bpp(b) => format!("{b}bpp"),
+        Target::Bytes(n) => format!("{n}bytes"),
+        Target::Psnr(p) => format!("{p}dB"),
+    }
+}
+
+/// The seed streams the specs make, by file name.
+fn make_streams() -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for spec in specs() {
+        let analysis = common::analyse_with(spec.plane.clone(), &spec.config);
+        for &target in &spec.targets {
+            // A rate below the smallest stream gets the smallest stream.
+            let encoded = match analysis.encode(target) {
+                Err(host_encoder::EncodeError::BudgetTooSmall { smallest, .. }) => {
+                    analysis.encode(Target::Bytes(smallest))
+                }
+                other => other,
+            }
+            .unwrap_or_else(|e| panic!("{}: {target:?}: {e}", spec.name));
+            let mut px = vec![0u8; spec.plane.data.len()];
+            pifs_tests::decode_into(&encoded.bytes, &mut px).unwrap();
+            assert!(
+                px == encoded.reconstruction,
+                "{}: decoder and encoder disagree",
+                spec.name
+            );
+            out.push((
+                format!("{}-{}.pifs", spec.name, target_name(target)),
+                encoded.bytes,
+            ));
+        }
+    }
+    out
+}
+
+/// Inputs of the `roundtrip` check: width-1, height-1, a budget byte, pixels.
+fn roundtrip_seeds() -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for (name, plane, budget) in [
+        ("gradient-16x12", common::gradient(16, 12), 40u8),
+        ("textured-33x17", common::synthetic(33, 17, 5, 12), 200),
+        ("noise-9x7", noise(9, 7, 3), 255),
+        ("flat-48x48", Plane::new(48, 48, vec![90; 48 * 48]), 1),
+    ] {
+        let mut bytes = vec![(plane.width - 1) as u8, (plane.height - 1) as u8, budget];
+        bytes.extend_from_slice(&plane.data);
+        out.push((format!("{name}.bin"), bytes));
+    }
+    out
+}
+
+/// Image files of every kind the host reads.
+fn encode_input_seeds() -> Vec<(String, Vec<u8>)> {
+    use image::{DynamicImage, ImageFormat};
+    let gray = |w: u32, h: u32| {
+        image::GrayImage::from_fn(w, h, |x, y| image::Luma([(x * 9 + y * 5) as u8]))
+    };
+    let encode = |img: &DynamicImage, format: ImageFormat| {
+        let mut out = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut out), format)
+            .unwrap();
+        out
+    };
+    let rgb = DynamicImage::ImageRgb8(image::RgbImage::from_fn(20, 14, |x, y| {
+        image::Rgb([(x * 12) as u8, (y * 17) as u8, 99])
+    }));
+    let rgba = DynamicImage::ImageRgba8(image::RgbaImage::from_fn(12, 10, |x, y| {
+        image::Rgba([200, (x * 20) as u8, 40, (y * 25) as u8])
+    }));
+    let gray16 = DynamicImage::ImageLuma16(image::ImageBuffer::from_fn(10, 8, |x, y| {
+        image::Luma([(x * 6000 + y * 900) as u16])
+    }));
+    let g = DynamicImage::ImageLuma8(gray(16, 12));
+    let mut out = vec![
+        ("gray.png".to_string(), encode(&g, ImageFormat::Png)),
+        ("rgb.png".into(), encode(&rgb, ImageFormat::Png)),
+        ("rgba.png".into(), encode(&rgba, ImageFormat::Png)),
+        ("gray16.png".into(), encode(&gray16, ImageFormat::Png)),
+        ("rgb.jpg".into(), encode(&rgb, ImageFormat::Jpeg)),
+        ("gray.pgm".into(), encode(&g, ImageFormat::Pnm)),
+        ("rgb.ppm".into(), encode(&rgb, ImageFormat::Pnm)),
+        ("rgb.bmp".into(), encode(&rgb, ImageFormat::Bmp)),
+        ("rgba.tiff".into(), encode(&rgba, ImageFormat::Tiff)),
+        ("palette.png".into(), palette_png()),
+        (
+            "oriented-6.jpg".into(),
+            with_orientation(&encode(&rgb, ImageFormat::Jpeg), 6),
+        ),
+        ("pages-2.tiff".into(), two_page_tiff()),
+    ];
+    out.sort();
+    out
+}
+
+/// A 4-colour indexed PNG, 8x8 (the `image` crate writes no palette images): stored zlib.
+fn palette_png() -> Vec<u8> {
+    fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        out.extend_from_slice(&body);
+        out.extend_from_slice(&decoder_core::internal::checksum::crc32(&body).to_be_bytes());
+    }
+    let (w, h) = (8u32, 8u32);
+    let mut raw = Vec::new();
+    for y in 0..h {
+        raw.push(0);
+        raw.extend((0..w).map(|x| ((x + y) % 4) as u8));
+    }
+    let mut z = vec![0x78, 0x01, 0x01];
+    z.extend_from_slice(&(raw.len() as u16).to_le_bytes());
+    z.extend_from_slice(&(!(raw.len() as u16)).to_le_bytes());
+    z.extend_from_slice(&raw);
+    let (mut a, mut b) = (1u32, 0u32);
+    for &v in &raw {
+        a = (a + u32::from(v)) % 65521;
+        b = (b + a) % 65521;
+    }
+    z.extend_from_slice(&((b << 16) | a).to_be_bytes());
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 3, 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    chunk(
+        &mut png,
+        b"PLTE",
+        &[255, 0, 0, 0, 255, 0, 0, 0, 255, 250, 250, 250],
+    );
+    chunk(&mut png, b"IDAT", &z);
+    chunk(&mut png, b"IEND", &[]);
+    png
+}
+
+/// `jpeg` with an EXIF segment saying `orientation`.
+fn with_orientation(jpeg: &[u8], orientation: u16) -> Vec<u8> {
+    let mut tiff = b"MM\0\x2a\0\0\0\x08".to_vec();
+    tiff.extend_from_slice(&1u16.to_be_bytes());
+    tiff.extend_from_slice(&0x0112u16.to_be_bytes());
+    tiff.extend_from_slice(&3u16.to_be_bytes());
+    tiff.extend_from_slice(&1u32.to_be_bytes());
+    tiff.extend_from_slice(&orientation.to_be_bytes());
+    tiff.extend_from_slice(&[0, 0, 0, 0, 0, 0]);
+    let mut body = b"Exif\0\0".to_vec();
+    body.extend_from_slice(&tiff);
+    let mut out = jpeg[..2].to_vec();
+    out.extend_from_slice(&[0xFF, 0xE1]);
+    out.extend_from_slice(&((body.len() + 2) as u16).to_be_bytes());
+    out.extend_from_slice(&body);
+    out.extend_from_slice(&jpeg[2..]);
+    out
+}
+
+/// A TIFF of two grey pages, 12x9 then 6x4, written by hand (little-endian, uncompressed).
+fn two_page_tiff() -> Vec<u8> {
+    let pages = [(12u32, 9u32), (6, 4)];
+    let mut out = b"II\x2a\0".to_vec();
+    out.extend_from_slice(&8u32.to_le_bytes());
+    for (i, &(w, h)) in pages.iter().enumerate() {
+        let entries: u16 = 8;
+        let ifd_len = 2 + 12 * u32::from(entries) + 4;
+        let ifd_at = out.len() as u32;
+        let data_at = ifd_at + ifd_len;
+        let next = if i + 1 < pages.len() {
+            data_at + w * h
+        } else {
+            0
+        };
+        out.extend_from_slice(&entries.to_le_bytes());
+        let mut entry = |tag: u16, kind: u16, value: u32| {
+            out.extend_from_slice(&tag.to_le_bytes());
+            out.extend_from_slice(&kind.to_le_bytes());
+            out.extend_from_slice(&1u32.to_le_bytes());
+            out.extend_from_slice(&value.to_le_bytes());
+        };
+        entry(256, 4, w); // width
+        entry(257, 4, h); // height
+        entry(258, 3, 8); // bits per sample
+        entry(259, 3, 1); // no compression
+        entry(262, 3, 1); // black is zero
+        entry(273, 4, data_at); // strip offset
+        entry(278, 4, h); // rows per strip
+        entry(279, 4, w * h); // strip bytes
+        out.extend_from_slice(&next.to_le_bytes());
+        out.extend((0..w * h).map(|v| (v * 7 + i as u32 * 100) as u8));
+    }
+    out
+}
+
+/// Inputs of the `large_dimensions` check: the payloads of some seed streams under large
+/// declared sizes.
+fn large_dimension_seeds(streams: &[(String, Vec<u8>)]) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let sizes: [(u16, u16, u8); 5] = [
+        (65535, 65535, 3),
+        (16384, 16384, 3),
+        (4096, 256, 0x0F),
+        (1024, 1024, 0x03),
+        (300, 3000, 0x02),
+    ];
+    for (k, (name, bytes)) in streams.iter().step_by(3).enumerate() {
+        let (header, offset) = Header::parse(bytes).unwrap();
+        let _ = header;
+        let (w, h, leaves) = sizes[k % sizes.len()];
+        let mut seed = Vec::new();
+        seed.extend_from_slice(&w.to_be_bytes());
+        seed.extend_from_slice(&h.to_be_bytes());
+        seed.push(leaves);
+        seed.extend_from_slice(&bytes[offset..]);
+        out.push((format!("{w}x{h}-{}", name.trim_end_matches(".pifs")), seed));
+    }
+    out
+}
+
+/// Every seed by kind (directory) and file name.
+fn all_seeds() -> Vec<(&'static str, Files)> {
+    let streams = make_streams();
+    let large = large_dimension_seeds(&streams);
+    vec![
+        ("streams", streams),
+        ("roundtrip", roundtrip_seeds()),
+        ("encode_input", encode_input_seeds()),
+        ("large_dimensions", large),
+    ]
+}
+
+#[test]
+#[ignore = "writes fuzz/seeds/; run explicitly to regenerate the fuzz seeds"]
+fn regenerate() {
+    let seeds = all_seeds();
+    let mut usage = Usage::default();
+    for (kind, files) in &seeds {
+        let dir = seeds_dir().join(kind);
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        for (name, bytes) in files {
+            std::fs::write(dir.join(name), bytes).unwrap();
+            if *kind == "streams" {
+                usage.stream(name, bytes);
+                println!("{kind}/{name}: {} bytes", bytes.len());
+            }
+        }
+    }
+    let missing = usage.missing();
+    assert!(
+        missing.is_empty(),
+        "the seed streams lack: {missing:#?}\n{usage:#?}"
+    );
+}
+
+fn committed(kind: &str) -> Vec<(String, Vec<u8>)> {
+    let dir = seeds_dir().join(kind);
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                std::fs::read(&p).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// The committed seed streams are of this format version and use everything the format has.
+#[test]
+fn seed_streams_are_current_and_use_every_model_and_quantiser() {
+    let streams = committed("streams");
+    assert!(streams.len() >= 20, "{} seed streams", streams.len());
+    let mut usage = Usage::default();
+    for (name, bytes) in &streams {
+        assert_eq!(
+            bytes.get(4).copied(),
+            Some(VERSION),
+            "fuzz/seeds/streams/{name} is not format version {VERSION}: regenerate the seeds \
+             (cargo test -p pifs-tests --test fuzz_seeds -- --ignored regenerate)"
+        );
+        usage.stream(name, bytes);
+    }
+    let missing = usage.missing();
+    assert!(missing.is_empty(), "the seed streams lack: {missing:#?}");
+}
+
+/// The committed seeds of every kind are the ones the generator names (a renamed or dropped
+/// spec fails here until the seeds are regenerated); the image seeds are the generator's bytes.
+#[test]
+fn committed_seeds_match_the_generator() {
+    let names = |files: &[(String, Vec<u8>)]| -> Vec<String> {
+        files.iter().map(|(n, _)| n.clone()).collect()
+    };
+    let streams: Vec<String> = specs()
+        .iter()
+        .flat_map(|s| {
+            s.targets
+                .iter()
+                .map(|&t| format!("{}-{}.pifs", s.name, target_name(t)))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let mut streams_sorted = streams.clone();
+    streams_sorted.sort();
+    assert_eq!(names(&committed("streams")), streams_sorted);
+    let mut roundtrip = roundtrip_seeds();
+    roundtrip.sort();
+    assert!(
+        committed("roundtrip") == roundtrip,
+        "fuzz/seeds/roundtrip differs"
+    );
+    let mut images = encode_input_seeds();
+    images.sort();
+    assert_eq!(names(&committed("encode_input")), names(&images));
+    let large = committed("large_dimensions");
+    assert!(large.len() >= 5);
+}
