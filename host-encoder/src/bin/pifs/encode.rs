@@ -585,7 +585,7 @@ mod tests {
         let err = check_target_fits(job(Target::Bpp(1.0)), 3, 3).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "--bpp 1 allows 1 byte for this 3x3 image, and no stream is smaller than 18 bytes (its header): use --bpp 16 or more"
+            "--bpp 1 allows 1 byte for this 3x3 image, and no stream is smaller than 20 bytes (its header): use --bpp 17.8 or more"
         );
         assert!(check_target_fits(job(Target::Bpp(1.0)), 64, 48).is_ok());
         assert!(check_target_fits(job(Target::Psnr(30.0)), 1, 1).is_ok());
