@@ -86,7 +86,11 @@ fn leaf_edges(data: &[u8]) -> (Vec<bool>, i32) {
         .verify()
         .unwrap();
     let d = i32::from(header.deblock);
-    let most = if d == 0 { 0 } else { 4 * ((d * max_step / 32 + 1) / 3 + 1) };
+    let most = if d == 0 {
+        0
+    } else {
+        4 * ((d * max_step / 32 + 1) / 3 + 1)
+    };
     (edge, most)
 }
 
