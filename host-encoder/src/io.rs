@@ -165,6 +165,11 @@ pub fn load_luma(path: &Path) -> Result<Plane, FileError> {
 /// names the file in errors, and its extension is the format's first guess (the contents
 /// decide when they are recognised).
 pub fn decode_luma(bytes: &[u8], path: &Path) -> Result<Plane, FileError> {
+    Ok(to_luma(&decode_dynamic(bytes, path)?))
+}
+
+/// Decodes an image file's contents (see [`decode_luma`]) as the `image` crate gives it.
+fn decode_dynamic(bytes: &[u8], path: &Path) -> Result<image::DynamicImage, FileError> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
     if let Ok(format) = image::ImageFormat::from_path(path) {
         reader.set_format(format);
@@ -187,11 +192,70 @@ pub fn decode_luma(bytes: &[u8], path: &Path) -> Result<Plane, FileError> {
             }
         });
     }
-    let img = reader.decode().map_err(|source| FileError::Decode {
+    reader.decode().map_err(|source| FileError::Decode {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// An image as the encoder takes it: grayscale, or colour.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Loaded {
+    /// 8-bit luma ([`to_luma`]).
+    Gray(Plane),
+    /// 8-bit RGB ([`to_rgb`]).
+    Rgb {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+        /// Row-major RGB, 3 bytes a pixel.
+        data: Vec<u8>,
+    },
+}
+
+/// Loads an image file: colour ([`Loaded::Rgb`], by the rule of [`to_rgb`]) when it has colour
+/// (a colour type with some pixel whose channels differ), else luma ([`to_luma`]).
+pub fn load_image(path: &Path) -> Result<Loaded, FileError> {
+    if path.is_dir() {
+        return Err(FileError::IsDirectory {
+            path: path.to_path_buf(),
+            expected: "an image",
+        });
+    }
+    let bytes = std::fs::read(path).map_err(|source| FileError::Open {
         path: path.to_path_buf(),
         source,
     })?;
-    Ok(to_luma(&img))
+    let img = decode_dynamic(&bytes, path)?;
+    if img.color().has_color() {
+        let (width, height, data) = to_rgb(&img);
+        if data.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]) {
+            return Ok(Loaded::Rgb {
+                width,
+                height,
+                data,
+            });
+        }
+    }
+    Ok(Loaded::Gray(to_luma(&img)))
+}
+
+/// Converts a decoded image to 8-bit RGB (width, height, row-major RGB): any bit depth from its
+/// full range, rounded; palettes through their palette; transparency composited over white,
+/// channel by channel (as [`to_luma`] does for luma).
+pub fn to_rgb(img: &image::DynamicImage) -> (u32, u32, Vec<u8>) {
+    let rgba = img.to_rgba32f();
+    let (w, h) = rgba.dimensions();
+    let mut data = Vec::with_capacity(3 * w as usize * h as usize);
+    for p in rgba.pixels() {
+        let a = p[3].clamp(0.0, 1.0);
+        for c in 0..3 {
+            let v = a * p[c] + (1.0 - a);
+            data.push((v * 255.0).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    (w, h, data)
 }
 
 /// Reads a whole `.pifs` stream into memory (a directory is refused by name).
@@ -287,6 +351,43 @@ impl OutputFormat {
 /// `image` crate knows, enabled or not), where a PIFS stream does not belong.
 pub fn has_image_extension(path: &Path) -> bool {
     image::ImageFormat::from_path(path).is_ok()
+}
+
+/// Encodes an RGB image (`3 * width * height` bytes) in the format `path`'s extension names
+/// into memory: PNG and PPM in colour; PGM (which holds gray only) as the image's luma.
+pub fn encode_rgb(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[u8],
+) -> Result<Vec<u8>, FileError> {
+    use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
+    let format = OutputFormat::from_path(path)?;
+    let img =
+        image::RgbImage::from_raw(width, height, pixels.to_vec()).ok_or(FileError::BufferSize {
+            width,
+            height,
+            len: pixels.len(),
+        })?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    let written = match format {
+        OutputFormat::Png => img.write_to(&mut out, image::ImageFormat::Png),
+        OutputFormat::Ppm => img.write_with_encoder(
+            PnmEncoder::new(&mut out).with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary)),
+        ),
+        OutputFormat::Pgm => {
+            let luma: Vec<u8> = pixels
+                .chunks_exact(3)
+                .map(|p| decoder_core::internal::colour::rgb_to_luma(p[0], p[1], p[2]))
+                .collect();
+            return format.encode(path, width, height, &luma);
+        }
+    };
+    written.map_err(|source| FileError::Encode {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(out.into_inner())
 }
 
 /// Encodes a grayscale image in the format `path`'s extension names ([`OutputFormat`]) into

@@ -87,14 +87,23 @@ pub fn run_scaled(input: &Path, output: &Path, limits: &Limits, scale: Scale) ->
     let start = Instant::now();
     output::check(output, Some(input), Kind::Image)?;
     let data = io::read_stream(input)?;
-    let (_, width, height, pixels) = decode_scaled(input, &data, limits, None, scale)?;
-    let bytes = io::encode_gray(output, width, height, &pixels)?;
+    let (header, width, height, pixels) = decode_scaled(input, &data, limits, None, scale)?;
+    let bytes = if header.channels == 3 {
+        io::encode_rgb(output, width, height, &pixels)?
+    } else {
+        io::encode_gray(output, width, height, &pixels)?
+    };
     io::write_atomic(output, &bytes)?;
     println!(
-        "{}: {}x{} decoded in {:.1} ms",
+        "{}: {}x{} {} decoded in {:.1} ms",
         output.display(),
         width,
         height,
+        if header.channels == 3 {
+            "colour"
+        } else {
+            "gray"
+        },
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())

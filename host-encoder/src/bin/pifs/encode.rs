@@ -4,7 +4,9 @@ use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
 use crate::progress::{Progress, Work};
 use clap::Args;
-use host_encoder::{analyse, io, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target};
+use host_encoder::{
+    analyse, analyse_colour, io, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target,
+};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -14,8 +16,13 @@ pub const DEFAULT_BPP: f64 = 0.25;
 /// Arguments of `pifs encode`.
 #[derive(Args, Debug)]
 pub struct EncodeArgs {
-    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; colour is converted to luma).
+    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF). A colour image gives a colour stream
+    /// (YCbCr 4:2:0) unless --gray; a gray one (or a colour image whose pixels are all gray)
+    /// a grayscale stream.
     pub input: PathBuf,
+    /// Encode in grayscale (the image's luma), even from a colour image.
+    #[arg(long)]
+    pub gray: bool,
     /// Output stream. Any name but an image format's (.png, .jpg, ... are refused, so that a
     /// stream never poses as an image); .pifs by convention.
     #[arg(short, long)]
@@ -168,6 +175,51 @@ pub fn analyse_plane(plane: Plane, args: &AnalysisArgs, targets: &[Target]) -> R
     })
 }
 
+/// Analyses a loaded image ([`analyse_plane`]), in colour when it is colour.
+pub fn analyse_loaded(
+    image: &io::Loaded,
+    args: &AnalysisArgs,
+    targets: &[Target],
+) -> Result<Analysed> {
+    let io::Loaded::Rgb {
+        width,
+        height,
+        data,
+    } = image
+    else {
+        let io::Loaded::Gray(plane) = image else {
+            unreachable!("two variants")
+        };
+        return analyse_plane(plane.clone(), args, targets);
+    };
+    let start = Instant::now();
+    let pixels = *width as usize * *height as usize;
+    let config = args.config(pixels, targets);
+    let work = Work::new(*width, *height, config.min_leaf_log2, config.max_leaf_log2);
+    let progress = Progress::on_terminal(work);
+    let result = analyse_colour(*width, *height, data.clone(), &config, &|n| {
+        if let Some(p) = &progress {
+            p.nodes_done(n);
+        }
+    });
+    if let Some(p) = &progress {
+        p.finish();
+    }
+    Ok(Analysed {
+        analysis: result?,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Loads `path` as the encoder takes it: colour unless `gray` (or the image is gray).
+pub fn load_input(path: &std::path::Path, gray: bool) -> Result<io::Loaded> {
+    Ok(if gray {
+        io::Loaded::Gray(io::load_luma(path)?)
+    } else {
+        io::load_image(path)?
+    })
+}
+
 /// A stream to write: its target, and whether the user chose it or it is the default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Job {
@@ -216,12 +268,20 @@ pub fn write_stream(analysed: &Analysed, job: Job, output: &std::path::Path) -> 
     let gap = 100.0 * (encoded.estimated_payload_bits - encoded.actual_payload_bits)
         / encoded.actual_payload_bits.max(1.0);
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
+    let kind = if encoded.channels == 3 {
+        format!(
+            "colour, PSNR-RGB {:.2} dB, chroma {:.1}% of the payload",
+            encoded.psnr,
+            100.0 * encoded.chroma_bits / encoded.actual_payload_bits.max(1.0)
+        )
+    } else {
+        format!("gray, PSNR {:.2} dB", encoded.psnr)
+    };
     println!(
-        "{}: {w}x{h} -> {} bytes, {:.4} bpp, PSNR {:.2} dB, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
+        "{}: {w}x{h} -> {} bytes, {:.4} bpp, {kind}, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
         output.display(),
         encoded.bytes.len(),
         analysed.bpp(encoded.bytes.len()),
-        encoded.psnr,
         encoded.leaves,
         analysed.seconds,
         t.elapsed().as_secs_f64()
@@ -265,8 +325,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let job = args.job();
     validate_target(job.target)?;
     output::check(&args.output, Some(&args.input), Kind::Stream)?;
-    let plane = io::load_luma(&args.input)?;
-    let analysed = analyse_plane(plane.clone(), &args.analysis, &[job.target])?;
+    let image = load_input(&args.input, args.gray)?;
+    let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
     match write_stream(&analysed, job, &args.output) {
         Err(CliError::Encode(EncodeError::QualityUnreachable { .. })) => {
             // A quality target's analysis is tuned (its trial encode, which trains the rate
@@ -278,7 +338,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
                 "{}: the target is beyond this analysis; analysing again, tuned for the highest rate",
                 args.input.display()
             );
-            let mut top = analyse_plane(plane, &args.analysis, &[TOP_TUNING])?;
+            let mut top = analyse_loaded(&image, &args.analysis, &[TOP_TUNING])?;
             top.seconds += analysed.seconds;
             write_stream(&top, job, &args.output)?;
             Ok(())

@@ -58,6 +58,14 @@ impl Stats {
             header.width, header.height, header.channels, header.bit_depth
         );
         println!(
+            "  colour           {}",
+            if header.channels == 3 {
+                "colour (YCbCr BT.601 full range, chroma 4:2:0)"
+            } else {
+                "grayscale"
+            }
+        );
+        println!(
             "  size             {stream_len} bytes ({} header), {:.4} bpp",
             header.encoded_len(),
             stream_len as f64 * 8.0 / px
@@ -123,7 +131,15 @@ pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
         return Ok(());
     };
     let mut leaves = Vec::new();
-    let (header, pixels) = crate::decode::decode_stream(input, &data, limits, Some(&mut leaves))?;
+    let (header, mut pixels) =
+        crate::decode::decode_stream(input, &data, limits, Some(&mut leaves))?;
+    if header.channels == 3 {
+        // The drawing shows the luma under the leaves.
+        pixels = pixels
+            .chunks_exact(3)
+            .map(|p| decoder_core::internal::colour::rgb_to_luma(p[0], p[1], p[2]))
+            .collect();
+    }
     leaves.iter().for_each(|leaf| stats.leaf(leaf));
     let drawing = crate::leaves_svg::draw(&header, &pixels, &leaves)?;
     io::write_atomic(svg, drawing.as_bytes())?;
