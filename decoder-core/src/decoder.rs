@@ -14,6 +14,7 @@
 use core::convert::Infallible;
 
 use crate::checksum::Crc32;
+use crate::colour::{ChromaFrontier, ChromaPatch, ColourOut};
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 use crate::format::DEFAULT_STRIPE;
@@ -495,50 +496,94 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
         frontier: &mut Frontier<CAPACITY>,
     ) -> Result<(), Self::Error> {
         (self.observer)(info);
-        let node = &info.node;
-        let step = control_step(info.cquant);
         let mut catch = Catch::new(&mut *self.sink);
-        // Cut to the clip on the way out: the leaf's pixels, and the pixels beside it it draws.
-        let mut clipped = ClipOut {
-            clip: self.clip,
-            out: &mut catch,
-        };
-        let k = self.scale.log2();
-        // A stop comes only from the sink, whose error `finish` returns.
-        let _ = if k == 0 {
-            let area = node.rect().intersect(&self.image);
-            if area.intersect(&self.clip).is_empty() {
-                frontier.record(node, step, patch, &mut clipped);
-                Ok(())
-            } else {
-                patch.render_to(node, area, &mut frontier.capture(node, step, &mut clipped))
-            }
-        } else if k < 0 {
-            let shift = k.unsigned_abs();
-            frontier.record(
-                node,
-                step,
-                patch,
-                &mut Subsample {
-                    shift,
-                    out: &mut clipped,
-                },
-            );
-            // The leaf's first row and column are the edges' (its last ones are off the grid).
-            let (x, y, n) = (node.x >> shift, node.y >> shift, node.size() >> shift);
-            let interior = Rect {
-                x: x + 1,
-                y: y + 1,
-                w: n.saturating_sub(1),
-                h: n.saturating_sub(1),
-            };
-            patch.render_scaled(node, self.scale, self.clip.intersect(&interior), &mut catch)
-        } else {
-            frontier.record(node, step, patch, &mut Discard);
-            patch.render_scaled(node, self.scale, self.clip, &mut catch)
-        };
+        draw_leaf(
+            (self.clip, self.image, self.scale),
+            info,
+            patch,
+            frontier,
+            &mut catch,
+        );
         catch.finish().map_err(DrawError::Sink)
     }
+
+    /// A colour leaf: drawn as a grayscale one, through [`ColourOut`], which turns each luma
+    /// tile into RGB on its way to the sink.
+    #[inline(never)]
+    fn leaf_colour<const CAPACITY: usize>(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        chroma: &ChromaPatch,
+        frontier: &mut Frontier<CAPACITY>,
+        chroma_frontier: &ChromaFrontier<CAPACITY>,
+    ) -> Result<(), Self::Error> {
+        (self.observer)(info);
+        let mut catch = Catch::new(&mut *self.sink);
+        let mut colour = ColourOut {
+            patch: chroma,
+            frontier: chroma_frontier,
+            scale: self.scale,
+            out: &mut catch,
+        };
+        draw_leaf(
+            (self.clip, self.image, self.scale),
+            info,
+            patch,
+            frontier,
+            &mut colour,
+        );
+        catch.finish().map_err(DrawError::Sink)
+    }
+}
+
+/// Draws a leaf's luma into `out` (see [`Drawer`]'s `leaf`), with the decode's clip, output
+/// image and scale. A stop comes only from the sink, whose error its [`Catch`] keeps.
+fn draw_leaf<const CAPACITY: usize>(
+    (clip, image, scale): (Rect, Rect, Scale),
+    info: &LeafInfo,
+    patch: &Patch,
+    frontier: &mut Frontier<CAPACITY>,
+    out: &mut dyn TileOut,
+) {
+    let node = &info.node;
+    let step = control_step(info.cquant);
+    // Cut to the clip on the way out: the leaf's pixels, and the pixels beside it it draws.
+    let mut clipped = ClipOut { clip, out };
+    let k = scale.log2();
+    // A stop comes only from the sink, whose error `finish` returns.
+    let _ = if k == 0 {
+        let area = node.rect().intersect(&image);
+        if area.intersect(&clip).is_empty() {
+            frontier.record(node, step, patch, &mut clipped);
+            Ok(())
+        } else {
+            patch.render_to(node, area, &mut frontier.capture(node, step, &mut clipped))
+        }
+    } else if k < 0 {
+        let shift = k.unsigned_abs();
+        frontier.record(
+            node,
+            step,
+            patch,
+            &mut Subsample {
+                shift,
+                out: &mut clipped,
+            },
+        );
+        // The leaf's first row and column are the edges' (its last ones are off the grid).
+        let (x, y, n) = (node.x >> shift, node.y >> shift, node.size() >> shift);
+        let interior = Rect {
+            x: x + 1,
+            y: y + 1,
+            w: n.saturating_sub(1),
+            h: n.saturating_sub(1),
+        };
+        patch.render_scaled(node, scale, clip.intersect(&interior), out)
+    } else {
+        frontier.record(node, step, patch, &mut Discard);
+        patch.render_scaled(node, scale, clip, out)
+    };
 }
 
 /// Hands on the pixels of full-size tiles that lie on the grid of a decode at `1 / 2^shift`
@@ -574,6 +619,7 @@ impl TileOut for Subsample<'_> {
                     h: 1,
                 },
                 pixels: &row[..n],
+                channels: 1,
             })?;
         }
         Ok(())
@@ -614,6 +660,7 @@ impl TileOut for ClipOut<'_> {
         self.out.put(Tile {
             area,
             pixels: &buf[..w * area.h as usize],
+            channels: 1,
         })
     }
 }
@@ -629,9 +676,13 @@ impl PixelSink for Buffer<'_> {
 
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
         let Rect { x, y, w, .. } = tile.area;
-        let (x, y, w) = (x as usize, y as usize, w as usize);
+        let ch = usize::from(tile.channels.max(1));
+        let (x, y, w) = (x as usize * ch, y as usize, w as usize * ch);
+        if w == 0 {
+            return Ok(());
+        }
         for (row, src) in tile.pixels.chunks_exact(w).enumerate() {
-            let start = (y + row) * self.width + x;
+            let start = (y + row) * self.width * ch + x;
             if let Some(dst) = self.out.get_mut(start..start + w) {
                 dst.copy_from_slice(src);
             }

@@ -39,10 +39,12 @@
 //!
 //! # Colours
 //!
-//! The decoder produces 8-bit luma. [`FromGray`] turns it into the colour type of the display:
-//! it is implemented for every colour type of embedded-graphics (grays and RGB/BGR use the
-//! embedded-graphics conversion from [`Gray8`]; [`BinaryColor`] is `On` for luma `>= 128`).
-//! Everything is integer arithmetic.
+//! A grayscale stream decodes to 8-bit luma, a colour stream to 8-bit RGB (converted from
+//! YCbCr as it is drawn, integer BT.601). [`FromGray`] turns either into the colour type of the
+//! display: it is implemented for every colour type of embedded-graphics (grays and RGB/BGR use
+//! the embedded-graphics conversion from [`Gray8`] for luma and from [`Rgb888`] for RGB;
+//! a colour stream on a gray display is drawn as its luma; [`BinaryColor`] is `On` for luma
+//! `>= 128`). Everything is integer arithmetic.
 
 use core::marker::PhantomData;
 
@@ -55,6 +57,7 @@ use embedded_graphics_core::pixelcolor::{
 };
 use embedded_graphics_core::primitives::Rectangle;
 
+use crate::colour::rgb_to_luma;
 use crate::decoder::{Decoder, Input};
 use crate::entropy::ByteSource;
 use crate::error::{DecodeError, DrawError};
@@ -62,10 +65,17 @@ use crate::geometry::Rect;
 use crate::syntax::Header;
 use crate::synthesis::{PixelSink, Scale, Tile};
 
-/// A colour type that decoded 8-bit luma can be drawn as.
+/// A colour type that decoded 8-bit luma (and RGB) can be drawn as.
 pub trait FromGray: PixelColor {
     /// The colour of luma `luma` (0 black, 255 white).
     fn from_gray(luma: u8) -> Self;
+
+    /// The colour of an RGB pixel of a colour stream; by default, that of its luma (BT.601,
+    /// as the stream's conversion).
+    #[inline]
+    fn from_rgb(r: u8, g: u8, b: u8) -> Self {
+        Self::from_gray(rgb_to_luma(r, g, b))
+    }
 }
 
 impl FromGray for Gray8 {
@@ -99,7 +109,27 @@ macro_rules! from_gray8 {
     };
 }
 
-from_gray8!(Gray2, Gray4, Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888, Bgr888);
+from_gray8!(Gray2, Gray4);
+
+macro_rules! from_gray8_rgb888 {
+    ($($color:ty),*) => {
+        $(impl FromGray for $color {
+            /// The embedded-graphics conversion of [`Gray8`] (rounded, integer).
+            #[inline]
+            fn from_gray(luma: u8) -> Self {
+                <$color>::from(Gray8::new(luma))
+            }
+
+            /// The embedded-graphics conversion of [`Rgb888`] (integer).
+            #[inline]
+            fn from_rgb(r: u8, g: u8, b: u8) -> Self {
+                <$color>::from(Rgb888::new(r, g, b))
+            }
+        })*
+    };
+}
+
+from_gray8_rgb888!(Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888, Bgr888);
 
 /// A PIFS stream held in memory (flash or RAM), drawable with embedded-graphics in colour `C`.
 ///
@@ -284,7 +314,15 @@ where
         // Tile coordinates are below 2^16 (image coordinates), so they fit in i32.
         let at = Point::new(x as i32, y as i32) - self.offset;
         let area = Rectangle::new(at, Size::new(w, h));
-        let colors = tile.pixels.iter().map(|&l| D::Color::from_gray(l));
-        self.target.fill_contiguous(&area, colors)
+        if tile.channels == 3 {
+            let colors = tile
+                .pixels
+                .chunks_exact(3)
+                .map(|p| D::Color::from_rgb(p[0], p[1], p[2]));
+            self.target.fill_contiguous(&area, colors)
+        } else {
+            let colors = tile.pixels.iter().map(|&l| D::Color::from_gray(l));
+            self.target.fill_contiguous(&area, colors)
+        }
     }
 }

@@ -68,6 +68,7 @@
 #![deny(rustdoc::broken_intra_doc_links)]
 
 mod checksum;
+mod colour;
 mod decoder;
 mod entropy;
 mod error;
@@ -100,6 +101,10 @@ pub mod internal {
     /// See the crate's `checksum` module.
     pub mod checksum {
         pub use crate::checksum::*;
+    }
+    /// See the crate's `colour` module.
+    pub mod colour {
+        pub use crate::colour::*;
     }
     /// See the crate's `entropy` module.
     pub mod entropy {
@@ -151,6 +156,7 @@ mod layering {
         &["model"],
         &["synthesis"],
         &["prediction"],
+        &["colour"],
         &["syntax"],
         &["walk"],
         &["decoder"],

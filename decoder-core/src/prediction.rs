@@ -342,6 +342,7 @@ impl Capture<'_> {
                 h: 1,
             },
             pixels: &above[..w],
+            channels: 1,
         })
     }
 
@@ -379,6 +380,7 @@ impl Capture<'_> {
                         h: (j - start) as u32,
                     },
                     pixels: &beside[start..j],
+                    channels: 1,
                 })?;
             }
         }
@@ -443,6 +445,7 @@ impl TileOut for Capture<'_> {
                 h: keep_h as u32,
             },
             pixels: &buf[..keep_w * keep_h],
+            channels: 1,
         })
     }
 }

@@ -9,6 +9,7 @@ pub mod control;
 pub mod initial_contexts;
 
 use crate::checksum::Crc32;
+use crate::colour::{chroma_models, ChromaPlane, CHROMA_GRIDS};
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::{DecodeError, HeaderField, SyntaxElement};
 use crate::format::{div_round, med, CODING_TILE};
@@ -206,7 +207,7 @@ impl Header {
             return Err(DecodeError::UnsupportedVersion(fixed[4]));
         }
         let channels = fixed[5];
-        if channels != 1 {
+        if channels != 1 && channels != 3 {
             return Err(DecodeError::UnsupportedChannels(channels));
         }
         let bit_depth = fixed[6];
@@ -602,7 +603,23 @@ pub fn code_leaf<C: Coder, P: SamplePrediction + ?Sized>(
     } else {
         ControlCoding::Dpcm
     };
-    code_control(c, ctx, model, node, prediction, leaf)?;
+    let step = *CONTROL_STEPS
+        .get(usize::from(leaf.cquant))
+        .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
+    let grid = ControlGrid {
+        step,
+        side: model.coded_side(log2),
+        spacing: model.spacing(log2),
+        transform,
+    };
+    code_control(
+        c,
+        &mut ctx.control[step_group(leaf.cquant)],
+        &grid,
+        node,
+        prediction,
+        &mut leaf.control,
+    )?;
     if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
         code_weights(c, ctx, model, leaf)?;
     } else {
@@ -678,6 +695,199 @@ enum Prediction {
     Edge(Option<(i32, i32)>),
 }
 
+/// The shape of a leaf's control coding: its step, the coded grid's side, the spacing of its
+/// points in pixels, and whether it is the grid transform (else DPCM).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ControlGrid {
+    /// Control step, sample units.
+    pub step: i32,
+    /// Side of the coded grid.
+    pub side: usize,
+    /// Pixels between grid points.
+    pub spacing: u32,
+    /// The grid transform (else DPCM).
+    pub transform: bool,
+}
+
+/// The syntax elements of one chroma plane of a leaf (a colour stream's `Cb` or `Cr`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChromaSyntax {
+    /// Chroma model: index into [`CHROMA_GRIDS`].
+    pub model: u8,
+    /// Control quantiser index into [`CONTROL_STEPS`].
+    pub cquant: u8,
+    /// How the control values are coded.
+    pub coding: ControlCoding,
+    /// Control indices over the coded grid, as a luma leaf's.
+    pub control: [i16; MAX_CONTROL],
+}
+
+impl Default for ChromaSyntax {
+    fn default() -> Self {
+        ChromaSyntax {
+            model: 0,
+            cquant: 0,
+            coding: ControlCoding::Dpcm,
+            control: [0; MAX_CONTROL],
+        }
+    }
+}
+
+/// Chroma quantiser indices with contexts of their own: a tree of 4 bits, as luma's.
+const CHROMA_CQUANT_NODES: usize = 16;
+
+/// The adaptive contexts of the chroma planes of a colour stream (shared by `Cb` and `Cr`),
+/// separate from luma's: the chroma model by chroma leaf size, the quantiser and the coding
+/// flag by chroma model, and one set of control residual classes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChromaContexts {
+    model: [[Prob; CHROMA_GRIDS.len()]; MAX_LEAF_LOG2 as usize],
+    cquant: [[Prob; CHROMA_CQUANT_NODES]; CHROMA_GRIDS.len()],
+    coding: [Prob; CHROMA_GRIDS.len()],
+    control: [IntContexts; CONTROL_CLASSES],
+}
+
+impl Default for ChromaContexts {
+    fn default() -> Self {
+        let mut contexts = ChromaContexts::FRESH;
+        contexts.start();
+        contexts
+    }
+}
+
+impl ChromaContexts {
+    /// Every context at one half, no bits coded (all zero bits).
+    pub const FRESH: ChromaContexts = ChromaContexts {
+        model: [[Prob::FRESH; CHROMA_GRIDS.len()]; MAX_LEAF_LOG2 as usize],
+        cquant: [[Prob::FRESH; CHROMA_CQUANT_NODES]; CHROMA_GRIDS.len()],
+        coding: [Prob::FRESH; CHROMA_GRIDS.len()],
+        control: [IntContexts::FRESH; CONTROL_CLASSES],
+    };
+
+    /// The state at the start of a stream: every context at probability one half
+    /// (`q = 128`), as if [`crate::entropy::INITIAL_COUNT`] bits had been coded.
+    pub fn start(&mut self) {
+        let mut f = |p: &mut Prob| *p = Prob::initial(128);
+        self.model.iter_mut().flatten().for_each(&mut f);
+        self.cquant.iter_mut().flatten().for_each(&mut f);
+        self.coding.iter_mut().for_each(&mut f);
+        for class in self.control.iter_mut() {
+            class.for_each_prob(&mut f);
+        }
+    }
+}
+
+/// Codes one chroma plane of a leaf whose chroma node is `node` (side `2^log2`, chroma
+/// coordinates): the chroma model (unary over the [`chroma_models`] allowed), the control
+/// quantiser (tree of 4 bits), the transform flag (models with a grid of 2 or more intervals)
+/// and the control values, exactly as a luma leaf codes them, predicted from the chroma
+/// frontier (`prediction`). A chroma model of `g` intervals codes `(g + 1)^2` values, or `g^2`
+/// when `g` is the leaf's side (a pixel grid).
+pub fn code_chroma<C: Coder, P: SamplePrediction + ?Sized>(
+    c: &mut C,
+    ctx: &mut ChromaContexts,
+    node: &Node,
+    prediction: &P,
+    leaf: &mut ChromaSyntax,
+) -> Result<(), DecodeError> {
+    let count = chroma_models(node.log2);
+    let model_ctx = ctx
+        .model
+        .get_mut(usize::from(node.log2))
+        .ok_or(DecodeError::InvalidData(SyntaxElement::LeafSize))?;
+    let mut pos = u32::from(leaf.model).min(count as u32 - 1);
+    code_unary(c, model_ctx, count as u32, &mut pos)?;
+    leaf.model = pos as u8;
+    let mi = pos as usize;
+    let mut cq = u32::from(leaf.cquant);
+    code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
+    if cq as usize >= CONTROL_QUANTISERS {
+        return Err(DecodeError::InvalidData(SyntaxElement::ControlQuantiser));
+    }
+    leaf.cquant = cq as u8;
+    let g = usize::from(CHROMA_GRIDS[mi].0);
+    let mut transform = leaf.coding == ControlCoding::Transform;
+    if g >= 2 {
+        c.bit(&mut ctx.coding[mi], &mut transform)?;
+    } else {
+        transform = false;
+    }
+    leaf.coding = if transform {
+        ControlCoding::Transform
+    } else {
+        ControlCoding::Dpcm
+    };
+    let grid = chroma_grid(leaf, node.log2);
+    code_control(
+        c,
+        &mut ctx.control,
+        &grid,
+        node,
+        prediction,
+        &mut leaf.control,
+    )
+}
+
+/// The control coding of a chroma plane's syntax at a chroma leaf of side `2^log2`.
+pub fn chroma_grid(leaf: &ChromaSyntax, log2: u8) -> ControlGrid {
+    let g = CHROMA_GRIDS[usize::from(leaf.model) % CHROMA_GRIDS.len()].0;
+    let size = 1u32 << log2.min(15);
+    let pixel_grid = u32::from(g) >= size;
+    ControlGrid {
+        step: control_step(leaf.cquant).max(1),
+        side: usize::from(g) + usize::from(!pixel_grid),
+        spacing: (size / u32::from(g)).max(1),
+        transform: leaf.coding == ControlCoding::Transform,
+    }
+}
+
+/// Reconstructs a chroma plane from its syntax at a chroma leaf of side `2^log2`.
+pub fn reconstruct_chroma(
+    leaf: &ChromaSyntax,
+    log2: u8,
+    plane: &mut ChromaPlane,
+) -> Result<(), DecodeError> {
+    if usize::from(leaf.cquant) >= CONTROL_QUANTISERS {
+        return Err(DecodeError::InvalidData(SyntaxElement::ControlQuantiser));
+    }
+    let (g, _) = *CHROMA_GRIDS
+        .get(usize::from(leaf.model))
+        .ok_or(DecodeError::InvalidData(SyntaxElement::ModelType))?;
+    let grid = chroma_grid(leaf, log2);
+    plane.grid = g;
+    fill_control(
+        &leaf.control,
+        grid.side,
+        grid.step,
+        grid.transform,
+        &mut plane.control,
+    );
+    if grid.side == usize::from(g) {
+        expand_pixel_grid(&mut plane.control, grid.side);
+    }
+    Ok(())
+}
+
+/// The control values of a coded grid of side `side` from its indices (by DPCM or the grid
+/// transform).
+fn fill_control(
+    indices: &[i16; MAX_CONTROL],
+    side: usize,
+    step: i32,
+    transform: bool,
+    out: &mut [i16; MAX_CONTROL],
+) {
+    if transform {
+        transform_control_values(side, step, indices, out)
+    } else {
+        *out = [0; MAX_CONTROL];
+        for i in 0..side * side {
+            let index = i32::from(indices[i]);
+            out[i] = control_value(out, side, i, step, index);
+        }
+    }
+}
+
 /// Control values: the coded side's indices in the coding order of the leaf's control coding
 /// (raster for DPCM, [`transform_order`] for the grid transform). The first coded index is
 /// coded as its difference from a prediction by earlier leaves ([`SamplePrediction::predict`]:
@@ -688,19 +898,18 @@ enum Prediction {
 /// are. Contexts are by position (DPCM: first row and column or interior) or transform level.
 fn code_control<C: Coder, P: SamplePrediction + ?Sized>(
     c: &mut C,
-    ctx: &mut Contexts,
-    model: ModelType,
+    contexts: &mut [IntContexts; CONTROL_CLASSES],
+    grid: &ControlGrid,
     node: &Node,
     prediction: &P,
-    leaf: &mut LeafSyntax,
+    control: &mut [i16; MAX_CONTROL],
 ) -> Result<(), DecodeError> {
-    let step = *CONTROL_STEPS
-        .get(usize::from(leaf.cquant))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
-    let contexts = &mut ctx.control[step_group(leaf.cquant)];
-    let side = model.coded_side(node.log2);
-    let spacing = model.spacing(node.log2);
-    let transform = leaf.coding == ControlCoding::Transform;
+    let ControlGrid {
+        step,
+        side,
+        spacing,
+        transform,
+    } = *grid;
     let order = if transform {
         transform_order(side)
     } else {
@@ -740,7 +949,7 @@ fn code_control<C: Coder, P: SamplePrediction + ?Sized>(
             };
             (Prediction::Edge(beside), class)
         };
-        let ctx = zero_context(&leaf.control, first_magnitude, side, r, col);
+        let ctx = zero_context(control, first_magnitude, side, r, col);
         let (pred_index, ctx) = match pred_index {
             Prediction::First(p) => (p, ctx),
             Prediction::Edge(Some((a, b))) => {
@@ -748,10 +957,10 @@ fn code_control<C: Coder, P: SamplePrediction + ?Sized>(
             }
             Prediction::Edge(None) => (0, ctx),
         };
-        let mut residual = i32::from(leaf.control[i]) - pred_index;
+        let mut residual = i32::from(control[i]) - pred_index;
         contexts[class].code(c, ctx, &mut residual)?;
         let index = pred_index + residual;
-        leaf.control[i] = i16::try_from(index)
+        control[i] = i16::try_from(index)
             .map_err(|_| DecodeError::InvalidData(SyntaxElement::ControlValue))?;
         // The first value and the first row and column, reconstructed (DPCM's).
         let value = i32::from(dequantise_control(base, step, index));
@@ -850,18 +1059,13 @@ pub fn reconstruct_into(
         .get(usize::from(leaf.cquant))
         .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
     let side = model.coded_side(log2);
-    match leaf.coding {
-        ControlCoding::Transform => {
-            transform_control_values(side, step, &leaf.control, &mut patch.control)
-        }
-        ControlCoding::Dpcm => {
-            patch.control = [0; MAX_CONTROL];
-            for i in 0..side * side {
-                let index = i32::from(leaf.control[i]);
-                patch.control[i] = control_value(&patch.control, side, i, step, index);
-            }
-        }
-    }
+    fill_control(
+        &leaf.control,
+        side,
+        step,
+        leaf.coding == ControlCoding::Transform,
+        &mut patch.control,
+    );
     if side == usize::from(model.intervals) {
         expand_pixel_grid(&mut patch.control, side);
     }

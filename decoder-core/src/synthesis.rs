@@ -143,8 +143,11 @@ const fn arena_len(enlarge_log2: u32) -> usize {
 pub struct Tile<'a> {
     /// Where the pixels go, in image coordinates (at most [`TILE`] x [`TILE`]).
     pub area: Rect,
-    /// 8-bit luma, row-major, `area.w * area.h` values.
+    /// Row-major pixels: 8-bit luma (`channels == 1`, `area.w * area.h` values) or RGB
+    /// triples (`channels == 3`, `3 * area.w * area.h` values: a colour stream).
     pub pixels: &'a [u8],
+    /// Values per pixel: 1 (gray) or 3 (RGB).
+    pub channels: u8,
 }
 
 /// Receives decoded pixels, one [`Tile`] at a time, in the order the decoder makes them. A sink
@@ -533,7 +536,11 @@ impl Job<'_> {
     /// Hands the first `len` pixels on as the tile `area`.
     fn put(&mut self, area: Rect, len: usize) -> Result<(), Stop> {
         let pixels = self.pixels.get(..len).unwrap_or(&[]);
-        self.out.put(Tile { area, pixels })
+        self.out.put(Tile {
+            area,
+            pixels,
+            channels: 1,
+        })
     }
 }
 

@@ -11,13 +11,15 @@
 //! node larger than the largest leaf is split without a flag; a node of the smallest leaf size
 //! is a leaf without a flag; every other node codes a split flag.
 
+use crate::colour::{chroma_node, ChromaFrontier, ChromaPatch};
 use crate::entropy::Coder;
 use crate::error::{DecodeError, SyntaxElement};
 use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
 pub use crate::geometry::Node;
 use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
-    code_leaf, code_split, reconstruct_into, Contexts, ControlCoding, Header, LeafSyntax,
+    code_chroma, code_leaf, code_split, reconstruct_chroma, reconstruct_into, ChromaContexts,
+    ChromaSyntax, Contexts, ControlCoding, Header, LeafSyntax,
 };
 use crate::synthesis::Patch;
 
@@ -73,6 +75,42 @@ pub trait TreeVisitor {
         patch: &Patch,
         frontier: &mut Frontier<STRIPE>,
     ) -> Result<(), Self::Error>;
+
+    /// Encoder: fills in chroma plane `plane`'s syntax (0: `Cb`, 1: `Cr`) of the leaf whose
+    /// chroma node is `node` before it is coded, knowing the chroma pixels earlier leaves drew
+    /// (`prediction`) and the chroma contexts' state (`contexts`). Decoders do nothing.
+    fn prepare_chroma<P: SamplePrediction>(
+        &mut self,
+        _node: &Node,
+        _plane: usize,
+        _prediction: &P,
+        _contexts: &ChromaContexts,
+        _leaf: &mut ChromaSyntax,
+    ) {
+    }
+
+    /// [`TreeVisitor::leaf`] for a leaf of a colour stream, with its chroma (`chroma`) and the
+    /// chroma of the leaves before it (`chroma_frontier`, which the walk updates after this
+    /// call). By default, the luma leaf alone.
+    fn leaf_colour<const STRIPE: usize>(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        _chroma: &ChromaPatch,
+        frontier: &mut Frontier<STRIPE>,
+        _chroma_frontier: &ChromaFrontier<STRIPE>,
+    ) -> Result<(), Self::Error> {
+        self.leaf(info, patch, frontier)
+    }
+}
+
+/// The chroma state of a colour stream's walk: the chroma contexts and frontier.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ChromaState<const STRIPE: usize = DEFAULT_STRIPE> {
+    /// Adaptive contexts of the chroma planes.
+    pub contexts: ChromaContexts,
+    /// Chroma prediction memory.
+    pub frontier: ChromaFrontier<STRIPE>,
 }
 
 /// What a walk reports about a coded leaf besides its patch.
@@ -123,16 +161,53 @@ pub fn walk<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 
 /// Like [`walk`], with a caller-provided state whose contexts the caller has set (no copy of
 /// it is returned). Fails before coding anything if the header's stripes are wider than the
-/// state's frontier holds ([`DecodeError::StripeTooWide`]).
+/// state's frontier holds ([`DecodeError::StripeTooWide`]). A colour stream's chroma state is
+/// made here, in a frame of its own ([`walk_colour`]).
 pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
 ) -> Result<(), V::Error> {
+    if header.channels == 3 {
+        walk_colour(header, coder, visitor, state)
+    } else {
+        walk_planes(header, coder, visitor, state, None)
+    }
+}
+
+/// [`walk_with`] for a colour stream: holds the chroma state (fresh contexts) while the image
+/// is walked. Out of line, so that a grayscale decode's stack has no chroma state.
+#[inline(never)]
+fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+    state: &mut WalkState<STRIPE>,
+) -> Result<(), V::Error> {
+    let mut chroma = ChromaState::<STRIPE> {
+        contexts: ChromaContexts::FRESH,
+        frontier: ChromaFrontier::EMPTY,
+    };
+    chroma.contexts.start();
+    walk_planes(header, coder, visitor, state, Some(&mut chroma))
+}
+
+/// The walk of every plane: luma, and chroma when `chroma` is given.
+fn walk_planes<C: Coder, V: TreeVisitor, const STRIPE: usize>(
+    header: &Header,
+    coder: &mut C,
+    visitor: &mut V,
+    state: &mut WalkState<STRIPE>,
+    mut chroma: Option<&mut ChromaState<STRIPE>>,
+) -> Result<(), V::Error> {
     let (width, height) = (u32::from(header.width), u32::from(header.height));
     let stripe = header.stripe_width();
-    if !state.frontier.start(width, height, stripe, header.deblock) {
+    let chroma_ok = match chroma.as_deref_mut() {
+        Some(c) => c.frontier.start(width, height, stripe),
+        None => true,
+    };
+    if !chroma_ok || !state.frontier.start(width, height, stripe, header.deblock) {
         return Err(DecodeError::StripeTooWide {
             stripe,
             capacity: Frontier::<STRIPE>::CAPACITY,
@@ -150,7 +225,7 @@ pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
                     y,
                     log2: tile_log2,
                 };
-                walk_tile(header, coder, visitor, state, root)?;
+                walk_tile(header, coder, visitor, state, chroma.as_deref_mut(), root)?;
             }
         }
     }
@@ -167,6 +242,7 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
+    mut chroma: Option<&mut ChromaState<STRIPE>>,
     root: Node,
 ) -> Result<(), V::Error> {
     let mut node = root;
@@ -177,14 +253,14 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
             NodeKind::Outside => false,
             NodeKind::ForcedSplit => true,
             NodeKind::ForcedLeaf => {
-                walk_leaf(header, coder, visitor, state, node)?;
+                walk_leaf(header, coder, visitor, state, chroma.as_deref_mut(), node)?;
                 false
             }
             NodeKind::Flagged => {
                 let mut split = visitor.split(&node);
                 code_split(coder, &mut state.contexts, node.log2, &mut split)?;
                 if !split {
-                    walk_leaf(header, coder, visitor, state, node)?;
+                    walk_leaf(header, coder, visitor, state, chroma.as_deref_mut(), node)?;
                 }
                 split
             }
@@ -230,11 +306,47 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
+    chroma: Option<&mut ChromaState<STRIPE>>,
     node: Node,
 ) -> Result<(), V::Error> {
     let mut patch = Patch::EMPTY;
     let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
-    visitor.leaf(&info, &patch, &mut state.frontier)
+    let Some(chroma) = chroma else {
+        return visitor.leaf(&info, &patch, &mut state.frontier);
+    };
+    let mut colour = ChromaPatch::EMPTY;
+    code_chroma_patch(coder, visitor, chroma, &node, &mut colour)?;
+    visitor.leaf_colour(
+        &info,
+        &patch,
+        &colour,
+        &mut state.frontier,
+        &chroma.frontier,
+    )?;
+    chroma.frontier.record(&colour);
+    Ok(())
+}
+
+/// The two chroma planes of the leaf `node` of a colour stream, coded and reconstructed into
+/// `patch`. Out of line, like [`code_leaf_patch`].
+#[inline(never)]
+fn code_chroma_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
+    coder: &mut C,
+    visitor: &mut V,
+    chroma: &mut ChromaState<STRIPE>,
+    node: &Node,
+    patch: &mut ChromaPatch,
+) -> Result<(), DecodeError> {
+    let cnode = chroma_node(node);
+    patch.node = cnode;
+    for (p, plane) in patch.planes.iter_mut().enumerate() {
+        let mut leaf = ChromaSyntax::default();
+        let prediction = chroma.frontier.plane(p);
+        visitor.prepare_chroma(&cnode, p, &prediction, &chroma.contexts, &mut leaf);
+        code_chroma(coder, &mut chroma.contexts, &cnode, &prediction, &mut leaf)?;
+        reconstruct_chroma(&leaf, cnode.log2, plane)?;
+    }
+    Ok(())
 }
 
 /// A leaf's syntax, coded and reconstructed into `patch`. Out of line, so that the syntax

@@ -39,6 +39,6 @@ pub mod internal;
 pub mod io;
 
 pub use encoder::{
-    analyse, psnr, Analysis, AnalysisTiming, EncodeError, Encoded, EncoderConfig, Plane, Target,
-    MIN_TRIAL_BPP,
+    analyse, analyse_colour, psnr, Analysis, AnalysisTiming, ColourPlanes, EncodeError, Encoded,
+    EncoderConfig, Plane, Target, CHROMA_WEIGHTS, MIN_TRIAL_BPP,
 };

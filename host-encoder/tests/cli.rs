@@ -536,3 +536,56 @@ fn the_demo_runs_from_any_directory_and_writes_only_there() {
     assert!(help.contains("pifs-demo"), "{help}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A colour PNG gives a colour stream (`info` says so) that decodes to a colour PNG and PPM
+/// close to the input; `--gray` gives a grayscale stream of the same image.
+#[test]
+fn colour_images_stay_colour_unless_gray() {
+    let dir = scratch("colour");
+    let png = dir.join("in.png");
+    let img = image::RgbImage::from_fn(48, 32, |x, y| {
+        image::Rgb([(x * 5) as u8, (y * 7) as u8, (200 - x * 2 - y) as u8])
+    });
+    img.save(&png).unwrap();
+    let run = |args: &[&str]| {
+        let out = pifs(args);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let colour = dir.join("colour.pifs");
+    let said = run(&["encode", &s(&png), "-o", &s(&colour), "--bpp", "2"]);
+    assert!(said.contains("colour, PSNR-RGB"), "{said}");
+    let info = run(&["info", &s(&colour)]);
+    assert!(
+        info.contains("3 channel(s)") && info.contains("colour (YCbCr"),
+        "{info}"
+    );
+    for ext in ["png", "ppm"] {
+        let out = dir.join(format!("out.{ext}"));
+        run(&["decode", &s(&colour), "-o", &s(&out)]);
+        let back = image::open(&out).unwrap();
+        assert!(back.color().has_color(), "{ext}: decoded without colour");
+        let back = back.to_rgb8();
+        let sse: f64 = back
+            .as_raw()
+            .iter()
+            .zip(img.as_raw())
+            .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+            .sum();
+        let psnr = 10.0 * (255.0f64.powi(2) * img.as_raw().len() as f64 / sse).log10();
+        assert!(psnr > 30.0, "{ext}: PSNR-RGB {psnr:.2} dB");
+    }
+    let gray = dir.join("gray.pifs");
+    let said = run(&["encode", &s(&png), "-o", &s(&gray), "--bpp", "2", "--gray"]);
+    assert!(said.contains("gray, PSNR"), "{said}");
+    let info = run(&["info", &s(&gray)]);
+    assert!(
+        info.contains("1 channel(s)") && info.contains("grayscale"),
+        "{info}"
+    );
+}

@@ -703,7 +703,11 @@ fn run(case: &Case, dir: &Path) -> String {
             if path.extension().is_some_and(|e| e == "pifs") {
                 let decoder =
                     decoder_core::Decoder::new(&bytes).unwrap_or_else(|e| panic!("{label}: {e}"));
-                let mut px = vec![0u8; decoder.header().pixel_count()];
+                let mut px = vec![
+                    0u8;
+                    decoder.header().pixel_count()
+                        * usize::from(decoder.header().channels)
+                ];
                 decoder
                     .decode_into(&mut px)
                     .unwrap_or_else(|e| panic!("{label}: {e}"));

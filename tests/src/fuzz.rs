@@ -383,15 +383,22 @@ pub fn large_dimensions(data: &[u8]) {
     if pixels > LARGE_DECODE_PIXELS || leaves > LARGE_DECODE_LEAVES {
         return;
     }
-    let mut want = vec![0u8; header.pixel_count()];
+    let channels = usize::from(header.channels);
+    let mut want = vec![0u8; header.pixel_count() * channels];
     let reference = decoder_core::Decoder::new(&stream)
         .expect("a sealed stream")
         .stripe_capacity::<{ host_encoder::io::HOST_STRIPE }>()
         .decode_into(&mut want);
     // The smallest band (a leaf's height of rows): as many decodes as the order needs.
+    // PPM holds a colour stream's pixels as they are, PGM a gray one's.
+    let (format, magic) = if channels == 3 {
+        (OutputFormat::Ppm, "P6")
+    } else {
+        (OutputFormat::Pgm, "P5")
+    };
     let banded = decode_to_image(
         &input,
-        OutputFormat::Pgm,
+        format,
         decoder_core::Scale::One,
         Vec::new(),
         name,
@@ -399,7 +406,7 @@ pub fn large_dimensions(data: &[u8]) {
     );
     match (reference, banded) {
         (Ok(_), Ok((_, pgm))) => {
-            let head = format!("P5\n{} {}\n255\n", header.width, header.height);
+            let head = format!("{magic}\n{} {}\n255\n", header.width, header.height);
             assert!(pgm.starts_with(head.as_bytes()));
             assert!(pgm[head.len()..] == want[..], "banded pixels differ");
         }

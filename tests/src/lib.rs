@@ -23,6 +23,8 @@ pub struct CoverageSink {
     pub pixels: Vec<u8>,
     pub tiles: usize,
     pub violations: Vec<String>,
+    /// Values per pixel of the tiles (1 until a colour tile comes: `pixels` then holds RGB).
+    pub channels: usize,
 }
 
 impl CoverageSink {
@@ -35,6 +37,7 @@ impl CoverageSink {
             pixels: vec![0; n],
             tiles: 0,
             violations: Vec::new(),
+            channels: 1,
         }
     }
 
@@ -63,12 +66,24 @@ impl decoder_core::PixelSink for CoverageSink {
         let Rect { x, y, w, h } = tile.area;
         let pixels = tile.pixels;
         self.tiles += 1;
+        let ch = usize::from(tile.channels);
+        if self.tiles == 1 && ch == 3 {
+            self.channels = 3;
+            self.pixels = vec![0; 3 * self.counts.len()];
+        }
+        if ch != self.channels {
+            self.violations.push(format!(
+                "tile at ({x}, {y}): {ch} channels, not {}",
+                self.channels
+            ));
+            return Ok(());
+        }
         let tile = decoder_core::TILE as u32;
         if w == 0 || h == 0 || w > tile || h > tile {
             self.violations
                 .push(format!("tile {w}x{h} at ({x}, {y}): bad tile size"));
         }
-        if pixels.len() != w as usize * h as usize {
+        if pixels.len() != w as usize * h as usize * ch {
             self.violations.push(format!(
                 "tile {w}x{h} at ({x}, {y}): {} pixels",
                 pixels.len()
@@ -89,7 +104,7 @@ impl decoder_core::PixelSink for CoverageSink {
             for px in x..x + w {
                 let i = py as usize * self.width as usize + px as usize;
                 self.counts[i] += 1;
-                self.pixels[i] = pixels[k];
+                self.pixels[i * ch..(i + 1) * ch].copy_from_slice(&pixels[k * ch..(k + 1) * ch]);
                 k += 1;
             }
         }

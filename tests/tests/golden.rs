@@ -42,6 +42,8 @@ struct Spec {
     targets: Vec<Target>,
     /// The stream must carry Lloyd-Max codebooks and code leaves with them.
     needs_codebooks: bool,
+    /// A colour image (RGB, `plane`'s size): the stream is a colour stream.
+    rgb: Option<Vec<u8>>,
 }
 
 /// The golden set.
@@ -60,6 +62,7 @@ fn specs() -> Vec<Spec> {
         config,
         targets: vec![target],
         needs_codebooks: false,
+        rgb: None,
     };
     vec![
         plain(
@@ -104,6 +107,17 @@ fn specs() -> Vec<Spec> {
                 Target::Bpp(4.0),
             ],
             needs_codebooks: true,
+            rgb: None,
+        },
+        Spec {
+            // Odd sizes (chroma planes of 19 x 15), leaves from 2 px (chroma leaves of 1 px)
+            // to 32 px.
+            file: "colour_37x29.pifs",
+            plane: common::synthetic(37, 29, 3, 6),
+            config: config(1, 5, 0),
+            targets: vec![Target::Bpp(1.5)],
+            needs_codebooks: false,
+            rgb: Some(common::synthetic_rgb(37, 29, 11)),
         },
     ]
 }
@@ -154,7 +168,17 @@ fn regenerate() {
     let mut total = Usage::default();
     for spec in specs() {
         let file = spec.file;
-        let analysis = analyse_with(spec.plane.clone(), &spec.config);
+        let analysis = match &spec.rgb {
+            Some(rgb) => host_encoder::analyse_colour(
+                spec.plane.width,
+                spec.plane.height,
+                rgb.clone(),
+                &spec.config,
+                &|_| {},
+            )
+            .expect("colour analysis"),
+            None => analyse_with(spec.plane.clone(), &spec.config),
+        };
         let mut chosen = None;
         for &target in &spec.targets {
             let e = match analysis.encode(target) {
@@ -229,7 +253,10 @@ fn golden_streams_decode_to_the_recorded_pixels() {
             "{}: dimensions",
             g.file
         );
-        assert_eq!(pixels.len(), usize::from(g.width) * usize::from(g.height));
+        assert_eq!(
+            pixels.len(),
+            usize::from(g.width) * usize::from(g.height) * usize::from(header.channels)
+        );
         let hash = sha256_hex(&pixels);
         if hash != g.sha256 {
             failures.push(format!(
@@ -279,6 +306,11 @@ fn every_golden_file_is_listed_and_the_set_is_varied() {
         .collect();
     assert!(headers.iter().any(|h| h.has_codebooks()));
     assert!(headers.iter().any(|h| !h.has_codebooks()));
+    assert!(headers.iter().any(|h| h.channels == 3), "a colour stream");
+    assert!(
+        headers.iter().any(|h| h.channels == 1),
+        "a grayscale stream"
+    );
     let min_leaves: BTreeSet<u8> = headers.iter().map(|h| h.min_leaf_log2).collect();
     assert!(min_leaves.len() > 1, "{min_leaves:?}");
     for (name, b) in common::golden_streams() {

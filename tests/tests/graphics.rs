@@ -35,6 +35,7 @@ struct Decoded {
     pixels: Vec<u8>,
     width: u32,
     height: u32,
+    channels: u8,
 }
 
 impl Decoded {
@@ -63,9 +64,92 @@ fn golden() -> Vec<Decoded> {
                 pixels,
                 width: header.width.into(),
                 height: header.height.into(),
+                channels: header.channels,
             }
         })
+        .filter(|d| d.channels == 1)
         .collect()
+}
+
+/// The colour golden vectors, decoded with `decode_into` (RGB).
+fn colour() -> Vec<Decoded> {
+    let v: Vec<Decoded> = golden_list()
+        .into_iter()
+        .map(|g| {
+            let stream = std::fs::read(golden_dir().join(&g.file)).unwrap();
+            let (header, pixels) =
+                decode_all(&stream).unwrap_or_else(|e| panic!("{}: {e}", g.file));
+            Decoded {
+                name: g.file,
+                stream,
+                pixels,
+                width: header.width.into(),
+                height: header.height.into(),
+                channels: header.channels,
+            }
+        })
+        .filter(|d| d.channels == 3)
+        .collect();
+    assert!(!v.is_empty(), "no colour golden vector");
+    v
+}
+
+/// A colour stream draws its RGB pixels on RGB displays (Rgb888 exactly, Rgb565 and Bgr565 by
+/// the embedded-graphics conversion of them) and its luma on gray ones.
+#[test]
+fn colour_streams_draw_rgb_on_colour_displays_and_luma_on_gray_ones() {
+    use decoder_core::internal::colour::rgb_to_luma;
+    use embedded_graphics::pixelcolor::Bgr565;
+    for d in colour() {
+        let rgb = |x: i32, y: i32| {
+            let i = 3 * (y as usize * d.width as usize + x as usize);
+            (d.pixels[i], d.pixels[i + 1], d.pixels[i + 2])
+        };
+        let mut display = MockDisplay::<Rgb888>::new();
+        Image::new(&d.image::<Rgb888>(), Point::zero())
+            .draw(&mut display)
+            .unwrap();
+        let mut display565 = MockDisplay::<Rgb565>::new();
+        Image::new(&d.image::<Rgb565>(), Point::zero())
+            .draw(&mut display565)
+            .unwrap();
+        let mut display_bgr = MockDisplay::<Bgr565>::new();
+        Image::new(&d.image::<Bgr565>(), Point::zero())
+            .draw(&mut display_bgr)
+            .unwrap();
+        let mut gray = MockDisplay::<Gray8>::new();
+        Image::new(&d.image::<Gray8>(), Point::zero())
+            .draw(&mut gray)
+            .unwrap();
+        let mut colourful = 0;
+        for y in 0..d.height as i32 {
+            for x in 0..d.width as i32 {
+                let p = Point::new(x, y);
+                let (r, g, b) = rgb(x, y);
+                colourful += usize::from(r != g || g != b);
+                let c = Rgb888::new(r, g, b);
+                assert_eq!(display.get_pixel(p), Some(c), "{}: {p:?}", d.name);
+                assert_eq!(display565.get_pixel(p), Some(Rgb565::from(c)), "{}", d.name);
+                assert_eq!(
+                    display_bgr.get_pixel(p),
+                    Some(Bgr565::from(c)),
+                    "{}",
+                    d.name
+                );
+                assert_eq!(
+                    gray.get_pixel(p),
+                    Some(Gray8::new(rgb_to_luma(r, g, b))),
+                    "{}",
+                    d.name
+                );
+            }
+        }
+        assert!(
+            colourful > (d.width * d.height / 2) as usize,
+            "{}: mostly gray",
+            d.name
+        );
+    }
 }
 
 /// The golden vectors that fit a MockDisplay (64x64).

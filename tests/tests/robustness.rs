@@ -52,7 +52,7 @@ fn decode_checked(data: &[u8]) -> Result<(), DecodeError> {
         );
         return Err(DecodeError::BufferTooSmall);
     }
-    let mut out = vec![0u8; n];
+    let mut out = vec![0u8; n * usize::from(header.channels)];
     let result = pifs_tests::decode_into(data, &mut out);
     if let Ok(h) = result {
         assert_eq!(h, header);
@@ -182,9 +182,14 @@ fn header_errors_are_typed() {
             DecodeError::UnsupportedVersion(11),
         ),
         (
-            "version 13",
-            with(4, 13),
-            DecodeError::UnsupportedVersion(13),
+            "version 12",
+            with(4, 12),
+            DecodeError::UnsupportedVersion(12),
+        ),
+        (
+            "version 14",
+            with(4, 14),
+            DecodeError::UnsupportedVersion(14),
         ),
         (
             "edge-smoothing strength 17",
@@ -197,9 +202,9 @@ fn header_errors_are_typed() {
             DecodeError::UnsupportedVersion(255),
         ),
         (
-            "channels 3",
-            with(5, 3),
-            DecodeError::UnsupportedChannels(3),
+            "channels 2",
+            with(5, 2),
+            DecodeError::UnsupportedChannels(2),
         ),
         (
             "channels 0",
@@ -396,7 +401,7 @@ fn header_errors_are_typed() {
     for (i, v, expected) in [
         (0, b'X', DecodeError::BadMagic),
         (4, 1, DecodeError::UnsupportedVersion(1)),
-        (5, 3, DecodeError::UnsupportedChannels(3)),
+        (5, 2, DecodeError::UnsupportedChannels(2)),
     ] {
         let mut b = golden.clone();
         b[i] = v;

@@ -268,3 +268,52 @@ fn leaf_sizes_outside_the_format_are_clamped() {
     let (_, pixels) = decode_all(&encoded.bytes).expect("a decodable stream");
     assert_eq!(pixels, encoded.reconstruction);
 }
+
+/// A colour image round trip: the stream is a colour stream, decodes to the encoder's RGB
+/// reconstruction exactly, its reported PSNR is the PSNR-RGB of the decoded pixels (sensible
+/// and rising with the rate), chroma takes some of the bits, and the same image's
+/// luma encoded in grayscale stays a grayscale stream.
+#[test]
+fn colour_images_round_trip_in_colour() {
+    let (w, h) = (96, 80);
+    let rgb = common::synthetic_rgb(w, h, 21);
+    let config = small_config();
+    let analysis =
+        host_encoder::analyse_colour(w, h, rgb.clone(), &config, &|_| {}).expect("analysis");
+    assert_eq!(analysis.channels(), 3);
+    let mut last = 0.0;
+    for bpp in [0.5, 1.0, 2.0] {
+        let e = analysis.encode(Target::Bpp(bpp)).expect("encode");
+        assert!(e.bytes.len() as f64 * 8.0 <= bpp * f64::from(w * h));
+        let (header, pixels) = decode_all(&e.bytes).unwrap();
+        assert_eq!(header.channels, 3);
+        assert_eq!(pixels.len(), rgb.len());
+        assert!(
+            pixels == e.reconstruction,
+            "{bpp}: decode != reconstruction"
+        );
+        let psnr = psnr_u8(&pixels, &rgb);
+        assert!((psnr - e.psnr).abs() < 1e-9, "{bpp}: {psnr} vs {}", e.psnr);
+        assert!(psnr > 24.0, "{bpp} bpp: PSNR-RGB {psnr:.2} dB");
+        assert!(psnr >= last - 0.1, "{bpp} bpp: {psnr:.2} after {last:.2}");
+        last = psnr;
+        let share = e.chroma_bits / e.actual_payload_bits;
+        assert!(
+            share > 0.02 && share < 1.0,
+            "{bpp} bpp: chroma share {share}"
+        );
+        println!(
+            "colour {bpp} bpp: PSNR-RGB {psnr:.2} dB, chroma {:.1}%",
+            100.0 * share
+        );
+    }
+    // The luma alone, as the grayscale encoder takes it.
+    let (luma, _) = host_encoder::ColourPlanes::from_rgb(w, h, rgb);
+    let gray = analyse_with(luma, &config)
+        .encode(Target::Bpp(1.0))
+        .expect("encode");
+    let (header, pixels) = decode_all(&gray.bytes).unwrap();
+    assert_eq!(header.channels, 1);
+    assert_eq!(pixels.len(), (w * h) as usize);
+    assert_eq!(gray.chroma_bits, 0.0);
+}

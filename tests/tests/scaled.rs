@@ -103,6 +103,7 @@ fn smaller_decodes_are_the_full_decode_subsampled_and_larger_ones_contain_it() {
         let (header, full) = decode_all(&data).unwrap();
         let (edge, most) = leaf_edges(&data);
         let width = usize::from(header.width);
+        let ch = usize::from(header.channels);
         let mut moved = 0;
         for scale in Scale::ALL {
             let sink = decode_scaled(&data, scale, Rect::EVERYTHING);
@@ -110,20 +111,26 @@ fn smaller_decodes_are_the_full_decode_subsampled_and_larger_ones_contain_it() {
             let (w, h) = (sink.width as usize, sink.height as usize);
             for y in 0..h {
                 for x in 0..w {
-                    let got = sink.pixels[y * w + x];
-                    if k <= 0 {
-                        let (fx, fy) = (x << -k, y << -k);
-                        assert_eq!(got, full[fy * width + fx], "{name} {scale:?} ({x}, {y})");
-                    } else if x % (1 << k) == 0 && y % (1 << k) == 0 {
-                        let at = (y >> k) * width + (x >> k);
-                        let diff = (i32::from(got) - i32::from(full[at])).abs();
-                        let allowed = if edge[at] { most } else { 0 };
-                        assert!(
-                            diff <= allowed,
-                            "{name} {scale:?} ({x}, {y}): {got} against {}",
-                            full[at]
-                        );
-                        moved += usize::from(diff > 0);
+                    for c in 0..ch {
+                        let got = sink.pixels[(y * w + x) * ch + c];
+                        if k <= 0 {
+                            let (fx, fy) = (x << -k, y << -k);
+                            assert_eq!(
+                                got,
+                                full[(fy * width + fx) * ch + c],
+                                "{name} {scale:?} ({x}, {y})"
+                            );
+                        } else if x % (1 << k) == 0 && y % (1 << k) == 0 {
+                            let at = (y >> k) * width + (x >> k);
+                            let diff = (i32::from(got) - i32::from(full[at * ch + c])).abs();
+                            let allowed = if edge[at] { most } else { 0 };
+                            assert!(
+                                diff <= allowed,
+                                "{name} {scale:?} ({x}, {y}): {got} against {}",
+                                full[at * ch + c]
+                            );
+                            moved += usize::from(diff > 0);
+                        }
                     }
                 }
             }
@@ -145,6 +152,7 @@ fn clipped_and_streamed_scaled_decodes_agree_with_the_whole_one() {
                 h: h / 2 + 1,
             };
             let cut = decode_scaled(&data, scale, clip);
+            let ch = whole.channels;
             let inside = clip.intersect(&Rect::of_size(w, h));
             for y in 0..h {
                 for x in 0..w {
@@ -153,7 +161,11 @@ fn clipped_and_streamed_scaled_decodes_agree_with_the_whole_one() {
                     let want = u32::from(inside.contains(&pixel));
                     assert_eq!(cut.counts[i], want, "{name} {scale:?} ({x}, {y})");
                     if want == 1 {
-                        assert_eq!(cut.pixels[i], whole.pixels[i], "{name} {scale:?}");
+                        assert_eq!(
+                            cut.pixels[i * ch..(i + 1) * ch],
+                            whole.pixels[i * ch..(i + 1) * ch],
+                            "{name} {scale:?}"
+                        );
                     }
                 }
             }
@@ -175,22 +187,27 @@ fn half_size_decode_is_close_to_the_box_downscaled_full_decode() {
     for (name, data) in streams() {
         let (header, full) = decode_all(&data).unwrap();
         let (fw, fh) = (usize::from(header.width), usize::from(header.height));
+        let ch = usize::from(header.channels);
         if fw < 16 || fh < 16 {
             continue;
         }
         let (w, h) = (fw / 2, fh / 2);
-        let mut boxed = Vec::with_capacity(w * h);
+        let mut boxed = Vec::with_capacity(w * h * ch);
         for y in 0..h {
             for x in 0..w {
-                let at = |dx: usize, dy: usize| u32::from(full[(2 * y + dy) * fw + 2 * x + dx]);
-                boxed.push(((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1) + 2) / 4) as u8);
+                for c in 0..ch {
+                    let at = |dx: usize, dy: usize| {
+                        u32::from(full[((2 * y + dy) * fw + 2 * x + dx) * ch + c])
+                    };
+                    boxed.push(((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1) + 2) / 4) as u8);
+                }
             }
         }
         let half = decode_scaled(&data, Scale::Half, Rect::of_size(w as u32, h as u32));
         let stride = half.width as usize;
-        let mut cut = Vec::with_capacity(w * h);
+        let mut cut = Vec::with_capacity(w * h * ch);
         for y in 0..h {
-            cut.extend_from_slice(&half.pixels[y * stride..y * stride + w]);
+            cut.extend_from_slice(&half.pixels[y * stride * ch..(y * stride + w) * ch]);
         }
         let psnr = psnr_u8(&cut, &boxed);
         println!("{name}: half-size decode against the box-downscaled full decode: {psnr:.2} dB");

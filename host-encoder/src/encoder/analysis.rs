@@ -10,6 +10,7 @@
 use super::candidates::{
     Candidate, CandidateSelection, CandidateTree, Level, NodeAnalysis, WithCandidates,
 };
+use super::chroma::ColourPlanes;
 use super::config::EncoderConfig;
 use super::error::EncodeError;
 use super::fit::{fit_default, fit_weighted, prepare_projections, Fit};
@@ -55,6 +56,9 @@ pub struct Analysis {
     pub(super) deblock: Option<u8>,
     /// How long each stage took.
     timing: AnalysisTiming,
+    /// The chroma of a colour image (the analysis itself sees `plane`, its luma): streams
+    /// are then colour streams.
+    pub(super) colour: Option<ColourPlanes>,
 }
 
 /// How long each stage of an analysis took (wall time), for a caller that reports it.
@@ -102,6 +106,18 @@ impl Analysis {
         self.timing
     }
 
+    /// Channels of the streams this analysis writes: 1 (grayscale) or 3 (colour).
+    pub fn channels(&self) -> u8 {
+        self.header.channels
+    }
+
+    /// Makes this analysis of an image's luma write colour streams with the image's chroma.
+    pub(super) fn with_colour(mut self, colour: ColourPlanes) -> Analysis {
+        self.header.channels = 3;
+        self.colour = Some(colour);
+        self
+    }
+
     /// Analyses `plane`. `progress` is called with the number of nodes analysed so far.
     pub(super) fn run(
         plane: Plane,
@@ -125,6 +141,7 @@ impl Analysis {
             },
             deblock: config.deblock.map(|d| d.min(MAX_DEBLOCK)),
             timing: AnalysisTiming::default(),
+            colour: None,
         };
         let started = Instant::now();
         analysis.measure_candidates();
@@ -153,7 +170,7 @@ impl Analysis {
         // A rough plan only gathers coding statistics.
         let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
         self.trial = plan.anchor();
-        let snapshot = match writer::write(&self.tree, &self.header, &plan) {
+        let snapshot = match writer::write(&self.tree, &self.header, &plan, None) {
             Ok(w) => w.final_contexts,
             Err(_) => Contexts::default(),
         };

@@ -12,6 +12,7 @@ const LAYERS: &[&[&str]] = &[
     &["quantise"],
     &["candidates"],
     &["rate"],
+    &["chroma"],
     &["writer"],
     &["analysis"],
 ];

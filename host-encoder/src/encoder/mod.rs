@@ -15,6 +15,7 @@
 
 mod analysis;
 mod candidates;
+mod chroma;
 mod config;
 mod error;
 mod fit;
@@ -29,6 +30,7 @@ mod writer;
 mod layering;
 
 pub use analysis::{Analysis, AnalysisTiming};
+pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
 pub use config::{EncoderConfig, Target, MIN_TRIAL_BPP};
 pub use error::EncodeError;
 pub use plane::{psnr, Plane};
@@ -52,6 +54,12 @@ pub struct Encoded {
     pub actual_payload_bits: f64,
     /// Leaves in the quadtree cut.
     pub leaves: usize,
+    /// Channels: 1 (grayscale; `reconstruction` is luma) or 3 (colour; `reconstruction` is
+    /// RGB, and `sse` and `psnr` are over the three channels).
+    pub channels: u8,
+    /// Payload bits of the chroma planes, estimated from the contexts' probabilities (0 for
+    /// grayscale).
+    pub chroma_bits: f64,
 }
 
 /// Most passes that spend the bytes a budget's stream left unused.
@@ -115,10 +123,15 @@ impl Analysis {
     /// The encoded stream `written` of `plan`, with its reconstruction and figures.
     fn finish(&self, plan: &rate::Plan, written: writer::Written) -> Result<Encoded, EncodeError> {
         let reconstruction = decode(&written.bytes)?;
-        let pixels = self.header.pixel_count();
+        let channels = self.header.channels;
+        let pixels = self.header.pixel_count() * usize::from(channels);
+        let reference = match &self.colour {
+            Some(colour) => &colour.rgb,
+            None => &self.plane.data,
+        };
         let sse: f64 = reconstruction
             .iter()
-            .zip(&self.plane.data)
+            .zip(reference)
             .map(|(&a, &b)| {
                 let d = f64::from(a) - f64::from(b);
                 d * d
@@ -130,13 +143,15 @@ impl Analysis {
             estimated_payload_bits: plan.bits,
             actual_payload_bits: written.payload_bits,
             leaves: written.leaves,
+            channels,
+            chroma_bits: written.chroma_bits,
             bytes: written.bytes,
             reconstruction,
         })
     }
 
     fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
-        writer::write(&self.tree, header, plan)
+        writer::write(&self.tree, header, plan, self.colour.as_ref())
     }
 
     /// Best stream of at most `budget` bytes: planned without edge smoothing, then, if a
@@ -241,9 +256,11 @@ impl Analysis {
     /// is the last resort: a target up to its PSNR is always met, and its PSNR is the best
     /// that [`EncodeError::QualityUnreachable`] reports.
     fn encode_quality(&self, header: &Header, db: f64) -> Result<Encoded, EncodeError> {
-        let pixels = self.header.pixel_count() as f64;
+        let channels = f64::from(self.header.channels);
+        let pixels = self.header.pixel_count() as f64 * channels;
         let max_sse = 255.0 * 255.0 * pixels / 10f64.powf(db / 10.0);
-        let mut aim = max_sse;
+        // The plan's error is luma's: a colour stream's RGB error is at least three times it.
+        let mut aim = max_sse / channels;
         let mut anchor = self.trial;
         for _ in 0..QUALITY_PASSES {
             let plan = self.rates.plan_for_sse(self, header, aim, Some(anchor));
@@ -359,12 +376,31 @@ pub fn analyse(
     Analysis::run(plane, config, progress)
 }
 
+/// Analyses an RGB image (`3 * width * height` bytes, row-major) for colour streams: the
+/// analysis of its luma ([`analyse`]), whose streams carry its chroma too (converted by
+/// decoder-core's integer BT.601 conversion, chroma subsampled 4:2:0). Streams' error is
+/// then the RGB squared error.
+pub fn analyse_colour(
+    width: u32,
+    height: u32,
+    rgb: Vec<u8>,
+    config: &EncoderConfig,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Analysis, EncodeError> {
+    if rgb.len() != 3 * width as usize * height as usize {
+        return Err(EncodeError::Internal("RGB buffer size mismatch"));
+    }
+    let (luma, colour) = ColourPlanes::from_rgb(width, height, rgb);
+    Ok(Analysis::run(luma, config, progress)?.with_colour(colour))
+}
+
 /// The image a stream decodes to, by decoder-core (what every decoder shows).
 fn decode(stream: &[u8]) -> Result<Vec<u8>, EncodeError> {
     let decoder = decoder_core::Decoder::new(stream)
         .map_err(EncodeError::Syntax)?
         .stripe_capacity::<{ 1 << 16 }>();
-    let mut pixels = vec![0u8; decoder.header().pixel_count()];
+    let channels = usize::from(decoder.header().channels);
+    let mut pixels = vec![0u8; decoder.header().pixel_count() * channels];
     decoder
         .decode_into(&mut pixels)
         .map_err(EncodeError::Syntax)?;

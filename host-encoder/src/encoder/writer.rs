@@ -5,12 +5,15 @@
 //! whose trial encode it writes.
 
 use super::candidates::CandidateTree;
+use super::chroma::{choose, ColourPlanes};
 use super::error::EncodeError;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::prediction::SamplePrediction;
-use decoder_core::internal::syntax::{control_step, seal, Contexts, Header, LeafSyntax};
+use decoder_core::internal::syntax::{
+    control_step, seal, ChromaContexts, ChromaSyntax, Contexts, Header, LeafSyntax,
+};
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
 use decoder_core::{DecodeError, Node};
@@ -29,6 +32,9 @@ pub struct Written {
     pub final_contexts: Contexts,
     /// Leaves coded.
     pub leaves: usize,
+    /// Payload bits of the chroma planes (estimated from the contexts' probabilities as each
+    /// leaf's chroma was chosen; 0 for a grayscale stream).
+    pub chroma_bits: f64,
 }
 
 /// The walk's visitor: splits and codes the leaves as the plan says.
@@ -36,6 +42,9 @@ struct PlanVisitor<'a> {
     tree: &'a CandidateTree,
     plan: &'a Plan,
     leaves: usize,
+    /// The chroma of a colour stream.
+    colour: Option<&'a ColourPlanes>,
+    chroma_bits: f64,
 }
 
 impl TreeVisitor for PlanVisitor<'_> {
@@ -58,6 +67,28 @@ impl TreeVisitor for PlanVisitor<'_> {
         }
     }
 
+    fn prepare_chroma<P: SamplePrediction>(
+        &mut self,
+        node: &Node,
+        plane: usize,
+        prediction: &P,
+        contexts: &ChromaContexts,
+        leaf: &mut ChromaSyntax,
+    ) {
+        if let Some(colour) = self.colour {
+            let choice = choose(
+                &colour.chroma[plane & 1],
+                plane,
+                node,
+                prediction,
+                contexts,
+                self.plan.lambda,
+            );
+            *leaf = choice.syntax;
+            self.chroma_bits += choice.bits;
+        }
+    }
+
     fn leaf<const STRIPE: usize>(
         &mut self,
         info: &LeafInfo,
@@ -70,12 +101,20 @@ impl TreeVisitor for PlanVisitor<'_> {
     }
 }
 
-/// Writes the stream for `plan` (of `tree`'s candidates) with `header`.
-pub fn write(tree: &CandidateTree, header: &Header, plan: &Plan) -> Result<Written, EncodeError> {
+/// Writes the stream for `plan` (of `tree`'s candidates) with `header`; a colour stream's
+/// chroma (`header.channels == 3`) is chosen leaf by leaf from `colour`.
+pub fn write(
+    tree: &CandidateTree,
+    header: &Header,
+    plan: &Plan,
+    colour: Option<&ColourPlanes>,
+) -> Result<Written, EncodeError> {
     let mut visitor = PlanVisitor {
         tree,
         plan,
         leaves: 0,
+        colour: colour.filter(|_| header.channels == 3),
+        chroma_bits: 0.0,
     };
     let mut coder = RangeEncoder::new();
     let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
@@ -95,5 +134,6 @@ pub fn write(tree: &CandidateTree, header: &Header, plan: &Plan) -> Result<Writt
         bytes,
         final_contexts: state.contexts,
         leaves: visitor.leaves,
+        chroma_bits: visitor.chroma_bits,
     })
 }

@@ -1,7 +1,8 @@
-//! Decoded images out: 8-bit grayscale as PNG, PGM or PPM, written row by row
+//! Decoded images out: 8-bit gray or RGB as PNG, PGM or PPM, written row by row
 //! ([`ImageWriter`]), so that an image never has to be whole in memory to be written.
 
 use super::FileError;
+use decoder_core::internal::colour::rgb_to_luma;
 use std::cell::RefCell;
 use std::io::Write;
 use std::path::Path;
@@ -72,16 +73,19 @@ impl OutputFormat {
         }
     }
 
-    /// Encodes a grayscale image (`width * height` samples, row-major) in this format into
-    /// memory; `path` is where it is going, for the errors.
+    /// Encodes an image of `channels` samples a pixel (1: gray, 3: RGB; `channels * width *
+    /// height` samples, row-major) in this format into memory; `path` is where it is going,
+    /// for the errors.
     pub fn encode(
         self,
         path: &Path,
         width: u32,
         height: u32,
+        channels: u8,
         pixels: &[u8],
     ) -> Result<Vec<u8>, FileError> {
-        if pixels.len() as u64 != u64::from(width) * u64::from(height) {
+        let row = width as usize * usize::from(channels);
+        if pixels.len() as u64 != u64::from(width) * u64::from(height) * u64::from(channels) {
             return Err(FileError::BufferSize {
                 width,
                 height,
@@ -92,8 +96,9 @@ impl OutputFormat {
             path: path.to_path_buf(),
             source,
         };
-        let mut writer = ImageWriter::new(self, Vec::new(), width, height).map_err(failed)?;
-        for row in pixels.chunks_exact(width.max(1) as usize) {
+        let mut writer =
+            ImageWriter::new(self, Vec::new(), width, height, channels).map_err(failed)?;
+        for row in pixels.chunks_exact(row.max(1)) {
             writer.write_row(row).map_err(failed)?;
         }
         writer.finish().map_err(failed)
@@ -108,22 +113,40 @@ pub fn encode_gray(
     height: u32,
     pixels: &[u8],
 ) -> Result<Vec<u8>, FileError> {
-    OutputFormat::from_path(path)?.encode(path, width, height, pixels)
+    OutputFormat::from_path(path)?.encode(path, width, height, 1, pixels)
 }
 
-/// Writes a grayscale image row by row, top to bottom, in an [`OutputFormat`]: PNG through the
+/// Encodes an RGB image (`3 * width * height` bytes) in the format `path`'s extension names
+/// into memory: PNG and PPM in colour, PGM (gray only) as its luma.
+pub fn encode_rgb(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[u8],
+) -> Result<Vec<u8>, FileError> {
+    OutputFormat::from_path(path)?.encode(path, width, height, 3, pixels)
+}
+
+/// Writes a gray or RGB image row by row, top to bottom, in an [`OutputFormat`]: PNG through the
 /// `png` crate's streaming writer (its compressor's window and one row of filter state), PGM
 /// and PPM as they come. Memory does not grow with the image.
 pub struct ImageWriter<W: Write + 'static> {
     out: Rc<RefCell<W>>,
     inner: Inner<W>,
-    width: usize,
+    /// Samples in a row: the width times the channels.
+    row_len: usize,
+    channels: u8,
     rows_left: u32,
 }
 
 enum Inner<W: Write + 'static> {
     Png(Box<png::StreamWriter<'static, Shared<W>>>),
-    Pnm { rgb: bool, expanded: Vec<u8> },
+    /// PGM or PPM: `rgb` for PPM; `converted` holds a row in the file's samples when they
+    /// are not the image's (gray expanded to RGB, RGB reduced to luma).
+    Pnm {
+        rgb: bool,
+        converted: Vec<u8>,
+    },
 }
 
 /// The output, shared between the writer and the `png` crate's stream writer (which owns what
@@ -147,7 +170,8 @@ impl<W: Write> Write for Shared<W> {
 impl<W: Write + 'static> std::fmt::Debug for ImageWriter<W> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ImageWriter")
-            .field("width", &self.width)
+            .field("row_len", &self.row_len)
+            .field("channels", &self.channels)
             .field("rows_left", &self.rows_left)
             .finish_non_exhaustive()
     }
@@ -162,14 +186,31 @@ fn png_error(e: png::EncodingError) -> std::io::Error {
 }
 
 impl<W: Write + 'static> ImageWriter<W> {
-    /// Starts an image of `width x height` (at least 1 x 1) in `format` on `out`: writes its
-    /// header.
-    pub fn new(format: OutputFormat, out: W, width: u32, height: u32) -> std::io::Result<Self> {
+    /// Starts an image of `width x height` (at least 1 x 1) and `channels` samples a pixel (1:
+    /// gray, 3: RGB) in `format` on `out`: writes its header. PGM holds gray only: an RGB image
+    /// is written as its luma (BT.601).
+    pub fn new(
+        format: OutputFormat,
+        out: W,
+        width: u32,
+        height: u32,
+        channels: u8,
+    ) -> std::io::Result<Self> {
+        if channels != 1 && channels != 3 {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "an image of 1 or 3 channels",
+            ));
+        }
         let out = Rc::new(RefCell::new(out));
         let inner = match format {
             OutputFormat::Png => {
                 let mut encoder = png::Encoder::new(Shared(out.clone()), width, height);
-                encoder.set_color(png::ColorType::Grayscale);
+                encoder.set_color(if channels == 3 {
+                    png::ColorType::Rgb
+                } else {
+                    png::ColorType::Grayscale
+                });
                 encoder.set_depth(png::BitDepth::Eight);
                 let stream = encoder
                     .write_header()
@@ -183,21 +224,22 @@ impl<W: Write + 'static> ImageWriter<W> {
                 write!(out.borrow_mut(), "{magic}\n{width} {height}\n255\n")?;
                 Inner::Pnm {
                     rgb,
-                    expanded: Vec::new(),
+                    converted: Vec::new(),
                 }
             }
         };
         Ok(ImageWriter {
             out,
             inner,
-            width: width as usize,
+            row_len: width as usize * usize::from(channels),
+            channels,
             rows_left: height,
         })
     }
 
-    /// Writes the next row (`width` samples).
+    /// Writes the next row (`width * channels` samples).
     pub fn write_row(&mut self, row: &[u8]) -> std::io::Result<()> {
-        if row.len() != self.width || self.rows_left == 0 {
+        if row.len() != self.row_len || self.rows_left == 0 {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
                 "a row of the wrong length, or past the image's last",
@@ -206,14 +248,18 @@ impl<W: Write + 'static> ImageWriter<W> {
         self.rows_left -= 1;
         match &mut self.inner {
             Inner::Png(stream) => stream.write_all(row),
-            Inner::Pnm { rgb: false, .. } => self.out.borrow_mut().write_all(row),
-            Inner::Pnm {
-                rgb: true,
-                expanded,
-            } => {
-                expanded.clear();
-                expanded.extend(row.iter().flat_map(|&v| [v, v, v]));
-                self.out.borrow_mut().write_all(expanded)
+            Inner::Pnm { rgb, converted } => {
+                let file_channels = if *rgb { 3 } else { 1 };
+                if file_channels == self.channels {
+                    return self.out.borrow_mut().write_all(row);
+                }
+                converted.clear();
+                if *rgb {
+                    converted.extend(row.iter().flat_map(|&v| [v, v, v]));
+                } else {
+                    converted.extend(row.chunks_exact(3).map(|p| rgb_to_luma(p[0], p[1], p[2])));
+                }
+                self.out.borrow_mut().write_all(converted)
             }
         }
     }
@@ -278,7 +324,7 @@ mod tests {
         let (w, h) = (37u32, 23u32);
         let pixels: Vec<u8> = (0..w * h).map(|i| (i * 7 % 251) as u8).collect();
         for (_, format) in OutputFormat::EXTENSIONS {
-            let bytes = format.encode(Path::new("x"), w, h, &pixels).unwrap();
+            let bytes = format.encode(Path::new("x"), w, h, 1, &pixels).unwrap();
             let img = image::load_from_memory(&bytes).unwrap().into_luma8();
             assert_eq!(img.dimensions(), (w, h), "{format:?}");
             assert_eq!(img.as_raw(), &pixels, "{format:?}");
@@ -287,7 +333,7 @@ mod tests {
 
     #[test]
     fn a_short_image_is_an_error() {
-        let mut writer = ImageWriter::new(OutputFormat::Png, Vec::new(), 2, 2).unwrap();
+        let mut writer = ImageWriter::new(OutputFormat::Png, Vec::new(), 2, 2, 1).unwrap();
         writer.write_row(&[1, 2]).unwrap();
         assert!(writer.write_row(&[1, 2, 3]).is_err());
         assert!(writer.finish().is_err());

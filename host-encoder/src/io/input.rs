@@ -190,11 +190,14 @@ fn tiff_pages(bytes: &[u8]) -> usize {
     pages
 }
 
-/// A decoded image as 8-bit luma, and what was done to get it.
+/// A decoded image as 8-bit luma (and RGB when it has colour), and what was done to get it.
 #[derive(Debug, Clone)]
 pub struct DecodedImage {
     /// The pixels, as shown (orientation applied), by the rule of [`to_luma`].
     pub plane: Plane,
+    /// The same pixels as 8-bit RGB ([`to_rgb`]) when the image has colour: a colour type with
+    /// some pixel whose channels differ.
+    pub rgb: Option<Vec<u8>>,
     /// The orientation that was applied.
     pub orientation: Orientation,
     /// The file's pages: only the first was decoded.
@@ -233,12 +236,78 @@ impl DecodedImage {
         let decoder = reader.into_decoder().map_err(failed)?;
         let mut img = DynamicImage::from_decoder(decoder).map_err(failed)?;
         img.apply_orientation(probe.orientation);
+        let rgb = img
+            .color()
+            .has_color()
+            .then(|| to_rgb(&img))
+            .filter(|rgb| rgb.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]));
         Ok(DecodedImage {
             plane: to_luma(&img),
+            rgb,
             orientation: probe.orientation,
             pages: probe.pages,
         })
     }
+}
+
+impl DecodedImage {
+    /// The image as the encoder takes it: colour when it has colour, unless `gray`.
+    pub fn into_loaded(self, gray: bool) -> Loaded {
+        match self.rgb {
+            Some(data) if !gray => Loaded::Rgb {
+                width: self.plane.width,
+                height: self.plane.height,
+                data,
+            },
+            _ => Loaded::Gray(self.plane),
+        }
+    }
+}
+
+/// An image as the encoder takes it: grayscale, or colour.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Loaded {
+    /// 8-bit luma ([`to_luma`]).
+    Gray(Plane),
+    /// 8-bit RGB ([`to_rgb`]).
+    Rgb {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+        /// Row-major RGB, 3 bytes a pixel.
+        data: Vec<u8>,
+    },
+}
+
+/// Loads an image file as the encoder takes it ([`DecodedImage::into_loaded`]), its
+/// orientation applied, within the `image` crate's default limits.
+pub fn load_image(path: &Path) -> Result<Loaded, FileError> {
+    let bytes = read_input(path, "an image", u64::MAX)?;
+    DecodedImage::decode(&bytes, path, &ImageLimits::DEFAULT).map(|d| d.into_loaded(false))
+}
+
+/// Converts a decoded image to 8-bit row-major RGB: any bit depth from its full range,
+/// rounded; palettes through their palette; transparency composited over white, channel by
+/// channel (as [`to_luma`] does for luma); a band of rows at a time.
+pub fn to_rgb(img: &DynamicImage) -> Vec<u8> {
+    let (w, h) = (img.width(), img.height());
+    let mut data = Vec::with_capacity(3 * w as usize * h as usize);
+    let rows = (CONVERSION_PIXELS / (w as usize).max(1)).clamp(1, h.max(1) as usize) as u32;
+    let mut y = 0;
+    while y < h {
+        let n = rows.min(h - y);
+        let band = img.crop_imm(0, y, w, n).to_rgba32f();
+        for p in band.pixels() {
+            let a = p[3].clamp(0.0, 1.0);
+            for c in 0..3 {
+                let v = a * p[c] + (1.0 - a);
+                data.push((v * 255.0).round().clamp(0.0, 255.0) as u8);
+            }
+        }
+        y += n;
+    }
+    data
 }
 
 /// Loads an image file as 8-bit luma, by the rule of [`to_luma`], its orientation applied,

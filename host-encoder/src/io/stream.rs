@@ -413,6 +413,8 @@ enum Stop {
 /// Rows of the image in memory, from `base` (the first row not yet written) down, in a ring.
 struct Band<'w, W: Write + 'static> {
     width: usize,
+    /// Samples a pixel (1 or 3).
+    channels: usize,
     /// Rows the ring holds.
     rows: u32,
     ring: Vec<u8>,
@@ -443,16 +445,17 @@ impl<W: Write + 'static> PixelSink for Band<'_, W> {
         if y < self.base || y + h > self.base + self.rows {
             return Err(Stop::BelowBand);
         }
-        for (r, src) in tile.pixels.chunks_exact(w as usize).enumerate() {
+        let (c, row_len) = (self.channels, self.width * self.channels);
+        for (r, src) in tile.pixels.chunks_exact(w as usize * c).enumerate() {
             let slot = self.slot(y + r as u32);
-            let start = slot * self.width + x as usize;
-            self.ring[start..start + w as usize].copy_from_slice(src);
+            let start = slot * row_len + x as usize * c;
+            self.ring[start..start + src.len()].copy_from_slice(src);
             self.drawn[slot] += w;
         }
         while self.base < self.end && self.drawn[self.slot(self.base)] as usize >= self.width {
             let slot = self.slot(self.base);
             self.writer
-                .write_row(&self.ring[slot * self.width..(slot + 1) * self.width])
+                .write_row(&self.ring[slot * row_len..(slot + 1) * row_len])
                 .map_err(Stop::Write)?;
             self.drawn[slot] = 0;
             self.base += 1;
@@ -501,15 +504,19 @@ pub fn decode_to_image<W: Write + 'static>(
         path: input.name.clone(),
         source: std::io::Error::other(format!("internal error: {why}")),
     };
-    let rows = u32::try_from(band_bytes / width as usize)
+    let channels = header.channels;
+    let row_len = width as usize * usize::from(channels);
+    let rows = u32::try_from(band_bytes / row_len)
         .unwrap_or(u32::MAX)
         .max(scale.apply(MIN_BAND_ROWS))
         .min(height);
-    let mut writer = ImageWriter::new(format, out, width, height).map_err(write_failed)?;
+    let mut writer =
+        ImageWriter::new(format, out, width, height, channels).map_err(write_failed)?;
     let mut band = Band {
         width: width as usize,
+        channels: usize::from(channels),
         rows,
-        ring: vec![0; rows as usize * width as usize],
+        ring: vec![0; rows as usize * row_len],
         drawn: vec![0; rows as usize],
         base: 0,
         end: height,

@@ -87,6 +87,25 @@ pub fn small_config() -> EncoderConfig {
     }
 }
 
+/// A deterministic RGB image (`3 * width * height` bytes): red is a [`synthetic`] plane of
+/// seed `seed`, green the one of `seed + 1` mirrored left to right, blue the one of `seed + 2`
+/// inverted (so that hue and saturation vary across the image, with shared edges).
+#[allow(dead_code)]
+pub fn synthetic_rgb(width: u32, height: u32, seed: u32) -> Vec<u8> {
+    let planes: Vec<Plane> = (0..3)
+        .map(|k| synthetic(width, height, seed + k, 6))
+        .collect();
+    let mut out = Vec::with_capacity(3 * planes[0].data.len());
+    for y in 0..height {
+        for x in 0..width {
+            out.push(planes[0].get(x, y));
+            out.push(planes[1].get(width - 1 - x, y));
+            out.push(255 - planes[2].get(x, y));
+        }
+    }
+    out
+}
+
 /// Analyses `plane` with `config`, panicking on error (test helper).
 pub fn analyse_with(plane: Plane, config: &EncoderConfig) -> Analysis {
     analyse(plane, config, &|_| {}).expect("analysis")

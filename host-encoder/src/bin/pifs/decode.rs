@@ -108,10 +108,15 @@ pub fn run(
     let (decoded, out) = io::decode_to_image(&stream, format, scale, out, &name, io::BAND_BYTES)?;
     out.commit()?;
     say!(
-        "{}: {}x{} decoded in {:.1} ms",
+        "{}: {}x{} {} decoded in {:.1} ms",
         name.display(),
         decoded.width,
         decoded.height,
+        if decoded.header.channels == 3 {
+            "colour"
+        } else {
+            "gray"
+        },
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())

@@ -13,7 +13,9 @@ use crate::progress::{Progress, Work};
 use crate::say;
 use clap::Args;
 use host_encoder::io::{self, Content, ImageLimits, ImageProbe, Output};
-use host_encoder::{analyse, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target};
+use host_encoder::{
+    analyse, analyse_colour, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target,
+};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -30,9 +32,14 @@ pub const DEFAULT_BPP: f64 = 0.25;
 /// Arguments of `pifs encode`.
 #[derive(Args, Debug)]
 pub struct EncodeArgs {
-    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; colour is converted to luma, the EXIF
-    /// orientation applied, the first page of a TIFF taken); "-" reads standard input.
+    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; the EXIF orientation applied, the first
+    /// page of a TIFF taken); "-" reads standard input. A colour image gives a colour stream
+    /// (YCbCr 4:2:0) unless --gray; a gray one (or a colour image whose pixels are all gray) a
+    /// grayscale stream.
     pub input: PathBuf,
+    /// Encode in grayscale (the image's luma), even from a colour image.
+    #[arg(long)]
+    pub gray: bool,
     /// Output stream. Any name but an image format's (.png, .jpg, ... are refused, so that a
     /// stream never poses as an image); .pifs by convention; "-" writes standard output. An
     /// existing file is replaced atomically and keeps its permissions, a symbolic link is
@@ -150,9 +157,18 @@ pub fn check_image(path: &Path, limits: &InputLimits, analysis: &AnalysisArgs) -
 }
 
 impl Checked {
-    /// Decodes the pixels, as 8-bit luma, orientation applied; a note for a TIFF of several
-    /// pages (the first is taken).
-    pub fn decode(self) -> Result<Plane> {
+    /// Decodes the pixels as the encoder takes them (colour unless `gray` or the image is
+    /// gray), orientation applied; a note for a TIFF of several pages (the first is taken).
+    pub fn decode(self, gray: bool) -> Result<io::Loaded> {
+        Ok(self.decode_image()?.into_loaded(gray))
+    }
+
+    /// Decodes the pixels as 8-bit luma ([`Checked::decode`]).
+    pub fn decode_luma(self) -> Result<Plane> {
+        Ok(self.decode_image()?.plane)
+    }
+
+    fn decode_image(self) -> Result<io::DecodedImage> {
         let limits = ImageLimits {
             max_pixels: u64::MAX,
             max_alloc: self.max_alloc,
@@ -172,7 +188,7 @@ impl Checked {
                 decoded.pages
             );
         }
-        Ok(decoded.plane)
+        Ok(decoded)
     }
 }
 
@@ -309,6 +325,42 @@ pub fn analyse_plane(plane: Plane, args: &AnalysisArgs, targets: &[Target]) -> R
     })
 }
 
+/// Analyses a loaded image ([`analyse_plane`]), in colour when it is colour.
+pub fn analyse_loaded(
+    image: &io::Loaded,
+    args: &AnalysisArgs,
+    targets: &[Target],
+) -> Result<Analysed> {
+    let io::Loaded::Rgb {
+        width,
+        height,
+        data,
+    } = image
+    else {
+        let io::Loaded::Gray(plane) = image else {
+            unreachable!("two variants")
+        };
+        return analyse_plane(plane.clone(), args, targets);
+    };
+    let start = Instant::now();
+    let pixels = *width as usize * *height as usize;
+    let config = args.config(pixels, targets);
+    let work = Work::new(*width, *height, config.min_leaf_log2, config.max_leaf_log2);
+    let progress = Progress::on_terminal(work);
+    let result = analyse_colour(*width, *height, data.clone(), &config, &|n| {
+        if let Some(p) = &progress {
+            p.nodes_done(n);
+        }
+    });
+    if let Some(p) = &progress {
+        p.finish();
+    }
+    Ok(Analysed {
+        analysis: result?,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
 /// A stream to write: its target, and whether the user chose it or it is the default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Job {
@@ -377,12 +429,20 @@ fn write_encoded(
     let gap = 100.0 * (encoded.estimated_payload_bits - encoded.actual_payload_bits)
         / encoded.actual_payload_bits.max(1.0);
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
+    let kind = if encoded.channels == 3 {
+        format!(
+            "colour, PSNR-RGB {:.2} dB, chroma {:.1}% of the payload",
+            encoded.psnr,
+            100.0 * encoded.chroma_bits / encoded.actual_payload_bits.max(1.0)
+        )
+    } else {
+        format!("gray, PSNR {:.2} dB", encoded.psnr)
+    };
     say!(
-        "{}: {w}x{h} -> {} bytes, {:.4} bpp, PSNR {:.2} dB, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
+        "{}: {w}x{h} -> {} bytes, {:.4} bpp, {kind}, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
         name.display(),
         encoded.bytes.len(),
         analysed.bpp(encoded.bytes.len()),
-        encoded.psnr,
         encoded.leaves,
         analysed.seconds,
         t.elapsed().as_secs_f64()
@@ -530,8 +590,8 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     check_target_fits(job, checked.probe.width, checked.probe.height)?;
     let out = Output::create(&args.output, Content::Binary("a PIFS stream"))?;
     let input = checked.path.clone();
-    let plane = checked.decode()?;
-    let analysed = analyse_plane(plane.clone(), &args.analysis, &[job.target])?;
+    let image = checked.decode(args.gray)?;
+    let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
     let t = Instant::now();
     match encode_stream(&analysed.analysis, job) {
         Err(CliError::Encode(EncodeError::QualityUnreachable { .. })) => {
@@ -547,7 +607,7 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             let first_seconds = analysed.seconds;
             // One analysis in memory at a time.
             drop(analysed);
-            let mut top = analyse_plane(plane, &args.analysis, &[TOP_TUNING])?;
+            let mut top = analyse_loaded(&image, &args.analysis, &[TOP_TUNING])?;
             top.seconds += first_seconds;
             write_stream_to(&top, job, out)?;
             Ok(())

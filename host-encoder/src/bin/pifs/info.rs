@@ -62,6 +62,14 @@ impl Stats {
             header.bit_depth
         );
         say!(
+            "  colour           {}",
+            if header.channels == 3 {
+                "colour (YCbCr BT.601 full range, chroma 4:2:0)"
+            } else {
+                "grayscale"
+            }
+        );
+        say!(
             "  size             {stream_len} bytes ({} header), {:.4} bpp",
             header.encoded_len(),
             stream_len as f64 * 8.0 / px
@@ -125,7 +133,14 @@ pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
     };
     let out = Output::create(svg, Content::Text)?;
     let mut leaves = Vec::new();
-    let (header, pixels) = crate::decode::decode_pixels(&stream, Some(&mut leaves))?;
+    let (header, mut pixels) = crate::decode::decode_pixels(&stream, Some(&mut leaves))?;
+    if header.channels == 3 {
+        // The drawing shows the luma under the leaves.
+        pixels = pixels
+            .chunks_exact(3)
+            .map(|p| decoder_core::internal::colour::rgb_to_luma(p[0], p[1], p[2]))
+            .collect();
+    }
     leaves.iter().for_each(|leaf| stats.leaf(leaf));
     let drawing = crate::leaves_svg::draw(&header, &pixels, &leaves)?;
     let mut out = out;

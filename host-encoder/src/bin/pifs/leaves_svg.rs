@@ -26,7 +26,7 @@ const LEGEND_ROW: u32 = 18;
 /// of leaves per model.
 pub fn draw(header: &Header, pixels: &[u8], leaves: &[LeafInfo]) -> Result<String> {
     let (w, h) = (u32::from(header.width), u32::from(header.height));
-    let png = OutputFormat::Png.encode(Path::new("the embedded image"), w, h, pixels)?;
+    let png = OutputFormat::Png.encode(Path::new("the embedded image"), w, h, 1, pixels)?;
     let scale = MIN_DRAWN_SIDE.div_ceil(w.max(h)).clamp(1, 32);
     let (dw, dh) = (w * scale, h * scale);
     let legend_top = dh + 8;

@@ -141,7 +141,7 @@ pub fn run(args: &RdArgs) -> Result<()> {
         }
         None => Vec::new(),
     };
-    let plane = encode::check_image(&args.input, &args.limits, &args.analysis)?.decode()?;
+    let plane = encode::check_image(&args.input, &args.limits, &args.analysis)?.decode_luma()?;
     let targets: Vec<Target> = args.rates.iter().map(|&r| Target::Bpp(r)).collect();
     let analysed = encode::analyse_plane(plane, &args.analysis, &targets)?;
     if let Some(dir) = &args.out_dir {

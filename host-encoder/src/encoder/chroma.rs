@@ -1,0 +1,307 @@
+//! The chroma planes of a colour stream: the YCbCr planes of an RGB image, and the choice of
+//! each leaf's chroma syntax while the stream is written.
+//!
+//! The quadtree cut is luma's (the analysis sees luma only); each leaf's two chroma planes are
+//! then fitted at the leaf's chroma node (half its side) with every chroma model (a bilinear
+//! grid of 1, 2, 4 or 8 intervals: the least-squares grid, or the pixels themselves where the
+//! grid is as fine as the pixels), quantised with every control step and both control codings
+//! (closed-loop DPCM, or the grid transform), reconstructed by decoder-core, and priced with
+//! the chroma contexts' current probabilities. The choice minimises `w * 4 * sse + lambda *
+//! bits`, `lambda` the luma plan's multiplier and `w` the weight that makes chroma error RGB
+//! error (below), 4 the luma pixels a chroma pixel stands for.
+//!
+//! Above [`super::quantise`] (its forward grid transform); below the writer.
+
+use super::plane::Plane;
+use super::quantise::forward_grid_transform;
+use crate::entropy::BitCounter;
+use decoder_core::internal::colour::{chroma_len, CHROMA_GRIDS};
+use decoder_core::internal::colour::{chroma_models, rgb_to_ycbcr, sample, ChromaPlane};
+use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE};
+use decoder_core::internal::prediction::SamplePrediction;
+use decoder_core::internal::syntax::control::{coefficient_step, CONTROL_QUANTISERS};
+use decoder_core::internal::syntax::{
+    chroma_grid, code_chroma, dequantise_control, intra_prediction, reconstruct_chroma,
+    ChromaContexts, ChromaSyntax, ControlCoding,
+};
+use decoder_core::Node;
+use nalgebra::DMatrix;
+use std::sync::OnceLock;
+
+/// What an error of one level in `Cb` and `Cr` adds to the RGB squared error, relative to one
+/// in `Y` (which adds 3, one per channel): BT.601's `(0.344^2 + 1.772^2) / 3` and
+/// `(1.402^2 + 0.714^2) / 3`. The encoder's distortion is the RGB squared error.
+pub const CHROMA_WEIGHTS: [f64; 2] = [3.258 / 3.0, 2.476 / 3.0];
+
+/// The chroma of an RGB image, and the image itself (for its error).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ColourPlanes {
+    /// `Cb` and `Cr`, half the width and height (rounded up): the mean of each 2 x 2 block's
+    /// pixels, rounded.
+    pub chroma: [Plane; 2],
+    /// The RGB image, row-major, 3 bytes a pixel.
+    pub rgb: Vec<u8>,
+}
+
+impl ColourPlanes {
+    /// The luma plane and the chroma planes of an RGB image (`3 * width * height` bytes),
+    /// converted by decoder-core's integer BT.601 conversion.
+    pub fn from_rgb(width: u32, height: u32, rgb: Vec<u8>) -> (Plane, ColourPlanes) {
+        let (w, h) = (width as usize, height as usize);
+        assert_eq!(rgb.len(), 3 * w * h, "RGB size mismatch");
+        let mut y = Vec::with_capacity(w * h);
+        let mut full = [vec![0u8; w * h], vec![0u8; w * h]];
+        for (i, p) in rgb.chunks_exact(3).enumerate() {
+            let [l, cb, cr] = rgb_to_ycbcr(p[0], p[1], p[2]);
+            y.push(l);
+            full[0][i] = cb;
+            full[1][i] = cr;
+        }
+        let (cw, ch) = (chroma_len(width), chroma_len(height));
+        let half = |plane: &[u8]| {
+            let mut out = Vec::with_capacity((cw * ch) as usize);
+            for cy in 0..ch as usize {
+                for cx in 0..cw as usize {
+                    let (mut sum, mut n) = (0u32, 0u32);
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (x, yy) = (2 * cx + dx, 2 * cy + dy);
+                        if x < w && yy < h {
+                            sum += u32::from(plane[yy * w + x]);
+                            n += 1;
+                        }
+                    }
+                    out.push(((sum + n / 2) / n) as u8);
+                }
+            }
+            Plane::new(cw, ch, out)
+        };
+        let chroma = [half(&full[0]), half(&full[1])];
+        (Plane::new(width, height, y), ColourPlanes { chroma, rgb })
+    }
+}
+
+/// The chosen syntax of one chroma plane of a leaf and its estimated bits.
+#[derive(Debug, Clone, Copy)]
+pub struct ChromaChoice {
+    /// The syntax to code.
+    pub syntax: ChromaSyntax,
+    /// Its bits under the contexts it was priced with.
+    pub bits: f64,
+}
+
+/// The least-squares projector of a chroma leaf of side `2^log2` onto the bilinear grid of
+/// chroma model `model`: `(B^T B + e I)^-1 B^T`, with `B` the pixels' bilinear weights of the
+/// grid values (one row per pixel, row-major).
+fn projector(log2: u8, model: usize) -> &'static DMatrix<f64> {
+    static CACHE: [[OnceLock<DMatrix<f64>>; 4]; 8] = [const { [const { OnceLock::new() }; 4] }; 8];
+    CACHE[usize::from(log2)][model].get_or_init(|| {
+        let size = 1usize << log2;
+        let g = usize::from(CHROMA_GRIDS[model].0);
+        let sp = size / g;
+        let side = g + 1;
+        let mut b = DMatrix::<f64>::zeros(size * size, side * side);
+        let weights = |i: usize| {
+            let (a, f) = (i / sp, (i % sp) as f64 / sp as f64);
+            [(a, 1.0 - f), (a + 1, f)]
+        };
+        for j in 0..size {
+            for i in 0..size {
+                for (r, wy) in weights(j) {
+                    for (c, wx) in weights(i) {
+                        b[(j * size + i, r * side + c)] += wx * wy;
+                    }
+                }
+            }
+        }
+        let bt = b.transpose();
+        let mut gram = &bt * &b;
+        for k in 0..side * side {
+            gram[(k, k)] += 1e-6;
+        }
+        let inv = gram
+            .try_inverse()
+            .unwrap_or_else(|| DMatrix::zeros(side * side, side * side));
+        inv * bt
+    })
+}
+
+/// The chroma leaf's pixels (row-major, side `2^log2`), those past the plane's edge repeating
+/// the nearest ones inside.
+fn leaf_pixels(plane: &Plane, node: &Node) -> Vec<f64> {
+    let s = node.size();
+    let mut out = Vec::with_capacity((s * s) as usize);
+    for j in 0..s {
+        for i in 0..s {
+            let x = (node.x + i).min(plane.width - 1);
+            let y = (node.y + j).min(plane.height - 1);
+            out.push(f64::from(plane.get(x, y)));
+        }
+    }
+    out
+}
+
+/// The control targets of chroma model `model` at `node` (sample units, over the coded grid).
+fn targets(pixels: &[f64], node: &Node, model: usize) -> Vec<f64> {
+    let g = usize::from(CHROMA_GRIDS[model].0);
+    let size = node.size() as usize;
+    let one = f64::from(SAMPLE_ONE);
+    let lo = f64::from(SAMPLE_MIN);
+    let hi = f64::from(SAMPLE_MAX);
+    if g >= size {
+        return pixels.iter().map(|&p| p * one).collect();
+    }
+    let p = projector(node.log2, model);
+    let v = DMatrix::from_column_slice(pixels.len(), 1, pixels);
+    let t = p * v;
+    t.iter().map(|&x| (x * one).clamp(lo, hi)).collect()
+}
+
+/// Indices of the control targets `t` (coded grid of side `side`) for step `step`: DPCM in
+/// closed loop, or the grid transform's coefficients, each rounded to the nearest.
+fn quantise(t: &[f64], side: usize, step: i32, transform: bool) -> [i16; MAX_CONTROL] {
+    let mut k = [0i16; MAX_CONTROL];
+    let limit = 4095.0;
+    if transform {
+        let mut g = [0f64; MAX_CONTROL];
+        g[..t.len()].copy_from_slice(t);
+        forward_grid_transform(&mut g, side);
+        for i in 0..side * side {
+            let q = f64::from(coefficient_step(side, i, step));
+            k[i] = (g[i] / q).round().clamp(-limit, limit) as i16;
+        }
+    } else {
+        let mut recon = [0i16; MAX_CONTROL];
+        for i in 0..side * side {
+            let (r, c) = (i / side, i % side);
+            let base = if i == 0 {
+                0
+            } else {
+                intra_prediction(&recon, side, r, c)
+            };
+            let index = ((t[i] - f64::from(base)) / f64::from(step))
+                .round()
+                .clamp(-limit, limit) as i32;
+            k[i] = index as i16;
+            recon[i] = dequantise_control(base, step, index);
+        }
+    }
+    k
+}
+
+/// Squared error of a reconstructed chroma plane over the leaf's pixels inside the plane.
+fn plane_sse(plane: &Plane, node: &Node, rec: &ChromaPlane) -> f64 {
+    let s = node.size();
+    let mut sse = 0.0;
+    for j in 0..s.min(plane.height - node.y) {
+        for i in 0..s.min(plane.width - node.x) {
+            let d = f64::from(sample(rec, node.log2, i, j))
+                - f64::from(plane.get(node.x + i, node.y + j));
+            sse += d * d;
+        }
+    }
+    sse
+}
+
+/// The chroma syntax of plane `p` (0: `Cb`, 1: `Cr`, `plane` its pixels) at chroma node
+/// `node` of least `CHROMA_WEIGHTS[p] * 4 * sse + lambda * bits` (see the module's notes), with
+/// the chroma contexts `contexts` and the chroma frontier `prediction` as the decoder will have
+/// them.
+pub fn choose<P: SamplePrediction>(
+    plane: &Plane,
+    p: usize,
+    node: &Node,
+    prediction: &P,
+    contexts: &ChromaContexts,
+    lambda: f64,
+) -> ChromaChoice {
+    let pixels = leaf_pixels(plane, node);
+    let weight = 4.0 * CHROMA_WEIGHTS[p & 1];
+    let mut ctx = contexts.clone();
+    let mut best: Option<(f64, ChromaChoice)> = None;
+    for (model, &(g, _)) in CHROMA_GRIDS
+        .iter()
+        .enumerate()
+        .take(chroma_models(node.log2))
+    {
+        let t = targets(&pixels, node, model);
+        let codings: &[ControlCoding] = if g >= 2 {
+            &[ControlCoding::Dpcm, ControlCoding::Transform]
+        } else {
+            &[ControlCoding::Dpcm]
+        };
+        for &coding in codings {
+            let mut previous = f64::INFINITY;
+            let mut worse = 0;
+            for cq in (0..CONTROL_QUANTISERS as u8).rev() {
+                let mut syntax = ChromaSyntax {
+                    model: model as u8,
+                    cquant: cq,
+                    coding,
+                    control: [0; MAX_CONTROL],
+                };
+                let grid = chroma_grid(&syntax, node.log2);
+                syntax.control = quantise(&t, grid.side, grid.step, grid.transform);
+                let mut rec = ChromaPlane::NEUTRAL;
+                if reconstruct_chroma(&syntax, node.log2, &mut rec).is_err() {
+                    continue;
+                }
+                let sse = plane_sse(plane, node, &rec);
+                let mut counter = BitCounter::frozen();
+                let mut coded = syntax;
+                if code_chroma(&mut counter, &mut ctx, node, prediction, &mut coded).is_err() {
+                    continue;
+                }
+                let bits = counter.bits();
+                let j = weight * sse + lambda * bits;
+                if best.as_ref().is_none_or(|(b, _)| j < *b) {
+                    best = Some((j, ChromaChoice { syntax, bits }));
+                }
+                // From coarse to fine steps: stop once finer steps stop paying.
+                if j > previous {
+                    worse += 1;
+                    if worse >= 2 {
+                        break;
+                    }
+                } else {
+                    worse = 0;
+                }
+                previous = j;
+            }
+        }
+    }
+    best.map(|(_, c)| c).unwrap_or(ChromaChoice {
+        syntax: ChromaSyntax::default(),
+        bits: 0.0,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chroma_planes_are_the_means_of_2x2_blocks() {
+        // A 3x1 image: red, red, blue.
+        let rgb = vec![255, 0, 0, 255, 0, 0, 0, 0, 255];
+        let (y, c) = ColourPlanes::from_rgb(3, 1, rgb);
+        assert_eq!(y.data, vec![76, 76, 29]);
+        assert_eq!((c.chroma[0].width, c.chroma[0].height), (2, 1));
+        assert_eq!(c.chroma[0].data, vec![85, 255]);
+        assert_eq!(c.chroma[1].data, vec![255, 107]);
+    }
+
+    #[test]
+    fn the_least_squares_grid_reproduces_a_bilinear_ramp() {
+        let node = Node {
+            x: 0,
+            y: 0,
+            log2: 3,
+        };
+        // A ramp 10 + 4 i across, constant down: model 0's grid reproduces it exactly.
+        let pixels: Vec<f64> = (0..64).map(|k| 10.0 + 4.0 * (k % 8) as f64).collect();
+        let t = targets(&pixels, &node, 0);
+        let one = f64::from(SAMPLE_ONE);
+        assert!((t[0] - 10.0 * one).abs() < 0.01, "{t:?}");
+        assert!((t[1] - 42.0 * one).abs() < 0.01, "{t:?}");
+    }
+}
