@@ -3,10 +3,11 @@
 library only (no Pillow): decodes the PNG, converts to BT.601 luma like `pifs` does, and writes
 binary PGM files that `pifs encode` reads.
 
-    python3 bench/crop_png.py IN.png OUT_DIR NAME WxH[/F] ...
+    python3 bench/crop_png.py [--colour] IN.png OUT_DIR NAME WxH[/F] ...
 
 Each `WxH/F` is: downscale by the integer factor F (box filter, default 1), then take the centred
-W x H crop. Writes OUT_DIR/NAME_WxH.pgm.
+W x H crop. Writes OUT_DIR/NAME_WxH.pgm, or with --colour OUT_DIR/NAME_WxH.ppm in RGB (each
+channel downscaled alike).
 """
 import struct
 import sys
@@ -14,7 +15,7 @@ import zlib
 from pathlib import Path
 
 
-def read_png(path):
+def read_png(path, colour=False):
     data = Path(path).read_bytes()
     if data[:8] != b"\x89PNG\r\n\x1a\n":
         raise SystemExit(f"{path}: not a PNG")
@@ -61,6 +62,12 @@ def read_png(path):
                 line[i] = (line[i] + pred) & 255
         rows.append(line)
         prev = line
+    if colour:
+        if channels < 3:
+            raise SystemExit(f"{path}: not a colour PNG")
+        return width, height, [
+            [[line[i + c] for i in range(0, stride, channels)] for line in rows] for c in range(3)
+        ]
     luma = []
     for line in rows:
         if channels >= 3:
@@ -74,24 +81,38 @@ def read_png(path):
 
 
 def main():
-    if len(sys.argv) < 5:
+    args = sys.argv[1:]
+    colour = bool(args) and args[0] == "--colour"
+    if colour:
+        args = args[1:]
+    if len(args) < 4:
         raise SystemExit(__doc__)
-    src, out_dir, name = sys.argv[1], Path(sys.argv[2]), sys.argv[3]
-    width, height, luma = read_png(src)
+    src, out_dir, name = args[0], Path(args[1]), args[2]
+    width, height, planes = read_png(src, colour)
+    if not colour:
+        planes = [planes]
     out_dir.mkdir(parents=True, exist_ok=True)
-    for spec in sys.argv[4:]:
+    for spec in args[3:]:
         size, _, factor = spec.partition("/")
         w, h = (int(v) for v in size.split("x"))
         f = int(factor or 1)
         sw, sh = width // f, height // f
-        small = [[(sum(luma[y * f + j][x * f + i] for j in range(f) for i in range(f))
-                   + f * f // 2) // (f * f) for x in range(sw)] for y in range(sh)]
         if w > sw or h > sh:
             raise SystemExit(f"{spec}: larger than the {sw}x{sh} downscaled image")
         x0, y0 = (sw - w) // 2, (sh - h) // 2
-        pixels = bytes(v for row in small[y0:y0 + h] for v in row[x0:x0 + w])
-        out = out_dir / f"{name}_{w}x{h}.pgm"
-        out.write_bytes(b"P5\n%d %d\n255\n" % (w, h) + pixels)
+        crops = []
+        for plane in planes:
+            small = [[(sum(plane[y * f + j][x * f + i] for j in range(f) for i in range(f))
+                       + f * f // 2) // (f * f) for x in range(sw)] for y in range(sh)]
+            crops.append([row[x0:x0 + w] for row in small[y0:y0 + h]])
+        if colour:
+            pixels = bytes(crops[c][y][x] for y in range(h) for x in range(w) for c in range(3))
+            out = out_dir / f"{name}_{w}x{h}.ppm"
+            out.write_bytes(b"P6\n%d %d\n255\n" % (w, h) + pixels)
+        else:
+            pixels = bytes(v for row in crops[0] for v in row)
+            out = out_dir / f"{name}_{w}x{h}.pgm"
+            out.write_bytes(b"P5\n%d %d\n255\n" % (w, h) + pixels)
         print(out)
 
 

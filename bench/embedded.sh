@@ -8,8 +8,8 @@
 #   speed = instructions per output pixel on Cortex-M3 and Cortex-M0 (SysTick under
 #           `-icount shift=0`, from decode entry to return), and the instructions of decodes at
 #           1/2, 1/4 and 1/8 of the size as a share of the full decode's.
-# Images: kodim23 as 128x128, 320x240 and 768x512 grayscale, encoded at 0.1 and 0.5 bpp with the
-# host `pifs` encoder. Generated files go to target/bench-embedded/. Prints markdown tables
+# Images: kodim23 as 128x128, 320x240 and 768x512, grayscale and colour (format 13, decoded to
+# RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder. Generated files go to target/bench-embedded/. Prints markdown tables
 # (with ChaN's TJpgDec R0.03 beside ours when ../shared/bench/tjpgdec/out/compare.md is there)
 # and writes bench/results/embedded.csv: one row per target, image and rate.
 #
@@ -33,14 +33,19 @@ rustup target add thumbv7m-none-eabi thumbv6m-none-eabi >/dev/null 2>&1 || true
 # 1. Images and streams.
 cargo build --release -q -p host-encoder 2>"$out/build.log" || { cat "$out/build.log" >&2; exit 1; }
 python3 bench/crop_png.py "$src" "$out" kodim23 128x128/4 320x240/2 768x512 >/dev/null
+python3 bench/crop_png.py --colour "$src" "$out" kodim23c 128x128/4 320x240/2 768x512 >/dev/null
 streams=()
-for size in 128x128 320x240 768x512; do
-    for bpp in 0.1 0.5; do
-        s=$out/kodim23_${size}_${bpp}bpp.pifs
-        if [ ! -s "$s" ] || [ "$out/kodim23_$size.pgm" -nt "$s" ] || [ target/release/pifs -nt "$s" ]; then
-            ./target/release/pifs encode "$out/kodim23_$size.pgm" -o "$s" --bpp "$bpp" >/dev/null
-        fi
-        streams+=("$s")
+for kind in kodim23 kodim23c; do
+    ext=pgm
+    [ $kind = kodim23 ] || ext=ppm
+    for size in 128x128 320x240 768x512; do
+        for bpp in 0.1 0.5; do
+            s=$out/${kind}_${size}_${bpp}bpp.pifs
+            if [ ! -s "$s" ] || [ "$out/${kind}_$size.$ext" -nt "$s" ] || [ target/release/pifs -nt "$s" ]; then
+                ./target/release/pifs encode "$out/${kind}_$size.$ext" -o "$s" --bpp "$bpp" >/dev/null
+            fi
+            streams+=("$s")
+        done
     done
 done
 
@@ -137,16 +142,19 @@ echo "| image | bpp | stream bytes | M3 RAM: static + stack (bytes) | M0 RAM: st
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23_\([0-9x]*\)_.*/\1/')
+    size=$(echo "$n" | sed 's/kodim23c*_\([0-9x]*\)_.*/\1/')
     bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
+    kind=$(echo "$n" | sed 's/_.*//')
+    label="kodim23 $size"
+    [ "$kind" = kodim23 ] || label="kodim23 $size colour"
     bytes=$(stat -c %s "$s")
     px=$(( ${size%x*} * ${size#*x} ))
-    echo "| kodim23 $size | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | $(per_px "${instr[$v7/$n]:-}" $px) | $(per_px "${instr[$v6/$n]:-}" $px) | $(share "${scaled[$v7/$n/-2]:-}" "${instr[$v7/$n]:-}") | $(share "${scaled[$v6/$n/-2]:-}" "${instr[$v6/$n]:-}") |"
+    echo "| $label | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | $(per_px "${instr[$v7/$n]:-}" $px) | $(per_px "${instr[$v6/$n]:-}" $px) | $(share "${scaled[$v7/$n/-2]:-}" "${instr[$v7/$n]:-}") | $(share "${scaled[$v6/$n/-2]:-}" "${instr[$v6/$n]:-}") |"
     for t in $v7 $v6; do
         st=${stack[$t/$n]:-}
         total=n/a
         [[ $st =~ ^[0-9]+$ ]] && total=$((st + static[$t]))
-        echo "$t,kodim23_$size,$bpp,$bytes,${static[$t]},$st,$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}")" >>"$csv"
+        echo "$t,${kind}_$size,$bpp,$bytes,${static[$t]},$st,$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}")" >>"$csv"
     done
 done
 echo
@@ -163,9 +171,11 @@ echo "| image | bpp | M3 1/2 | M3 1/4 | M3 1/8 | M0 1/2 | M0 1/4 | M0 1/8 |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23_\([0-9x]*\)_.*/\1/')
+    size=$(echo "$n" | sed 's/kodim23c*_\([0-9x]*\)_.*/\1/')
     bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
-    row="| kodim23 $size | $bpp |"
+    label="kodim23 $size"
+    [ "${n%%_*}" = kodim23 ] || label="kodim23 $size colour"
+    row="| $label | $bpp |"
     for t in $v7 $v6; do
         for k in -1 -2 -3; do
             row="$row $(share "${scaled[$t/$n/$k]:-}" "${instr[$t/$n]:-}") |"
@@ -200,6 +210,8 @@ print("| image | bpp | TJpgDec M3 (f0t0 / fastest) | PIFS M3 | TJpgDec M0 (f0t0 
 print("|---|---:|---:|---:|---:|---:|")
 data = {}
 for r in csv.DictReader(open(ours)):
+    if r["image"].startswith("kodim23c"):
+        continue  # TJpgDec's figures are for the grayscale images
     data[(r["target"], r["image"].split("_")[1], float(r["bpp"]))] = r["instr_per_pixel"]
 for size in ["128x128", "320x240", "768x512"]:
     for bpp in [0.1, 0.5]:

@@ -552,7 +552,7 @@ const fn block_models() -> [([u8; MODEL_COUNT], u8); MAX_LEAF_LOG2 as usize + 1]
 
 /// Codes a leaf: model type, quantisers, control values, weights (syntax only:
 /// [`reconstruct_into`] makes the patch). `prediction` supplies the values of earlier leaves.
-pub fn code_leaf<C: Coder, P: SamplePrediction + ?Sized>(
+pub fn code_leaf<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut Contexts,
     node: &Node,
@@ -783,7 +783,7 @@ impl ChromaContexts {
 /// and the control values, exactly as a luma leaf codes them, predicted from the chroma
 /// frontier (`prediction`). A chroma model of `g` intervals codes `(g + 1)^2` values, or `g^2`
 /// when `g` is the leaf's side (a pixel grid).
-pub fn code_chroma<C: Coder, P: SamplePrediction + ?Sized>(
+pub fn code_chroma<C: Coder, P: SamplePrediction>(
     c: &mut C,
     ctx: &mut ChromaContexts,
     node: &Node,
@@ -896,12 +896,12 @@ fn fill_control(
 /// every other index of the first row and column is coded as its difference from
 /// [`edge_offset`] where the pixels beside it are known ([`edge_pixels`]); the rest as they
 /// are. Contexts are by position (DPCM: first row and column or interior) or transform level.
-fn code_control<C: Coder, P: SamplePrediction + ?Sized>(
+fn code_control<C: Coder>(
     c: &mut C,
     contexts: &mut [IntContexts; CONTROL_CLASSES],
     grid: &ControlGrid,
     node: &Node,
-    prediction: &P,
+    prediction: &dyn SamplePrediction,
     control: &mut [i16; MAX_CONTROL],
 ) -> Result<(), DecodeError> {
     let ControlGrid {

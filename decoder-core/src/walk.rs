@@ -311,18 +311,26 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 ) -> Result<(), V::Error> {
     let mut patch = Patch::EMPTY;
     let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
-    let Some(chroma) = chroma else {
-        return visitor.leaf(&info, &patch, &mut state.frontier);
-    };
+    match chroma {
+        None => visitor.leaf(&info, &patch, &mut state.frontier),
+        Some(chroma) => colour_leaf(coder, visitor, chroma, &info, &patch, &mut state.frontier),
+    }
+}
+
+/// The chroma of a colour stream's leaf, coded, reconstructed and drawn with its luma. Out of
+/// line, so that a grayscale decode's leaf frame holds no chroma.
+#[inline(never)]
+fn colour_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
+    coder: &mut C,
+    visitor: &mut V,
+    chroma: &mut ChromaState<STRIPE>,
+    info: &LeafInfo,
+    patch: &Patch,
+    frontier: &mut Frontier<STRIPE>,
+) -> Result<(), V::Error> {
     let mut colour = ChromaPatch::EMPTY;
-    code_chroma_patch(coder, visitor, chroma, &node, &mut colour)?;
-    visitor.leaf_colour(
-        &info,
-        &patch,
-        &colour,
-        &mut state.frontier,
-        &chroma.frontier,
-    )?;
+    code_chroma_patch(coder, visitor, chroma, &info.node, &mut colour)?;
+    visitor.leaf_colour(info, patch, &colour, frontier, &chroma.frontier)?;
     chroma.frontier.record(&colour);
     Ok(())
 }

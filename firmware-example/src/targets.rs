@@ -1,53 +1,84 @@
-//! The draw targets of the golden-vector run, and the run itself.
+//! The draw targets of the golden-vector run, and the run itself. Grayscale vectors are drawn
+//! in `Gray8` (hashes of the luma bytes), colour vectors in `Rgb565` (hashes of each pixel's
+//! 16-bit RGB565 value, little-endian): a colour stream drawn straight to an RGB565 display.
 
 use core::convert::Infallible;
 
 use cortex_m_semihosting::heprintln;
-use decoder_core::graphics::{draw_stream, PifsImage};
+use decoder_core::graphics::{draw_stream, FromGray, PifsImage};
 use decoder_core::ByteSource;
 use decoder_core::DrawError;
 use decoder_core::Scale;
 use embedded_graphics::image::{Image, ImageDrawableExt};
-use embedded_graphics::pixelcolor::{Gray8, GrayColor};
+use embedded_graphics::pixelcolor::raw::RawU16;
+use embedded_graphics::pixelcolor::{Gray8, GrayColor, Rgb565};
 use embedded_graphics::prelude::*;
 use embedded_graphics::primitives::Rectangle;
 use sha2::{Digest, Sha256};
 
 use crate::{measure, Hex, Vector, FRAME_BUFFER_LEN, FRAME_BUFFER_VECTOR, MAX_WIDTH};
 
-/// A display that only sums what it receives: the cheapest target, for measuring the decoder.
-struct SumDisplay {
-    size: Size,
-    sum: u32,
+/// A colour the run draws in, and the bytes its hashes take of each pixel.
+pub trait Hashed: FromGray + Copy {
+    /// Bytes per pixel in the hashes.
+    const BYTES: usize;
+    /// The pixel's bytes, into `out[..BYTES]`.
+    fn put(self, out: &mut [u8]);
+    /// A number to sum (the measuring display).
+    fn value(self) -> u32;
 }
 
-impl OriginDimensions for SumDisplay {
+impl Hashed for Gray8 {
+    const BYTES: usize = 1;
+    fn put(self, out: &mut [u8]) {
+        out[0] = self.luma();
+    }
+    fn value(self) -> u32 {
+        u32::from(self.luma())
+    }
+}
+
+impl Hashed for Rgb565 {
+    const BYTES: usize = 2;
+    fn put(self, out: &mut [u8]) {
+        out[..2].copy_from_slice(&RawU16::from(self).into_inner().to_le_bytes());
+    }
+    fn value(self) -> u32 {
+        u32::from(RawU16::from(self).into_inner())
+    }
+}
+
+/// A display that only sums what it receives: the cheapest target, for measuring the decoder.
+struct SumDisplay<C> {
+    size: Size,
+    sum: u32,
+    colour: core::marker::PhantomData<C>,
+}
+
+impl<C> OriginDimensions for SumDisplay<C> {
     fn size(&self) -> Size {
         self.size
     }
 }
 
-impl DrawTarget for SumDisplay {
-    type Color = Gray8;
+impl<C: Hashed> DrawTarget for SumDisplay<C> {
+    type Color = C;
     type Error = Infallible;
 
-    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
-        &mut self,
-        pixels: I,
-    ) -> Result<(), Infallible> {
+    fn draw_iter<I: IntoIterator<Item = Pixel<C>>>(&mut self, pixels: I) -> Result<(), Infallible> {
         for Pixel(_, c) in pixels {
-            self.sum = self.sum.wrapping_add(u32::from(c.luma()));
+            self.sum = self.sum.wrapping_add(c.value());
         }
         Ok(())
     }
 
-    fn fill_contiguous<I: IntoIterator<Item = Gray8>>(
+    fn fill_contiguous<I: IntoIterator<Item = C>>(
         &mut self,
         _area: &Rectangle,
         colors: I,
     ) -> Result<(), Infallible> {
         for c in colors {
-            self.sum = self.sum.wrapping_add(u32::from(c.luma()));
+            self.sum = self.sum.wrapping_add(c.value());
         }
         Ok(())
     }
@@ -55,54 +86,53 @@ impl DrawTarget for SumDisplay {
 
 /// Hashes tiles as they arrive: per tile `x, y, w, h` (u32 LE) then the luma bytes. Records
 /// any pixel that arrives through `draw_iter` (the decoder must use `fill_contiguous` only).
-struct TileHasher {
+struct TileHasher<C> {
     size: Size,
     sha: Sha256,
     tiles: u32,
     per_pixel: u32,
+    colour: core::marker::PhantomData<C>,
 }
 
-impl TileHasher {
+impl<C> TileHasher<C> {
     fn new(size: Size) -> Self {
         TileHasher {
             size,
             sha: Sha256::new(),
             tiles: 0,
             per_pixel: 0,
+            colour: core::marker::PhantomData,
         }
     }
 }
 
-impl OriginDimensions for TileHasher {
+impl<C> OriginDimensions for TileHasher<C> {
     fn size(&self) -> Size {
         self.size
     }
 }
 
-impl DrawTarget for TileHasher {
-    type Color = Gray8;
+impl<C: Hashed> DrawTarget for TileHasher<C> {
+    type Color = C;
     type Error = Infallible;
 
-    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
-        &mut self,
-        pixels: I,
-    ) -> Result<(), Infallible> {
+    fn draw_iter<I: IntoIterator<Item = Pixel<C>>>(&mut self, pixels: I) -> Result<(), Infallible> {
         self.per_pixel += pixels.into_iter().count() as u32;
         Ok(())
     }
 
-    fn fill_contiguous<I: IntoIterator<Item = Gray8>>(
+    fn fill_contiguous<I: IntoIterator<Item = C>>(
         &mut self,
         area: &Rectangle,
         colors: I,
     ) -> Result<(), Infallible> {
-        let mut buf = [0u8; 256];
+        let mut buf = [0u8; 512];
         let mut n = 0;
         for c in colors {
-            if n < buf.len() {
-                buf[n] = c.luma();
+            if n + C::BYTES <= buf.len() {
+                c.put(&mut buf[n..]);
             }
-            n += 1;
+            n += C::BYTES;
         }
         for v in [
             area.top_left.x as u32,
@@ -118,29 +148,39 @@ impl DrawTarget for TileHasher {
     }
 }
 
-/// A one-row display: the row buffer of the row-by-row (row-major) hash.
-struct RowDisplay {
+/// A one-row display: the row buffer of the row-by-row (row-major) hash (`N` bytes: the row's
+/// pixels at [`Hashed::BYTES`] each).
+struct RowDisplay<C, const N: usize> {
     width: u32,
-    row: [u8; MAX_WIDTH],
+    row: [u8; N],
+    colour: core::marker::PhantomData<C>,
 }
 
-impl OriginDimensions for RowDisplay {
+impl<C, const N: usize> RowDisplay<C, N> {
+    fn new(width: u32) -> Self {
+        RowDisplay {
+            width,
+            row: [0; N],
+            colour: core::marker::PhantomData,
+        }
+    }
+}
+
+impl<C, const N: usize> OriginDimensions for RowDisplay<C, N> {
     fn size(&self) -> Size {
         Size::new(self.width, 1)
     }
 }
 
-impl DrawTarget for RowDisplay {
-    type Color = Gray8;
+impl<C: Hashed, const N: usize> DrawTarget for RowDisplay<C, N> {
+    type Color = C;
     type Error = Infallible;
 
-    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
-        &mut self,
-        pixels: I,
-    ) -> Result<(), Infallible> {
+    fn draw_iter<I: IntoIterator<Item = Pixel<C>>>(&mut self, pixels: I) -> Result<(), Infallible> {
         for Pixel(p, c) in pixels {
-            if p.y == 0 && p.x >= 0 && (p.x as u32) < self.width {
-                self.row[p.x as usize] = c.luma();
+            let at = p.x as usize * C::BYTES;
+            if p.y == 0 && p.x >= 0 && (p.x as u32) < self.width && at + C::BYTES <= N {
+                c.put(&mut self.row[at..]);
             }
         }
         Ok(())
@@ -198,7 +238,17 @@ impl ByteSource for Uart {
 /// Every pass is its own function (not inlined), so that only one decoder state and one
 /// display are on the stack at a time: the micro:bit has 16 KiB of RAM.
 pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
-    let img: PifsImage<'static, Gray8> = match PifsImage::new(v.data) {
+    let colour = decoder_core::Header::read(v.data).is_ok_and(|h| h.channels == 3);
+    if colour {
+        check_vector_as::<Rgb565>(v, counter)
+    } else {
+        check_vector_as::<Gray8>(v, counter)
+    }
+}
+
+/// [`check_vector`] in colour `C`.
+fn check_vector_as<C: Hashed>(v: &Vector, counter: &measure::Counter) -> bool {
+    let img: PifsImage<'static, C> = match PifsImage::new(v.data) {
         Ok(img) => img,
         Err(e) => {
             heprintln!("PIFS-ERROR name={} header: {}", v.name, e);
@@ -231,7 +281,7 @@ pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
         );
         return false;
     }
-    match stream_tile_hash(v.data, size) {
+    match stream_tile_hash::<C>(v.data, size) {
         Ok(h) if h == tile_hash => {}
         Ok(_) => {
             heprintln!("PIFS-ERROR name={} streamed tiles differ", v.name);
@@ -265,7 +315,9 @@ pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
         instr
     );
     if v.name == FRAME_BUFFER_VECTOR {
-        frame_buffer(v, &img);
+        if let Ok(gray) = PifsImage::<Gray8>::new(v.data) {
+            frame_buffer(v, &gray);
+        }
     }
     for scale in [Scale::Quarter, Scale::Half, Scale::Double] {
         scaled_hash(v, &img.with_scale(scale), scale);
@@ -276,17 +328,14 @@ pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
 /// The row-major hash of the image drawn at `scale` (`PIFS-SCALED name=<file> scale=<log2>
 /// w=<width> h=<height> sha256=<hex>`): scaled decoding through embedded-graphics.
 #[inline(never)]
-fn scaled_hash(v: &Vector, img: &PifsImage<'static, Gray8>, scale: Scale) {
+fn scaled_hash<C: Hashed>(v: &Vector, img: &PifsImage<'static, C>, scale: Scale) {
     let size = img.size();
-    let mut row = WideRow {
-        width: size.width.min(2 * MAX_WIDTH as u32),
-        row: [0; 2 * MAX_WIDTH],
-    };
+    let mut row = RowDisplay::<C, { 4 * MAX_WIDTH }>::new(size.width.min(4 * MAX_WIDTH as u32 / 2));
     let mut sha = Sha256::new();
     for y in 0..size.height {
         let area = Rectangle::new(Point::new(0, y as i32), Size::new(size.width, 1));
         let Ok(()) = Image::new(&img.sub_image(&area), Point::zero()).draw(&mut row);
-        sha.update(&row.row[..row.width as usize]);
+        sha.update(&row.row[..row.width as usize * C::BYTES]);
     }
     heprintln!(
         "PIFS-SCALED name={} scale={} w={} h={} sha256={}",
@@ -298,44 +347,16 @@ fn scaled_hash(v: &Vector, img: &PifsImage<'static, Gray8>, scale: Scale) {
     );
 }
 
-/// A one-row display as wide as twice the widest image (a row of a decode at twice the size).
-struct WideRow {
-    width: u32,
-    row: [u8; 2 * MAX_WIDTH],
-}
-
-impl OriginDimensions for WideRow {
-    fn size(&self) -> Size {
-        Size::new(self.width, 1)
-    }
-}
-
-impl DrawTarget for WideRow {
-    type Color = Gray8;
-    type Error = Infallible;
-
-    fn draw_iter<I: IntoIterator<Item = Pixel<Gray8>>>(
-        &mut self,
-        pixels: I,
-    ) -> Result<(), Infallible> {
-        for Pixel(p, c) in pixels {
-            if p.y == 0 && p.x >= 0 && (p.x as u32) < self.width {
-                self.row[p.x as usize] = c.luma();
-            }
-        }
-        Ok(())
-    }
-}
-
 /// One full decode onto [`SumDisplay`], with peak stack and instructions.
 #[inline(never)]
-fn measured_decode(
-    img: &PifsImage<'static, Gray8>,
+fn measured_decode<C: Hashed>(
+    img: &PifsImage<'static, C>,
     counter: &measure::Counter,
 ) -> Result<(usize, u64), decoder_core::DecodeError> {
     let mut display = SumDisplay {
         size: img.size(),
         sum: 0,
+        colour: core::marker::PhantomData,
     };
     measure::paint();
     let base = measure::sp();
@@ -353,9 +374,9 @@ fn measured_decode(
 /// The measured call: not inlined, so that all of the decoder's stack is below the caller's
 /// stack pointer.
 #[inline(never)]
-fn draw_once(
-    img: &PifsImage<'static, Gray8>,
-    display: &mut SumDisplay,
+fn draw_once<C: Hashed>(
+    img: &PifsImage<'static, C>,
+    display: &mut SumDisplay<C>,
 ) -> Result<(), DrawError<Infallible>> {
     img.draw_checked(display)
 }
@@ -363,19 +384,19 @@ fn draw_once(
 /// Tiles hashed as they arrive, through the embedded-graphics `Image` API: the hash, the
 /// number of tiles, the number of pixels that arrived one by one.
 #[inline(never)]
-fn tile_hash(img: &PifsImage<'static, Gray8>) -> ([u8; 32], u32, u32) {
-    let mut tiles = TileHasher::new(img.size());
+fn tile_hash<C: Hashed>(img: &PifsImage<'static, C>) -> ([u8; 32], u32, u32) {
+    let mut tiles = TileHasher::<C>::new(img.size());
     let Ok(()) = Image::new(img, Point::zero()).draw(&mut tiles);
     (tiles.sha.finalize().into(), tiles.tiles, tiles.per_pixel)
 }
 
 /// The tile hash of a decode from a byte-at-a-time stream.
 #[inline(never)]
-fn stream_tile_hash(
+fn stream_tile_hash<C: Hashed>(
     data: &'static [u8],
     size: Size,
 ) -> Result<[u8; 32], decoder_core::DecodeError> {
-    let mut streamed = TileHasher::new(size);
+    let mut streamed = TileHasher::<C>::new(size);
     match draw_stream(Uart { data, pos: 0 }, &mut streamed) {
         Ok(_) => Ok(streamed.sha.finalize().into()),
         Err(DrawError::Decode(e)) => Err(e),
@@ -385,17 +406,14 @@ fn stream_tile_hash(
 
 /// Row-major hash without a frame buffer: one sub-image (`draw_sub_image`) per row.
 #[inline(never)]
-fn row_hash(img: &PifsImage<'static, Gray8>) -> [u8; 32] {
+fn row_hash<C: Hashed>(img: &PifsImage<'static, C>) -> [u8; 32] {
     let size = img.size();
-    let mut row = RowDisplay {
-        width: size.width,
-        row: [0; MAX_WIDTH],
-    };
+    let mut row = RowDisplay::<C, { 2 * MAX_WIDTH }>::new(size.width);
     let mut sha = Sha256::new();
     for y in 0..size.height {
         let area = Rectangle::new(Point::new(0, y as i32), Size::new(size.width, 1));
         let Ok(()) = Image::new(&img.sub_image(&area), Point::zero()).draw(&mut row);
-        sha.update(&row.row[..size.width as usize]);
+        sha.update(&row.row[..size.width as usize * C::BYTES]);
     }
     sha.finalize().into()
 }

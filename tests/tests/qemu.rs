@@ -12,6 +12,10 @@
 //! - `PIFS-SCALED`: the row-major hash of every vector decoded at 1/4, 1/2 and 2 times its size
 //!   (`PifsImage::with_scale`).
 //!
+//! Colour vectors are drawn by the firmware on an `Rgb565` display: their hashes are of each
+//! pixel's RGB565 value (u16 little-endian) instead of the luma byte, which the host computes
+//! from its RGB decode by embedded-graphics' conversion.
+//!
 //! QEMU is required: without `qemu-system-arm` these tests fail (CI installs it with
 //! `apt-get install -y --no-install-recommends qemu-system-arm`).
 
@@ -150,6 +154,23 @@ fn fields(line: &str) -> BTreeMap<&str, &str> {
         .collect()
 }
 
+/// The bytes the firmware hashes of decoded pixels: luma bytes as they are; RGB (three bytes
+/// a pixel) as the RGB565 value embedded-graphics converts it to, u16 little-endian.
+fn display_bytes(pixels: &[u8], channels: u8) -> Vec<u8> {
+    use embedded_graphics::pixelcolor::raw::{RawData, RawU16};
+    use embedded_graphics::pixelcolor::{Rgb565, Rgb888};
+    if channels != 3 {
+        return pixels.to_vec();
+    }
+    pixels
+        .chunks_exact(3)
+        .flat_map(|p| {
+            let c = Rgb565::from(Rgb888::new(p[0], p[1], p[2]));
+            RawU16::from(c).into_inner().to_le_bytes()
+        })
+        .collect()
+}
+
 /// SHA-256 of the tiles in arrival order, as the firmware's `tiles=` field.
 struct TileHash(Sha256);
 
@@ -161,7 +182,7 @@ impl decoder_core::PixelSink for TileHash {
         for v in [x, y, w, h] {
             self.0.update(v.to_le_bytes());
         }
-        self.0.update(tile.pixels);
+        self.0.update(display_bytes(tile.pixels, tile.channels));
         Ok(())
     }
 }
@@ -175,12 +196,13 @@ fn host_hashes() -> BTreeMap<String, (u16, u16, String, String)> {
             let stream = std::fs::read(golden_dir().join(&g.file)).unwrap();
             let (header, pixels) =
                 decode_all(&stream).unwrap_or_else(|e| panic!("{}: host decode: {e}", g.file));
-            let sha = sha256_hex(&pixels);
             assert_eq!(
-                sha, g.sha256,
+                sha256_hex(&pixels),
+                g.sha256,
                 "{}: the host decoder disagrees with golden.txt",
                 g.file
             );
+            let sha = sha256_hex(&display_bytes(&pixels, header.channels));
             assert_eq!(
                 (header.width, header.height),
                 (g.width, g.height),
@@ -213,11 +235,12 @@ fn host_scaled_hashes() -> BTreeMap<String, (u32, u32, String)> {
         ] {
             let decoder = decoder_core::Decoder::new(&stream).unwrap().scale(scale);
             let (w, h) = decoder.output_size();
-            let mut pixels = vec![0u8; (w * h) as usize];
+            let channels = decoder.header().channels;
+            let mut pixels = vec![0u8; (w * h) as usize * usize::from(channels)];
             decoder.decode_into(&mut pixels).unwrap();
             out.insert(
                 format!("{} {}", g.file, scale.log2()),
-                (w, h, sha256_hex(&pixels)),
+                (w, h, sha256_hex(&display_bytes(&pixels, channels))),
             );
         }
     }
@@ -291,6 +314,14 @@ fn check_board(board: &Board) {
     }
     let missing: Vec<&String> = expected.keys().filter(|k| !seen.contains_key(*k)).collect();
     assert!(missing.is_empty(), "{context}: no result for {missing:?}");
+    let colour = expected
+        .keys()
+        .filter(|k| {
+            let stream = std::fs::read(golden_dir().join(k)).unwrap();
+            decoder_core::Header::read(&stream).unwrap().channels == 3
+        })
+        .count();
+    assert!(colour > 0, "{context}: no colour vector drawn in RGB565");
 
     let scaled = host_scaled_hashes();
     let mut seen_scaled = 0;
