@@ -162,7 +162,7 @@ pub fn walk<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 /// Like [`walk`], with a caller-provided state whose contexts the caller has set (no copy of
 /// it is returned). Fails before coding anything if the header's stripes are wider than the
 /// state's frontier holds ([`DecodeError::StripeTooWide`]). A colour stream's chroma state is
-/// made here, in a frame of its own ([`walk_colour`]).
+/// made here, in a frame of its own (`walk_colour`).
 pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
     coder: &mut C,
