@@ -327,7 +327,7 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
         let Rect { x, y, w, h } = tile.area;
         let n = (w * h) as usize;
         let mut rgb = [0u8; 3 * TILE * TILE];
-        if n > TILE * TILE || tile.pixels.len() < n || tile.channels != 1 {
+        if n > TILE * TILE || w as usize > TILE || tile.pixels.len() < n || tile.channels != 1 {
             return Ok(());
         }
         let k = self.scale.log2();
@@ -338,20 +338,29 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
                 v << (-k)
             }
         };
+        // The chroma of a tile row, kept for the next row when it has the same chroma row
+        // (two luma rows share one at the coded size).
+        let mut row = [(128u8, 128u8); TILE];
+        let mut row_of = None;
         let mut at = 0;
         for j in 0..h {
             let cy = coded(y + j);
-            let mut last: Option<(u32, (u8, u8))> = None;
-            for i in 0..w {
-                let cx = coded(x + i);
-                let c = match last {
-                    Some((lx, c)) if lx == cx / 2 => c,
-                    _ => {
-                        let c = self.chroma(cx, cy);
-                        last = Some((cx / 2, c));
-                        c
-                    }
-                };
+            if row_of != Some(cy / 2) {
+                row_of = Some(cy / 2);
+                let mut last: Option<(u32, (u8, u8))> = None;
+                for (i, slot) in row.iter_mut().enumerate().take(w as usize) {
+                    let cx = coded(x + i as u32);
+                    *slot = match last {
+                        Some((lx, c)) if lx == cx / 2 => c,
+                        _ => {
+                            let c = self.chroma(cx, cy);
+                            last = Some((cx / 2, c));
+                            c
+                        }
+                    };
+                }
+            }
+            for c in row.iter().take(w as usize) {
                 let px = ycbcr_to_rgb(tile.pixels[at], c.0, c.1);
                 rgb[3 * at..3 * at + 3].copy_from_slice(&px);
                 at += 1;

@@ -5,7 +5,7 @@
 //! whose trial encode it writes.
 
 use super::candidates::CandidateTree;
-use super::chroma::{choose, ColourPlanes};
+use super::chroma::{choose, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
@@ -17,6 +17,7 @@ use decoder_core::internal::syntax::{
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
 use decoder_core::{DecodeError, Node};
+use std::cell::RefCell;
 
 /// The widest stripe the writer holds prediction memory for: any the format allows.
 const MAX_STRIPE: usize = 1 << 16;
@@ -45,6 +46,27 @@ struct PlanVisitor<'a> {
     /// The chroma of a colour stream.
     colour: Option<&'a ColourPlanes>,
     chroma_bits: f64,
+    /// Chroma choices in coding order: replayed from an earlier write of the same plan, or
+    /// recorded for a later one ([`ChromaMemo`]).
+    tape: Vec<ChromaChoice>,
+    /// How many of `tape` were replayed so far; `None` when recording.
+    replay: Option<usize>,
+}
+
+/// The chroma choices of the last colour stream written on this thread, with what they depend
+/// on: the plan's cut, candidates and multiplier, the image (by address and size) and the
+/// header but for its edge smoothing (which changes luma only). Writes of the same plan with
+/// other smoothing strengths replay them instead of choosing every leaf's chroma again.
+struct ChromaMemo {
+    decisions: Vec<Vec<Decision>>,
+    lambda: u64,
+    image: (usize, usize),
+    header: Header,
+    choices: Vec<ChromaChoice>,
+}
+
+thread_local! {
+    static CHROMA_MEMO: RefCell<Option<ChromaMemo>> = const { RefCell::new(None) };
 }
 
 impl TreeVisitor for PlanVisitor<'_> {
@@ -76,6 +98,16 @@ impl TreeVisitor for PlanVisitor<'_> {
         leaf: &mut ChromaSyntax,
     ) {
         if let Some(colour) = self.colour {
+            if let Some(pos) = self.replay {
+                if let Some(choice) = self.tape.get(pos).copied() {
+                    self.replay = Some(pos + 1);
+                    *leaf = choice.syntax;
+                    self.chroma_bits += choice.bits;
+                    return;
+                }
+                // The tape ran out (it should not): choose from here on, recording nothing.
+                self.replay = Some(usize::MAX);
+            }
             let choice = choose(
                 &colour.chroma[plane & 1],
                 plane,
@@ -86,6 +118,9 @@ impl TreeVisitor for PlanVisitor<'_> {
             );
             *leaf = choice.syntax;
             self.chroma_bits += choice.bits;
+            if self.replay.is_none() {
+                self.tape.push(choice);
+            }
         }
     }
 
@@ -109,16 +144,47 @@ pub fn write(
     plan: &Plan,
     colour: Option<&ColourPlanes>,
 ) -> Result<Written, EncodeError> {
+    let colour = colour.filter(|_| header.channels == 3);
+    let key_header = Header {
+        deblock: 0,
+        payload_len: 0,
+        checksum: 0,
+        ..*header
+    };
+    let image = colour.map_or((0, 0), |c| (c.rgb.as_ptr() as usize, c.rgb.len()));
+    let tape = CHROMA_MEMO.with(|m| {
+        m.borrow_mut().take().and_then(|memo| {
+            (colour.is_some()
+                && memo.lambda == plan.lambda.to_bits()
+                && memo.image == image
+                && memo.header == key_header
+                && memo.decisions == plan.decisions)
+                .then_some(memo.choices)
+        })
+    });
+    let replay = tape.as_ref().map(|_| 0);
     let mut visitor = PlanVisitor {
         tree,
         plan,
         leaves: 0,
-        colour: colour.filter(|_| header.channels == 3),
+        colour,
         chroma_bits: 0.0,
+        tape: tape.unwrap_or_default(),
+        replay,
     };
     let mut coder = RangeEncoder::new();
     let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
     walk_with(header, &mut coder, &mut visitor, &mut state).map_err(EncodeError::Syntax)?;
+    if colour.is_some() {
+        let memo = ChromaMemo {
+            decisions: plan.decisions.clone(),
+            lambda: plan.lambda.to_bits(),
+            image,
+            header: key_header,
+            choices: std::mem::take(&mut visitor.tape),
+        };
+        CHROMA_MEMO.with(|m| *m.borrow_mut() = Some(memo));
+    }
     let payload = coder.finish();
     let header = Header {
         payload_len: u32::try_from(payload.len())
