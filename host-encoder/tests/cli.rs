@@ -122,7 +122,8 @@ fn decoded(path: &Path) -> (u32, u32, Vec<u8>) {
     let bytes = std::fs::read(path).unwrap();
     let decoder = decoder_core::Decoder::new(&bytes).unwrap();
     let (w, h) = (decoder.header().width, decoder.header().height);
-    let mut px = vec![0u8; decoder.header().pixel_count()];
+    let channels = usize::from(decoder.header().channels);
+    let mut px = vec![0u8; decoder.header().pixel_count() * channels];
     decoder.decode_into(&mut px).unwrap();
     (u32::from(w), u32::from(h), px)
 }
@@ -523,10 +524,10 @@ fn the_demo_runs_from_any_directory_and_writes_only_there() {
         let stream = cwd.join(format!("pifs-demo/kodim23-{bpp}bpp.pifs"));
         let size = std::fs::metadata(&stream).unwrap().len() as f64;
         assert!(size * 8.0 <= bpp.parse::<f64>().unwrap() * 768.0 * 512.0);
+        // The sample is colour: the stream and its PNG are RGB.
         let (w, h, px) = decoded(&stream);
-        let img = image::open(stream.with_extension("png"))
-            .unwrap()
-            .to_luma8();
+        assert_eq!(px.len(), 3 * w as usize * h as usize, "a colour stream");
+        let img = image::open(stream.with_extension("png")).unwrap().to_rgb8();
         assert_eq!((img.width(), img.height()), (w, h));
         assert_eq!(img.as_raw(), &px);
     }

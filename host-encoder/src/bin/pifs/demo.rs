@@ -27,12 +27,14 @@ pub fn run() -> Result<()> {
         source,
     })?;
     say!(
-        "pifs demo: encoding the bundled sample {SAMPLE_NAME} (Kodak kodim23, as grayscale) at {RATES:?} bpp into {}",
+        "pifs demo: encoding the bundled sample {SAMPLE_NAME} (Kodak kodim23, in colour) at {RATES:?} bpp into {}",
         shown(&out)
     );
-    let plane = io::decode_luma(SAMPLE, Path::new(SAMPLE_NAME))?;
+    let image =
+        io::DecodedImage::decode(SAMPLE, Path::new(SAMPLE_NAME), &io::ImageLimits::DEFAULT)?
+            .into_loaded(false);
     let targets: Vec<Target> = RATES.iter().map(|&b| Target::Bpp(b)).collect();
-    let analysed = encode::analyse_plane(plane, &AnalysisArgs::default(), &targets)?;
+    let analysed = encode::analyse_loaded(&image, &AnalysisArgs::default(), &targets)?;
     for &target in &targets {
         let Target::Bpp(bpp) = target else { continue };
         let stream = out.join(format!("kodim23-{bpp}bpp.pifs"));
