@@ -562,6 +562,18 @@ mod tests {
         }
         extern crate std;
         let one = SAMPLE_ONE as i16;
+        // A flat leaf of grey `value` (step 64) drawn through the frontier: what it hands out.
+        let draw = |frontier: &mut Frontier<128>, leaf: Node, value: i16| {
+            let mut out = Collect(std::vec::Vec::new());
+            bilinear([value * one; 4])
+                .render_to(
+                    &leaf,
+                    leaf.rect(),
+                    &mut frontier.capture(&leaf, 64, &mut out),
+                )
+                .unwrap();
+            out
+        };
         // Strength 4 with a step of 64 (4 grey levels): steps up to 4 * 64 / 32 = 8 grey.
         let mut frontier = Frontier::<128>::EMPTY;
         assert!(frontier.start(16, 16, 128, 4));
@@ -569,16 +581,7 @@ mod tests {
         frontier.record(&node(4, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
         // Below the first: 106 (a step of 6, smoothed by 2 each side); below the second: 120
         // (a step of 20, left).
-        let mut out = Collect(std::vec::Vec::new());
-        let patch = bilinear([106 * one; 4]);
-        let leaf = node(0, 4, 2);
-        patch
-            .render_to(
-                &leaf,
-                leaf.rect(),
-                &mut frontier.capture(&leaf, 64, &mut out),
-            )
-            .unwrap();
+        let out = draw(&mut frontier, node(0, 4, 2), 106);
         let above = out
             .0
             .iter()
@@ -591,16 +594,7 @@ mod tests {
         assert_eq!(first_row.1[..3], [104; 3]);
         // The frontier now holds the leaf's own bottom row.
         assert_eq!(frontier.above(1, 8), Some(106 * SAMPLE_ONE));
-        let mut out = Collect(std::vec::Vec::new());
-        let patch = bilinear([120 * one; 4]);
-        let leaf = node(4, 4, 2);
-        patch
-            .render_to(
-                &leaf,
-                leaf.rect(),
-                &mut frontier.capture(&leaf, 64, &mut out),
-            )
-            .unwrap();
+        let out = draw(&mut frontier, node(4, 4, 2), 120);
         let tile = out
             .0
             .iter()

@@ -405,6 +405,17 @@ mod tests {
         assert_eq!(to_luma(&img).data, whole);
     }
 
+    /// An `image` crate limit refusal.
+    fn is_limit(err: &FileError) -> bool {
+        matches!(
+            err,
+            FileError::Decode {
+                source: image::ImageError::Limits(_),
+                ..
+            }
+        )
+    }
+
     #[test]
     fn the_header_is_read_before_the_pixels_and_limits_hold() {
         let img =
@@ -420,16 +431,7 @@ mod tests {
         let err = DecodedImage::decode(&bytes, Path::new("x.png"), &small)
             .err()
             .unwrap();
-        assert!(
-            matches!(
-                &err,
-                FileError::Decode {
-                    source: image::ImageError::Limits(_),
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert!(is_limit(&err), "{err}");
         let tight = ImageLimits {
             max_alloc: 1000,
             ..ImageLimits::DEFAULT
@@ -437,16 +439,7 @@ mod tests {
         let err = DecodedImage::decode(&bytes, Path::new("x.png"), &tight)
             .err()
             .unwrap();
-        assert!(
-            matches!(
-                &err,
-                FileError::Decode {
-                    source: image::ImageError::Limits(_),
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert!(is_limit(&err), "{err}");
         let ok = DecodedImage::decode(&bytes, Path::new("x.png"), &ImageLimits::DEFAULT).unwrap();
         assert_eq!((ok.plane.width, ok.plane.height), (300, 200));
     }
