@@ -20,7 +20,7 @@ use super::quantise::{
     lloyd_max, quantise, weight_classes, ControlTargets, Quantised, ROUNDING_LAMBDA,
     ROUNDING_VARIANTS,
 };
-use super::rate::{Anchor, RateTable};
+use super::rate::{prune_node, Anchor, RateTable};
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
@@ -144,10 +144,10 @@ impl Analysis {
             colour: None,
         };
         let started = Instant::now();
-        analysis.measure_candidates();
+        let first = analysis.measure_candidates();
         let candidates = started.elapsed();
         let started = Instant::now();
-        analysis.prune_candidates(config.trial_bpp);
+        analysis.prune_candidates(config.trial_bpp, first);
         analysis.timing = AnalysisTiming {
             fits,
             candidates,
@@ -159,14 +159,9 @@ impl Analysis {
     /// Keeps, at every node, only the candidates that are its best leaf for some multiplier of
     /// interest, under rates measured from a trial encode's adapted contexts. Every later
     /// encode then weighs a handful of candidates per node instead of all of them.
-    fn prune_candidates(&mut self, trial_bpp: f64) {
+    /// `first` rates the candidates from the contexts every stream starts from.
+    fn prune_candidates(&mut self, trial_bpp: f64, first: RateTable) {
         let pixels = self.header.pixel_count() as f64;
-        let first = RateTable::new(&self.tree, &self.prediction(), &Contexts::default());
-        // The trained contexts change the rates only a little: what is far from the hull under
-        // the first rates does not reach it under the trained ones, and need not be rated again.
-        let near = first.lambda_optimal(1e-2..=1e6, HULL_LAYERS);
-        let first = first.select(&near);
-        self.tree.retain(&near);
         // A rough plan only gathers coding statistics.
         let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
         self.trial = plan.anchor();
@@ -239,17 +234,37 @@ impl Analysis {
         }
     }
 
-    /// Quantises every fit with every quantiser and measures each candidate's distortion.
-    fn measure_candidates(&mut self) {
+    /// Quantises every fit with every quantiser and measures each candidate's distortion;
+    /// keeps at each node, as soon as it is done, only the candidates near its hull under the
+    /// rates every stream starts from (the trained contexts change the rates only a little, so
+    /// what is far from the hull under the first rates does not reach it under the trained
+    /// ones): the rest is never stored. Returns the kept candidates' rates.
+    fn measure_candidates(&mut self) -> RateTable {
         let plane = &self.plane;
         let header = &self.header;
-        for level in self.tree.levels_mut() {
-            level.nodes.par_iter_mut().flatten().for_each(|na| {
-                let (candidates, indices) = node_candidates(plane, header, na);
-                na.candidates = candidates;
-                na.indices = indices;
-            });
-        }
+        let prediction = ImagePrediction {
+            plane,
+            stripe: header.stripe_width(),
+        };
+        let start = Contexts::default();
+        let lambdas = 1e-2..=1e6;
+        let bits = self
+            .tree
+            .levels_mut()
+            .iter_mut()
+            .map(|level| {
+                level
+                    .nodes
+                    .par_iter_mut()
+                    .map(|na| {
+                        let Some(na) = na else { return Vec::new() };
+                        (na.candidates, na.indices) = node_candidates(plane, header, na);
+                        prune_node(na, &prediction, &start, &lambdas, HULL_LAYERS)
+                    })
+                    .collect()
+            })
+            .collect();
+        RateTable::of_bits(&self.tree, bits, &start)
     }
 }
 
@@ -300,8 +315,10 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
 }
 
 /// Every level of the quadtree of `header`, from the smallest leaf to the root, with the fits
-/// of every node of a leaf size (the candidates come later). `progress` is called with the
-/// number of nodes fitted so far.
+/// of every node of a leaf size (the candidates come later). The levels are fitted from the
+/// root down, and a node inside a settled one ([`settles`]) is not analysed: its parent is a
+/// leaf as good as any cut below it, so easy content (flat or smooth areas) costs only its
+/// largest nodes. `progress` is called with the number of nodes fitted (or skipped) so far.
 fn fit_levels(
     plane: &Plane,
     header: &Header,
@@ -312,35 +329,87 @@ fn fit_levels(
     prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
     let done = AtomicU64::new(0);
     let mut levels = Vec::new();
-    for log2 in header.min_leaf_log2..=root {
+    // Whether each node of the level above (the last one fitted) is settled.
+    let mut settled_above: Vec<bool> = Vec::new();
+    for log2 in (header.min_leaf_log2..=root).rev() {
         let cols = (plane.width + (1 << log2) - 1) >> log2;
         let rows = (plane.height + (1 << log2) - 1) >> log2;
+        let cols_above = (plane.width + (2 << log2) - 1) >> (log2 + 1);
         let analyse = log2 <= header.max_leaf_log2;
-        let nodes: Vec<Option<NodeAnalysis>> = (0..cols * rows)
+        let (nodes, settled): (Vec<Option<NodeAnalysis>>, Vec<bool>) = (0..cols * rows)
             .into_par_iter()
             .map(|i| {
+                let (cx, cy) = (i % cols, i / cols);
                 let node = Node {
-                    x: (i % cols) << log2,
-                    y: (i / cols) << log2,
+                    x: cx << log2,
+                    y: cy << log2,
                     log2,
                 };
                 if !analyse {
-                    return None;
+                    return (None, false);
+                }
+                let parent = ((cy / 2) * cols_above + cx / 2) as usize;
+                let inside_settled = settled_above.get(parent).copied().unwrap_or(false);
+                let n = done.fetch_add(1, Ordering::Relaxed);
+                if inside_settled {
+                    progress(n + 1);
+                    return (None, true);
                 }
                 let fits = fit_node(plane, &node, config);
-                let n = done.fetch_add(1, Ordering::Relaxed);
                 progress(n + 1);
-                Some(NodeAnalysis {
+                let settled = settles(plane, &node, &fits);
+                let na = NodeAnalysis {
                     node,
                     fits,
                     candidates: Vec::new(),
                     indices: Vec::new(),
-                })
+                };
+                (Some(na), settled)
             })
-            .collect();
+            .unzip();
+        settled_above = settled;
         levels.push(Level { log2, cols, nodes });
     }
+    levels.reverse();
     levels
+}
+
+/// Mean squared error per pixel (grey levels squared) within which a node's best fit
+/// reproduces its block for the node to be settled: nothing below it is analysed (see
+/// docs/decisions.md).
+const SETTLED_MSE: f64 = 0.5;
+
+/// Most coded values of a fit that settles a node: four children need at least this many (a
+/// bilinear patch each), so a cut below cannot be cheaper; a richer fit (a pixel grid is
+/// exact) settles nothing.
+const SETTLING_VALUES: usize = 4 * 4;
+
+/// Whether the block of `node` is reproduced by one of its `fits` of at most
+/// [`SETTLING_VALUES`] values (by an exact fit's residual), or by its mean (for a block at the
+/// image's edge), within [`SETTLED_MSE`] per pixel.
+fn settles(plane: &Plane, node: &Node, fits: &[Fit]) -> bool {
+    let x1 = (node.x + node.size()).min(plane.width);
+    let y1 = (node.y + node.size()).min(plane.height);
+    let pixels = f64::from((x1 - node.x) * (y1 - node.y));
+    let best = fits
+        .iter()
+        .filter(|f| f.model.model().coded_side(node.log2).pow(2) <= SETTLING_VALUES)
+        .filter_map(|f| f.residual)
+        .fold(f64::INFINITY, f64::min);
+    let sse = if best.is_finite() {
+        best
+    } else {
+        let (mut sum, mut sum2) = (0.0, 0.0);
+        for y in node.y..y1 {
+            for x in node.x..x1 {
+                let v = f64::from(plane.get(x, y));
+                sum += v;
+                sum2 += v * v;
+            }
+        }
+        sum2 - sum * sum / pixels
+    };
+    sse <= SETTLED_MSE * pixels
 }
 
 /// The fits of `node`: per model, the default-weight fit, and the joint fit with weights where
@@ -620,6 +689,88 @@ mod tests {
             })
             .count();
         assert!(kept_variants > 0, "no node kept a rounding variant");
+    }
+
+    /// A node that a bilinear patch reproduces ends the analysis below it: the flat half of an
+    /// image costs only its largest nodes, the textured half is analysed down to the smallest
+    /// leaf, and the flat half still decodes exactly.
+    #[test]
+    fn settled_nodes_end_the_analysis_below_them() {
+        let (w, h) = (128u32, 128u32);
+        let textured = textured_plane(w, h);
+        let data = (0..w * h)
+            .map(|i| {
+                if i % w < 64 {
+                    textured.data[i as usize]
+                } else {
+                    90
+                }
+            })
+            .collect();
+        let plane = Plane::new(w, h, data);
+        let analysis =
+            Analysis::run(plane.clone(), &EncoderConfig::default(), &|_| {}).expect("an analysis");
+        let mut seen = 0;
+        for level in analysis.tree.levels() {
+            for (i, na) in level.nodes.iter().enumerate() {
+                let x = (i as u32 % level.cols) << level.log2;
+                if level.log2 >= 6 || x < 64 {
+                    assert!(na.is_some(), "node at x {x}, level {} skipped", level.log2);
+                } else {
+                    assert!(na.is_none(), "node at x {x}, level {} analysed", level.log2);
+                    seen += 1;
+                }
+            }
+        }
+        // Below each of the flat half's two 64-px nodes: 4 + 16 + 64 + 256 nodes of 32 to 4 px.
+        assert_eq!(seen, 2 * 340);
+        let encoded = analysis
+            .encode(super::super::config::Target::Bpp(1.0))
+            .expect("an encode");
+        for y in 0..h {
+            for x in 64..w {
+                assert_eq!(
+                    encoded.reconstruction[(y * w + x) as usize],
+                    90,
+                    "({x}, {y})"
+                );
+            }
+        }
+    }
+
+    /// Keeping some of a node's candidates keeps their syntax and drops the others' indices.
+    #[test]
+    fn retained_candidates_keep_their_syntax_and_only_their_indices() {
+        let plane = textured_plane(64, 64);
+        let header = header_for(&plane, &EncoderConfig::default()).expect("a header");
+        let node = Node {
+            x: 16,
+            y: 16,
+            log2: 4,
+        };
+        let mut na = NodeAnalysis {
+            node,
+            fits: fit_node(&plane, &node, &EncoderConfig::default()),
+            candidates: Vec::new(),
+            indices: Vec::new(),
+        };
+        (na.candidates, na.indices) = node_candidates(&plane, &header, &na);
+        let keep: Vec<u16> = (0..na.candidates.len() as u16).step_by(3).collect();
+        let before: Vec<LeafSyntax> = keep
+            .iter()
+            .map(|&k| na.leaf(&na.candidates[usize::from(k)]))
+            .collect();
+        let all = na.indices.len();
+        na.retain(&keep);
+        let after: Vec<LeafSyntax> = na.candidates.iter().map(|c| na.leaf(c)).collect();
+        assert_eq!(before, after);
+        let held: usize = na
+            .candidates
+            .iter()
+            .map(|c| na.fits[usize::from(c.fit)].model.model().control_count())
+            .sum();
+        assert_eq!(na.indices.len(), held);
+        assert!(held < all / 2, "{held} of {all} indices kept");
     }
 
     /// The quadratic form of an exact fit ([`Fit::error_of`]) predicts the closed-loop error of

@@ -56,6 +56,38 @@ impl NodeAnalysis {
         }
         leaf
     }
+
+    /// How many indices candidate `c` holds in [`NodeAnalysis::indices`].
+    fn index_count(&self, c: &Candidate) -> usize {
+        let m = self.fits[usize::from(c.fit)].model.model();
+        match c.wq.kind() {
+            WeightQuantiser::Default => m.control_count(),
+            _ => m.control_count() + m.weight_count(),
+        }
+    }
+
+    /// Keeps the candidates `keep` lists (indices into the candidate list, ascending) and only
+    /// their indices.
+    pub fn retain(&mut self, keep: &[u16]) {
+        let mut indices = Vec::with_capacity(
+            keep.iter()
+                .map(|&k| self.index_count(&self.candidates[usize::from(k)]))
+                .sum(),
+        );
+        let candidates = keep
+            .iter()
+            .map(|&k| {
+                let mut c = self.candidates[usize::from(k)];
+                let at = c.at as usize;
+                let n = self.index_count(&c);
+                c.at = indices.len() as u32;
+                indices.extend_from_slice(&self.indices[at..at + n]);
+                c
+            })
+            .collect();
+        self.candidates = candidates;
+        self.indices = indices;
+    }
 }
 
 /// The nodes of one quadtree level.
@@ -137,16 +169,7 @@ impl CandidateTree {
         for (level, keep) in self.levels.iter_mut().zip(keep) {
             for (na, keep) in level.nodes.iter_mut().zip(keep) {
                 if let Some(na) = na {
-                    let mut all = std::mem::take(&mut na.candidates).into_iter();
-                    let mut at = 0;
-                    na.candidates = keep
-                        .iter()
-                        .map(|&ci| {
-                            let c = all.nth(usize::from(ci) - at).expect("index in range");
-                            at = usize::from(ci) + 1;
-                            c
-                        })
-                        .collect();
+                    na.retain(keep);
                 }
             }
         }

@@ -8,7 +8,7 @@
 //! Above [`super::candidates`] (it rates and chooses among them); below [`super::writer`], which
 //! writes the [`Plan`]s it makes.
 
-use super::candidates::{CandidateSelection, CandidateTree, WithCandidates};
+use super::candidates::{CandidateSelection, CandidateTree, NodeAnalysis, WithCandidates};
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
 use decoder_core::internal::syntax::control::WeightQuantiser;
@@ -277,36 +277,35 @@ impl RateTable {
         prediction: &ImagePrediction,
         snapshot: &Contexts,
     ) -> RateTable {
-        let levels = tree
+        let bits = tree
             .levels()
             .iter()
             .map(|level| {
-                let per_node: Vec<Vec<f32>> = level
+                level
                     .nodes
                     .par_iter()
                     .map(|na| {
-                        let Some(na) = na else { return Vec::new() };
-                        // Frozen counters leave the contexts alone: one copy per node.
-                        let mut ctx = snapshot.clone();
-                        na.candidates
-                            .iter()
-                            .map(|c| {
-                                let mut leaf = na.leaf(c);
-                                let mut counter = BitCounter::frozen();
-                                match code_leaf(
-                                    &mut counter,
-                                    &mut ctx,
-                                    &na.node,
-                                    prediction,
-                                    &mut leaf,
-                                ) {
-                                    Ok(()) => counter.bits() as f32,
-                                    Err(_) => f32::INFINITY,
-                                }
-                            })
-                            .collect()
+                        na.as_ref()
+                            .map_or_else(Vec::new, |na| node_bits(na, prediction, snapshot))
                     })
-                    .collect();
+                    .collect()
+            })
+            .collect();
+        RateTable::of_bits(tree, bits, snapshot)
+    }
+
+    /// The rate table of `tree` from the bits of its candidates (per level, per node, in the
+    /// order of its candidate list) coded from the context state `snapshot`.
+    pub fn of_bits(
+        tree: &CandidateTree,
+        bits: Vec<Vec<Vec<f32>>>,
+        snapshot: &Contexts,
+    ) -> RateTable {
+        let levels = tree
+            .levels()
+            .iter()
+            .zip(bits)
+            .map(|(level, per_node)| {
                 let mut rates = LevelRates {
                     first: vec![0],
                     ..LevelRates::default()
@@ -357,21 +356,11 @@ impl RateTable {
                 (0..rates.node_count())
                     .into_par_iter()
                     .map(|i| {
-                        let mut points: Vec<(f64, f64)> = rates
+                        let points = rates
                             .range(i)
                             .map(|k| (f64::from(rates.bits[k]), rates.sse[k]))
                             .collect();
-                        let mut keep = Vec::new();
-                        for _ in 0..layers {
-                            let layer = lower_hull_in(&points, &lambdas);
-                            for &k in &layer {
-                                // Out of the next layer's way.
-                                points[usize::from(k)] = (f64::INFINITY, f64::INFINITY);
-                            }
-                            keep.extend(layer);
-                        }
-                        keep.sort_unstable();
-                        keep
+                        hull_layers(points, &lambdas, layers)
                     })
                     .collect()
             })
@@ -508,6 +497,67 @@ impl Planner<'_> {
         self.rates
             .optimise(self.tree, self.header, log_lambda.exp())
     }
+}
+
+/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
+/// candidate is priced from the same state), in the order of its candidate list; infinite for
+/// a candidate the syntax cannot code.
+fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
+    let mut ctx = snapshot.clone();
+    na.candidates
+        .iter()
+        .map(|c| {
+            let mut leaf = na.leaf(c);
+            let mut counter = BitCounter::frozen();
+            match code_leaf(&mut counter, &mut ctx, &na.node, prediction, &mut leaf) {
+                Ok(()) => counter.bits() as f32,
+                Err(_) => f32::INFINITY,
+            }
+        })
+        .collect()
+}
+
+/// The points (rate, error) on the lower convex hull whose multipliers meet `lambdas`, and
+/// with `layers` above one those of the hulls of what is left, layer by layer: their indices,
+/// ascending.
+fn hull_layers(
+    mut points: Vec<(f64, f64)>,
+    lambdas: &std::ops::RangeInclusive<f64>,
+    layers: usize,
+) -> Vec<u16> {
+    let mut keep = Vec::new();
+    for _ in 0..layers {
+        let layer = lower_hull_in(&points, lambdas);
+        for &k in &layer {
+            // Out of the next layer's way.
+            points[usize::from(k)] = (f64::INFINITY, f64::INFINITY);
+        }
+        keep.extend(layer);
+    }
+    keep.sort_unstable();
+    keep
+}
+
+/// Keeps of the candidates of `na` those [`RateTable::lambda_optimal`] keeps over `lambdas`
+/// with `layers`, rated from `snapshot` as [`RateTable::new`] rates them, and returns their
+/// bits: the same choice, made while a node is analysed, so that what no multiplier wants is
+/// never stored.
+pub fn prune_node(
+    na: &mut NodeAnalysis,
+    prediction: &ImagePrediction,
+    snapshot: &Contexts,
+    lambdas: &std::ops::RangeInclusive<f64>,
+    layers: usize,
+) -> Vec<f32> {
+    let bits = node_bits(na, prediction, snapshot);
+    let points = bits
+        .iter()
+        .zip(&na.candidates)
+        .map(|(&b, c)| (f64::from(b), c.sse))
+        .collect();
+    let keep = hull_layers(points, lambdas, layers);
+    na.retain(&keep);
+    keep.iter().map(|&k| bits[usize::from(k)]).collect()
 }
 
 /// Indices of the points `(bits, sse)` that minimise `sse + lambda * bits` for some `lambda` in

@@ -5,8 +5,17 @@
 //! so get no estimate.
 
 use indicatif::{ProgressBar, ProgressStyle};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
+
+/// Whether analyses draw no progress of their own (a batch draws one bar for all).
+static HIDDEN: AtomicBool = AtomicBool::new(false);
+
+/// From now on, analyses draw no progress display ([`Progress::on_terminal`] gives `None`).
+pub fn hide_analysis_progress() {
+    HIDDEN.store(true, Ordering::Relaxed);
+}
 
 /// Share of the fitting work after which the bar replaces the spinner.
 const BAR_AFTER_SHARE: f64 = 0.10;
@@ -21,8 +30,9 @@ const BAR_AFTER: Duration = Duration::from_secs(2);
 /// (per-node times grow as this plus the pixels).
 const NODE_OVERHEAD: f64 = 96.0;
 
-/// The fitting work of an analysis, level by level in the order it is done (smallest nodes
-/// first): the analysis reports nodes, but a node's work grows with its pixels.
+/// The fitting work of an analysis, level by level in the order it is done (largest nodes
+/// first): the analysis reports nodes, but a node's work grows with its pixels. Nodes inside a
+/// settled node are reported too, at once, so the share done jumps ahead on easy content.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Work {
     /// Per level: nodes, and work per node.
@@ -33,6 +43,7 @@ impl Work {
     /// The levels of nodes of side `2^min_log2` to `2^max_log2` on a `width x height` image.
     pub fn new(width: u32, height: u32, min_log2: u8, max_log2: u8) -> Work {
         let levels = (min_log2..=max_log2)
+            .rev()
             .map(|l| {
                 let nodes = u64::from(width.div_ceil(1 << l)) * u64::from(height.div_ceil(1 << l));
                 (nodes, NODE_OVERHEAD + 4f64.powi(i32::from(l)))
@@ -102,10 +113,10 @@ pub struct Progress {
 }
 
 impl Progress {
-    /// A display for `work`, or `None` when stderr is not a terminal.
+    /// A display for `work`, or `None` when stderr is not a terminal or displays are hidden.
     pub fn on_terminal(work: Work) -> Option<Progress> {
         use std::io::IsTerminal;
-        if !std::io::stderr().is_terminal() {
+        if !std::io::stderr().is_terminal() || HIDDEN.load(Ordering::Relaxed) {
             return None;
         }
         let bar = ProgressBar::new(BAR_STEPS);
@@ -176,8 +187,8 @@ mod tests {
 
     #[test]
     fn work_weighs_nodes_by_their_pixels() {
-        // 64x64, nodes of 4 and 32 px: 256 small nodes of 96 + 16 units, then 4 large ones of
-        // 96 + 1024.
+        // 64x64, nodes of 32 and 4 px: 4 large nodes of 96 + 1024 units first, then 256 small
+        // ones of 96 + 16.
         let work = Work::new(64, 64, 2, 5);
         let work = Work {
             levels: vec![work.levels[0], work.levels[3]],
@@ -185,12 +196,12 @@ mod tests {
         assert_eq!(work.nodes(), 260);
         let total = 256.0 * 112.0 + 4.0 * 1120.0;
         assert_eq!(work.share(0), 0.0);
-        assert!((work.share(128) - 128.0 * 112.0 / total).abs() < 1e-12);
-        assert!((work.share(258) - (256.0 * 112.0 + 2.0 * 1120.0) / total).abs() < 1e-12);
+        assert!((work.share(2) - 2.0 * 1120.0 / total).abs() < 1e-12);
+        assert!((work.share(132) - (4.0 * 1120.0 + 128.0 * 112.0) / total).abs() < 1e-12);
         assert_eq!(work.share(260), 1.0);
         assert_eq!(work.share(999), 1.0);
         // A large node weighs more than a small one, less than its share of pixels.
-        assert!(work.share(257) - work.share(256) > 5.0 * (work.share(1) - work.share(0)));
+        assert!(work.share(1) - work.share(0) > 5.0 * (work.share(5) - work.share(4)));
     }
 
     #[test]
