@@ -590,3 +590,59 @@ fn colour_images_stay_colour_unless_gray() {
         "{info}"
     );
 }
+
+/// `--out-dir` encodes a batch: one stream per image, named after it, one summary line each;
+/// an image that fails is reported, leaves nothing behind and does not stop the others, and
+/// the exit status says that one failed.
+#[test]
+fn a_batch_encodes_every_image_it_can() {
+    let dir = scratch("batch");
+    let mut inputs = Vec::new();
+    for (name, w, h) in [("a", 48, 32), ("b", 33, 20), ("c", 64, 64)] {
+        let path = dir.join(format!("{name}.png"));
+        textured(w, h).save(&path).unwrap();
+        inputs.push(path);
+    }
+    let bad = dir.join("broken.png");
+    std::fs::write(&bad, b"not an image at all").unwrap();
+    inputs.insert(1, bad);
+    let out_dir = dir.join("streams");
+    let mut args: Vec<&str> = vec!["encode"];
+    args.extend(inputs.iter().map(|p| p.to_str().unwrap()));
+    args.extend(["--out-dir", out_dir.to_str().unwrap(), "--bpp", "0.5"]);
+    let out = pifs(&args);
+    assert!(!out.status.success(), "a failed image went unreported");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stdout.lines().count(), 3, "{stdout}");
+    assert!(stderr.contains("broken.png"), "{stderr}");
+    assert!(
+        stderr.trim_end().ends_with("1 of 4 images failed"),
+        "{stderr}"
+    );
+    for (name, w, h) in [("a", 48, 32), ("b", 33, 20), ("c", 64, 64)] {
+        let stream = out_dir.join(format!("{name}.pifs"));
+        assert!(stdout.contains(stream.to_str().unwrap()), "{stdout}");
+        let (dw, dh, _) = decoded(&stream);
+        assert_eq!((dw, dh), (w, h));
+    }
+    let written: Vec<_> = std::fs::read_dir(&out_dir).unwrap().flatten().collect();
+    assert_eq!(written.len(), 3, "{written:?}");
+
+    // Several images need --out-dir; two that would write the same stream are refused.
+    let two = [inputs[0].to_str().unwrap(), inputs[2].to_str().unwrap()];
+    let line = refused(&pifs(&["encode", two[0], two[1], "-o", "x.pifs"]));
+    assert!(line.contains("--out-dir"), "{line}");
+    let other = dir.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let twin = other.join("a.png");
+    std::fs::copy(&inputs[0], &twin).unwrap();
+    let line = refused(&pifs(&[
+        "encode",
+        two[0],
+        twin.to_str().unwrap(),
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+    ]));
+    assert!(line.contains("would both be written"), "{line}");
+}

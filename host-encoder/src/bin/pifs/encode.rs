@@ -32,11 +32,12 @@ pub const DEFAULT_BPP: f64 = 0.25;
 /// Arguments of `pifs encode`.
 #[derive(Args, Debug)]
 pub struct EncodeArgs {
-    /// Input image (PNG, JPEG, PGM/PPM, BMP, TIFF; the EXIF orientation applied, the first
+    /// Input images (PNG, JPEG, PGM/PPM, BMP, TIFF; the EXIF orientation applied, the first
     /// page of a TIFF taken); "-" reads standard input. A colour image gives a colour stream
     /// (YCbCr 4:2:0) unless --gray; a gray one (or a colour image whose pixels are all gray) a
-    /// grayscale stream.
-    pub input: PathBuf,
+    /// grayscale stream. Several images need --out-dir.
+    #[arg(required = true, num_args = 1..)]
+    pub input: Vec<PathBuf>,
     /// Encode in grayscale (the image's luma), even from a colour image.
     #[arg(long)]
     pub gray: bool,
@@ -44,8 +45,18 @@ pub struct EncodeArgs {
     /// stream never poses as an image); .pifs by convention; "-" writes standard output. An
     /// existing file is replaced atomically and keeps its permissions, a symbolic link is
     /// followed, a device or a FIFO is written through.
-    #[arg(short, long)]
-    pub output: PathBuf,
+    #[arg(
+        short,
+        long,
+        required_unless_present = "out_dir",
+        conflicts_with = "out_dir"
+    )]
+    pub output: Option<PathBuf>,
+    /// Batch: writes each input's stream to DIR/<its name>.pifs (DIR is made if missing), the
+    /// images spread over the cores, one summary line each; a failure is reported and the
+    /// others go on (the exit status says whether any failed).
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
     /// Target bits per pixel, whole file, never exceeded [default: 0.25, or the smallest
     /// stream when the image is too small for that rate].
     #[arg(long, group = "target")]
@@ -584,13 +595,32 @@ impl EncodeArgs {
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let job = args.job();
     validate_target(job.target)?;
-    output::check(&args.output, Some(&args.input), Kind::Stream)?;
-    if io::is_std_stream(&args.output) {
-        say::stdout_is_data();
+    match (&args.output, &args.out_dir, args.input.as_slice()) {
+        (Some(output), None, [input]) => {
+            output::check(output, Some(input), Kind::Stream)?;
+            if io::is_std_stream(output) {
+                say::stdout_is_data();
+            }
+            encode_one(args, &args.limits, job, input, output)
+        }
+        (None, Some(dir), inputs) => crate::batch::run(args, job, inputs, dir),
+        _ => Err(CliError::Refused(
+            "several input images need --out-dir DIR instead of -o".into(),
+        )),
     }
-    let checked = check_image(&args.input, &args.limits, &args.analysis)?;
+}
+
+/// Encodes `input` for `job` into `output` (both checked), within `limits`.
+pub fn encode_one(
+    args: &EncodeArgs,
+    limits: &InputLimits,
+    job: Job,
+    input: &Path,
+    output: &Path,
+) -> Result<()> {
+    let checked = check_image(input, limits, &args.analysis)?;
     check_target_fits(job, checked.probe.width, checked.probe.height)?;
-    let out = Output::create(&args.output, Content::Binary("a PIFS stream"))?;
+    let out = Output::create(output, Content::Binary("a PIFS stream"))?;
     let input = checked.path.clone();
     let image = checked.decode(args.gray)?;
     let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;

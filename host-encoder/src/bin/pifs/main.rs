@@ -3,6 +3,7 @@
 #[macro_use]
 mod say;
 
+mod batch;
 mod compare;
 mod decode;
 mod demo;
