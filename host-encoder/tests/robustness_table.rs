@@ -910,14 +910,15 @@ fn the_fuzz_campaign_is_reported() {
          (any bytes as a stream, in memory and byte by byte), `roundtrip` (bytes made an image,\n\
          encoded and decoded), `encode_input` (image file bytes through the host's input side,\n\
          as `pifs encode` reads them) and `large_dimensions` (a valid header declaring up to\n\
-         65535 x 65535 pixels over a small payload, read header first by the host and written\n\
-         band by band, compared with `decode_into`). Their checks are in `tests/src/fuzz.rs`;\n\
-         `cargo test` replays them on every seed and regression input and on a few thousand\n\
-         mutations (`tests/tests/fuzz_replay.rs`). The seeds in `fuzz/seeds/` are made by the\n\
-         encoder (`tests/tests/fuzz_seeds.rs`, which also checks that they are of the current\n\
-         format and use every model, both control codings, every control and weight quantiser\n\
-         and every leaf size): {} streams, {} images, {} round-trip and {} large-dimension\n\
-         inputs; {} regression inputs.\n\
+         65535 x 65535 gray or colour pixels over a small payload, read header first by the\n\
+         host and written band by band, compared with `decode_into`). Their checks are in\n\
+         `tests/src/fuzz.rs`; `cargo test` replays them on every seed and regression input and\n\
+         on a few thousand mutations (`tests/tests/fuzz_replay.rs`). The seeds in `fuzz/seeds/`\n\
+         are made by the encoder (`tests/tests/fuzz_seeds.rs`, which also checks that they are\n\
+         of the current format and use every model, both control codings, every control and\n\
+         weight quantiser, every leaf size, and colour at several sizes, odd ones among them):\n\
+         {} streams, {} images, {} round-trip and {} large-dimension inputs; {} regression\n\
+         inputs.\n\
          \n",
         count_files("seeds/streams"),
         count_files("seeds/encode_input"),

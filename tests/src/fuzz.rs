@@ -12,8 +12,8 @@
 //!   them (header first, then the pixels within limits, orientation applied, converted to
 //!   luma): never a panic, the decoded image is the size its header said, and a small one
 //!   goes on through the encoder and back.
-//! - [`large_dimensions`]: a valid, checksummed header declaring large dimensions, with a small
-//!   payload: the host reads it header first (refusing it beyond its limits after the header
+//! - [`large_dimensions`]: a valid, checksummed header declaring large dimensions, gray or
+//!   colour, with a small payload: the host reads it header first (refusing it beyond its limits after the header
 //!   alone, and never reading past the declared stream and one byte), and writes it band by
 //!   band exactly as `decode_into` decodes it, or fails with the same error.
 
@@ -285,24 +285,44 @@ const LARGE_LIMIT: u64 = 1 << 26;
 const LARGE_DECODE_PIXELS: u64 = 1 << 20;
 const LARGE_DECODE_LEAVES: u64 = 1 << 14;
 
+/// Bytes of a [`large_stream`] input before its payload: sizes, leaf sizes, channels.
+pub const LARGE_PREFIX: usize = 6;
+
+/// The byte of a [`large_stream`] input that chooses a header's leaf sizes and stripe width,
+/// when it can say them (largest leaf of 16 to 128 px, at most three sizes apart; stripe of 0,
+/// 1, 2 or 4 coding tiles), with the edge smoothing of 0, 2, 8 and 16 nearest the header's.
+pub fn large_leaf_byte(header: &decoder_core::Header) -> Option<u8> {
+    let max = header.max_leaf_log2.checked_sub(4).filter(|&m| m < 4)?;
+    let span = header
+        .max_leaf_log2
+        .checked_sub(header.min_leaf_log2)
+        .filter(|&d| d < 4)?;
+    let stripe = [0, 1, 2, 4].iter().position(|&s| s == header.stripe)? as u8;
+    let deblock = (0..4u8)
+        .min_by_key(|&k| [0u8, 2, 8, 16][usize::from(k)].abs_diff(header.deblock))
+        .unwrap_or(0);
+    Some(max | span << 2 | stripe << 4 | deblock << 6)
+}
+
 /// The stream [`large_dimensions`] makes of `data`: width and height (big-endian, 2 bytes
 /// each), a byte choosing the leaf sizes (bits 0–3), the stripe width (bits 4–5: the whole
-/// width, 1, 2 or 4 coding tiles) and the edge smoothing (bits 6–7), the rest the payload;
+/// width, 1, 2 or 4 coding tiles) and the edge smoothing (bits 6–7), a byte choosing the
+/// channels (bit 0: 1, grayscale, or 3, colour; the other bits unused), the rest the payload;
 /// header written and sealed.
 pub fn large_stream(data: &[u8]) -> Option<Vec<u8>> {
     use decoder_core::internal::syntax::{Codebook, Header};
-    if data.len() < 5 {
+    if data.len() < LARGE_PREFIX {
         return None;
     }
     let width = u16::from_be_bytes([data[0], data[1]]).max(1);
     let height = u16::from_be_bytes([data[2], data[3]]).max(1);
     let max_leaf_log2 = 4 + data[4] % 4;
     let min_leaf_log2 = (max_leaf_log2 - (data[4] >> 2) % 4).max(1);
-    let payload = &data[5..];
+    let payload = &data[LARGE_PREFIX..];
     let header = Header {
         width,
         height,
-        channels: 1,
+        channels: if data[5] & 1 == 0 { 1 } else { 3 },
         bit_depth: 8,
         min_leaf_log2,
         max_leaf_log2,

@@ -1,7 +1,8 @@
 //! The fuzz targets' seeds (`fuzz/seeds/<kind>/`), made by the encoder from the deterministic
 //! images of `common` and committed, so that every fuzz run (and `fuzz_replay`) starts from
 //! streams that use every model, both control codings, every control and weight quantiser, every
-//! leaf size, both header forms and many image sizes:
+//! leaf size, both header forms, many image sizes and colour (at odd sizes too, where the
+//! chroma planes end half outside the image):
 //!
 //! ```text
 //! cargo test -p pifs-tests --test fuzz_seeds -- --ignored regenerate
@@ -13,8 +14,8 @@
 //! - `roundtrip/`: inputs of the `roundtrip` check (size bytes, a budget byte, pixels);
 //! - `encode_input/`: image files of every format and kind the host reads (grey, colour,
 //!   alpha, 16-bit, palette, EXIF-oriented JPEG, a TIFF of two pages, PNM, BMP);
-//! - `large_dimensions/`: inputs of that check (declared size, leaf sizes, payload), the
-//!   payloads of the encoder's streams under large declared sizes.
+//! - `large_dimensions/`: inputs of that check (declared size, leaf sizes, channels, payload),
+//!   the payloads of the encoder's gray and colour streams under large declared sizes.
 
 mod common;
 
@@ -36,9 +37,48 @@ fn seeds_dir() -> PathBuf {
 /// An image, the encoder's settings, and the targets each written as a seed stream.
 struct Spec {
     name: &'static str,
-    plane: Plane,
+    image: Image,
     config: EncoderConfig,
     targets: Vec<Target>,
+}
+
+/// A seed image: a grayscale plane, or RGB pixels encoded as a colour stream (YCbCr 4:2:0).
+enum Image {
+    Gray(Plane),
+    Rgb {
+        width: u32,
+        height: u32,
+        rgb: Vec<u8>,
+    },
+}
+
+impl Image {
+    /// A colour image of `common::synthetic_rgb`.
+    fn rgb(width: u32, height: u32, seed: u32) -> Image {
+        Image::Rgb {
+            width,
+            height,
+            rgb: common::synthetic_rgb(width, height, seed),
+        }
+    }
+
+    /// Values of the decoded image (pixels times channels).
+    fn values(&self) -> usize {
+        match self {
+            Image::Gray(plane) => plane.data.len(),
+            Image::Rgb { rgb, .. } => rgb.len(),
+        }
+    }
+
+    fn analyse(&self, config: &EncoderConfig) -> host_encoder::Analysis {
+        match self {
+            Image::Gray(plane) => common::analyse_with(plane.clone(), config),
+            Image::Rgb { width, height, rgb } => {
+                host_encoder::analyse_colour(*width, *height, rgb.clone(), config, &|_| {})
+                    .expect("colour analysis")
+            }
+        }
+    }
 }
 
 fn config(
@@ -68,63 +108,104 @@ fn specs() -> Vec<Spec> {
     vec![
         Spec {
             name: "one-pixel",
-            plane: Plane::new(1, 1, vec![77]),
+            image: Image::Gray(Plane::new(1, 1, vec![77])),
             config: config(1, 7, 0, false),
             targets: vec![Target::Bytes(64)],
         },
         Spec {
             name: "strip-37x3",
-            plane: common::synthetic(37, 3, 3, 8),
+            image: Image::Gray(common::synthetic(37, 3, 3, 8)),
             config: config(1, 3, 0, false),
             targets: bpp(&[3.0, 8.0]),
         },
         Spec {
             name: "gradient-16x16",
-            plane: common::gradient(16, 16),
+            image: Image::Gray(common::gradient(16, 16)),
             config: config(2, 4, 0, false),
             targets: bpp(&[0.5, 2.0]),
         },
         Spec {
             name: "textured-33x17",
-            plane: common::synthetic(33, 17, 5, 12),
+            image: Image::Gray(common::synthetic(33, 17, 5, 12)),
             config: config(1, 4, 8, true),
             targets: vec![Target::Bytes(160), Target::Bpp(3.0)],
         },
         Spec {
             name: "noise-24x24",
-            plane: noise(24, 24, 9),
+            image: Image::Gray(noise(24, 24, 9)),
             config: config(1, 3, 0, false),
             targets: bpp(&[2.0, 8.0]),
         },
         Spec {
             name: "synthetic-64x64",
-            plane: common::synthetic(64, 64, 7, 6),
+            image: Image::Gray(common::synthetic(64, 64, 7, 6)),
             config: config(2, 5, 8, true),
             targets: bpp(&[0.05, 0.2, 0.5, 1.5]),
         },
         Spec {
             name: "synthetic-100x60",
-            plane: common::synthetic(100, 60, 11, 20),
+            image: Image::Gray(common::synthetic(100, 60, 11, 20)),
             config: config(2, 6, 8, false),
             targets: vec![Target::Bpp(0.1), Target::Psnr(30.0), Target::Bpp(2.5)],
         },
         Spec {
             name: "codebooks-128x128",
-            plane: common::synthetic(128, 128, 1, 4),
+            image: Image::Gray(common::synthetic(128, 128, 1, 4)),
             config: config(4, 5, 16, true),
             targets: bpp(&[1.0, 2.0, 3.0]),
         },
         Spec {
             name: "flat-200x150",
-            plane: Plane::new(200, 150, vec![131; 200 * 150]),
+            image: Image::Gray(Plane::new(200, 150, vec![131; 200 * 150])),
             config: config(2, 7, 8, false),
             targets: vec![Target::Bytes(64)],
         },
         Spec {
             name: "synthetic-256x192",
-            plane: common::synthetic(256, 192, 13, 10),
+            image: Image::Gray(common::synthetic(256, 192, 13, 10)),
             config: config(3, 7, 8, false),
             targets: bpp(&[0.02, 0.25, 1.0]),
+        },
+        // Colour (YCbCr 4:2:0): chroma planes of half the size rounded up, so odd sizes leave
+        // a chroma row or column half outside the image.
+        Spec {
+            name: "colour-1x1",
+            image: Image::Rgb {
+                width: 1,
+                height: 1,
+                rgb: vec![200, 30, 90],
+            },
+            config: config(1, 7, 0, false),
+            targets: vec![Target::Bytes(64)],
+        },
+        Spec {
+            name: "colour-33x2",
+            image: Image::rgb(33, 2, 4),
+            config: config(1, 3, 0, false),
+            targets: bpp(&[4.0]),
+        },
+        Spec {
+            name: "colour-45x31",
+            image: Image::rgb(45, 31, 17),
+            config: config(1, 4, 0, false),
+            targets: bpp(&[0.75, 3.0]),
+        },
+        Spec {
+            name: "colour-64x48",
+            image: Image::rgb(64, 48, 23),
+            config: config(2, 5, 8, true),
+            targets: bpp(&[0.25, 1.5]),
+        },
+        Spec {
+            // Stripes of one coding tile (128 px, chroma stripes of 64): three, the last 45 px wide
+            // (chroma 23 of 151).
+            name: "colour-301x45",
+            image: Image::rgb(301, 45, 29),
+            config: EncoderConfig {
+                stripe: 1,
+                ..config(2, 5, 8, false)
+            },
+            targets: bpp(&[0.1, 0.5]),
         },
     ]
 }
@@ -141,6 +222,10 @@ struct Usage {
     sizes: BTreeSet<(u16, u16)>,
     with_codebooks: bool,
     without_codebooks: bool,
+    /// Channels of the streams (1: grayscale, 3: colour).
+    channels: BTreeSet<u8>,
+    /// Sizes of the colour streams.
+    colour_sizes: BTreeSet<(u16, u16)>,
 }
 
 impl Usage {
@@ -160,6 +245,10 @@ impl Usage {
     fn stream(&mut self, name: &str, bytes: &[u8]) {
         let header = Header::read(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
         self.sizes.insert((header.width, header.height));
+        self.channels.insert(header.channels);
+        if header.channels == 3 {
+            self.colour_sizes.insert((header.width, header.height));
+        }
         if header.has_codebooks() {
             self.with_codebooks = true;
         } else {
@@ -213,6 +302,17 @@ impl Usage {
         if !(self.with_codebooks && self.without_codebooks) {
             out.push("headers with and without codebooks".into());
         }
+        if self.channels != BTreeSet::from([1, 3]) {
+            out.push(format!("channels {:?} of [1, 3]", self.channels));
+        }
+        // Chroma planes are half the size rounded up: odd sides reach their edge cases.
+        let odd = |(w, h): (u16, u16)| w % 2 == 1 && h % 2 == 1 && w > 1 && h > 1;
+        if self.colour_sizes.len() < 4 || !self.colour_sizes.iter().any(|&s| odd(s)) {
+            out.push(format!(
+                "four colour sizes, one of odd width and height (not 1): {:?}",
+                self.colour_sizes
+            ));
+        }
         out
     }
 }
@@ -229,7 +329,7 @@ fn target_name(target: Target) -> String {
 fn make_streams() -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     for spec in specs() {
-        let analysis = common::analyse_with(spec.plane.clone(), &spec.config);
+        let analysis = spec.image.analyse(&spec.config);
         for &target in &spec.targets {
             // A rate below the smallest stream gets the smallest stream.
             let encoded = match analysis.encode(target) {
@@ -239,7 +339,7 @@ fn make_streams() -> Vec<(String, Vec<u8>)> {
                 other => other,
             }
             .unwrap_or_else(|e| panic!("{}: {target:?}: {e}", spec.name));
-            let mut px = vec![0u8; spec.plane.data.len()];
+            let mut px = vec![0u8; spec.image.values()];
             pifs_tests::decode_into(&encoded.bytes, &mut px).unwrap();
             assert!(
                 px == encoded.reconstruction,
@@ -411,8 +511,27 @@ fn two_page_tiff() -> Vec<u8> {
 }
 
 /// Inputs of the `large_dimensions` check: the payloads of some seed streams under large
-/// declared sizes.
+/// declared sizes. Grayscale payloads under sizes up to 65535 x 65535 with assorted leaf sizes;
+/// colour payloads under their own stream's leaf sizes and stripe (so that they decode as far
+/// as a payload of a smaller image can), at odd sizes the check decodes (up to 2^14 leaves of
+/// the smallest size) and one it refuses.
 fn large_dimension_seeds(streams: &[(String, Vec<u8>)]) -> Vec<(String, Vec<u8>)> {
+    let seed = |name: &str, bytes: &[u8], (w, h): (u16, u16), leaves: u8| {
+        let (header, offset) = Header::parse(bytes).unwrap();
+        let mut seed = Vec::new();
+        seed.extend_from_slice(&w.to_be_bytes());
+        seed.extend_from_slice(&h.to_be_bytes());
+        seed.push(leaves);
+        seed.push(u8::from(header.channels == 3));
+        seed.extend_from_slice(&bytes[offset..]);
+        let made = pifs_tests::fuzz::large_stream(&seed).unwrap();
+        assert_eq!(
+            Header::read(&made).unwrap().channels,
+            header.channels,
+            "{name}"
+        );
+        (format!("{w}x{h}-{}", name.trim_end_matches(".pifs")), seed)
+    };
     let mut out = Vec::new();
     let sizes: [(u16, u16, u8); 5] = [
         (65535, 65535, 3),
@@ -421,16 +540,48 @@ fn large_dimension_seeds(streams: &[(String, Vec<u8>)]) -> Vec<(String, Vec<u8>)
         (1024, 1024, 0x03),
         (300, 3000, 0x02),
     ];
-    for (k, (name, bytes)) in streams.iter().step_by(3).enumerate() {
-        let (header, offset) = Header::parse(bytes).unwrap();
-        let _ = header;
+    let gray = streams
+        .iter()
+        .filter(|(_, b)| Header::read(b).unwrap().channels == 1);
+    for (k, (name, bytes)) in gray.step_by(3).enumerate() {
         let (w, h, leaves) = sizes[k % sizes.len()];
-        let mut seed = Vec::new();
-        seed.extend_from_slice(&w.to_be_bytes());
-        seed.extend_from_slice(&h.to_be_bytes());
-        seed.push(leaves);
-        seed.extend_from_slice(&bytes[offset..]);
-        out.push((format!("{w}x{h}-{}", name.trim_end_matches(".pifs")), seed));
+        out.push(seed(name, bytes, (w, h), leaves));
+    }
+    // The refused one needs no matching leaf sizes (its header alone is read).
+    for (name, size, leaves) in [
+        ("colour-33x2-4bpp.pifs", (65535, 65535), Some(3)),
+        ("colour-45x31-3bpp.pifs", (4095, 15), None),
+        ("colour-64x48-1.5bpp.pifs", (2047, 127), None),
+        ("colour-301x45-0.5bpp.pifs", (1023, 255), None),
+    ] {
+        let bytes = &streams
+            .iter()
+            .find(|(n, _)| n == name)
+            .unwrap_or_else(|| panic!("no seed stream {name}"))
+            .1;
+        let header = Header::read(bytes).unwrap();
+        if let Some(leaves) = leaves {
+            out.push(seed(name, bytes, size, leaves));
+            continue;
+        }
+        assert!(
+            !header.has_codebooks(),
+            "{name}: codebooks, which the seed's header cannot carry"
+        );
+        let leaves = pifs_tests::fuzz::large_leaf_byte(&header)
+            .unwrap_or_else(|| panic!("{name}: leaf sizes or stripe not expressible: {header:?}"));
+        let made = seed(name, bytes, size, leaves);
+        let made_header = Header::read(&pifs_tests::fuzz::large_stream(&made.1).unwrap()).unwrap();
+        assert_eq!(
+            (
+                made_header.min_leaf_log2,
+                made_header.max_leaf_log2,
+                made_header.stripe
+            ),
+            (header.min_leaf_log2, header.max_leaf_log2, header.stripe),
+            "{name}: the seed's leaf sizes or stripe differ from its stream's"
+        );
+        out.push(made);
     }
     out
 }
@@ -536,4 +687,10 @@ fn committed_seeds_match_the_generator() {
     assert_eq!(names(&committed("encode_input")), names(&images));
     let large = committed("large_dimensions");
     assert!(large.len() >= 5);
+    // Colour declared by the channel byte: a stream of the generator's layout.
+    let colour = large
+        .iter()
+        .filter(|(_, b)| b.len() > pifs_tests::fuzz::LARGE_PREFIX && b[5] & 1 == 1)
+        .count();
+    assert!(colour >= 4, "{colour} colour large-dimension seeds");
 }

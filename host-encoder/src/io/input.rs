@@ -120,6 +120,9 @@ pub struct ImageProbe {
     pub height: u32,
     /// Bytes of the decoded pixel buffer, in the file's own colour type.
     pub decoded_bytes: u64,
+    /// Whether that colour type has colour (RGB, RGBA, a palette): the encoder takes the
+    /// image in colour unless every pixel turns out gray, which only its pixels tell.
+    pub colour: bool,
     /// The orientation the file asks for (applied by [`DecodedImage::decode`]).
     pub orientation: Orientation,
     /// Pages (TIFF images in one file; 1 for every other format).
@@ -151,6 +154,7 @@ impl ImageProbe {
             width,
             height,
             decoded_bytes: decoder.total_bytes(),
+            colour: decoder.color_type().has_color(),
             orientation,
             pages: if format == ImageFormat::Tiff {
                 tiff_pages(bytes)

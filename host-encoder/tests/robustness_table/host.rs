@@ -360,6 +360,41 @@ fn encode_is_bounded_by_its_memory_budget() {
         &format!("pifs encode {} -o {}", s(&mid), s(&out)),
         "peak between a third of the estimate and the estimate",
     ));
+
+    // A colour encode holds RGB pixels beside the luma analysis: priced above the grayscale
+    // one of the same size, and still bounding what it takes.
+    let colour = dir.join("noise-500-rgb.png");
+    image::RgbImage::from_fn(500, 500, |x, y| {
+        image::Rgb([noise(x, y), noise(x + 500, y), noise(x, y + 500)])
+    })
+    .save(&colour)
+    .unwrap();
+    let colour_estimate = needs_mb(&refused(
+        &pifs()
+            .args(["encode", s(&colour), "-o", s(&out), "--max-memory", "10M"])
+            .output()
+            .unwrap(),
+    ));
+    assert!(
+        colour_estimate > estimate,
+        "500x500: colour estimated {colour_estimate} MB, gray {estimate} MB"
+    );
+    let run = measured(&[], &["encode", s(&colour), "-o", s(&out)]);
+    ok(&run.out);
+    let header = decoder_core::Header::read(&std::fs::read(&out).unwrap()).unwrap();
+    assert_eq!(header.channels, 3, "a colour stream");
+    assert!(
+        run.peak_mb <= colour_estimate && run.peak_mb >= colour_estimate / 3.0,
+        "500x500 colour: estimated {colour_estimate} MB, measured {} MB",
+        run.peak_mb
+    );
+    rows.push(row(
+        &dir,
+        "the same for 500x500 colour noise",
+        &format!("pifs encode {} -o {}", s(&colour), s(&out)),
+        "a colour stream; estimated above the grayscale encode, peak between a third of the \
+         estimate and the estimate",
+    ));
     record("encode_is_bounded_by_its_memory_budget", &rows);
     let _ = std::fs::remove_dir_all(&dir);
 }

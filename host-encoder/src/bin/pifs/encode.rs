@@ -116,9 +116,14 @@ pub struct Checked {
 }
 
 /// Reads the image at `path` (`-`: standard input) and checks its header against `limits` and
-/// the memory an analysis with `analysis` needs: a refusal is one line naming the option that
-/// would let it through.
-pub fn check_image(path: &Path, limits: &InputLimits, analysis: &AnalysisArgs) -> Result<Checked> {
+/// the memory an analysis with `analysis` needs, in colour when the header's colour type has
+/// colour unless `gray`: a refusal is one line naming the option that would let it through.
+pub fn check_image(
+    path: &Path,
+    limits: &InputLimits,
+    analysis: &AnalysisArgs,
+    gray: bool,
+) -> Result<Checked> {
     let name = io::input_name(path);
     let budget = limits.memory();
     let max_input = budget.map_or(u64::MAX, |(b, _)| b);
@@ -133,10 +138,14 @@ pub fn check_image(path: &Path, limits: &InputLimits, analysis: &AnalysisArgs) -
         .into());
     }
     let pixels = probe.pixels();
-    let per_pixel = memory::per_pixel(analysis.min_leaf_log2, analysis.fit_weights);
+    // Priced in colour on the header's word: a colour type whose pixels are all gray is
+    // encoded in grayscale, for less.
+    let channels = if probe.colour && !gray { 3 } else { 1 };
+    let per_pixel = memory::per_pixel(channels, analysis.min_leaf_log2, analysis.fit_weights);
     let need = memory::encode_bytes(
         pixels,
         probe.decoded_bytes,
+        channels,
         analysis.min_leaf_log2,
         analysis.fit_weights,
     );
@@ -618,7 +627,7 @@ pub fn encode_one(
     input: &Path,
     output: &Path,
 ) -> Result<()> {
-    let checked = check_image(input, limits, &args.analysis)?;
+    let checked = check_image(input, limits, &args.analysis, args.gray)?;
     check_target_fits(job, checked.probe.width, checked.probe.height)?;
     let out = Output::create(output, Content::Binary("a PIFS stream"))?;
     let input = checked.path.clone();

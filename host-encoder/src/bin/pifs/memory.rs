@@ -4,9 +4,20 @@
 //! pixels. Measured peaks (`/usr/bin/time`, the default settings, textured images of 500², 1000²
 //! and 2000² pixels: 269 MB, 956 MB, 3.68 GB) fit 40 MB plus 910 bytes per pixel; with
 //! `--min-leaf-log2 1` about 1.9 KB per pixel, with 3 or more about 370 bytes, with
-//! `--fit-weights` about 1.12 KB. [`encode_bytes`] rounds these up, and the test
-//! `encode_memory_estimate_bounds_the_measured_peak` (host-encoder/tests/host_io.rs) checks it
-//! against a measured peak, so that a change in the analysis shows here.
+//! `--fit-weights` about 1.12 KB. [`encode_bytes`] rounds these up.
+//!
+//! A colour encode analyses the luma plane alone (chroma is chosen as the stream is written),
+//! so it peaks barely above a grayscale one. Measured with
+//! `/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`, with and without `--gray`
+//! (peak resident KB, gray / colour): kodim19 (512 x 768) 390 312 / 390 252; tilings of 512²
+//! Kodak crops, 1024² 1 002 544 / 1 008 236 and 1536² 2 207 844 / 2 217 732; RGB noise of
+//! 500² 291 080 / 293 992. Between the two tilings that is 942 bytes per pixel in gray and 945
+//! in colour, and colour adds 0 to 12 bytes per pixel in all four; [`encode_bytes`] adds 10 for
+//! the RGB buffers a colour encode holds.
+//!
+//! The test `encode_is_bounded_by_its_memory_budget` (host-encoder/tests/robustness_table/
+//! host.rs) checks the estimate against measured peaks of a grayscale and a colour encode, so
+//! that a change in the analysis shows here.
 //!
 //! What may be used is the smallest of: the memory the system has available
 //! (`MemAvailable`), what the process's cgroup may still charge (`memory.max` less
@@ -32,20 +43,43 @@ fn analysis_bytes_per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
 /// Memory besides the pixels' (the program, its threads, the encoder's tables).
 const FIXED_BYTES: u64 = 64 << 20;
 
-/// Bytes an encode of a `pixels`-pixel image needs at its peak: the decoded image in its own
-/// colour type (`decoded_bytes`, twice while a rotation is applied) and the 8-bit plane, then
-/// the plane (twice: a quality target may analyse again) and the analysis.
-pub fn encode_bytes(pixels: u64, decoded_bytes: u64, min_leaf_log2: u8, fit_weights: bool) -> u64 {
-    let decoding = decoded_bytes.saturating_mul(2).saturating_add(pixels);
-    let analysing = pixels
-        .saturating_mul(analysis_bytes_per_pixel(min_leaf_log2, fit_weights))
-        .saturating_add(pixels.saturating_mul(2));
+/// Bytes per pixel of the pixels an encode holds beside the analysis, by the channels of the
+/// stream: grayscale, the 8-bit plane twice (the image and the analysis's copy); colour, the
+/// RGB pixels twice (3 bytes each), the analysis's luma plane, the chroma planes (a quarter
+/// each), and the RGB reconstruction and its check decode the writer adds (3 bytes each,
+/// where grayscale's are 1 and within its analysis figure).
+fn image_bytes_per_pixel(channels: u8) -> u64 {
+    if channels == 3 {
+        // 3 + 3 + 1 + 0.5 + 2 * (3 - 1), rounded up.
+        12
+    } else {
+        2
+    }
+}
+
+/// Bytes an encode of a `pixels`-pixel image into a stream of `channels` channels (1 or 3)
+/// needs at its peak: the decoded image in its own colour type (`decoded_bytes`, twice while a
+/// rotation is applied) with the 8-bit plane and RGB (which a colour type gets even for a
+/// grayscale stream), then the analysis and the pixels beside it ([`image_bytes_per_pixel`];
+/// a quality target that analyses again frees the first analysis before).
+pub fn encode_bytes(
+    pixels: u64,
+    decoded_bytes: u64,
+    channels: u8,
+    min_leaf_log2: u8,
+    fit_weights: bool,
+) -> u64 {
+    let decoding = decoded_bytes
+        .saturating_mul(2)
+        .saturating_add(pixels.saturating_mul(4));
+    let analysing = pixels.saturating_mul(per_pixel(channels, min_leaf_log2, fit_weights));
     decoding.max(analysing).saturating_add(FIXED_BYTES)
 }
 
-/// Bytes per pixel of the analysis with these settings (for messages).
-pub fn per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
-    analysis_bytes_per_pixel(min_leaf_log2, fit_weights)
+/// Bytes per pixel of an encode into `channels` channels with these settings, the analysis
+/// and the pixels beside it (for messages).
+pub fn per_pixel(channels: u8, min_leaf_log2: u8, fit_weights: bool) -> u64 {
+    analysis_bytes_per_pixel(min_leaf_log2, fit_weights) + image_bytes_per_pixel(channels)
 }
 
 /// The memory this process may still use, as far as the system says (Linux), bytes.
@@ -172,12 +206,16 @@ mod tests {
 
     #[test]
     fn the_estimate_grows_with_the_pixels_and_the_settings() {
-        let small = encode_bytes(1_000_000, 3_000_000, 2, false);
+        let small = encode_bytes(1_000_000, 3_000_000, 1, 2, false);
         assert!(small > 1_000_000_000 && small < 1_200_000_000, "{small}");
-        assert!(encode_bytes(1_000_000, 3_000_000, 1, false) > small);
-        assert!(encode_bytes(1_000_000, 3_000_000, 3, false) < small);
-        assert!(encode_bytes(1_000_000, 3_000_000, 2, true) > small);
-        assert_eq!(encode_bytes(u64::MAX, u64::MAX, 2, true), u64::MAX);
+        assert!(encode_bytes(1_000_000, 3_000_000, 1, 1, false) > small);
+        assert!(encode_bytes(1_000_000, 3_000_000, 1, 3, false) < small);
+        assert!(encode_bytes(1_000_000, 3_000_000, 1, 2, true) > small);
+        // Colour: the RGB pixels beside the luma analysis.
+        let colour = encode_bytes(1_000_000, 3_000_000, 3, 2, false);
+        assert_eq!(colour - small, 10_000_000);
+        assert_eq!(per_pixel(3, 2, false) - per_pixel(1, 2, false), 10);
+        assert_eq!(encode_bytes(u64::MAX, u64::MAX, 3, 2, true), u64::MAX);
     }
 
     #[cfg(target_os = "linux")]

@@ -141,7 +141,8 @@ pub fn run(args: &RdArgs) -> Result<()> {
         }
         None => Vec::new(),
     };
-    let plane = encode::check_image(&args.input, &args.limits, &args.analysis)?.decode_luma()?;
+    let plane =
+        encode::check_image(&args.input, &args.limits, &args.analysis, true)?.decode_luma()?;
     let targets: Vec<Target> = args.rates.iter().map(|&r| Target::Bpp(r)).collect();
     let analysed = encode::analyse_plane(plane, &args.analysis, &targets)?;
     if let Some(dir) = &args.out_dir {
