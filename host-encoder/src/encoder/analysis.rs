@@ -379,13 +379,13 @@ fn fit_levels(
 /// docs/decisions.md).
 const SETTLED_MSE: f64 = 0.5;
 
-/// Most coded values of a fit that settles a node: four children need at least this many (a
-/// bilinear patch each), so a cut below cannot be cheaper; a richer fit (a pixel grid is
+/// Coded values four children need at least (a bilinear patch each): a fit settles a node
+/// only with fewer, so that a cut below cannot be cheaper; a richer fit (a pixel grid is
 /// exact) settles nothing.
-const SETTLING_VALUES: usize = 4 * 4;
+const CHILDREN_VALUES: usize = 4 * 4;
 
-/// Whether the block of `node` is reproduced by one of its `fits` of at most
-/// [`SETTLING_VALUES`] values (by an exact fit's residual), or by its mean (for a block at the
+/// Whether the block of `node` is reproduced by one of its `fits` of fewer than
+/// [`CHILDREN_VALUES`] values (by an exact fit's residual), or by its mean (for a block at the
 /// image's edge), within [`SETTLED_MSE`] per pixel.
 fn settles(plane: &Plane, node: &Node, fits: &[Fit]) -> bool {
     let x1 = (node.x + node.size()).min(plane.width);
@@ -393,7 +393,7 @@ fn settles(plane: &Plane, node: &Node, fits: &[Fit]) -> bool {
     let pixels = f64::from((x1 - node.x) * (y1 - node.y));
     let best = fits
         .iter()
-        .filter(|f| f.model.model().coded_side(node.log2).pow(2) <= SETTLING_VALUES)
+        .filter(|f| f.model.model().coded_side(node.log2).pow(2) < CHILDREN_VALUES)
         .filter_map(|f| f.residual)
         .fold(f64::INFINITY, f64::min);
     let sse = if best.is_finite() {
