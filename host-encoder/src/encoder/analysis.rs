@@ -118,7 +118,8 @@ impl Analysis {
         self
     }
 
-    /// Analyses `plane`. `progress` is called with the number of nodes analysed so far.
+    /// Analyses `plane`. `progress` is called with the number of nodes done so far: every node
+    /// of a leaf size once fitted, then once its candidates are made.
     pub(super) fn run(
         plane: Plane,
         config: &EncoderConfig,
@@ -144,7 +145,14 @@ impl Analysis {
             colour: None,
         };
         let started = Instant::now();
-        let first = analysis.measure_candidates();
+        let fitted: u64 = analysis
+            .tree
+            .levels()
+            .iter()
+            .filter(|l| l.log2 <= analysis.header.max_leaf_log2)
+            .map(|l| l.nodes.len() as u64)
+            .sum();
+        let first = analysis.measure_candidates(&|n| progress(fitted + n));
         let candidates = started.elapsed();
         let started = Instant::now();
         analysis.prune_candidates(config.trial_bpp, first);
@@ -238,10 +246,13 @@ impl Analysis {
     /// keeps at each node, as soon as it is done, only the candidates near its hull under the
     /// rates every stream starts from (the trained contexts change the rates only a little, so
     /// what is far from the hull under the first rates does not reach it under the trained
-    /// ones): the rest is never stored. Returns the kept candidates' rates.
-    fn measure_candidates(&mut self) -> RateTable {
+    /// ones): the rest is never stored. Returns the kept candidates' rates. `progress` is
+    /// called with the number of nodes done so far (those not analysed included), smallest
+    /// nodes first.
+    fn measure_candidates(&mut self, progress: &(dyn Fn(u64) + Sync)) -> RateTable {
         let plane = &self.plane;
         let header = &self.header;
+        let done = AtomicU64::new(0);
         let prediction = ImagePrediction {
             plane,
             stripe: header.stripe_width(),
@@ -253,13 +264,22 @@ impl Analysis {
             .levels_mut()
             .iter_mut()
             .map(|level| {
+                let counted = level.log2 <= header.max_leaf_log2;
                 level
                     .nodes
                     .par_iter_mut()
                     .map(|na| {
-                        let Some(na) = na else { return Vec::new() };
-                        (na.candidates, na.indices) = node_candidates(plane, header, na);
-                        prune_node(na, &prediction, &start, &lambdas, HULL_LAYERS)
+                        let bits = match na {
+                            Some(na) => {
+                                (na.candidates, na.indices) = node_candidates(plane, header, na);
+                                prune_node(na, &prediction, &start, &lambdas, HULL_LAYERS)
+                            }
+                            None => Vec::new(),
+                        };
+                        if counted {
+                            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+                        }
+                        bits
                     })
                     .collect()
             })

@@ -1,8 +1,8 @@
 //! The analysis's progress on a terminal: a spinner (time and nodes so far) until enough work is
 //! done for an estimate of the time left to mean something, then a bar whose estimate comes from
-//! the work done so far, then a spinner again for the closing steps (the closed-loop
-//! measurement of the candidates, most of the analysis's time), which report no progress and
-//! so get no estimate.
+//! the work done so far (fitting every node, then making every node's candidates), then a
+//! spinner again for the closing steps (the trial encode and the pruning), which report no
+//! progress and so get no estimate.
 
 use indicatif::{ProgressBar, ProgressStyle};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,7 +20,7 @@ pub fn hide_analysis_progress() {
 /// Share of the fitting work after which the bar replaces the spinner.
 const BAR_AFTER_SHARE: f64 = 0.10;
 
-/// Steps of the bar (it shows the share of the fitting work done).
+/// Steps of the bar (it shows the share of the work done).
 const BAR_STEPS: u64 = 1000;
 
 /// Time after which the bar replaces the spinner, whatever the share done.
@@ -30,9 +30,22 @@ const BAR_AFTER: Duration = Duration::from_secs(2);
 /// (per-node times grow as this plus the pixels).
 const NODE_OVERHEAD: f64 = 96.0;
 
-/// The fitting work of an analysis, level by level in the order it is done (largest nodes
-/// first): the analysis reports nodes, but a node's work grows with its pixels. Nodes inside a
-/// settled node are reported too, at once, so the share done jumps ahead on easy content.
+/// Work of making a node's candidates (quantising its fits with every quantiser and rating
+/// them) per pixel of the node, up to 64 pixels (the largest model's grid: quantisation grows
+/// with the control values, not the pixels), in the units of [`NODE_OVERHEAD`]. Measured
+/// (`examples/stage_times.rs` with each level timed, kodim05 and kodim23): about 70 µs a node
+/// of 4 px and 270 to 420 µs a larger one, where fitting takes about 0.02 µs a unit.
+const CANDIDATE_WORK: f64 = 235.0;
+
+/// Share of an analysis's time after the passes that report progress: the trial encode and the
+/// pruning, 24 to 34% on seven Kodak images (`examples/stage_times.rs`: 1.1 to 2.2 s of 4.7
+/// to 6.5 s). The bar stops short of it, and its estimate includes it.
+const CLOSING_SHARE: f64 = 0.28;
+
+/// The work of an analysis, level by level in the order it is done: fitting every node (largest
+/// nodes first), then making every node's candidates (smallest first). The analysis reports
+/// nodes, but a node's fitting grows with its pixels. Nodes inside a settled node are reported
+/// too, at once, so the share done jumps ahead on easy content.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Work {
     /// Per level: nodes, and work per node.
@@ -42,14 +55,15 @@ pub struct Work {
 impl Work {
     /// The levels of nodes of side `2^min_log2` to `2^max_log2` on a `width x height` image.
     pub fn new(width: u32, height: u32, min_log2: u8, max_log2: u8) -> Work {
-        let levels = (min_log2..=max_log2)
+        let nodes = |l: u8| u64::from(width.div_ceil(1 << l)) * u64::from(height.div_ceil(1 << l));
+        let fitting = (min_log2..=max_log2)
             .rev()
-            .map(|l| {
-                let nodes = u64::from(width.div_ceil(1 << l)) * u64::from(height.div_ceil(1 << l));
-                (nodes, NODE_OVERHEAD + 4f64.powi(i32::from(l)))
-            })
-            .collect();
-        Work { levels }
+            .map(|l| (nodes(l), NODE_OVERHEAD + 4f64.powi(i32::from(l))));
+        let candidates = (min_log2..=max_log2)
+            .map(|l| (nodes(l), CANDIDATE_WORK * 4f64.powi(i32::from(l)).min(64.0)));
+        Work {
+            levels: fitting.chain(candidates).collect(),
+        }
     }
 
     /// Nodes in all.
@@ -99,7 +113,7 @@ pub fn duration_text(d: Duration) -> String {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {
     Starting,
-    Fitting,
+    Running,
     Closing,
 }
 
@@ -121,7 +135,7 @@ impl Progress {
         }
         let bar = ProgressBar::new(BAR_STEPS);
         bar.set_style(style("{spinner} analysing: {msg}, {elapsed}"));
-        bar.set_message(format!("0/{} nodes fitted", work.nodes()));
+        bar.set_message(format!("0/{} node steps", work.nodes()));
         bar.enable_steady_tick(Duration::from_millis(120));
         Some(Progress {
             bar,
@@ -131,8 +145,8 @@ impl Progress {
         })
     }
 
-    /// Called by the analysis with the number of nodes fitted so far (from any thread, not
-    /// necessarily in order).
+    /// Called by the analysis with the number of node steps (a fit, a node's candidates) done
+    /// so far (from any thread, not necessarily in order).
     pub fn nodes_done(&self, done: u64) {
         let mut phase = match self.phase.lock() {
             Ok(p) => p,
@@ -142,24 +156,26 @@ impl Progress {
         if *phase == Phase::Closing {
             return;
         }
+        let elapsed = self.start.elapsed();
         if done >= total {
             *phase = Phase::Closing;
-            // The closing steps report nothing: no estimate, only the time so far.
+            // The closing steps report nothing: their time is estimated once, from the passes'.
+            let left = time_left(1.0 - CLOSING_SHARE, elapsed).unwrap_or_default();
             self.bar.set_style(style(
-                "{spinner} analysing: nodes fitted; measuring every candidate through the decoder, {elapsed}",
+                "{spinner} analysing: candidates made; pruning them with a trial encode (about {msg}), {elapsed} so far",
             ));
+            self.bar.set_message(duration_text(left));
             return;
         }
-        let elapsed = self.start.elapsed();
-        let share = self.work.share(done);
+        let share = (1.0 - CLOSING_SHARE) * self.work.share(done);
         if *phase == Phase::Starting && estimate_is_meaningful(share, elapsed) {
-            *phase = Phase::Fitting;
+            *phase = Phase::Running;
             self.bar.set_style(style(
-                "analysing {bar:40} {percent}% of the fitting, {elapsed} so far{msg}",
+                "analysing {bar:40} {percent}%, {elapsed} so far{msg}",
             ));
         }
         match *phase {
-            Phase::Starting => self.bar.set_message(format!("{done}/{total} nodes fitted")),
+            Phase::Starting => self.bar.set_message(format!("{done}/{total} node steps")),
             _ => {
                 // The bar shows work, not nodes: a large node is more work than a small one.
                 self.bar.set_position((share * BAR_STEPS as f64) as u64);
@@ -202,6 +218,19 @@ mod tests {
         assert_eq!(work.share(999), 1.0);
         // A large node weighs more than a small one, less than its share of pixels.
         assert!(work.share(1) - work.share(0) > 5.0 * (work.share(5) - work.share(4)));
+    }
+
+    #[test]
+    fn work_is_fitting_then_candidates() {
+        let work = Work::new(64, 64, 2, 5);
+        let nodes = 256 + 64 + 16 + 4;
+        assert_eq!(work.nodes(), 2 * nodes);
+        // The fitting pass: largest nodes first; then the candidates, smallest first.
+        assert_eq!(work.levels[0].0, 4);
+        assert_eq!(work.levels[4].0, 256);
+        let fitting: f64 = work.levels[..4].iter().map(|&(n, w)| n as f64 * w).sum();
+        let total: f64 = work.levels.iter().map(|&(n, w)| n as f64 * w).sum();
+        assert!((work.share(nodes) - fitting / total).abs() < 1e-12);
     }
 
     #[test]
