@@ -51,14 +51,16 @@ done
 
 # 2. Firmware builds (one per target and variant, all streams embedded) and runs.
 build() { # target features streams... -> prints the ELF path (a copy under $out)
+    # features: cargo features of the firmware; "gray:..." builds without its default `colour`.
     local target=$1 features=$2
     shift 2
-    local list
+    local list defaults=()
     list=$(IFS=:; echo "$*")
+    case $features in gray:*) defaults=(--no-default-features) ;; esac
     (cd "$fw" && env -u CARGO_TARGET_DIR -u CARGO_BUILD_TARGET -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS \
-        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" --features "$features") \
+        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" "${defaults[@]}" --features "${features#gray:}") \
         2>"$out/build.log" || { cat "$out/build.log" >&2; exit 1; }
-    local elf=$out/fw-$target-$features.elf
+    local elf=$out/fw-$target-${features/:/-}.elf
     cp "$root/target/firmware/$target/release/pifs-firmware-example" "$elf"
     echo "$elf"
 }
@@ -76,7 +78,11 @@ run() { # target elf -> PIFS-BENCH lines on stdout; QEMU's status in $out/status
     grep '^PIFS-BENCH' "$out/qemu.err" || true
 }
 field() { sed -n "s/.* $1=\([^ ]*\).*/\1/p"; }
-declare -A stack instr static flash base_flash scaled
+declare -A stack instr static flash base_flash gray_flash scaled
+gray_streams=()
+for s in "${streams[@]}"; do
+    case $(basename "$s") in kodim23_*) gray_streams+=("$s") ;; esac
+done
 for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     elf=$(build $target bench "${streams[@]}")
     read -r text data bss _ < <(size "$elf" | tail -1)
@@ -85,6 +91,12 @@ for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     belf=$(build $target baseline "${streams[@]}")
     read -r btext bdata bbss _ < <(size "$belf" | tail -1)
     base_flash[$target]=$((btext + bdata))
+    # The grayscale-only decoder (decoder-core without `colour`), on the grayscale streams.
+    gelf=$(build $target gray:bench "${gray_streams[@]}")
+    read -r gtext gdata _ < <(size "$gelf" | tail -1)
+    gelf=$(build $target gray:baseline "${gray_streams[@]}")
+    read -r gbtext gbdata _ < <(size "$gelf" | tail -1)
+    gray_flash[$target]=$((gtext + gdata - gbtext - gbdata))
     # A decode that overflows the board's RAM locks the core up: note it, rebuild without that
     # stream and go on with the rest.
     todo=("${streams[@]}")
@@ -158,10 +170,10 @@ for s in "${streams[@]}"; do
     done
 done
 echo
-echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) |"
-echo "|---|---:|---:|---:|"
+echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) | grayscale-only decoder (no \`colour\` feature) |"
+echo "|---|---:|---:|---:|---:|"
 for t in $v7 $v6; do
-    echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) |"
+    echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) | ${gray_flash[$t]} |"
 done
 echo
 echo "Scaled decodes (share of the full decode's instructions; every leaf's edge pixels are still"

@@ -18,7 +18,8 @@ pub enum DecodeError {
     BadMagic,
     /// The stream was written by another (or an unknown) version of the format.
     UnsupportedVersion(u8),
-    /// The channel count is not one this decoder can reconstruct.
+    /// The channel count is not one this decoder can reconstruct (3 needs the `colour`
+    /// feature, on by default).
     UnsupportedChannels(u8),
     /// The sample bit depth is not one this decoder can reconstruct.
     UnsupportedBitDepth(u8),

@@ -207,7 +207,7 @@ impl Header {
             return Err(DecodeError::UnsupportedVersion(fixed[4]));
         }
         let channels = fixed[5];
-        if channels != 1 && channels != 3 {
+        if channels != 1 && (channels != 3 || !cfg!(feature = "colour")) {
             return Err(DecodeError::UnsupportedChannels(channels));
         }
         let bit_depth = fixed[6];
@@ -1121,6 +1121,39 @@ fn reconstruct_weights(
 mod tests {
     use super::*;
     use crate::model::SAMPLE_ONE;
+
+    /// A colour header parses with the `colour` feature (on by default) and is refused on its
+    /// channel count without it; a grayscale one parses either way.
+    #[test]
+    fn colour_headers_need_the_colour_feature() {
+        let gray = Header {
+            width: 33,
+            height: 20,
+            channels: 1,
+            bit_depth: 8,
+            min_leaf_log2: 2,
+            max_leaf_log2: 7,
+            stripe: 4,
+            deblock: 2,
+            codebooks: [Codebook::EMPTY; 2],
+            payload_len: 10,
+            checksum: 0,
+        };
+        let colour = Header {
+            channels: 3,
+            ..gray.clone()
+        };
+        for header in [gray, colour] {
+            let mut out = [0u8; MAX_HEADER_LEN];
+            let n = header.write(&mut out);
+            let parsed = Header::parse(&out[..n]).map(|(h, _)| h);
+            if header.channels == 1 || cfg!(feature = "colour") {
+                assert_eq!(parsed, Ok(header));
+            } else {
+                assert_eq!(parsed, Err(DecodeError::UnsupportedChannels(3)));
+            }
+        }
+    }
 
     /// Plays the encoder's part (records every bit) or the decoder's (replays them).
     struct Tape {

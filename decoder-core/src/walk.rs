@@ -169,15 +169,17 @@ pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
 ) -> Result<(), V::Error> {
-    if header.channels == 3 {
-        walk_colour(header, coder, visitor, state)
-    } else {
-        walk_planes(header, coder, visitor, state, None)
+    match header.channels {
+        #[cfg(feature = "colour")]
+        3 => walk_colour(header, coder, visitor, state),
+        1 => walk_planes(header, coder, visitor, state, None),
+        other => Err(DecodeError::UnsupportedChannels(other).into()),
     }
 }
 
 /// [`walk_with`] for a colour stream: holds the chroma state (fresh contexts) while the image
 /// is walked. Out of line, so that a grayscale decode's stack has no chroma state.
+#[cfg(feature = "colour")]
 #[inline(never)]
 fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
