@@ -646,3 +646,53 @@ fn a_batch_encodes_every_image_it_can() {
     ]));
     assert!(line.contains("would both be written"), "{line}");
 }
+
+/// `pifs rd` on a colour image draws the colour curve (PSNR on RGB, colour streams) unless
+/// `--gray`, and the PSNR it reports is the decoded colour stream's.
+#[test]
+fn rd_keeps_colour_unless_gray() {
+    let dir = scratch("rd-colour");
+    let png = dir.join("in.png");
+    let img = image::RgbImage::from_fn(48, 32, |x, y| {
+        image::Rgb([(x * 5) as u8, (y * 7) as u8, (200 - x * 2 - y) as u8])
+    });
+    img.save(&png).unwrap();
+    for (gray, channels) in [(false, 3), (true, 1)] {
+        let streams = dir.join(format!("streams-{channels}"));
+        let mut args = vec![
+            "rd",
+            png.to_str().unwrap(),
+            "--rates",
+            "1,3",
+            "--out-dir",
+            streams.to_str().unwrap(),
+        ];
+        if gray {
+            args.push("--gray");
+        }
+        let stdout = ok(&pifs(&args));
+        let said = if gray { "gray" } else { "colour (PSNR on RGB)" };
+        assert!(stdout.contains(said), "{stdout}");
+        let stream = streams.join("in-3bpp.pifs");
+        let (w, h, px) = decoded(&stream);
+        assert_eq!((w, h, px.len()), (48, 32, 48 * 32 * channels));
+        if gray {
+            continue;
+        }
+        let mse = img
+            .as_raw()
+            .iter()
+            .zip(&px)
+            .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+            .sum::<f64>()
+            / px.len() as f64;
+        let psnr = 10.0 * (255.0f64 * 255.0 / mse).log10();
+        let reported: f64 = stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with('3'))
+            .and_then(|l| l.split_whitespace().last())
+            .and_then(|v| v.parse().ok())
+            .expect("a row for 3 bpp");
+        assert!((psnr - reported).abs() < 0.01, "{psnr} against {reported}");
+    }
+}

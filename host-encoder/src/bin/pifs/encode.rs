@@ -183,11 +183,6 @@ impl Checked {
         Ok(self.decode_image()?.into_loaded(gray))
     }
 
-    /// Decodes the pixels as 8-bit luma ([`Checked::decode`]).
-    pub fn decode_luma(self) -> Result<Plane> {
-        Ok(self.decode_image()?.plane)
-    }
-
     fn decode_image(self) -> Result<io::DecodedImage> {
         let limits = ImageLimits {
             max_pixels: u64::MAX,

@@ -13,8 +13,11 @@ use std::path::{Path, PathBuf};
 /// Arguments of `pifs rd`.
 #[derive(Args, Debug)]
 pub struct RdArgs {
-    /// Input image.
+    /// Input image. A colour image is coded in colour (PSNR on RGB) unless --gray.
     pub input: PathBuf,
+    /// Code the image's luma only (BT.601), even from a colour image.
+    #[arg(long)]
+    pub gray: bool,
     /// Rates to encode, bits per pixel (whole file), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = [0.05, 0.1, 0.25, 0.5])]
     pub rates: Vec<f64>,
@@ -141,10 +144,16 @@ pub fn run(args: &RdArgs) -> Result<()> {
         }
         None => Vec::new(),
     };
-    let plane =
-        encode::check_image(&args.input, &args.limits, &args.analysis, true)?.decode_luma()?;
+    let image = encode::check_image(&args.input, &args.limits, &args.analysis, args.gray)?
+        .decode(args.gray)?;
     let targets: Vec<Target> = args.rates.iter().map(|&r| Target::Bpp(r)).collect();
-    let analysed = encode::analyse_plane(plane, &args.analysis, &targets)?;
+    let analysed = encode::analyse_loaded(&image, &args.analysis, &targets)?;
+    drop(image);
+    let psnr = if analysed.analysis.channels() == 3 {
+        "PSNR-RGB"
+    } else {
+        "PSNR"
+    };
     if let Some(dir) = &args.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| io::FileError::Write {
             path: dir.clone(),
@@ -182,8 +191,13 @@ pub fn run(args: &RdArgs) -> Result<()> {
     }
     let (w, h) = analysed.size();
     say!(
-        "{}: {w}x{h}, one analysis in {:.2} s",
+        "{}: {w}x{h}, {}, one analysis in {:.2} s",
         args.input.display(),
+        if psnr == "PSNR" {
+            "gray"
+        } else {
+            "colour (PSNR on RGB)"
+        },
         analysed.seconds
     );
     crate::say::text(table(&args.rates, &points));
@@ -214,7 +228,7 @@ pub fn run(args: &RdArgs) -> Result<()> {
             }
             s
         }));
-        let svg = crate::plot::rd_svg(&format!("{name}: PSNR against rate"), &series).map_err(
+        let svg = crate::plot::rd_svg(&format!("{name}: {psnr} against rate"), &series).map_err(
             |cause| CliError::Plot {
                 path: path.clone(),
                 cause,
