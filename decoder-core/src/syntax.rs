@@ -1141,7 +1141,7 @@ mod tests {
         };
         let colour = Header {
             channels: 3,
-            ..gray.clone()
+            ..gray
         };
         for header in [gray, colour] {
             let mut out = [0u8; MAX_HEADER_LEN];
