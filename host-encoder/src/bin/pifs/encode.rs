@@ -52,7 +52,7 @@ pub struct EncodeArgs {
         conflicts_with = "out_dir"
     )]
     pub output: Option<PathBuf>,
-    /// Batch: writes each input's stream to DIR/<its name>.pifs (DIR is made if missing), the
+    /// Batch: writes each input's stream to DIR/NAME.pifs (NAME: the input's file name without its extension) (DIR is made if missing), the
     /// images spread over the cores, one summary line each; a failure is reported and the
     /// others go on (the exit status says whether any failed).
     #[arg(long, value_name = "DIR")]
