@@ -52,9 +52,10 @@ pub struct EncodeArgs {
         conflicts_with = "out_dir"
     )]
     pub output: Option<PathBuf>,
-    /// Batch: writes each input's stream to DIR/NAME.pifs (NAME: the input's file name without its extension) (DIR is made if missing), the
-    /// images spread over the cores, one summary line each; a failure is reported and the
-    /// others go on (the exit status says whether any failed).
+    /// Batch: writes each input's stream to DIR/NAME.pifs, NAME its file name without the
+    /// extension (DIR is made if missing), the images spread over the cores, one summary line
+    /// each; a failure is reported and the others go on (the exit status says whether any
+    /// failed).
     #[arg(long, value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
     /// Target bits per pixel, whole file, never exceeded [default: 0.25, or the smallest
