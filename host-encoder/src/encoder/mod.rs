@@ -365,7 +365,8 @@ impl Analysis {
 const DEBLOCK_STRENGTHS: [u8; 8] = [0, 1, 2, 3, 4, 6, 8, 12];
 
 /// Analyses an image with `config`; the result encodes any number of targets. `progress` is
-/// called with the number of quadtree nodes fitted so far. Fails with
+/// called with the number of node steps done so far (every node of a leaf size fitted, then
+/// its candidates made). Fails with
 /// [`EncodeError::BadDimensions`] on an image the format cannot hold (empty, or more than
 /// 65535 pixels on a side).
 pub fn analyse(
