@@ -538,15 +538,20 @@ fn the_demo_runs_from_any_directory_and_writes_only_there() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A 48x32 colour test image: a gradient in each channel.
+fn colour_gradient() -> image::RgbImage {
+    image::RgbImage::from_fn(48, 32, |x, y| {
+        image::Rgb([(x * 5) as u8, (y * 7) as u8, (200 - x * 2 - y) as u8])
+    })
+}
+
 /// A colour PNG gives a colour stream (`info` says so) that decodes to a colour PNG and PPM
 /// close to the input; `--gray` gives a grayscale stream of the same image.
 #[test]
 fn colour_images_stay_colour_unless_gray() {
     let dir = scratch("colour");
     let png = dir.join("in.png");
-    let img = image::RgbImage::from_fn(48, 32, |x, y| {
-        image::Rgb([(x * 5) as u8, (y * 7) as u8, (200 - x * 2 - y) as u8])
-    });
+    let img = colour_gradient();
     img.save(&png).unwrap();
     let run = |args: &[&str]| {
         let out = pifs(args);
@@ -653,9 +658,7 @@ fn a_batch_encodes_every_image_it_can() {
 fn rd_keeps_colour_unless_gray() {
     let dir = scratch("rd-colour");
     let png = dir.join("in.png");
-    let img = image::RgbImage::from_fn(48, 32, |x, y| {
-        image::Rgb([(x * 5) as u8, (y * 7) as u8, (200 - x * 2 - y) as u8])
-    });
+    let img = colour_gradient();
     img.save(&png).unwrap();
     for (gray, channels) in [(false, 3), (true, 1)] {
         let streams = dir.join(format!("streams-{channels}"));
