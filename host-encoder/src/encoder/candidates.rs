@@ -29,6 +29,34 @@ pub struct Candidate {
     pub at: u32,
 }
 
+/// The rate and error of one way of coding something.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RatePoint {
+    /// Bits.
+    pub bits: f32,
+    /// Squared error, in the units of the node's luma error.
+    pub sse: f32,
+}
+
+/// What coding a node's chroma costs when the node is a leaf: for each chroma plane, the
+/// options on the lower convex hull of (bits, weighted error). The quadtree's cut sees it
+/// beside the luma candidates' cost; empty (free) for a grayscale analysis.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ChromaCost {
+    /// The hull of `Cb`'s options, then `Cr`'s.
+    pub planes: [Vec<RatePoint>; 2],
+}
+
+impl ChromaCost {
+    /// Each plane's option of least `sse + lambda * bits`.
+    pub fn cheapest(&self, lambda: f64) -> impl Iterator<Item = &RatePoint> {
+        let cost = move |p: &RatePoint| f64::from(p.sse) + lambda * f64::from(p.bits);
+        self.planes
+            .iter()
+            .filter_map(move |plane| plane.iter().min_by(|a, b| cost(a).total_cmp(&cost(b))))
+    }
+}
+
 /// Everything the analysis knows about one node.
 #[derive(Debug, Clone)]
 pub struct NodeAnalysis {
@@ -40,6 +68,8 @@ pub struct NodeAnalysis {
     pub candidates: Vec<Candidate>,
     /// The candidates' indices, one after the other (one allocation per node).
     pub indices: Vec<i16>,
+    /// What its chroma costs as a leaf (colour analyses only).
+    pub chroma: ChromaCost,
 }
 
 impl NodeAnalysis {

@@ -1,21 +1,26 @@
-//! The chroma planes of a colour stream: the YCbCr planes of an RGB image, and the choice of
-//! each leaf's chroma syntax while the stream is written.
+//! The chroma planes of a colour stream: the YCbCr planes of an RGB image, what coding a
+//! node's chroma costs (which the quadtree's cut weighs with its luma), and the choice of each
+//! leaf's chroma syntax while the stream is written.
 //!
-//! The quadtree cut is luma's (the analysis sees luma only); each leaf's two chroma planes are
-//! then fitted at the leaf's chroma node (half its side) with every chroma model (a bilinear
+//! A leaf's two chroma planes are fitted at the leaf's chroma node (half its side) with every
+//! chroma model (a bilinear
 //! grid of 1, 2, 4 or 8 intervals: the least-squares grid, or the pixels themselves where the
 //! grid is as fine as the pixels), quantised with every control step and both control codings
 //! (closed-loop DPCM, or the grid transform), reconstructed by decoder-core, and priced with
 //! the chroma contexts' current probabilities. The choice minimises `w * 4 * sse + lambda *
 //! bits`, `lambda` the luma plan's multiplier and `w` the weight that makes chroma error RGB
-//! error (below), 4 the luma pixels a chroma pixel stands for.
+//! error (below), 4 the luma pixels a chroma pixel stands for. The analysis prices the same
+//! options for every node from the image's own chroma and the contexts every stream starts
+//! from ([`leaf_cost`]), so that rate control splits where colour, not only luma, pays for it.
 //!
 //! Above [`super::quantise`] (its forward grid transform); below the writer.
 
-use super::plane::Plane;
+use super::candidates::{ChromaCost, RatePoint};
+use super::plane::{ImagePrediction, Plane};
 use super::quantise::forward_grid_transform;
+use super::rate::lower_hull;
 use crate::entropy::BitCounter;
-use decoder_core::internal::colour::{chroma_len, CHROMA_GRIDS};
+use decoder_core::internal::colour::{chroma_len, chroma_node, CHROMA_GRIDS};
 use decoder_core::internal::colour::{chroma_models, rgb_to_ycbcr, sample, ChromaPlane};
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE};
 use decoder_core::internal::prediction::SamplePrediction;
@@ -202,22 +207,29 @@ fn plane_sse(plane: &Plane, node: &Node, rec: &ChromaPlane) -> f64 {
     sse
 }
 
-/// The chroma syntax of plane `p` (0: `Cb`, 1: `Cr`, `plane` its pixels) at chroma node
-/// `node` of least `CHROMA_WEIGHTS[p] * 4 * sse + lambda * bits` (see the module's notes), with
-/// the chroma contexts `contexts` and the chroma frontier `prediction` as the decoder will have
-/// them.
-pub fn choose<P: SamplePrediction>(
+/// One way of coding a chroma leaf: its syntax, its weighted error
+/// (`CHROMA_WEIGHTS[p] * 4 * sse`, in luma units) and its bits.
+struct ChromaOption {
+    syntax: ChromaSyntax,
+    weighted_sse: f64,
+    bits: f64,
+}
+
+/// Visits the ways of coding plane `p` (0: `Cb`, 1: `Cr`, `plane` its pixels) at chroma node
+/// `node`: every chroma model and control coding, each with its control steps from coarse to
+/// fine for as long as `visit` returns `true`. Each is reconstructed by decoder-core and priced
+/// with the chroma contexts `contexts` and the chroma frontier `prediction`.
+fn for_each_option<P: SamplePrediction>(
     plane: &Plane,
     p: usize,
     node: &Node,
     prediction: &P,
     contexts: &ChromaContexts,
-    lambda: f64,
-) -> ChromaChoice {
+    visit: &mut dyn FnMut(&ChromaOption) -> bool,
+) {
     let pixels = leaf_pixels(plane, node);
     let weight = 4.0 * CHROMA_WEIGHTS[p & 1];
     let mut ctx = contexts.clone();
-    let mut best: Option<(f64, ChromaChoice)> = None;
     for (model, &(g, _)) in CHROMA_GRIDS
         .iter()
         .enumerate()
@@ -230,8 +242,6 @@ pub fn choose<P: SamplePrediction>(
             &[ControlCoding::Dpcm]
         };
         for &coding in codings {
-            let mut previous = f64::INFINITY;
-            let mut worse = 0;
             for cq in (0..CONTROL_QUANTISERS as u8).rev() {
                 let mut syntax = ChromaSyntax {
                     model: model as u8,
@@ -251,27 +261,124 @@ pub fn choose<P: SamplePrediction>(
                 if code_chroma(&mut counter, &mut ctx, node, prediction, &mut coded).is_err() {
                     continue;
                 }
-                let bits = counter.bits();
-                let j = weight * sse + lambda * bits;
-                if best.as_ref().is_none_or(|(b, _)| j < *b) {
-                    best = Some((j, ChromaChoice { syntax, bits }));
+                let option = ChromaOption {
+                    syntax,
+                    weighted_sse: weight * sse,
+                    bits: counter.bits(),
+                };
+                if !visit(&option) {
+                    break;
                 }
-                // From coarse to fine steps: stop once finer steps stop paying.
-                if j > previous {
-                    worse += 1;
-                    if worse >= 2 {
-                        break;
-                    }
-                } else {
-                    worse = 0;
-                }
-                previous = j;
             }
         }
     }
+}
+
+/// The chroma syntax of plane `p` (0: `Cb`, 1: `Cr`, `plane` its pixels) at chroma node
+/// `node` of least `CHROMA_WEIGHTS[p] * 4 * sse + lambda * bits` (see the module's notes), with
+/// the chroma contexts `contexts` and the chroma frontier `prediction` as the decoder will have
+/// them.
+pub fn choose<P: SamplePrediction>(
+    plane: &Plane,
+    p: usize,
+    node: &Node,
+    prediction: &P,
+    contexts: &ChromaContexts,
+    lambda: f64,
+) -> ChromaChoice {
+    let mut best: Option<(f64, ChromaChoice)> = None;
+    let (mut previous, mut worse) = (f64::INFINITY, 0);
+    let mut series = None;
+    for_each_option(plane, p, node, prediction, contexts, &mut |o| {
+        // A new model or coding starts a new series of steps.
+        let key = (o.syntax.model, o.syntax.coding);
+        if series != Some(key) {
+            series = Some(key);
+            (previous, worse) = (f64::INFINITY, 0);
+        }
+        let j = o.weighted_sse + lambda * o.bits;
+        if best.as_ref().is_none_or(|(b, _)| j < *b) {
+            let choice = ChromaChoice {
+                syntax: o.syntax,
+                bits: o.bits,
+            };
+            best = Some((j, choice));
+        }
+        // From coarse to fine steps: stop once finer steps stop paying.
+        if j > previous {
+            worse += 1;
+        } else {
+            worse = 0;
+        }
+        previous = j;
+        worse < 2
+    });
     best.map(|(_, c)| c).unwrap_or(ChromaChoice {
         syntax: ChromaSyntax::default(),
         bits: 0.0,
+    })
+}
+
+/// What coding the chroma of the luma node `node` as a leaf costs, estimated from the image's
+/// own chroma (its frontier) and the contexts every stream starts from: for each plane, its
+/// options on the lower convex hull of (bits, weighted error).
+pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost {
+    let cnode = chroma_node(node);
+    let contexts = ChromaContexts::default();
+    let mut cost = ChromaCost::default();
+    for (p, hull) in cost.planes.iter_mut().enumerate() {
+        let plane = &colour.chroma[p];
+        if cnode.x >= plane.width || cnode.y >= plane.height {
+            continue;
+        }
+        let prediction = ImagePrediction {
+            plane,
+            stripe: stripe / 2,
+        };
+        let mut options = Vec::new();
+        for_each_option(plane, p, &cnode, &prediction, &contexts, &mut |o| {
+            options.push((o.bits, o.weighted_sse));
+            true
+        });
+        *hull = lower_hull(&options)
+            .into_iter()
+            .map(|k| {
+                let (bits, sse) = options[usize::from(k)];
+                RatePoint {
+                    bits: bits as f32,
+                    sse: sse as f32,
+                }
+            })
+            .collect();
+    }
+    cost
+}
+
+/// Whether both chroma planes of the luma node `node` are reproduced by a bilinear chroma
+/// leaf (one interval, the finest step) within `mse` per luma pixel, weighted as RGB error:
+/// a node is settled only if its chroma is as smooth as its luma.
+pub fn smooth_within(colour: &ColourPlanes, node: &Node, mse: f64) -> bool {
+    let cnode = chroma_node(node);
+    colour.chroma.iter().enumerate().all(|(p, plane)| {
+        if cnode.x >= plane.width || cnode.y >= plane.height {
+            return true;
+        }
+        let mut syntax = ChromaSyntax {
+            model: 0,
+            cquant: 0,
+            coding: ControlCoding::Dpcm,
+            control: [0; MAX_CONTROL],
+        };
+        let grid = chroma_grid(&syntax, cnode.log2);
+        let t = targets(&leaf_pixels(plane, &cnode), &cnode, 0);
+        syntax.control = quantise(&t, grid.side, grid.step, grid.transform);
+        let mut rec = ChromaPlane::NEUTRAL;
+        if reconstruct_chroma(&syntax, cnode.log2, &mut rec).is_err() {
+            return false;
+        }
+        let inside = |start: u32, len: u32| cnode.size().min(len - start);
+        let pixels = f64::from(inside(cnode.x, plane.width) * inside(cnode.y, plane.height));
+        4.0 * CHROMA_WEIGHTS[p] * plane_sse(plane, &cnode, &rec) <= mse * 4.0 * pixels
     })
 }
 

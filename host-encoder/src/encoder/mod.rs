@@ -374,13 +374,13 @@ pub fn analyse(
     config: &EncoderConfig,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Analysis, EncodeError> {
-    Analysis::run(plane, config, progress)
+    Analysis::run(plane, None, config, progress)
 }
 
 /// Analyses an RGB image (`3 * width * height` bytes, row-major) for colour streams: the
-/// analysis of its luma ([`analyse`]), whose streams carry its chroma too (converted by
-/// decoder-core's integer BT.601 conversion, chroma subsampled 4:2:0). Streams' error is
-/// then the RGB squared error.
+/// analysis of its luma ([`analyse`]) with, at every node, what its chroma costs (converted by
+/// decoder-core's integer BT.601 conversion, chroma subsampled 4:2:0), which the quadtree's
+/// cut weighs too. Streams' error is then the RGB squared error.
 pub fn analyse_colour(
     width: u32,
     height: u32,
@@ -392,7 +392,7 @@ pub fn analyse_colour(
         return Err(EncodeError::Internal("RGB buffer size mismatch"));
     }
     let (luma, colour) = ColourPlanes::from_rgb(width, height, rgb);
-    Ok(Analysis::run(luma, config, progress)?.with_colour(colour))
+    Analysis::run(luma, Some(colour), config, progress)
 }
 
 /// The image a stream decodes to, by decoder-core (what every decoder shows).

@@ -8,7 +8,9 @@
 //! Above [`super::candidates`] (it rates and chooses among them); below [`super::writer`], which
 //! writes the [`Plan`]s it makes.
 
-use super::candidates::{CandidateSelection, CandidateTree, NodeAnalysis, WithCandidates};
+use super::candidates::{
+    CandidateSelection, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates,
+};
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
 use decoder_core::internal::syntax::control::WeightQuantiser;
@@ -220,6 +222,21 @@ struct LeafChoice {
     candidate: u16,
 }
 
+impl LeafChoice {
+    /// This leaf with its chroma, at its cheapest for `lambda`, added to its cost.
+    fn with_chroma(self, chroma: &ChromaCost, lambda: f64) -> LeafChoice {
+        let cost = chroma.cheapest(lambda).fold(self.cost, |cost, p| {
+            let (sse, bits) = (f64::from(p.sse), f64::from(p.bits));
+            cost.plus(Cost {
+                j: sse + lambda * bits,
+                sse,
+                bits,
+            })
+        });
+        LeafChoice { cost, ..self }
+    }
+}
+
 /// The best cuts of one level's nodes, row-major: what splitting a node of the level above
 /// costs.
 struct LevelCosts {
@@ -395,7 +412,12 @@ impl RateTable {
                         y: cy << level.log2,
                         log2: level.log2,
                     };
-                    let leaf = rates.best_leaf(i as usize, lambda, codebooks);
+                    let leaf = rates
+                        .best_leaf(i as usize, lambda, codebooks)
+                        .map(|l| match &level.nodes[i as usize] {
+                            Some(na) => l.with_chroma(&na.chroma, lambda),
+                            None => l,
+                        });
                     let split = (level.log2 > min).then(|| below_ref.split(cx, cy));
                     decide(node_kind(header, &node), leaf, split, lambda, flag)
                 })
@@ -558,6 +580,12 @@ pub fn prune_node(
     let keep = hull_layers(points, lambdas, layers);
     na.retain(&keep);
     keep.iter().map(|&k| bits[usize::from(k)]).collect()
+}
+
+/// Indices of the points `(bits, sse)` on their lower convex hull: those that minimise
+/// `sse + lambda * bits` for some positive `lambda`, ascending.
+pub fn lower_hull(points: &[(f64, f64)]) -> Vec<u16> {
+    lower_hull_in(points, &(0.0..=f64::INFINITY))
 }
 
 /// Indices of the points `(bits, sse)` that minimise `sse + lambda * bits` for some `lambda` in

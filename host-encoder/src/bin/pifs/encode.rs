@@ -442,9 +442,8 @@ fn write_encoded(
     let name = out.name().to_path_buf();
     out.commit()?;
     let (w, h) = analysed.size();
-    // The rate model plans luma; a colour stream's chroma bits are chosen as it is written.
-    let planned = encoded.actual_payload_bits - encoded.chroma_bits;
-    let gap = 100.0 * (encoded.estimated_payload_bits - planned) / planned.max(1.0);
+    let actual = encoded.actual_payload_bits;
+    let gap = 100.0 * (encoded.estimated_payload_bits - actual) / actual.max(1.0);
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
     let kind = if encoded.channels == 3 {
         format!(
@@ -456,12 +455,11 @@ fn write_encoded(
         format!("gray, PSNR {:.2} dB", encoded.psnr)
     };
     say!(
-        "{}: {w}x{h} -> {} bytes, {:.4} bpp, {kind}, {} leaves, {}rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
+        "{}: {w}x{h} -> {} bytes, {:.4} bpp, {kind}, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
         name.display(),
         encoded.bytes.len(),
         analysed.bpp(encoded.bytes.len()),
         encoded.leaves,
-        if encoded.channels == 3 { "luma " } else { "" },
         analysed.seconds,
         t.elapsed().as_secs_f64()
     );
