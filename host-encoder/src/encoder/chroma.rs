@@ -193,6 +193,29 @@ fn quantise(t: &[f64], side: usize, step: i32, transform: bool) -> [i16; MAX_CON
     k
 }
 
+/// The syntax of chroma model `model` (whose targets are `t`) at `node` with control quantiser
+/// `cquant` and `coding`, and its reconstruction by decoder-core; `None` if it cannot be
+/// reconstructed.
+fn quantised(
+    t: &[f64],
+    node: &Node,
+    model: u8,
+    cquant: u8,
+    coding: ControlCoding,
+) -> Option<(ChromaSyntax, ChromaPlane)> {
+    let mut syntax = ChromaSyntax {
+        model,
+        cquant,
+        coding,
+        control: [0; MAX_CONTROL],
+    };
+    let grid = chroma_grid(&syntax, node.log2);
+    syntax.control = quantise(t, grid.side, grid.step, grid.transform);
+    let mut rec = ChromaPlane::NEUTRAL;
+    reconstruct_chroma(&syntax, node.log2, &mut rec).ok()?;
+    Some((syntax, rec))
+}
+
 /// Squared error of a reconstructed chroma plane over the leaf's pixels inside the plane.
 fn plane_sse(plane: &Plane, node: &Node, rec: &ChromaPlane) -> f64 {
     let s = node.size();
@@ -243,18 +266,9 @@ fn for_each_option<P: SamplePrediction>(
         };
         for &coding in codings {
             for cq in (0..CONTROL_QUANTISERS as u8).rev() {
-                let mut syntax = ChromaSyntax {
-                    model: model as u8,
-                    cquant: cq,
-                    coding,
-                    control: [0; MAX_CONTROL],
-                };
-                let grid = chroma_grid(&syntax, node.log2);
-                syntax.control = quantise(&t, grid.side, grid.step, grid.transform);
-                let mut rec = ChromaPlane::NEUTRAL;
-                if reconstruct_chroma(&syntax, node.log2, &mut rec).is_err() {
+                let Some((syntax, rec)) = quantised(&t, node, model as u8, cq, coding) else {
                     continue;
-                }
+                };
                 let sse = plane_sse(plane, node, &rec);
                 let mut counter = BitCounter::frozen();
                 let mut coded = syntax;
@@ -363,19 +377,10 @@ pub fn smooth_within(colour: &ColourPlanes, node: &Node, mse: f64) -> bool {
         if cnode.x >= plane.width || cnode.y >= plane.height {
             return true;
         }
-        let mut syntax = ChromaSyntax {
-            model: 0,
-            cquant: 0,
-            coding: ControlCoding::Dpcm,
-            control: [0; MAX_CONTROL],
-        };
-        let grid = chroma_grid(&syntax, cnode.log2);
         let t = targets(&leaf_pixels(plane, &cnode), &cnode, 0);
-        syntax.control = quantise(&t, grid.side, grid.step, grid.transform);
-        let mut rec = ChromaPlane::NEUTRAL;
-        if reconstruct_chroma(&syntax, cnode.log2, &mut rec).is_err() {
+        let Some((_, rec)) = quantised(&t, &cnode, 0, 0, ControlCoding::Dpcm) else {
             return false;
-        }
+        };
         let inside = |start: u32, len: u32| cnode.size().min(len - start);
         let pixels = f64::from(inside(cnode.x, plane.width) * inside(cnode.y, plane.height));
         4.0 * CHROMA_WEIGHTS[p] * plane_sse(plane, &cnode, &rec) <= mse * 4.0 * pixels
