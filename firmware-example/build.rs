@@ -32,7 +32,52 @@ fn main() {
     } else {
         golden_vectors(&manifest.join("../tests/golden"))
     };
-    fs::write(out.join("vectors.rs"), generate(&vectors)).unwrap();
+    let mut generated = generate(&vectors);
+    if env::var_os("CARGO_FEATURE_BENCH").is_none() {
+        generated += &packet_sets(&manifest.join("../tests/golden"));
+    }
+    fs::write(out.join("vectors.rs"), generated).unwrap();
+}
+
+/// The golden packet sets of `tests/golden/packets.txt`: each framed file with the packets
+/// the firmware is to lose, and the largest frame buffer one needs.
+fn packet_sets(dir: &Path) -> String {
+    let list = dir.join("packets.txt");
+    println!("cargo:rerun-if-changed={}", list.display());
+    let text = fs::read_to_string(&list).unwrap_or_else(|e| panic!("{}: {e}", list.display()));
+    let mut s = String::from("/// The golden packet sets.\npub static PACKET_SETS: &[PacketSet] = &[\n");
+    let mut frame = 1usize;
+    for line in text.lines().map(str::trim) {
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = line.split_whitespace().collect();
+        assert!(f.len() >= 4, "packets.txt: bad line {line:?}");
+        let path = dir.join(f[0]);
+        println!("cargo:rerun-if-changed={}", path.display());
+        let bytes = fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let len = usize::from(u16::from_le_bytes([bytes[0], bytes[1]]));
+        let first = decoder_core::Packet::parse(&bytes[2..2 + len])
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let (w, h): (usize, usize) = (f[1].parse().unwrap(), f[2].parse().unwrap());
+        frame = frame.max(w * h * usize::from(first.channels));
+        writeln!(
+            s,
+            "    PacketSet {{ name: {:?}, width: {w}, height: {h}, channels: {}, lost: &[{}], data: include_bytes!({:?}) }},",
+            f[0],
+            first.channels,
+            f[3],
+            path.canonicalize().unwrap().to_str().expect("UTF-8 path")
+        )
+        .unwrap();
+    }
+    s.push_str("];\n");
+    writeln!(
+        s,
+        "/// Bytes of the frame buffer of the largest packet set.\npub const PACKET_FRAME_LEN: usize = {frame};"
+    )
+    .unwrap();
+    s
 }
 
 struct Vector {

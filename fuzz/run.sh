@@ -31,7 +31,7 @@ done
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(decode_bytes stream_equals_slice roundtrip encode_input large_dimensions)
+[ ${#targets[@]} -gt 0 ] || targets=(decode_bytes stream_equals_slice roundtrip encode_input large_dimensions decode_packets)
 version=$(sed -n 's/^pub const VERSION: u8 = \([0-9]*\);.*/\1/p' ../decoder-core/src/format.rs)
 seeds_of() {
     case "$1" in

@@ -126,6 +126,66 @@ impl Input for InMemory<'_> {
     }
 }
 
+/// The payload of a packet (already checked by its CRC), read as if followed by zero bytes:
+/// a packet's range coder ends with as few bytes as decode correctly with that padding
+/// (`docs/bitstream.md`, section 9), at most four of which are read past its end.
+#[derive(Debug, Clone)]
+pub(crate) struct ZeroPadded<'a> {
+    source: SliceSource<'a>,
+    padding: u8,
+}
+
+/// The zero bytes a packet's payload may be read past its end: the range decoder's register.
+const PACKET_PADDING: u8 = 4;
+
+impl<'a> ZeroPadded<'a> {
+    pub(crate) fn new(payload: &'a [u8]) -> Self {
+        ZeroPadded {
+            source: SliceSource::new(payload),
+            padding: 0,
+        }
+    }
+}
+
+impl sealed::Sealed for ZeroPadded<'_> {}
+
+impl ByteSource for ZeroPadded<'_> {
+    #[inline]
+    fn next_byte(&mut self) -> Option<u8> {
+        match self.source.next_byte() {
+            Some(b) => Some(b),
+            None if self.padding < PACKET_PADDING => {
+                self.padding += 1;
+                Some(0)
+            }
+            None => None,
+        }
+    }
+}
+
+impl Input for ZeroPadded<'_> {
+    const VERIFIED: bool = true;
+
+    fn finish(mut self, _header: &Header) -> Result<(), DecodeError> {
+        // Every byte of the payload was needed.
+        match self.padding > 0 || self.source.next_byte().is_none() {
+            true => Ok(()),
+            false => Err(DecodeError::InvalidData(SyntaxElement::PayloadLength)),
+        }
+    }
+
+    fn after_error(self, _header: &Header, error: DecodeError) -> DecodeError {
+        error
+    }
+}
+
+impl<'a> Decoder<ZeroPadded<'a>> {
+    /// A decoder of a packet's payload, checked with its header (by its CRC).
+    pub(crate) fn packet(header: Header, payload: &'a [u8]) -> Self {
+        Decoder::with_input(header, ZeroPadded::new(payload))
+    }
+}
+
 /// The payload of a sequential source: at most the header's payload length is pulled, and
 /// every byte goes through the stream's CRC-32, checked at the end.
 #[derive(Debug)]

@@ -75,6 +75,10 @@ pub enum HeaderField {
     CodebookLevels,
     /// The edge-smoothing strength is above the format's largest.
     Deblock,
+    /// A packet's region does not lie in its image.
+    Region,
+    /// A packet's index, count or size field is badly encoded or out of range.
+    PacketField,
 }
 
 impl HeaderField {
@@ -88,6 +92,8 @@ impl HeaderField {
             HeaderField::CodebookSize => "codebook size",
             HeaderField::CodebookLevels => "codebook levels",
             HeaderField::Deblock => "edge-smoothing strength",
+            HeaderField::Region => "packet region (outside the image)",
+            HeaderField::PacketField => "packet index, count or size",
         }
     }
 }

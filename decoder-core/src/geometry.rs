@@ -37,6 +37,11 @@ impl Rect {
         self.w == 0 || self.h == 0
     }
 
+    /// Whether pixel `(x, y)` lies inside this rectangle.
+    pub fn contains_point(&self, x: u32, y: u32) -> bool {
+        self.x <= x && u64::from(x) < self.right() && self.y <= y && u64::from(y) < self.bottom()
+    }
+
     /// Whether `other` lies inside this rectangle.
     pub fn contains(&self, other: &Rect) -> bool {
         self.x <= other.x

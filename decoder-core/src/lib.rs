@@ -75,6 +75,7 @@ mod error;
 mod format;
 mod geometry;
 mod model;
+mod packet;
 mod prediction;
 mod syntax;
 mod synthesis;
@@ -88,6 +89,7 @@ pub use entropy::{ByteSource, SliceSource};
 pub use error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 pub use format::{MAGIC, VERSION};
 pub use geometry::{Node, Rect};
+pub use packet::{Packet, PacketKind, REGION_UNIT};
 pub use syntax::{ControlCoding, Header, MAX_HEADER_LEN};
 pub use synthesis::{PixelSink, Scale, Tile, TILE};
 pub use walk::LeafInfo;
@@ -121,6 +123,10 @@ pub mod internal {
     /// See the crate's `model` module.
     pub mod model {
         pub use crate::model::*;
+    }
+    /// See the crate's `packet` module.
+    pub mod packet {
+        pub use crate::packet::*;
     }
     /// See the crate's `prediction` module.
     pub mod prediction {
@@ -160,6 +166,7 @@ mod layering {
         &["syntax"],
         &["walk"],
         &["decoder"],
+        &["packet"],
         &["graphics"],
     ];
 

@@ -134,6 +134,22 @@ fn leb128_len(v: u32) -> usize {
     n
 }
 
+/// Checks the leaf-sizes byte (`max << 4 | min`) and the edge-smoothing strength of a header
+/// (a stream's or a packet's); returns the smallest and largest leaf sizes (log2).
+pub fn check_coding_fields(leaf_sizes: u8, deblock: u8) -> Result<(u8, u8), DecodeError> {
+    let min_leaf_log2 = leaf_sizes & 0x0F;
+    let max_leaf_log2 = leaf_sizes >> 4;
+    if !(MIN_LEAF_LOG2..=MAX_LEAF_LOG2).contains(&min_leaf_log2)
+        || !(min_leaf_log2..=MAX_LEAF_LOG2).contains(&max_leaf_log2)
+    {
+        return Err(DecodeError::InvalidHeader(HeaderField::LeafSizes));
+    }
+    if deblock > MAX_DEBLOCK {
+        return Err(DecodeError::InvalidHeader(HeaderField::Deblock));
+    }
+    Ok((min_leaf_log2, max_leaf_log2))
+}
+
 impl Header {
     /// Whether the stream carries Lloyd-Max codebooks.
     pub fn has_codebooks(&self) -> bool {
@@ -223,16 +239,7 @@ impl Header {
         if width == 0 || height == 0 {
             return Err(DecodeError::InvalidHeader(HeaderField::Dimensions));
         }
-        let min_leaf_log2 = fixed[12] & 0x0F;
-        let max_leaf_log2 = fixed[12] >> 4;
-        if !(MIN_LEAF_LOG2..=MAX_LEAF_LOG2).contains(&min_leaf_log2)
-            || !(min_leaf_log2..=MAX_LEAF_LOG2).contains(&max_leaf_log2)
-        {
-            return Err(DecodeError::InvalidHeader(HeaderField::LeafSizes));
-        }
-        if fixed[14] > MAX_DEBLOCK {
-            return Err(DecodeError::InvalidHeader(HeaderField::Deblock));
-        }
+        let (min_leaf_log2, max_leaf_log2) = check_coding_fields(fixed[12], fixed[14])?;
         let mut header = Header {
             width,
             height,

@@ -18,6 +18,9 @@
 //! - `stack`, `instr`: peak stack (bytes, by painting) and instructions (SysTick under
 //!   `-icount shift=0`) of one full decode drawn onto a display that only sums the pixels.
 //!
+//! Every golden packet set is received as a radio would hand it over, out of order and with
+//! losses, and drawn into a frame buffer (`PIFS-PACKETS`; see `packets.rs`).
+//!
 //! The smallest image is also drawn into a real frame buffer (`PIFS-FB name=<file>
 //! sha256=<hex>`, row-major like `sha256`), every image is drawn at 1/4, 1/2 and 2 times its
 //! size (`PIFS-SCALED name=<file> scale=<log2> w=<width> h=<height> sha256=<hex>`,
@@ -45,7 +48,11 @@ use cortex_m_semihosting::{debug, heprintln};
 
 mod measure;
 #[cfg(not(feature = "bench"))]
+mod packets;
+#[cfg(not(feature = "bench"))]
 mod targets;
+#[cfg(not(feature = "bench"))]
+use packets::PacketSet;
 
 /// An embedded stream.
 pub struct Vector {
@@ -115,6 +122,7 @@ fn run(counter: &measure::Counter) -> bool {
     for v in VECTORS {
         ok &= targets::check_vector(v, counter);
     }
+    ok &= packets::check_all();
     if ok {
         defmt::info!("all vectors decoded");
     } else {

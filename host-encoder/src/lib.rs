@@ -37,6 +37,7 @@ pub mod ifs;
 #[doc(hidden)]
 pub mod internal;
 pub mod io;
+pub mod packets;
 
 pub use encoder::{
     analyse, analyse_colour, psnr, Analysis, AnalysisTiming, ColourPlanes, EncodeError, Encoded,

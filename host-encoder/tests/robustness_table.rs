@@ -902,28 +902,32 @@ fn the_fuzz_campaign_is_reported() {
         "roundtrip",
         "encode_input",
         "large_dimensions",
+        "decode_packets",
     ];
     let mut text = format!(
         "## Fuzzing\n\
          \n\
-         Five `cargo fuzz` targets (`fuzz/README.md`): `decode_bytes` and `stream_equals_slice`\n\
+         Six `cargo fuzz` targets (`fuzz/README.md`): `decode_bytes` and `stream_equals_slice`\n\
          (any bytes as a stream, in memory and byte by byte), `roundtrip` (bytes made an image,\n\
          encoded and decoded), `encode_input` (image file bytes through the host's input side,\n\
          as `pifs encode` reads them) and `large_dimensions` (a valid header declaring up to\n\
          65535 x 65535 gray or colour pixels over a small payload, read header first by the\n\
-         host and written band by band, compared with `decode_into`). Their checks are in\n\
+         host and written band by band, compared with `decode_into`) and `decode_packets` (a\n\
+         framed set of packets, each alone and drawn around the others' regions, then the\n\
+         host's assembly of the set). Their checks are in\n\
          `tests/src/fuzz.rs`; `cargo test` replays them on every seed and regression input and\n\
          on a few thousand mutations (`tests/tests/fuzz_replay.rs`). The seeds in `fuzz/seeds/`\n\
          are made by the encoder (`tests/tests/fuzz_seeds.rs`, which also checks that they are\n\
          of the current format and use every model, both control codings, every control and\n\
          weight quantiser, every leaf size, and colour at several sizes, odd ones among them):\n\
-         {} streams, {} images, {} round-trip and {} large-dimension inputs; {} regression\n\
-         inputs.\n\
+         {} streams, {} images, {} round-trip and {} large-dimension inputs, {} packet sets;\n\
+         {} regression inputs.\n\
          \n",
         count_files("seeds/streams"),
         count_files("seeds/encode_input"),
         count_files("seeds/roundtrip"),
         count_files("seeds/large_dimensions"),
+        count_files("seeds/packets"),
         targets
             .iter()
             .map(|t| count_files(&format!("regressions/{t}")))

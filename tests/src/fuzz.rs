@@ -16,6 +16,11 @@
 //!   colour, with a small payload: the host reads it header first (refusing it beyond its limits after the header
 //!   alone, and never reading past the declared stream and one byte), and writes it band by
 //!   band exactly as `decode_into` decodes it, or fails with the same error.
+//! - [`decode_packets`]: a framed set of packets as a receiver gets them: each packet alone
+//!   (also with its CRC made to match) draws only inside its region, no pixel twice, every one
+//!   when it decodes; drawn around the other packets' regions, nothing inside them; and the
+//!   host's assembly of the whole set never panics and gives an image of the size its packets
+//!   declare.
 
 use crate::CoverageSink;
 use decoder_core::internal::syntax::seal;
@@ -436,5 +441,89 @@ pub fn large_dimensions(data: &[u8]) {
         (Ok(_), Err(e)) => panic!("the banded decode failed: {e}"),
         (Err(e), Ok(_)) => panic!("the banded decode succeeded where decode_into failed: {e}"),
         (Err(_), Err(e)) => panic!("the banded decode failed otherwise: {e}"),
+    }
+}
+
+/// Most packets of one input [`decode_packets`] looks at.
+const MAX_PACKETS: usize = 16;
+
+/// Check (f): see the module's list.
+pub fn decode_packets(data: &[u8]) {
+    use decoder_core::internal::packet::packet_crc;
+    use decoder_core::Packet;
+    let frames = host_encoder::packets::unframe(data);
+    let mut inputs: Vec<Vec<u8>> = Vec::new();
+    for frame in frames.into_iter().take(MAX_PACKETS) {
+        let mut sealed = frame.clone();
+        if sealed.len() > 4 {
+            let body = sealed.len() - 4;
+            let crc = packet_crc(&sealed[..body]);
+            sealed[body..].copy_from_slice(&crc);
+        }
+        let same = sealed == frame;
+        inputs.push(frame);
+        if !same {
+            inputs.push(sealed);
+        }
+    }
+    let parsed: Vec<Packet<'_>> = inputs
+        .iter()
+        .filter_map(|b| Packet::parse(b).ok())
+        .collect();
+    let regions: Vec<decoder_core::Rect> = parsed.iter().map(|p| p.region).collect();
+    for (i, p) in parsed.iter().enumerate() {
+        if u64::from(p.width) * u64::from(p.height) > MAX_PIXELS {
+            continue;
+        }
+        check_packet_alone(p);
+        // Around the others' regions: nothing inside them.
+        let others: Vec<decoder_core::Rect> = regions
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, r)| *r)
+            .collect();
+        let mut sink = CoverageSink::new(u32::from(p.width), u32::from(p.height));
+        let _ = p.decode_around(&others, &mut sink);
+        assert!(sink.violations.is_empty(), "{:?}", sink.violations[0]);
+        for (at, &count) in sink.counts.iter().enumerate() {
+            let (x, y) = (
+                (at % usize::from(p.width)) as u32,
+                (at / usize::from(p.width)) as u32,
+            );
+            if count > 0 {
+                assert!(
+                    p.region.contains_point(x, y) && !others.iter().any(|r| r.contains_point(x, y)),
+                    "drawn around: pixel ({x}, {y})"
+                );
+            }
+        }
+    }
+    if let Ok(image) = host_encoder::packets::assemble(inputs.iter().map(Vec::as_slice), MAX_PIXELS)
+    {
+        let expected = image.width as usize * image.height as usize * usize::from(image.channels);
+        assert_eq!(image.pixels.len(), expected);
+        assert!(image.received.len() <= usize::from(image.count));
+    }
+}
+
+/// One packet alone: draws only inside its region, no pixel twice, all of it on success.
+fn check_packet_alone(p: &decoder_core::Packet<'_>) {
+    let mut sink = CoverageSink::new(u32::from(p.width), u32::from(p.height));
+    let result = p.decode(&mut sink);
+    assert!(sink.violations.is_empty(), "{:?}", sink.violations[0]);
+    for (at, &count) in sink.counts.iter().enumerate() {
+        let (x, y) = (
+            (at % usize::from(p.width)) as u32,
+            (at / usize::from(p.width)) as u32,
+        );
+        let inside = p.region.contains_point(x, y);
+        assert!(
+            count <= u32::from(inside),
+            "packet pixel ({x}, {y}) drawn {count} times"
+        );
+        if result.is_ok() && inside {
+            assert_eq!(count, 1, "Ok, but packet pixel ({x}, {y}) was not drawn");
+        }
     }
 }

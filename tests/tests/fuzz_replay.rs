@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 type Check = fn(&[u8]);
 
 /// Each target, its check, its seed kinds (under `fuzz/seeds/`) and its mutations per run.
-const TARGETS: [(&str, Check, &[&str], usize); 5] = [
+const TARGETS: [(&str, Check, &[&str], usize); 6] = [
     ("decode_bytes", fuzz::decode_bytes, &["streams"], 4000),
     (
         "stream_equals_slice",
@@ -28,6 +28,7 @@ const TARGETS: [(&str, Check, &[&str], usize); 5] = [
         &["large_dimensions"],
         300,
     ),
+    ("decode_packets", fuzz::decode_packets, &["packets"], 1500),
 ];
 
 fn files_in(dir: &Path) -> Vec<Vec<u8>> {

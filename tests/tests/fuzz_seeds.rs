@@ -15,7 +15,9 @@
 //! - `encode_input/`: image files of every format and kind the host reads (grey, colour,
 //!   alpha, 16-bit, palette, EXIF-oriented JPEG, a TIFF of two pages, PNM, BMP);
 //! - `large_dimensions/`: inputs of that check (declared size, leaf sizes, channels, payload),
-//!   the payloads of the encoder's gray and colour streams under large declared sizes.
+//!   the payloads of the encoder's gray and colour streams under large declared sizes;
+//! - `packets/`: framed packet sets (gray, colour, with and without a preview, whole and with
+//!   packets missing), for `decode_packets`.
 
 mod common;
 
@@ -595,7 +597,45 @@ fn all_seeds() -> Vec<(&'static str, Files)> {
         ("roundtrip", roundtrip_seeds()),
         ("encode_input", encode_input_seeds()),
         ("large_dimensions", large),
+        ("packets", packet_seeds()),
     ]
+}
+
+/// Framed packet sets for `decode_packets`: gray and colour, with and without a preview, at
+/// the smallest packet size and a larger one, whole and with packets missing.
+fn packet_seeds() -> Files {
+    use host_encoder::packets::{frame, packetise, PacketOptions};
+    let config = EncoderConfig {
+        codebook_levels: 0,
+        ..EncoderConfig::default()
+    };
+    let mut out = Files::new();
+    let cases: [(&str, u32, u32, bool, usize, usize, bool); 4] = [
+        ("gray-48x40", 48, 40, false, 48, 6, true),
+        ("gray-72x24", 72, 24, false, 64, 5, false),
+        ("colour-40x24", 40, 24, true, 64, 5, true),
+        ("colour-23x17", 23, 17, true, 48, 4, false),
+    ];
+    for (name, w, h, colour, size, count, preview) in cases {
+        let plane = common::synthetic(w, h, w + h, 6);
+        let analysis = if colour {
+            host_encoder::analyse_colour(w, h, common::synthetic_rgb(w, h, w * h), &config, &|_| {})
+                .unwrap()
+        } else {
+            common::analyse_with(plane, &config)
+        };
+        let options = PacketOptions {
+            size,
+            image_id: w as u16,
+            preview,
+        };
+        let made = packetise(&analysis, &config, Target::Bytes(size * count), &options)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        out.push((format!("{name}-all.pifsp"), frame(&made.packets)));
+        let odd: Vec<Vec<u8>> = made.packets.iter().skip(1).step_by(2).cloned().collect();
+        out.push((format!("{name}-odd.pifsp"), frame(&odd)));
+    }
+    out
 }
 
 #[test]
@@ -693,4 +733,11 @@ fn committed_seeds_match_the_generator() {
         .filter(|(_, b)| b.len() > pifs_tests::fuzz::LARGE_PREFIX && b[5] & 1 == 1)
         .count();
     assert!(colour >= 4, "{colour} colour large-dimension seeds");
+    let mut packets = packet_seeds();
+    packets.sort();
+    assert_eq!(
+        names(&committed("packets")),
+        names(&packets),
+        "fuzz/seeds/packets differs"
+    );
 }

@@ -9,6 +9,8 @@
 //! - `sha256`: the row-major decoded pixels (also checked against `golden.txt`);
 //! - `tiles`: the tiles in arrival order (per tile `x, y, w, h` as u32 LE, then the pixels);
 //! - `PIFS-FB`: the frame-buffer decode of the smallest vector;
+//! - `PIFS-PACKETS`: each golden packet set of `tests/golden/packets.txt`, received out of
+//!   order with some packets lost, hashed from a frame buffer;
 //! - `PIFS-SCALED`: the row-major hash of every vector decoded at 1/4, 1/2 and 2 times its size
 //!   (`PifsImage::with_scale`).
 //!
@@ -348,6 +350,8 @@ fn check_board(board: &Board) {
         "{context}: scaled decodes missing"
     );
 
+    check_packets(&context, &lines);
+
     let fb: Vec<&&str> = lines.iter().filter(|l| l.starts_with("PIFS-FB ")).collect();
     assert_eq!(fb.len(), 1, "{context}: frame-buffer lines {fb:?}");
     let f = fields(fb[0]);
@@ -356,6 +360,37 @@ fn check_board(board: &Board) {
         "{context}: frame-buffer decode of {} differs from the host's",
         f["name"]
     );
+}
+
+/// Every golden packet set, received by the firmware out of order and without its lost
+/// packets, draws what the host assembles from the same packets.
+fn check_packets(context: &str, lines: &[&str]) {
+    let sets = common::golden_packets();
+    let mut seen = 0;
+    for l in lines.iter().filter(|l| l.starts_with("PIFS-PACKETS ")) {
+        let f = fields(l);
+        let g = sets
+            .iter()
+            .find(|g| g.file == f["name"])
+            .unwrap_or_else(|| panic!("{context}: unknown packet set in {l:?}"));
+        let (all, kept) = common::golden_packet_set(g);
+        let host =
+            host_encoder::packets::assemble(kept.iter().map(Vec::as_slice), u64::MAX).unwrap();
+        assert_eq!(sha256_hex(&host.pixels), g.sha256_lossy, "{}: host", g.file);
+        assert_eq!(
+            f["received"],
+            (all.len() - g.lost.len()).to_string(),
+            "{context}: {}",
+            g.file
+        );
+        assert_eq!(
+            f["sha256"], g.sha256_lossy,
+            "{context}: {}: the firmware's packets draw other pixels than the host's",
+            g.file
+        );
+        seen += 1;
+    }
+    assert_eq!(seen, sets.len(), "{context}: packet sets missing");
 }
 
 #[test]

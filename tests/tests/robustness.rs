@@ -187,9 +187,14 @@ fn header_errors_are_typed() {
             DecodeError::UnsupportedVersion(12),
         ),
         (
-            "version 14",
-            with(4, 14),
-            DecodeError::UnsupportedVersion(14),
+            "version 13",
+            with(4, 13),
+            DecodeError::UnsupportedVersion(13),
+        ),
+        (
+            "version 15",
+            with(4, 15),
+            DecodeError::UnsupportedVersion(15),
         ),
         (
             "edge-smoothing strength 17",

@@ -34,6 +34,7 @@ pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
 pub use config::{EncoderConfig, Target, MIN_TRIAL_BPP};
 pub use error::EncodeError;
 pub use plane::{psnr, Plane};
+pub(crate) use writer::LeafBits;
 
 use decoder_core::internal::syntax::{Codebook, Header};
 
@@ -357,6 +358,72 @@ impl Analysis {
             }
         }
         Ok(None)
+    }
+}
+
+/// What packets (`crate::packets`) need of an analysis: streams without codebooks (a packet
+/// has no room for them), where a stream's bits go, and the analysis of a part of the image.
+impl Analysis {
+    /// The image's own pixels, as streams' reconstructions hold them (gray, or RGB triples).
+    pub(crate) fn source(&self) -> &[u8] {
+        match &self.colour {
+            Some(colour) => &colour.rgb,
+            None => &self.plane.data,
+        }
+    }
+
+    /// The best stream of at most `budget` bytes without the Lloyd-Max codebooks.
+    pub(crate) fn encode_plain(&self, budget: usize) -> Result<Encoded, EncodeError> {
+        let header = Header {
+            deblock: self.deblock.unwrap_or(0),
+            codebooks: [Codebook::EMPTY; 2],
+            ..self.header
+        };
+        self.encode_budget(&header, budget)
+    }
+
+    /// The bits each leaf costs in the plan of the stream [`Analysis::encode_plain`] makes for
+    /// `budget` bytes (before its smoothing strength is chosen, which changes no leaf).
+    pub(crate) fn leaf_bits(&self, budget: usize) -> Result<Vec<LeafBits>, EncodeError> {
+        let header = Header {
+            deblock: self.deblock.unwrap_or(0),
+            codebooks: [Codebook::EMPTY; 2],
+            ..self.header
+        };
+        let (plan, _) = self.fit_budget(&header, budget)?;
+        writer::leaf_bits(&self.tree, &header, &plan, self.colour.as_ref())
+    }
+
+    /// The analysis of the rectangle `area` of this analysis's image, as an image of its own
+    /// (colour when this one is), with `config`.
+    pub(crate) fn region(
+        &self,
+        area: decoder_core::Rect,
+        config: &EncoderConfig,
+    ) -> Result<Analysis, EncodeError> {
+        let (x0, y0, w, h) = (
+            area.x as usize,
+            area.y as usize,
+            area.w as usize,
+            area.h as usize,
+        );
+        let width = self.plane.width as usize;
+        let crop = |data: &[u8], channels: usize| -> Vec<u8> {
+            (y0..y0 + h)
+                .flat_map(|y| {
+                    let start = (y * width + x0) * channels;
+                    data[start..start + w * channels].iter().copied()
+                })
+                .collect()
+        };
+        match &self.colour {
+            Some(colour) => analyse_colour(area.w, area.h, crop(&colour.rgb, 3), config, &|_| {}),
+            None => analyse(
+                Plane::new(area.w, area.h, crop(&self.plane.data, 1)),
+                config,
+                &|_| {},
+            ),
+        }
     }
 }
 

@@ -9,6 +9,7 @@ use super::chroma::{choose, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
+use decoder_core::internal::entropy::{Coder, Prob, PROB_ONE};
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::{
@@ -17,7 +18,7 @@ use decoder_core::internal::syntax::{
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
 use decoder_core::{DecodeError, Node};
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 
 /// The widest stripe the writer holds prediction memory for: any the format allows.
 const MAX_STRIPE: usize = 1 << 16;
@@ -51,6 +52,45 @@ struct PlanVisitor<'a> {
     tape: Vec<ChromaChoice>,
     /// How many of `tape` were replayed so far; `None` when recording.
     replay: Option<usize>,
+    /// Where each leaf's bits are counted, when they are ([`leaf_bits`]).
+    meter: Option<Meter<'a>>,
+}
+
+/// The bits of every leaf, as [`leaf_bits`] counts them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeafBits {
+    /// The leaf.
+    pub node: Node,
+    /// Its bits (luma and chroma, and the split flags coded since the leaf before it), from
+    /// the contexts' probabilities.
+    pub bits: f64,
+}
+
+/// A leaf-by-leaf account of a write: the coder adds to `total`, the visitor reads it.
+struct Meter<'a> {
+    total: &'a Cell<f64>,
+    last: f64,
+    leaves: Vec<LeafBits>,
+}
+
+/// A range encoder that also adds up the information of every decision it codes.
+struct MeteredEncoder<'a> {
+    inner: RangeEncoder,
+    total: &'a Cell<f64>,
+}
+
+impl Coder for MeteredEncoder<'_> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+        let zero = f64::from(p.probability()) / f64::from(PROB_ONE);
+        let chance = if *bit { 1.0 - zero } else { zero };
+        self.total.set(self.total.get() - chance.log2());
+        self.inner.bit(p, bit)
+    }
+
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+        self.total.set(self.total.get() + 1.0);
+        self.inner.bypass(bit)
+    }
 }
 
 /// The chroma choices of the last colour stream written on this thread, with what they depend
@@ -132,6 +172,14 @@ impl TreeVisitor for PlanVisitor<'_> {
     ) -> Result<(), DecodeError> {
         frontier.record(&info.node, control_step(info.cquant), patch, &mut Discard);
         self.leaves += 1;
+        if let Some(meter) = &mut self.meter {
+            let now = meter.total.get();
+            meter.leaves.push(LeafBits {
+                node: info.node,
+                bits: now - meter.last,
+            });
+            meter.last = now;
+        }
         Ok(())
     }
 }
@@ -171,6 +219,7 @@ pub fn write(
         chroma_bits: 0.0,
         tape: tape.unwrap_or_default(),
         replay,
+        meter: None,
     };
     let mut coder = RangeEncoder::new();
     let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
@@ -202,4 +251,37 @@ pub fn write(
         leaves: visitor.leaves,
         chroma_bits: visitor.chroma_bits,
     })
+}
+
+/// The bits each leaf of `plan`'s stream costs, in coding order: where in the image a
+/// stream's bits go (packets cut the image by them).
+pub fn leaf_bits(
+    tree: &CandidateTree,
+    header: &Header,
+    plan: &Plan,
+    colour: Option<&ColourPlanes>,
+) -> Result<Vec<LeafBits>, EncodeError> {
+    let colour = colour.filter(|_| header.channels == 3);
+    let total = Cell::new(0.0);
+    let mut visitor = PlanVisitor {
+        tree,
+        plan,
+        leaves: 0,
+        colour,
+        chroma_bits: 0.0,
+        tape: Vec::new(),
+        replay: None,
+        meter: Some(Meter {
+            total: &total,
+            last: 0.0,
+            leaves: Vec::new(),
+        }),
+    };
+    let mut coder = MeteredEncoder {
+        inner: RangeEncoder::new(),
+        total: &total,
+    };
+    let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
+    walk_with(header, &mut coder, &mut visitor, &mut state).map_err(EncodeError::Syntax)?;
+    Ok(visitor.meter.map(|m| m.leaves).unwrap_or_default())
 }

@@ -211,3 +211,55 @@ pub fn sealed_stream(header: &decoder_core::Header, payload: &[u8]) -> Vec<u8> {
     decoder_core::internal::syntax::seal(&mut bytes);
     bytes
 }
+
+/// One line of `tests/golden/packets.txt`: a framed packet set, the packets a receiver is
+/// made to lose, and the SHA-256 of the image assembled from all of them and from the rest.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GoldenPackets {
+    pub file: String,
+    pub width: u16,
+    pub height: u16,
+    pub lost: Vec<u16>,
+    pub sha256_all: String,
+    pub sha256_lossy: String,
+}
+
+/// Parses `tests/golden/packets.txt` (`<file> <width> <height> <lost,indices> <sha256 of all>
+/// <sha256 with the lost ones missing>` per line).
+pub fn golden_packets() -> Vec<GoldenPackets> {
+    let path = golden_dir().join("packets.txt");
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (run the `regenerate` golden test)", path.display()));
+    text.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            assert_eq!(f.len(), 6, "packets.txt: bad line {l:?}");
+            GoldenPackets {
+                file: f[0].to_string(),
+                width: f[1].parse().expect("width"),
+                height: f[2].parse().expect("height"),
+                lost: f[3].split(',').map(|i| i.parse().expect("index")).collect(),
+                sha256_all: f[4].to_string(),
+                sha256_lossy: f[5].to_string(),
+            }
+        })
+        .collect()
+}
+
+/// The packets of a framed golden set, and those left when `lost` are lost.
+pub fn golden_packet_set(g: &GoldenPackets) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
+    let path = golden_dir().join(&g.file);
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let all = host_encoder::packets::unframe(&bytes);
+    let kept = all
+        .iter()
+        .filter(|p| {
+            let index = decoder_core::Packet::parse(p).expect("golden packet").index;
+            !g.lost.contains(&index)
+        })
+        .cloned()
+        .collect();
+    (all, kept)
+}

@@ -102,6 +102,14 @@ pub fn run(
     if io::is_std_stream(output) {
         say::stdout_is_data();
     }
+    if crate::packets::is_packet_input(input) {
+        if scale != Scale::One {
+            return Err(CliError::Refused(
+                "packets decode at their coded size only".into(),
+            ));
+        }
+        return crate::packets::decode(input, output, format, limits.max_pixels);
+    }
     let stream = open_stream(input, limits)?;
     let out = Output::create(output, Content::Binary("an image"))?;
     let name = out.name().to_path_buf();

@@ -48,7 +48,7 @@ pub struct EncodeArgs {
     #[arg(
         short,
         long,
-        required_unless_present = "out_dir",
+        required_unless_present_any = ["out_dir", "packets"],
         conflicts_with = "out_dir"
     )]
     pub output: Option<PathBuf>,
@@ -71,6 +71,8 @@ pub struct EncodeArgs {
     pub psnr: Option<f64>,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
+    #[command(flatten)]
+    pub packets: crate::packets::PacketArgs,
     #[command(flatten)]
     pub limits: InputLimits,
 }
@@ -281,7 +283,7 @@ impl Default for AnalysisArgs {
 
 impl AnalysisArgs {
     /// The analysis's settings for `targets` on an image of `pixels` pixels.
-    fn config(&self, pixels: usize, targets: &[Target]) -> EncoderConfig {
+    pub fn config(&self, pixels: usize, targets: &[Target]) -> EncoderConfig {
         let chosen = EncoderConfig::for_targets(targets, pixels);
         EncoderConfig {
             min_leaf_log2: self.min_leaf_log2,
@@ -598,6 +600,9 @@ impl EncodeArgs {
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let job = args.job();
     validate_target(job.target)?;
+    if args.packets.wanted() {
+        return encode_packets(args, job);
+    }
     match (&args.output, &args.out_dir, args.input.as_slice()) {
         (Some(output), None, [input]) => {
             output::check(output, Some(input), Kind::Stream)?;
@@ -611,6 +616,33 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
             "several input images need --out-dir DIR instead of -o".into(),
         )),
     }
+}
+
+/// `pifs encode` into packets: one input, into `--packets DIR` or the framed file `-o`.
+fn encode_packets(args: &EncodeArgs, job: Job) -> Result<()> {
+    let [input] = args.input.as_slice() else {
+        return Err(CliError::Refused(
+            "packets are made from one input image".into(),
+        ));
+    };
+    if args.out_dir.is_some() || (args.packets.packets.is_some() && args.output.is_some()) {
+        return Err(CliError::Refused(
+            "packets go to --packets DIR or to -o FILE (framed), not both".into(),
+        ));
+    }
+    if let Some(output) = &args.output {
+        output::check(output, Some(input), Kind::Stream)?;
+    }
+    let checked = check_image(input, &args.limits, &args.analysis, args.gray)?;
+    let image = checked.decode(args.gray)?;
+    let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
+    crate::packets::encode(
+        &analysed,
+        &args.analysis,
+        &args.packets,
+        job.target,
+        args.output.as_deref(),
+    )
 }
 
 /// Encodes `input` for `job` into `output` (both checked), within `limits`.

@@ -119,6 +119,9 @@ impl Stats {
 /// header is checked against `limits` before anything else; only with `svg` are pixels made:
 /// the figures need nothing but the entropy-decoded syntax.
 pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
+    if crate::packets::is_packet_input(input) && svg.is_none() {
+        return crate::packets::info(input, limits.max_pixels);
+    }
     if let Some(svg) = svg {
         output::check(svg, Some(input), Kind::Svg)?;
     }

@@ -13,6 +13,7 @@ mod info;
 mod leaves_svg;
 mod memory;
 mod output;
+mod packets;
 mod plot;
 mod progress;
 mod rd;
@@ -95,10 +96,21 @@ enum Command {
     /// One analysis serves every rate. Optionally writes the points as CSV, draws them beside
     /// other codecs' points as SVG, and writes the streams.
     Rd(rd::RdArgs),
+    /// Tools for packets: simulate their loss on a link.
+    #[command(subcommand)]
+    Packets(PacketsCommand),
     /// Encode and decode the bundled sample into ./pifs-demo/ (what `pifs` alone does).
     ///
     /// The sample is built into the binary; the outputs go under the current directory.
     Demo,
+}
+
+/// `pifs packets ...`.
+#[derive(Subcommand, Debug)]
+enum PacketsCommand {
+    /// Copy the packets of a directory that survive a simulated loss into another (for
+    /// testing what a receiver shows).
+    Drop(packets::DropArgs),
 }
 
 /// One line on stderr for an argument error (`--help` has the details), clap's own output
@@ -165,6 +177,7 @@ fn main() -> ExitCode {
             &decoder_core::Limits::pixels(max_pixels),
         ),
         Some(Command::Rd(args)) => rd::run(&args),
+        Some(Command::Packets(PacketsCommand::Drop(args))) => packets::drop_packets(&args),
         Some(Command::Demo) | None => demo::run(),
     };
     match result {

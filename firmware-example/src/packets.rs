@@ -1,0 +1,137 @@
+//! Packets as a radio receiver gets them: one at a time, copied into a fixed buffer, in any
+//! order, some lost. Each golden packet set is received in reverse order (so the preview,
+//! packet 0, comes last), without the packets `packets.txt` loses; every region is drawn as it
+//! arrives, and the preview only around the regions already drawn. The frame buffer's hash
+//! (`PIFS-PACKETS name=<file> received=<n> sha256=<hex>`) must equal the host's assembly of
+//! the same packets.
+
+use cortex_m_semihosting::heprintln;
+use decoder_core::{Packet, PacketKind, PixelSink, Rect, Tile};
+use sha2::{Digest, Sha256};
+
+use crate::{Hex, PACKET_FRAME_LEN, PACKET_SETS};
+
+/// A framed packet set (`tests/golden/packets.txt`).
+pub struct PacketSet {
+    /// File name.
+    pub name: &'static str,
+    /// Image width.
+    pub width: usize,
+    /// Image height.
+    pub height: usize,
+    /// Bytes per pixel.
+    pub channels: usize,
+    /// Indices of the packets the link loses.
+    pub lost: &'static [u16],
+    /// Every packet, each behind its length (two bytes, little-endian).
+    pub data: &'static [u8],
+}
+
+/// The largest packet the receiver holds: its one packet buffer.
+const MAX_PACKET: usize = 1024;
+/// The most regions a receiver remembers having drawn (for a late preview).
+const MAX_REGIONS: usize = 32;
+
+/// A row-major frame buffer.
+struct Frame<'a> {
+    pixels: &'a mut [u8],
+    width: usize,
+    channels: usize,
+}
+
+impl PixelSink for Frame<'_> {
+    type Error = core::convert::Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Self::Error> {
+        let row = tile.area.w as usize * self.channels;
+        if row == 0 {
+            return Ok(());
+        }
+        for (r, src) in tile.pixels.chunks_exact(row).enumerate() {
+            let at = ((tile.area.y as usize + r) * self.width + tile.area.x as usize)
+                * self.channels;
+            if let Some(dst) = self.pixels.get_mut(at..at + row) {
+                dst.copy_from_slice(src);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Receives every golden packet set; true when all decoded.
+pub fn check_all() -> bool {
+    let mut ok = true;
+    for set in PACKET_SETS {
+        ok &= receive(set);
+    }
+    ok
+}
+
+/// The frames of `data`, last first.
+fn frames_reversed(data: &'static [u8]) -> impl Iterator<Item = &'static [u8]> {
+    let mut ends = [0usize; 64];
+    let mut n = 0;
+    let mut at = 0;
+    while at + 2 <= data.len() && n < ends.len() {
+        let len = usize::from(u16::from_le_bytes([data[at], data[at + 1]]));
+        at = (at + 2 + len).min(data.len());
+        ends[n] = at;
+        n += 1;
+    }
+    (0..n).rev().map(move |i| {
+        let start = if i == 0 { 0 } else { ends[i - 1] };
+        &data[start + 2..ends[i]]
+    })
+}
+
+fn receive(set: &PacketSet) -> bool {
+    let mut pixels = [0u8; PACKET_FRAME_LEN];
+    let len = set.width * set.height * set.channels;
+    let mut frame = Frame {
+        pixels: &mut pixels[..len],
+        width: set.width,
+        channels: set.channels,
+    };
+    let mut buffer = [0u8; MAX_PACKET];
+    let mut drawn = [Rect::of_size(0, 0); MAX_REGIONS];
+    let mut regions = 0;
+    let mut received = 0;
+    for bytes in frames_reversed(set.data) {
+        // The radio hands over one packet: it is copied into the receiver's buffer.
+        let n = bytes.len().min(MAX_PACKET);
+        buffer[..n].copy_from_slice(&bytes[..n]);
+        let packet = match Packet::parse(&buffer[..n]) {
+            Ok(p) => p,
+            Err(e) => {
+                heprintln!("PIFS-ERROR name={} packet: {}", set.name, e);
+                return false;
+            }
+        };
+        if set.lost.contains(&packet.index) {
+            continue;
+        }
+        let result = match packet.kind {
+            PacketKind::Region => {
+                if regions < MAX_REGIONS {
+                    drawn[regions] = packet.region;
+                    regions += 1;
+                }
+                packet.decode(&mut frame)
+            }
+            PacketKind::Preview => packet.decode_around(&drawn[..regions], &mut frame),
+        };
+        if let Err(e) = result {
+            heprintln!("PIFS-ERROR name={} packet {}: {}", set.name, packet.index, e);
+            return false;
+        }
+        received += 1;
+    }
+    let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
+    heprintln!(
+        "PIFS-PACKETS name={} received={} sha256={}",
+        set.name,
+        received,
+        Hex(hash)
+    );
+    true
+}

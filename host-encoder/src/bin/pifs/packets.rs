@@ -1,0 +1,462 @@
+//! Packets on the command line: `pifs encode --packets DIR` (or `--packet-size N -o FILE`),
+//! `pifs decode` of a packet directory or a framed packet file, `pifs packets drop` (loss for
+//! testing) and `pifs info` of packets.
+//!
+//! Two containers: a directory of one file per packet (`0000.pkt`, `0001.pkt`, ... by
+//! index), or a framed file for serial links, each packet behind its length (two bytes,
+//! little-endian; `docs/bitstream.md`, section 9).
+
+use crate::encode::{Analysed, AnalysisArgs};
+use crate::error::{CliError, Result};
+use clap::Args;
+use decoder_core::{Packet, PacketKind};
+use host_encoder::io::{self, Content, Output, OutputFormat};
+use host_encoder::packets::{
+    assemble, frame, packetise, unframe, Assembled, PacketOptions, Packetised,
+};
+use host_encoder::Target;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The packet options of `pifs encode`.
+#[derive(Args, Debug, Clone)]
+pub struct PacketArgs {
+    /// Cut the image into self-contained packets and write one file per packet into DIR
+    /// (0000.pkt, 0001.pkt, ...; DIR must not exist or be empty). A receiver decodes any
+    /// subset of them, in any order.
+    #[arg(long, value_name = "DIR")]
+    pub packets: Option<PathBuf>,
+    /// Largest packet in bytes, 48 to 1024 [default: 255, a LoRa payload; 233 for
+    /// Meshtastic]. With -o instead of --packets, the packets are written one after the
+    /// other into one file, each behind its length (2 bytes, little-endian).
+    #[arg(long, value_name = "BYTES")]
+    pub packet_size: Option<usize>,
+    /// The image's number in every packet (0 to 65535), which tells a receiver's images
+    /// apart.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub image_id: u16,
+    /// No preview packet: every packet codes a region (a lost one is then interpolated from
+    /// the regions around it).
+    #[arg(long)]
+    pub no_preview: bool,
+}
+
+impl PacketArgs {
+    /// Whether the encode writes packets.
+    pub fn wanted(&self) -> bool {
+        self.packets.is_some() || self.packet_size.is_some()
+    }
+
+    fn options(&self) -> PacketOptions {
+        PacketOptions {
+            size: self
+                .packet_size
+                .unwrap_or(host_encoder::packets::DEFAULT_PACKET_SIZE),
+            image_id: self.image_id,
+            preview: !self.no_preview,
+        }
+    }
+}
+
+/// Encodes `analysed` for `target` as packets and writes them to `--packets DIR` or, framed,
+/// to `output`; prints a one-line summary.
+pub fn encode(
+    analysed: &Analysed,
+    analysis_args: &AnalysisArgs,
+    args: &PacketArgs,
+    target: Target,
+    output: Option<&Path>,
+) -> Result<()> {
+    let config = analysis_args.config(
+        analysed.analysis.width() as usize * analysed.analysis.height() as usize,
+        &[target],
+    );
+    let options = args.options();
+    let started = std::time::Instant::now();
+    let made = packetise(&analysed.analysis, &config, target, &options)
+        .map_err(|e| CliError::Refused(e.to_string()))?;
+    let shown = match (&args.packets, output) {
+        (Some(dir), _) => {
+            write_kept(dir, &made.packets)?;
+            dir.clone()
+        }
+        (None, Some(path)) => {
+            let mut out = Output::create(path, Content::Binary("PIFS packets"))?;
+            let framed = frame(&made.packets);
+            out.write_all(&framed).map_err(|e| out.error(e))?;
+            let name = out.name().to_path_buf();
+            out.commit()?;
+            name
+        }
+        (None, None) => return Err(CliError::Refused("packets need --packets DIR or -o".into())),
+    };
+    say!("{}", summary(&shown, analysed, &made, &options, started));
+    Ok(())
+}
+
+/// The one-line summary of an encode into packets.
+fn summary(
+    shown: &Path,
+    analysed: &Analysed,
+    made: &Packetised,
+    options: &PacketOptions,
+    started: std::time::Instant,
+) -> String {
+    let (w, h) = analysed.size();
+    let total = made.total_bytes();
+    format!(
+        "{}: {w}x{h} -> {} packets of at most {} bytes ({} preview), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
+        shown.display(),
+        made.packets.len(),
+        options.size,
+        made.previews,
+        analysed.bpp(total),
+        made.overhead_bytes,
+        100.0 * made.overhead_bytes as f64 / total.max(1) as f64,
+        made.psnr,
+        analysed.seconds,
+        started.elapsed().as_secs_f64(),
+    )
+}
+
+/// The name of packet `index` in a directory.
+fn packet_name(index: usize) -> String {
+    format!("{index:04}.pkt")
+}
+
+/// Whether `path` holds packets rather than a stream: a directory, or a regular file that
+/// does not start with a stream's magic bytes (devices, pipes and standard input are read as
+/// streams, header first).
+pub fn is_packet_input(path: &Path) -> bool {
+    if path.is_dir() {
+        return true;
+    }
+    if io::is_std_stream(path) || !path.metadata().is_ok_and(|m| m.is_file()) {
+        return false;
+    }
+    match std::fs::File::open(path) {
+        Ok(mut f) => {
+            let mut magic = [0u8; 4];
+            use std::io::Read;
+            f.read_exact(&mut magic).is_ok() && magic != decoder_core::MAGIC
+        }
+        Err(_) => false,
+    }
+}
+
+/// The packets at `path`: every `.pkt` file of a directory (by name), one packet file, or a
+/// framed file.
+pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
+    let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", path.display()));
+    if path.is_dir() {
+        let mut names: Vec<PathBuf> = std::fs::read_dir(path)
+            .map_err(failed)?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "pkt") && p.is_file())
+            .collect();
+        names.sort();
+        return names
+            .iter()
+            .map(|p| std::fs::read(p).map_err(failed))
+            .collect();
+    }
+    let data = std::fs::read(path).map_err(failed)?;
+    if Packet::parse(&data).is_ok() {
+        return Ok(vec![data]);
+    }
+    Ok(unframe(&data))
+}
+
+/// Assembles the packets at `input` (of an image of at most `max_pixels`), refusing a set
+/// with no valid packet in one line.
+fn assemble_at(input: &Path, max_pixels: u64) -> Result<(Vec<Vec<u8>>, Assembled)> {
+    let packets = read_packets(input)?;
+    let assembled = assemble(packets.iter().map(Vec::as_slice), max_pixels).map_err(|e| {
+        let hint = match e {
+            host_encoder::packets::AssembleError::NoValidPacket(Some(
+                decoder_core::DecodeError::TooLarge { .. },
+            )) => " (see --max-pixels)",
+            _ => "",
+        };
+        CliError::Refused(format!("{}: {e}{hint}", input.display()))
+    })?;
+    Ok((packets, assembled))
+}
+
+/// `pifs decode` of packets: whatever subset is at `input`, into the image `output`; reports
+/// what was missing.
+pub fn decode(input: &Path, output: &Path, format: OutputFormat, max_pixels: u64) -> Result<()> {
+    let (_, assembled) = assemble_at(input, max_pixels)?;
+    let mut out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    let bytes = format.encode(
+        &name,
+        assembled.width,
+        assembled.height,
+        assembled.channels,
+        &assembled.pixels,
+    )?;
+    out.write_all(&bytes).map_err(|e| out.error(e))?;
+    out.commit()?;
+    say!("{}: {}", name.display(), describe(&assembled));
+    Ok(())
+}
+
+/// What a receiver got, in one line.
+fn describe(a: &Assembled) -> String {
+    let mut text = format!(
+        "{}x{} {} from {} of {} packets (image {}), {:.1}% of the pixels from regions{}",
+        a.width,
+        a.height,
+        if a.channels == 3 { "colour" } else { "gray" },
+        a.received.len(),
+        a.count,
+        a.image_id,
+        100.0 * a.coverage,
+        if a.preview {
+            ", the rest from the preview"
+        } else if a.coverage < 1.0 {
+            ", the rest interpolated"
+        } else {
+            ""
+        },
+    );
+    if !a.missing.is_empty() {
+        text += &format!("; missing: {}", ranges(&a.missing));
+    }
+    for (n, what) in [
+        (a.rejected, "damaged or not packets"),
+        (a.foreign, "of another image"),
+        (a.duplicates, "duplicates"),
+    ] {
+        if n > 0 {
+            text += &format!("; {n} ignored ({what})");
+        }
+    }
+    text
+}
+
+/// `1-3,7,9-10`.
+fn ranges(indices: &[u16]) -> String {
+    let mut parts = Vec::new();
+    let mut i = 0;
+    while i < indices.len() {
+        let start = indices[i];
+        let mut end = start;
+        while i + 1 < indices.len() && indices[i + 1] == end + 1 {
+            i += 1;
+            end += 1;
+        }
+        parts.push(if start == end {
+            format!("{start}")
+        } else {
+            format!("{start}-{end}")
+        });
+        i += 1;
+    }
+    parts.join(",")
+}
+
+/// `pifs info` of packets: count, sizes, coverage.
+pub fn info(input: &Path, max_pixels: u64) -> Result<()> {
+    let (packets, assembled) = assemble_at(input, max_pixels)?;
+    let sizes: Vec<usize> = packets.iter().map(Vec::len).collect();
+    let total: usize = sizes.iter().sum();
+    let previews = packets
+        .iter()
+        .filter_map(|p| Packet::parse(p).ok())
+        .filter(|p| p.kind == PacketKind::Preview)
+        .count();
+    println!("{}: PIFS packets", input.display());
+    println!(
+        "  image {}: {}x{} {}, sent as {} packets",
+        assembled.image_id,
+        assembled.width,
+        assembled.height,
+        if assembled.channels == 3 {
+            "colour"
+        } else {
+            "gray"
+        },
+        assembled.count
+    );
+    println!(
+        "  here: {} files, {total} bytes ({} to {} bytes each), {previews} preview(s), {:.4} bpp",
+        packets.len(),
+        sizes.iter().min().unwrap_or(&0),
+        sizes.iter().max().unwrap_or(&0),
+        total as f64 * 8.0 / (f64::from(assembled.width) * f64::from(assembled.height))
+    );
+    println!("  {}", describe(&assembled));
+    Ok(())
+}
+
+/// Arguments of `pifs packets drop`.
+#[derive(Args, Debug)]
+pub struct DropArgs {
+    /// Packets to lose from: a directory of .pkt files.
+    pub input: PathBuf,
+    /// Where the packets that arrive go (a new or empty directory).
+    pub output: PathBuf,
+    /// Probability that a packet is lost, 0 to 1.
+    #[arg(long)]
+    pub loss: f64,
+    /// Seed of the loss pattern (the same seed loses the same packets).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Mean length of a burst of losses (Gilbert model: a lost packet is followed by another
+    /// with probability 1 - 1/BURST); 1 for independent losses.
+    #[arg(long, default_value_t = 1.0)]
+    pub burst: f64,
+}
+
+/// `pifs packets drop`: copies the packets that survive a simulated loss.
+pub fn drop_packets(args: &DropArgs) -> Result<()> {
+    if !(0.0..=1.0).contains(&args.loss) || !(1.0..=f64::MAX).contains(&args.burst) {
+        return Err(CliError::Refused(
+            "--loss must be from 0 to 1 and --burst at least 1".into(),
+        ));
+    }
+    if !args.input.is_dir() {
+        return Err(CliError::Refused(format!(
+            "{} is not a directory of packets",
+            args.input.display()
+        )));
+    }
+    let packets = read_packets(&args.input)?;
+    let lost = loss_pattern(packets.len(), args.loss, args.burst, args.seed);
+    let kept: Vec<Vec<u8>> = packets
+        .into_iter()
+        .zip(&lost)
+        .filter(|(_, &l)| !l)
+        .map(|(p, _)| p)
+        .collect();
+    let dropped = lost.iter().filter(|&&l| l).count();
+    write_kept(&args.output, &kept)?;
+    say!(
+        "{}: kept {} of {} packets ({dropped} lost)",
+        args.output.display(),
+        kept.len(),
+        kept.len() + dropped
+    );
+    Ok(())
+}
+
+/// Writes packets into `dir`, each named by its index, as a whole: into a new directory
+/// beside it, renamed to `dir` at the end, so that an interrupted command leaves no partial
+/// set. `dir` must not exist, or be empty.
+fn write_kept(dir: &Path, kept: &[Vec<u8>]) -> Result<()> {
+    let named: Vec<(String, &Vec<u8>)> = kept
+        .iter()
+        .map(|p| {
+            let index = Packet::parse(p).map_or(0, |p| usize::from(p.index));
+            (packet_name(index), p)
+        })
+        .collect();
+    write_named(dir, &named)
+}
+
+/// [`write_kept`] under the names given.
+fn write_named(dir: &Path, files: &[(String, &Vec<u8>)]) -> Result<()> {
+    if dir.exists() && std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
+        return Err(CliError::Refused(format!(
+            "{} exists and is not an empty directory",
+            dir.display()
+        )));
+    }
+    let staging = dir.with_file_name(format!(
+        ".{}.partial-{}",
+        dir.file_name()
+            .map_or("packets".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    let failed =
+        |e: std::io::Error| CliError::Refused(format!("cannot write {}: {e}", dir.display()));
+    std::fs::create_dir(&staging).map_err(failed)?;
+    let written = (|| -> std::io::Result<()> {
+        for (name, p) in files {
+            std::fs::write(staging.join(name), p)?;
+        }
+        if dir.exists() {
+            std::fs::remove_dir(dir)?;
+        }
+        std::fs::rename(&staging, dir)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_dir_all(&staging);
+        return Err(failed(e));
+    }
+    Ok(())
+}
+
+/// Which of `n` packets a link loses: a two-state (Gilbert) chain whose losses have mean
+/// rate `loss` and mean burst length `burst` (independent losses for 1), from a seeded
+/// generator (SplitMix64), so that a pattern is reproducible everywhere.
+pub fn loss_pattern(n: usize, loss: f64, burst: f64, seed: u64) -> Vec<bool> {
+    let mut state = seed;
+    let mut uniform = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    };
+    // Stay in the lost state with probability 1 - 1/burst; enter it at the rate that makes
+    // the stationary loss `loss`.
+    let stay = 1.0 - 1.0 / burst;
+    let enter = if loss >= 1.0 {
+        1.0
+    } else {
+        (loss * (1.0 - stay) / (1.0 - loss)).min(1.0)
+    };
+    let mut lost = false;
+    (0..n)
+        .map(|i| {
+            let u = uniform();
+            lost = if i == 0 || burst <= 1.0 {
+                u < loss
+            } else if lost {
+                u < stay
+            } else {
+                u < enter
+            };
+            lost
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn losses_have_their_rate_and_bursts() {
+        let n = 200_000;
+        for (loss, burst) in [(0.1, 1.0), (0.2, 1.0), (0.1, 4.0)] {
+            let pattern = loss_pattern(n, loss, burst, 7);
+            let rate = pattern.iter().filter(|&&l| l).count() as f64 / n as f64;
+            assert!((rate - loss).abs() < 0.01, "{loss} {burst}: {rate}");
+            let bursts = pattern.windows(2).filter(|w| w[1] && !w[0]).count() as f64;
+            let mean_burst = rate * n as f64 / bursts;
+            // Independent losses run on with the loss probability itself.
+            let expected = if burst == 1.0 {
+                1.0 / (1.0 - loss)
+            } else {
+                burst
+            };
+            assert!(
+                (mean_burst - expected).abs() < 0.05 * expected,
+                "{loss} {burst}: {mean_burst}"
+            );
+        }
+        assert_eq!(loss_pattern(50, 0.3, 1.0, 3), loss_pattern(50, 0.3, 1.0, 3));
+        assert_ne!(loss_pattern(50, 0.3, 1.0, 3), loss_pattern(50, 0.3, 1.0, 4));
+    }
+
+    #[test]
+    fn missing_indices_read_as_ranges() {
+        assert_eq!(ranges(&[1, 2, 3, 7, 9, 10]), "1-3,7,9-10");
+        assert_eq!(ranges(&[]), "");
+    }
+}

@@ -1,0 +1,783 @@
+//! Packets for lossy radio links (`docs/bitstream.md`, section 9): an image cut into
+//! self-contained packets of at most a given size, and a receiver's assembly of whatever
+//! subset arrived.
+//!
+//! The sender ([`packetise`]): a *preview* packet codes the whole image coarsely; the rest of
+//! the budget goes to *region* packets, each a rectangle of the image coded as its own stream
+//! at the packet's size. The rectangles are cut so that each holds about the same share of the
+//! bits a single stream of the image spends (measured leaf by leaf), by halving the image
+//! across its longer side, recursively. Packets are sent in an order that spreads consecutive
+//! ones over the image, so that a burst of losses does not open one large hole.
+//!
+//! The receiver ([`assemble`]): every valid packet of the image is drawn (the preview first,
+//! under the regions); a region that did not arrive shows the preview, or, without one, is
+//! interpolated from the pixels around it. Damaged packets, duplicates and packets of another
+//! image are counted and ignored.
+
+use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Target};
+use decoder_core::internal::packet::{packet_crc, PacketHeader, MAX_PACKET_HEADER_LEN};
+use decoder_core::internal::syntax::{Header, FIXED_HEADER_LEN};
+use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Tile, REGION_UNIT};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::convert::Infallible;
+use std::fmt;
+
+/// The smallest packet size [`packetise`] accepts, bytes.
+pub const MIN_PACKET_SIZE: usize = 48;
+/// The largest packet size [`packetise`] accepts, bytes.
+pub const MAX_PACKET_SIZE: usize = 1024;
+/// The default packet size: a LoRa payload.
+pub const DEFAULT_PACKET_SIZE: usize = 255;
+
+/// How to cut an image into packets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PacketOptions {
+    /// Largest packet, bytes ([`MIN_PACKET_SIZE`] to [`MAX_PACKET_SIZE`]): 255 for LoRa, 233
+    /// for Meshtastic, 51 for LoRaWAN at SF12 (too small for a useful picture: see the
+    /// documentation of [`MIN_PACKET_SIZE`]).
+    pub size: usize,
+    /// The image's number, which every packet carries (receivers tell images apart by it).
+    pub image_id: u16,
+    /// Whether the first packet is a preview of the whole image.
+    pub preview: bool,
+}
+
+impl Default for PacketOptions {
+    fn default() -> Self {
+        PacketOptions {
+            size: DEFAULT_PACKET_SIZE,
+            image_id: 0,
+            preview: true,
+        }
+    }
+}
+
+/// An image cut into packets, with what a receiver of all of them shows.
+#[derive(Debug, Clone)]
+pub struct Packetised {
+    /// The packets, in sending order (index `i` is `packets[i]`).
+    pub packets: Vec<Vec<u8>>,
+    /// How many of them are previews (the first ones).
+    pub previews: usize,
+    /// Bytes of packet headers and checksums, in all.
+    pub overhead_bytes: usize,
+    /// The image all packets decode to (gray, or RGB triples).
+    pub reconstruction: Vec<u8>,
+    /// Its PSNR against the original, dB (over the three channels of a colour image).
+    pub psnr: f64,
+}
+
+impl Packetised {
+    /// Bytes of all packets.
+    pub fn total_bytes(&self) -> usize {
+        self.packets.iter().map(Vec::len).sum()
+    }
+}
+
+/// Why an image could not be cut into packets.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PacketError {
+    /// The packet size is outside [`MIN_PACKET_SIZE`]..=[`MAX_PACKET_SIZE`].
+    BadSize(usize),
+    /// The target leaves fewer than one packet.
+    BudgetTooSmall {
+        /// Bytes the target allows.
+        budget: usize,
+        /// Bytes of one packet.
+        packet: usize,
+    },
+    /// Quality targets are not supported for packets (their count must be known first).
+    QualityTarget,
+    /// The image is coded in stripes wider than 512 pixels, which packets do not carry.
+    StripeTooWide,
+    /// The image has more than 65535 packets' worth of data.
+    TooManyPackets,
+    /// Encoding a packet's region failed.
+    Encode(EncodeError),
+}
+
+impl fmt::Display for PacketError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PacketError::BadSize(n) => write!(
+                f,
+                "packet size {n} is outside {MIN_PACKET_SIZE}..={MAX_PACKET_SIZE} bytes"
+            ),
+            PacketError::BudgetTooSmall { budget, packet } => write!(
+                f,
+                "a budget of {budget} bytes holds no packet of {packet} bytes"
+            ),
+            PacketError::QualityTarget => {
+                write!(
+                    f,
+                    "packets need a size target (--bpp or --bytes), not a PSNR"
+                )
+            }
+            PacketError::StripeTooWide => {
+                write!(f, "packets carry stripes of at most 512 pixels")
+            }
+            PacketError::TooManyPackets => write!(f, "more than 65535 packets"),
+            PacketError::Encode(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for PacketError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            PacketError::Encode(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<EncodeError> for PacketError {
+    fn from(e: EncodeError) -> Self {
+        PacketError::Encode(e)
+    }
+}
+
+/// Cuts the image of `analysis` into packets of at most `options.size` bytes whose total is
+/// at most `target` (a rate or a size, whole packets counted). Regions are analysed with
+/// `config` (without codebooks, which packets cannot carry).
+pub fn packetise(
+    analysis: &Analysis,
+    config: &EncoderConfig,
+    target: Target,
+    options: &PacketOptions,
+) -> Result<Packetised, PacketError> {
+    let size = options.size;
+    if !(MIN_PACKET_SIZE..=MAX_PACKET_SIZE).contains(&size) {
+        return Err(PacketError::BadSize(size));
+    }
+    if config.stripe == 0 || config.stripe > 4 {
+        return Err(PacketError::StripeTooWide);
+    }
+    let (width, height) = (analysis.width(), analysis.height());
+    let pixels = width as usize * height as usize;
+    let budget = match target {
+        Target::Bpp(b) if b.is_finite() && b > 0.0 => (b * pixels as f64 / 8.0).floor() as usize,
+        Target::Bytes(n) => n,
+        Target::Psnr(_) => return Err(PacketError::QualityTarget),
+        Target::Bpp(_) => return Err(PacketError::Encode(EncodeError::BadTarget(target))),
+    };
+    let count = budget / size;
+    if count == 0 {
+        return Err(PacketError::BudgetTooSmall {
+            budget,
+            packet: size,
+        });
+    }
+    let count = u16::try_from(count).map_err(|_| PacketError::TooManyPackets)?;
+    let previews = usize::from(options.preview && count > 1);
+    let regions = usize::from(count) - previews;
+    let channels = analysis.channels();
+    let leaf_sizes = analysis.max_leaf_log2() << 4 | analysis.min_leaf_log2();
+    let base = PacketHeader {
+        image_id: options.image_id,
+        index: 0,
+        count,
+        width: width as u16,
+        height: height as u16,
+        channels,
+        region_units: None,
+        coding: [leaf_sizes, config.stripe],
+        deblock: 0,
+    };
+
+    // Where a single stream of the regions' share of the budget spends its bits.
+    let mut head = [0u8; MAX_PACKET_HEADER_LEN];
+    let typical_header = base.write(&mut head) + 4 * 2 + 4;
+    let share = regions * (size - typical_header);
+    let leaves = analysis.leaf_bits(share.max(64))?;
+    let mass = BitMass::of(width, height, &leaves);
+    let areas = spread(mass.cut(regions));
+
+    let region_config = EncoderConfig {
+        codebook_levels: 0,
+        ..config.clone()
+    };
+    let mut packets: Vec<Vec<u8>> = Vec::with_capacity(usize::from(count));
+    if previews == 1 {
+        let header = base;
+        packets.push(fill_packet(&header, size, |capacity| {
+            analysis.encode_plain(capacity)
+        })?);
+    }
+    let region_packets: Vec<Result<Vec<u8>, PacketError>> = areas
+        .par_iter()
+        .enumerate()
+        .map(|(i, area)| {
+            let header = PacketHeader {
+                index: (previews + i) as u16,
+                region_units: Some(units_of(area)),
+                ..base
+            };
+            let region = analysis.region(*area, &region_config)?;
+            fill_packet(&header, size, |capacity| region.encode_plain(capacity))
+        })
+        .collect();
+    for packet in region_packets {
+        packets.push(packet?);
+    }
+    let overhead_bytes = packets
+        .iter()
+        .map(|p| p.len() - payload_of(p).map_or(0, |n| n))
+        .sum();
+    let assembled = assemble(packets.iter().map(Vec::as_slice), u64::MAX)
+        .map_err(|_| EncodeError::Internal("the packets do not assemble"))?;
+    let sse: f64 = assembled
+        .pixels
+        .iter()
+        .zip(analysis.source())
+        .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+        .sum();
+    Ok(Packetised {
+        previews,
+        overhead_bytes,
+        psnr: psnr(sse, assembled.pixels.len()),
+        reconstruction: assembled.pixels,
+        packets,
+    })
+}
+
+/// Payload bytes of a valid packet.
+fn payload_of(packet: &[u8]) -> Option<usize> {
+    Packet::parse(packet)
+        .ok()
+        .map(|p| p.stream_header().payload_len as usize)
+}
+
+/// A packet of at most `size` bytes with `header`'s fields around the payload of the stream
+/// `encode` makes for a byte budget (the stream's own header is dropped: the packet's fields
+/// replace it). The range coder's last bytes are cut to those the packet still decodes the
+/// same without (a receiver reads zeros past a packet's end), and the budget is first tried
+/// with the bytes that usually frees.
+fn fill_packet(
+    header: &PacketHeader,
+    size: usize,
+    encode: impl Fn(usize) -> Result<crate::Encoded, EncodeError>,
+) -> Result<Vec<u8>, PacketError> {
+    let mut head = [0u8; MAX_PACKET_HEADER_LEN];
+    let capacity = size - header.write(&mut head) - CRC_LEN;
+    // The stream's own header (no codebooks) is counted by its budget, not by the packet:
+    // its payload-length field takes one byte more from 128 bytes on.
+    let stream_header = FIXED_HEADER_LEN + 1 + usize::from(capacity >= 128);
+    for extra in [FLUSH_SAVING, 0] {
+        let encoded = encode(capacity + extra + stream_header)?;
+        let (stream, offset) = Header::parse(&encoded.bytes).map_err(EncodeError::Syntax)?;
+        if stream.has_codebooks()
+            || [
+                stream.max_leaf_log2 << 4 | stream.min_leaf_log2,
+                stream.stripe,
+            ] != header.coding
+        {
+            return Err(EncodeError::Internal("a region's stream has other coding fields").into());
+        }
+        let header = PacketHeader {
+            deblock: stream.deblock,
+            ..*header
+        };
+        let packet = shortest_packet(&header, &encoded.bytes[offset..])?;
+        if packet.len() <= size {
+            return Ok(packet);
+        }
+    }
+    Err(EncodeError::Internal("a region's stream does not fit its packet").into())
+}
+
+/// Bytes the shortest ending of the range coder usually saves ([`shortest_packet`]).
+const FLUSH_SAVING: usize = 2;
+
+/// Bytes of a packet's CRC.
+const CRC_LEN: usize = 4;
+
+/// The packet of `header` and `payload`, its payload cut by as many of its last bytes (at
+/// most four, the range coder's final flush) as leave its pixels unchanged.
+fn shortest_packet(header: &PacketHeader, payload: &[u8]) -> Result<Vec<u8>, PacketError> {
+    let make = |payload: &[u8]| {
+        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN];
+        let len = header.write(&mut packet);
+        packet.truncate(len);
+        packet.extend_from_slice(payload);
+        let crc = packet_crc(&packet);
+        packet.extend_from_slice(&crc);
+        packet
+    };
+    let pixels = |packet: &[u8]| -> Option<Vec<u8>> {
+        let p = Packet::parse(packet).ok()?;
+        let mut local = RegionBuffer::of(&p);
+        p.decode(&mut local).ok()?;
+        Some(local.pixels)
+    };
+    let full = make(payload);
+    let Some(reference) = pixels(&full) else {
+        return Err(EncodeError::Internal("a packet does not decode").into());
+    };
+    let mut best = full;
+    for cut in 1..=CRC_LEN.min(payload.len()) {
+        let shorter = make(&payload[..payload.len() - cut]);
+        if pixels(&shorter).as_ref() != Some(&reference) {
+            break;
+        }
+        best = shorter;
+    }
+    Ok(best)
+}
+
+/// A region in [`REGION_UNIT`]s, as the packet header carries it.
+fn units_of(area: &Rect) -> [u16; 4] {
+    [area.x, area.y, area.w, area.h].map(|v| v.div_ceil(REGION_UNIT) as u16)
+}
+
+/// Bits per [`REGION_UNIT`] square of the image, from a stream's leaves.
+struct BitMass {
+    /// Squares per row and column.
+    cols: usize,
+    rows: usize,
+    /// Image size, pixels.
+    width: u32,
+    height: u32,
+    /// Bits per square, row-major.
+    bits: Vec<f64>,
+}
+
+impl BitMass {
+    /// Spreads each leaf's bits evenly over its pixels in the image.
+    fn of(width: u32, height: u32, leaves: &[LeafBits]) -> BitMass {
+        let cols = width.div_ceil(REGION_UNIT) as usize;
+        let rows = height.div_ceil(REGION_UNIT) as usize;
+        let mut bits = vec![0.0; cols * rows];
+        for leaf in leaves {
+            let n = leaf.node;
+            let x1 = (n.x + n.size()).min(width);
+            let y1 = (n.y + n.size()).min(height);
+            let per_pixel = leaf.bits / f64::from((x1 - n.x) * (y1 - n.y));
+            for y in n.y..y1 {
+                for x in n.x..x1 {
+                    let cell = (y / REGION_UNIT) as usize * cols + (x / REGION_UNIT) as usize;
+                    bits[cell] += per_pixel;
+                }
+            }
+        }
+        BitMass {
+            cols,
+            rows,
+            width,
+            height,
+            bits,
+        }
+    }
+
+    /// `n` rectangles covering the image, each with about `1/n` of the bits: the image halved
+    /// recursively across its longer side where the bits divide in the ratio of the packets
+    /// each side gets.
+    fn cut(&self, n: usize) -> Vec<Rect> {
+        let mut out = Vec::with_capacity(n);
+        self.cut_into([0, 0, self.cols, self.rows], n, &mut out);
+        out
+    }
+
+    /// `cells` is `[x, y, w, h]` in squares.
+    fn cut_into(&self, cells: [usize; 4], n: usize, out: &mut Vec<Rect>) {
+        let [x, y, w, h] = cells;
+        if n <= 1 || (w <= 1 && h <= 1) {
+            out.push(self.rect(cells));
+            return;
+        }
+        let across_columns = w >= h;
+        let len = if across_columns { w } else { h };
+        // Bits of each column (or row) of the rectangle.
+        let lines: Vec<f64> = (0..len)
+            .map(|i| {
+                let (cx, cy, cw, ch) = if across_columns {
+                    (x + i, y, 1, h)
+                } else {
+                    (x, y + i, w, 1)
+                };
+                (cy..cy + ch)
+                    .flat_map(|r| (cx..cx + cw).map(move |c| (r, c)))
+                    .map(|(r, c)| self.bits[r * self.cols + c])
+                    .sum()
+            })
+            .collect();
+        let total: f64 = lines.iter().sum();
+        let first = n / 2;
+        let wanted = total * first as f64 / n as f64;
+        let mut best = (f64::INFINITY, 1);
+        let mut sum = 0.0;
+        for (i, bits) in lines.iter().enumerate().take(len - 1) {
+            sum += bits;
+            let miss = (sum - wanted).abs();
+            if miss < best.0 {
+                best = (miss, i + 1);
+            }
+        }
+        let at = best.1;
+        // Each side gets at least one packet per square it could hold.
+        let (a, b) = if across_columns {
+            ([x, y, at, h], [x + at, y, w - at, h])
+        } else {
+            ([x, y, w, at], [x, y + at, w, h - at])
+        };
+        let first = first.min(a[2] * a[3]).max(1);
+        let second = (n - first).min(b[2] * b[3]).max(1);
+        self.cut_into(a, first, out);
+        self.cut_into(b, second, out);
+    }
+
+    /// The pixels of `[x, y, w, h]` squares, cut to the image.
+    fn rect(&self, [x, y, w, h]: [usize; 4]) -> Rect {
+        let px = x as u32 * REGION_UNIT;
+        let py = y as u32 * REGION_UNIT;
+        Rect {
+            x: px,
+            y: py,
+            w: (w as u32 * REGION_UNIT).min(self.width - px),
+            h: (h as u32 * REGION_UNIT).min(self.height - py),
+        }
+    }
+}
+
+/// The rectangles in an order that spreads neighbours in the list apart: the cut's order
+/// keeps neighbours together, so it is read with its index bits reversed. A burst of lost
+/// packets then loses scattered regions, and a picture shown as packets arrive fills in
+/// everywhere at once.
+fn spread(areas: Vec<Rect>) -> Vec<Rect> {
+    let n = areas.len();
+    let bits = usize::BITS - n.next_power_of_two().leading_zeros() - 1;
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&i| {
+        if bits == 0 {
+            i
+        } else {
+            i.reverse_bits() >> (usize::BITS - bits)
+        }
+    });
+    order.into_iter().map(|i| areas[i]).collect()
+}
+
+/// The framed form for serial links (`docs/bitstream.md`, section 9): each packet behind its length, two bytes little-endian.
+pub fn frame(packets: &[Vec<u8>]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(packets.iter().map(|p| p.len() + 2).sum());
+    for p in packets {
+        out.extend_from_slice(&(p.len() as u16).to_le_bytes());
+        out.extend_from_slice(p);
+    }
+    out
+}
+
+/// The packets of a framed file; a last frame cut short is kept as it is (it will fail its
+/// check, like any damaged packet).
+pub fn unframe(data: &[u8]) -> Vec<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut rest = data;
+    while rest.len() >= 2 {
+        let len = usize::from(u16::from_le_bytes([rest[0], rest[1]]));
+        let end = (2 + len).min(rest.len());
+        out.push(rest[2..end].to_vec());
+        rest = &rest[end..];
+    }
+    out
+}
+
+/// What a receiver made of a set of packets.
+#[derive(Debug, Clone)]
+pub struct Assembled {
+    /// The image's number.
+    pub image_id: u16,
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// 1 (gray) or 3 (RGB).
+    pub channels: u8,
+    /// Row-major pixels (RGB triples for colour).
+    pub pixels: Vec<u8>,
+    /// How many packets the image was sent as.
+    pub count: u16,
+    /// Indices of the packets drawn, ascending.
+    pub received: Vec<u16>,
+    /// Indices of the packets that did not arrive (or did not decode), ascending.
+    pub missing: Vec<u16>,
+    /// Whether the preview was drawn.
+    pub preview: bool,
+    /// Share of the image's pixels that a region packet drew (the rest is preview or
+    /// interpolation).
+    pub coverage: f64,
+    /// Inputs that were not valid packets (damaged, truncated, not a packet).
+    pub rejected: usize,
+    /// Valid packets of another image, or that disagree with the image's size.
+    pub foreign: usize,
+    /// Packets received more than once (the copies beyond the first).
+    pub duplicates: usize,
+}
+
+/// Why no image could be assembled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AssembleError {
+    /// No input was a valid packet; the first input's error is given.
+    NoValidPacket(Option<DecodeError>),
+}
+
+impl fmt::Display for AssembleError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            AssembleError::NoValidPacket(Some(e)) => write!(f, "no valid packet ({e})"),
+            AssembleError::NoValidPacket(None) => write!(f, "no packet"),
+        }
+    }
+}
+
+impl std::error::Error for AssembleError {}
+
+/// Assembles the image from whatever packets arrived, in any order. The image is the one
+/// most of the valid packets belong to; everything else is counted and ignored. Packets of
+/// images larger than `max_pixels` are refused (as [`DecodeError::TooLarge`]) before anything
+/// is allocated for them.
+pub fn assemble<'a>(
+    inputs: impl IntoIterator<Item = &'a [u8]>,
+    max_pixels: u64,
+) -> Result<Assembled, AssembleError> {
+    let mut valid = Vec::new();
+    let mut rejected = 0;
+    let mut first_error = None;
+    for data in inputs {
+        let parsed = Packet::parse(data).and_then(|p| {
+            if u64::from(p.width) * u64::from(p.height) > max_pixels {
+                Err(DecodeError::TooLarge {
+                    width: p.width,
+                    height: p.height,
+                })
+            } else {
+                Ok(p)
+            }
+        });
+        match parsed {
+            Ok(p) => valid.push(p),
+            Err(e) => {
+                rejected += 1;
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    // The image most packets agree on: its id and geometry.
+    let mut votes: BTreeMap<(u16, u16, u16, u8, u16), usize> = BTreeMap::new();
+    for p in &valid {
+        *votes.entry(identity(p)).or_default() += 1;
+    }
+    let Some((&chosen, _)) = votes.iter().max_by_key(|(_, &n)| n) else {
+        return Err(AssembleError::NoValidPacket(first_error));
+    };
+    let (image_id, width, height, channels, count) = chosen;
+    let mut foreign = 0;
+    let mut duplicates = 0;
+    let mut by_index: BTreeMap<u16, Packet<'_>> = BTreeMap::new();
+    for p in valid {
+        if identity(&p) != chosen {
+            foreign += 1;
+        } else if let std::collections::btree_map::Entry::Vacant(slot) = by_index.entry(p.index) {
+            slot.insert(p);
+        } else {
+            duplicates += 1;
+        }
+    }
+    let (w, h, ch) = (u32::from(width), u32::from(height), usize::from(channels));
+    let mut canvas = Canvas {
+        width: w as usize,
+        channels: ch,
+        pixels: vec![0; w as usize * h as usize * ch],
+        covered: vec![false; w as usize * h as usize],
+    };
+    let mut received = Vec::new();
+    let mut preview = false;
+    // Previews first, under the regions.
+    let ordered = by_index
+        .values()
+        .filter(|p| p.kind == PacketKind::Preview)
+        .chain(by_index.values().filter(|p| p.kind == PacketKind::Region));
+    for p in ordered {
+        if canvas.draw(p).is_ok() {
+            received.push(p.index);
+            preview |= p.kind == PacketKind::Preview;
+        }
+    }
+    received.sort_unstable();
+    let drawn = canvas.covered.iter().filter(|&&c| c).count();
+    let coverage = drawn as f64 / canvas.covered.len() as f64;
+    if !preview {
+        canvas.conceal(w as usize, h as usize);
+    }
+    let missing = (0..count)
+        .filter(|i| received.binary_search(i).is_err())
+        .collect();
+    Ok(Assembled {
+        image_id,
+        width: w,
+        height: h,
+        channels,
+        pixels: canvas.pixels,
+        count,
+        received,
+        missing,
+        preview,
+        coverage,
+        rejected,
+        foreign,
+        duplicates,
+    })
+}
+
+/// What tells one image's packets from another's.
+fn identity(p: &Packet<'_>) -> (u16, u16, u16, u8, u16) {
+    (p.image_id, p.width, p.height, p.channels, p.count)
+}
+
+/// The receiver's image and which of its pixels a region drew.
+struct Canvas {
+    width: usize,
+    channels: usize,
+    pixels: Vec<u8>,
+    covered: Vec<bool>,
+}
+
+impl Canvas {
+    /// Draws packet `p`: into a buffer of its own first, so that a packet that fails to
+    /// decode leaves nothing behind.
+    fn draw(&mut self, p: &Packet<'_>) -> Result<(), DecodeError> {
+        let area = p.region;
+        let mut local = RegionBuffer::of(p);
+        p.decode(&mut local)?;
+        let row = area.w as usize * self.channels;
+        for (r, src) in local.pixels.chunks_exact(row).enumerate() {
+            let y = area.y as usize + r;
+            let start = (y * self.width + area.x as usize) * self.channels;
+            self.pixels[start..start + row].copy_from_slice(src);
+            if p.kind == PacketKind::Region {
+                let at = y * self.width + area.x as usize;
+                self.covered[at..at + area.w as usize].fill(true);
+            }
+        }
+        Ok(())
+    }
+
+    /// Fills every pixel no region drew (there is no preview) from the drawn pixels around
+    /// it: the mean of the linear interpolations between the nearest drawn pixels on its row
+    /// and on its column (those that exist), or grey when nothing was drawn at all.
+    fn conceal(&mut self, w: usize, h: usize) {
+        let ch = self.channels;
+        if !self.covered.contains(&true) {
+            self.pixels.fill(128);
+            return;
+        }
+        let mut sum = vec![0f32; w * h * ch];
+        let mut weight = vec![0f32; w * h];
+        let lines = [(h, w, 1usize, w), (w, h, w, 1usize)];
+        for (count, len, step, stride) in lines {
+            for line in 0..count {
+                let at = |i: usize| line * stride + i * step;
+                let mut before: Option<usize> = None;
+                let mut i = 0;
+                while i < len {
+                    if self.covered[at(i)] {
+                        before = Some(i);
+                        i += 1;
+                        continue;
+                    }
+                    let gap_end = (i..len).find(|&j| self.covered[at(j)]);
+                    let end = gap_end.unwrap_or(len);
+                    for k in i..end {
+                        let p = at(k);
+                        for c in 0..ch {
+                            let value = match (before, gap_end) {
+                                (Some(a), Some(b)) => {
+                                    let t = (k - a) as f32 / (b - a) as f32;
+                                    let va = f32::from(self.pixels[at(a) * ch + c]);
+                                    let vb = f32::from(self.pixels[at(b) * ch + c]);
+                                    va + t * (vb - va)
+                                }
+                                (Some(a), None) => f32::from(self.pixels[at(a) * ch + c]),
+                                (None, Some(b)) => f32::from(self.pixels[at(b) * ch + c]),
+                                (None, None) => continue,
+                            };
+                            sum[p * ch + c] += value;
+                        }
+                        if before.is_some() || gap_end.is_some() {
+                            weight[p] += 1.0;
+                        }
+                    }
+                    i = end;
+                }
+            }
+        }
+        for p in 0..w * h {
+            if self.covered[p] {
+                continue;
+            }
+            for c in 0..ch {
+                self.pixels[p * ch + c] = if weight[p] > 0.0 {
+                    (sum[p * ch + c] / weight[p]).round().clamp(0.0, 255.0) as u8
+                } else {
+                    128
+                };
+            }
+        }
+    }
+}
+
+/// A sink holding one region's pixels (image coordinates in, region coordinates stored).
+struct RegionBuffer {
+    area: Rect,
+    channels: usize,
+    pixels: Vec<u8>,
+}
+
+impl RegionBuffer {
+    /// An empty buffer for packet `p`'s region.
+    fn of(p: &Packet<'_>) -> RegionBuffer {
+        let channels = usize::from(p.channels);
+        RegionBuffer {
+            area: p.region,
+            channels,
+            pixels: vec![0; p.region.w as usize * p.region.h as usize * channels],
+        }
+    }
+}
+
+impl PixelSink for RegionBuffer {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+        let ch = self.channels;
+        let row = tile.area.w as usize * ch;
+        if row == 0 {
+            return Ok(());
+        }
+        let x = tile.area.x.saturating_sub(self.area.x) as usize;
+        for (r, src) in tile.pixels.chunks_exact(row).enumerate() {
+            let y = tile.area.y.saturating_sub(self.area.y) as usize + r;
+            let start = (y * self.area.w as usize + x) * ch;
+            if let Some(dst) = self.pixels.get_mut(start..start + row) {
+                dst.copy_from_slice(src);
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_round_trip_and_a_cut_frame_stays_a_packet() {
+        let packets = vec![vec![1u8, 2, 3], vec![], vec![9u8; 300]];
+        let framed = frame(&packets);
+        assert_eq!(framed.len(), 3 + 300 + 3 * 2);
+        assert_eq!(unframe(&framed), packets);
+        let cut = unframe(&framed[..framed.len() - 10]);
+        assert_eq!(cut.len(), 3);
+        assert_eq!(cut[2].len(), 290);
+    }
+}

@@ -1,0 +1,207 @@
+//! Packets (`docs/bitstream.md`, section 9): an image cut into packets, and what a receiver
+//! makes of any subset of them, in any order, with duplicates, packets of another image and
+//! damaged packets among them.
+
+mod common;
+
+use decoder_core::{Packet, PacketKind, Rect};
+use host_encoder::packets::{assemble, packetise, PacketOptions, Packetised};
+use host_encoder::{EncoderConfig, Target};
+use proptest::prelude::*;
+use std::sync::OnceLock;
+
+const WIDTH: u32 = 96;
+const HEIGHT: u32 = 64;
+const SIZE: usize = 48;
+
+fn config() -> EncoderConfig {
+    EncoderConfig {
+        codebook_levels: 0,
+        ..EncoderConfig::default()
+    }
+}
+
+/// The test image cut into 48-byte packets, with a preview (image id 1) and without (id 2).
+fn sets() -> &'static (Packetised, Packetised, Vec<u8>) {
+    static SETS: OnceLock<(Packetised, Packetised, Vec<u8>)> = OnceLock::new();
+    SETS.get_or_init(|| {
+        let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+        let source = plane.data.clone();
+        let analysis = common::analyse_with(plane, &config());
+        let make = |image_id, preview| {
+            let options = PacketOptions {
+                size: SIZE,
+                image_id,
+                preview,
+            };
+            packetise(&analysis, &config(), Target::Bytes(14 * SIZE), &options).unwrap()
+        };
+        (make(1, true), make(2, false), source)
+    })
+}
+
+/// The pixels of `area` of a row-major gray image `width` wide.
+fn crop(pixels: &[u8], width: u32, area: Rect) -> Vec<u8> {
+    (area.y..area.y + area.h)
+        .flat_map(|y| {
+            let at = (y * width + area.x) as usize;
+            pixels[at..at + area.w as usize].iter().copied()
+        })
+        .collect()
+}
+
+#[test]
+fn every_packet_fits_and_together_they_give_the_encoders_picture() {
+    let (with, without, source) = sets();
+    for (set, previews) in [(with, 1), (without, 0)] {
+        assert_eq!(set.previews, previews);
+        assert!(set.total_bytes() <= 14 * SIZE);
+        assert_eq!(set.packets.len(), 14);
+        let mut area = 0;
+        for (i, bytes) in set.packets.iter().enumerate() {
+            assert!(bytes.len() <= SIZE, "packet {i}: {} bytes", bytes.len());
+            let p = Packet::parse(bytes).unwrap();
+            assert_eq!((p.index, p.count), (i as u16, 14));
+            assert_eq!(p.kind == PacketKind::Preview, i < previews);
+            if p.kind == PacketKind::Region {
+                area += p.region.w * p.region.h;
+            }
+        }
+        // The regions tile the image.
+        assert_eq!(area, WIDTH * HEIGHT);
+        let all = assemble(set.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
+        assert_eq!(all.pixels, set.reconstruction);
+        assert_eq!(all.coverage, 1.0);
+        assert!(all.missing.is_empty());
+        let psnr = common::psnr_u8(&all.pixels, source);
+        assert!((psnr - set.psnr).abs() < 1e-9 && psnr > 25.0, "{psnr}");
+    }
+}
+
+#[test]
+fn a_lost_region_without_preview_is_filled_from_its_neighbours() {
+    let (_, without, source) = sets();
+    let lost = 5;
+    let kept = without
+        .packets
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != lost)
+        .map(|(_, p)| p.as_slice());
+    let image = assemble(kept, u64::MAX).unwrap();
+    assert_eq!(image.missing, vec![lost as u16]);
+    let region = Packet::parse(&without.packets[lost]).unwrap().region;
+    let filled = crop(&image.pixels, WIDTH, region);
+    let original = crop(source, WIDTH, region);
+    let psnr = common::psnr_u8(&filled, &original);
+    // Smooth content: interpolation is close, and nothing is left black or grey.
+    assert!(psnr > 18.0, "{psnr} dB in the lost region");
+}
+
+/// What the receiver may be handed.
+#[derive(Debug, Clone)]
+enum Arrival {
+    /// Packet `i` of the set with the preview.
+    Packet(usize),
+    /// Packet `i` of the other image (no preview, another id).
+    Foreign(usize),
+    /// Packet `i` with byte `at` (mod its length) flipped by `mask`.
+    Damaged(usize, usize, u8),
+    /// Packet `i` cut to `n` bytes (mod its length).
+    Cut(usize, usize),
+}
+
+fn arrival() -> impl Strategy<Value = Arrival> {
+    prop_oneof![
+        6 => (0..14usize).prop_map(Arrival::Packet),
+        1 => (0..14usize).prop_map(Arrival::Foreign),
+        1 => (0..14usize, 0..64usize, 1..=255u8).prop_map(|(i, a, m)| Arrival::Damaged(i, a, m)),
+        1 => (0..14usize, 0..64usize).prop_map(|(i, n)| Arrival::Cut(i, n)),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Any subset, in any order, with duplicates, foreign and damaged packets: every region
+    /// received shows exactly what the full set shows there, the preview fills the rest when it
+    /// came, and the receiver reports exactly which packets it is missing.
+    #[test]
+    fn any_arrivals_give_the_regions_received(arrivals in proptest::collection::vec(arrival(), 0..30)) {
+        let (with, without, _) = sets();
+        let inputs: Vec<Vec<u8>> = arrivals
+            .iter()
+            .map(|a| match *a {
+                Arrival::Packet(i) => with.packets[i].clone(),
+                Arrival::Foreign(i) => without.packets[i].clone(),
+                Arrival::Damaged(i, at, mask) => {
+                    let mut p = with.packets[i].clone();
+                    let at = at % p.len();
+                    p[at] ^= mask;
+                    p
+                }
+                Arrival::Cut(i, n) => {
+                    let p = &with.packets[i];
+                    p[..n % p.len()].to_vec()
+                }
+            })
+            .collect();
+        let result = assemble(inputs.iter().map(Vec::as_slice), u64::MAX);
+        let mut ours: Vec<u16> = arrivals
+            .iter()
+            .filter_map(|a| match *a {
+                Arrival::Packet(i) => Some(i as u16),
+                _ => None,
+            })
+            .collect();
+        ours.sort_unstable();
+        ours.dedup();
+        let foreign = arrivals.iter().filter(|a| matches!(a, Arrival::Foreign(_))).count();
+        let Ok(image) = result else {
+            // Only when nothing valid arrived.
+            prop_assert!(ours.is_empty() && foreign == 0);
+            return Ok(());
+        };
+        if image.image_id == 2 {
+            // The other image had more packets here: ours were the foreign ones.
+            prop_assert!(foreign >= ours.len());
+            return Ok(());
+        }
+        prop_assert_eq!(&image.received, &ours);
+        let missing: Vec<u16> = (0..14).filter(|i| !ours.contains(i)).collect();
+        prop_assert_eq!(&image.missing, &missing);
+        prop_assert_eq!(image.preview, ours.contains(&0));
+        let full = &with.reconstruction;
+        for &i in &ours {
+            let p = Packet::parse(&with.packets[usize::from(i)]).unwrap();
+            if p.kind == PacketKind::Region {
+                prop_assert_eq!(crop(&image.pixels, WIDTH, p.region), crop(full, WIDTH, p.region));
+            }
+        }
+        if image.preview {
+            let preview = assemble([with.packets[0].as_slice()], u64::MAX).unwrap();
+            for &i in &missing {
+                let region = Packet::parse(&with.packets[usize::from(i)]).unwrap().region;
+                prop_assert_eq!(
+                    crop(&image.pixels, WIDTH, region),
+                    crop(&preview.pixels, WIDTH, region)
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn images_larger_than_the_limit_are_refused_before_anything_is_allocated() {
+    let (with, _, _) = sets();
+    let result = assemble(
+        with.packets.iter().map(Vec::as_slice),
+        u64::from(WIDTH * HEIGHT) - 1,
+    );
+    assert!(matches!(
+        result,
+        Err(host_encoder::packets::AssembleError::NoValidPacket(Some(
+            decoder_core::DecodeError::TooLarge { .. }
+        )))
+    ));
+}
