@@ -27,6 +27,11 @@
 //! - [`Header`]: the image's size and format fields; [`LeafInfo`] (with [`Node`] and
 //!   [`ControlCoding`]) describes each leaf to a [`Decoder::observe`] callback.
 //! - Errors: [`DecodeError`] (with [`HeaderField`] and [`SyntaxElement`]), [`DrawError`].
+//! - [`Packet`]: an image sent as self-contained packets for lossy links (`docs/bitstream.md`,
+//!   section 9): [`Packet::parse`] checks one (its CRC-32 first), [`Packet::decode`] draws its
+//!   region, in image coordinates, into the same [`PixelSink`]s; a preview packet that arrives
+//!   after some regions is drawn around them ([`Packet::decode_around`]). A receiver needs one
+//!   packet's buffer and the decoder's usual fixed memory.
 //! - [`graphics`] (cargo feature `embedded-graphics`): a stream as an embedded-graphics
 //!   `ImageDrawable` in any colour type.
 //!

@@ -30,7 +30,7 @@ const FLAG_PREVIEW: u8 = 2;
 const FLAG_CODING: u8 = 4;
 /// The flags byte's bits 3 to 7 hold the region stream's edge-smoothing strength.
 const DEBLOCK_SHIFT: u32 = 3;
-/// The leaf sizes (`max << 4 | min`) and the stripe of a packet without [`FLAG_CODING`]: the
+/// The leaf sizes (`max << 4 | min`) and the stripe of a packet without its coding flag: the
 /// reference encoder's defaults (leaves of 4 to 128 pixels, stripes of 512).
 pub const DEFAULT_CODING: [u8; 2] = [0x72, 4];
 /// A varint of the packet header holds at most 16 bits: three LEB128 bytes.

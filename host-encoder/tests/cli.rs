@@ -699,3 +699,130 @@ fn rd_keeps_colour_unless_gray() {
         assert!((psnr - reported).abs() < 0.01, "{psnr} against {reported}");
     }
 }
+
+/// Reads a PNG back as gray pixels.
+fn png_pixels(path: &Path) -> Vec<u8> {
+    image::open(path).unwrap().to_luma8().into_raw()
+}
+
+#[test]
+fn packets_are_written_lost_and_decoded_from_any_subset() {
+    let dir = scratch("packets");
+    let png = dir.join("in.png");
+    textured(96, 64).save(&png).unwrap();
+    let packets = dir.join("pk");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = pifs(&[
+        "encode",
+        &s(&png),
+        "--packets",
+        &s(&packets),
+        "--packet-size",
+        "64",
+        "--bytes",
+        "960",
+    ]);
+    let line = ok(&out);
+    assert!(
+        line.contains("15 packets of at most 64 bytes (1 preview)"),
+        "{line}"
+    );
+    let mut names: Vec<String> = std::fs::read_dir(&packets)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 15);
+    assert_eq!(names[0], "0000.pkt");
+    for n in &names {
+        let len = std::fs::metadata(packets.join(n)).unwrap().len();
+        assert!(len <= 64, "{n}: {len} bytes");
+    }
+    // Everything, from the directory and from the framed file, gives the same picture.
+    let whole = dir.join("whole.png");
+    let line = ok(&pifs(&["decode", &s(&packets), "-o", &s(&whole)]));
+    assert!(line.contains("from 15 of 15 packets"), "{line}");
+    let framed = dir.join("all.pifsp");
+    ok(&pifs(&[
+        "encode",
+        &s(&png),
+        "-o",
+        &s(&framed),
+        "--packet-size",
+        "64",
+        "--bytes",
+        "960",
+    ]));
+    let from_framed = dir.join("framed.png");
+    ok(&pifs(&["decode", &s(&framed), "-o", &s(&from_framed)]));
+    assert_eq!(png_pixels(&whole), png_pixels(&from_framed));
+    // Loss: the survivors decode, and the report names the missing packets.
+    let lossy = dir.join("lossy");
+    let line = ok(&pifs(&[
+        "packets",
+        "drop",
+        "--loss",
+        "0.3",
+        "--seed",
+        "3",
+        &s(&packets),
+        &s(&lossy),
+    ]));
+    assert!(line.contains("of 15 packets"), "{line}");
+    let kept = std::fs::read_dir(&lossy).unwrap().count();
+    assert!(kept < 15 && kept > 0, "{kept}");
+    let partial = dir.join("partial.png");
+    let line = ok(&pifs(&["decode", &s(&lossy), "-o", &s(&partial)]));
+    assert!(line.contains("missing: "), "{line}");
+    // A list of packet files: two regions alone.
+    let two = dir.join("two.png");
+    let line = ok(&pifs(&[
+        "decode",
+        &s(&packets.join("0003.pkt")),
+        &s(&packets.join("0007.pkt")),
+        "-o",
+        &s(&two),
+    ]));
+    assert!(line.contains("from 2 of 15 packets"), "{line}");
+    let info = ok(&pifs(&["info", &s(&packets)]));
+    assert!(info.contains("96x64 gray, sent as 15 packets"), "{info}");
+    // A set directory that is not empty is refused, and nothing is left behind.
+    let refusal = refused(&pifs(&[
+        "encode",
+        &s(&png),
+        "--packets",
+        &s(&packets),
+        "--bytes",
+        "960",
+        "--packet-size",
+        "64",
+    ]));
+    assert!(refusal.contains("is not an empty directory"), "{refusal}");
+    // Files that are no packets: one line, no output.
+    let junk = dir.join("junk.bin");
+    std::fs::write(&junk, b"not a packet at all").unwrap();
+    let bad = dir.join("bad.png");
+    let refusal = refused(&pifs(&["decode", &s(&junk), "-o", &s(&bad)]));
+    assert!(refusal.contains("no valid packet"), "{refusal}");
+    assert!(!bad.exists());
+    let refusal = refused(&pifs(&[
+        "encode",
+        &s(&png),
+        "--packets",
+        &s(&dir.join("small")),
+        "--bytes",
+        "40",
+        "--packet-size",
+        "64",
+    ]));
+    assert!(refusal.contains("holds no packet"), "{refusal}");
+    assert!(!dir.join("small").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial"))
+        .filter(|n| n != "partial.png")
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -84,12 +84,13 @@ pub fn output_format(output: &Path, chosen: Option<OutputFormat>) -> Result<Outp
 /// `pifs decode`: refuses a bad output name before reading anything, a bad stream on its
 /// header, then opens the output and writes the image at `scale` band by band.
 pub fn run(
-    input: &Path,
+    inputs: &[std::path::PathBuf],
     output: &Path,
     format: Option<OutputFormat>,
     limits: &Limits,
     scale: Scale,
 ) -> Result<()> {
+    let input = inputs.first().map_or(Path::new("-"), |p| p.as_path());
     let start = Instant::now();
     let chosen = format.is_some();
     let format = output_format(output, format)?;
@@ -98,17 +99,19 @@ pub fn run(
     } else {
         Kind::Image
     };
-    output::check(output, Some(input), kind)?;
+    for input in inputs {
+        output::check(output, Some(input), kind)?;
+    }
     if io::is_std_stream(output) {
         say::stdout_is_data();
     }
-    if crate::packets::is_packet_input(input) {
+    if inputs.len() > 1 || crate::packets::is_packet_input(input) {
         if scale != Scale::One {
             return Err(CliError::Refused(
                 "packets decode at their coded size only".into(),
             ));
         }
-        return crate::packets::decode(input, output, format, limits.max_pixels);
+        return crate::packets::decode(inputs, output, format, limits.max_pixels);
     }
     let stream = open_stream(input, limits)?;
     let out = Output::create(output, Content::Binary("an image"))?;

@@ -44,7 +44,7 @@ pub fn run() -> Result<()> {
         };
         encode::write_stream(&analysed, job, &stream)?;
         crate::decode::run(
-            &stream,
+            std::slice::from_ref(&stream),
             &stream.with_extension("png"),
             None,
             &decoder_core::Limits::NONE,

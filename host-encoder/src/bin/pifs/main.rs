@@ -53,8 +53,11 @@ enum Command {
     /// written band by band: memory follows the width, not the image.
     Decode {
         /// Input stream; "-" reads standard input. Its header is checked before anything else is
-        /// read, and no more than the stream it declares is read.
-        input: PathBuf,
+        /// read, and no more than the stream it declares is read. Packets instead: a directory
+        /// of .pkt files, a framed packet file, or several packet files; whatever subset is
+        /// there is decoded, and what is missing is reported.
+        #[arg(required = true, num_args = 1..)]
+        input: Vec<PathBuf>,
         /// Output image: .png, .pgm, .pnm or .ppm (anything else is refused before decoding);
         /// "-" writes standard output (PNG unless --format says otherwise). An existing file is
         /// replaced atomically and keeps its permissions, a symbolic link is followed, a

@@ -167,10 +167,17 @@ pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
     Ok(unframe(&data))
 }
 
-/// Assembles the packets at `input` (of an image of at most `max_pixels`), refusing a set
+/// Assembles the packets at `inputs` (of an image of at most `max_pixels`), refusing a set
 /// with no valid packet in one line.
-fn assemble_at(input: &Path, max_pixels: u64) -> Result<(Vec<Vec<u8>>, Assembled)> {
-    let packets = read_packets(input)?;
+fn assemble_at(inputs: &[PathBuf], max_pixels: u64) -> Result<(Vec<Vec<u8>>, Assembled)> {
+    let mut packets = Vec::new();
+    for input in inputs {
+        packets.extend(read_packets(input)?);
+    }
+    let input = match inputs {
+        [one] => one.display().to_string(),
+        _ => format!("{} files", inputs.len()),
+    };
     let assembled = assemble(packets.iter().map(Vec::as_slice), max_pixels).map_err(|e| {
         let hint = match e {
             host_encoder::packets::AssembleError::NoValidPacket(Some(
@@ -178,15 +185,20 @@ fn assemble_at(input: &Path, max_pixels: u64) -> Result<(Vec<Vec<u8>>, Assembled
             )) => " (see --max-pixels)",
             _ => "",
         };
-        CliError::Refused(format!("{}: {e}{hint}", input.display()))
+        CliError::Refused(format!("{input}: {e}{hint}"))
     })?;
     Ok((packets, assembled))
 }
 
-/// `pifs decode` of packets: whatever subset is at `input`, into the image `output`; reports
+/// `pifs decode` of packets: whatever subset is at `inputs`, into the image `output`; reports
 /// what was missing.
-pub fn decode(input: &Path, output: &Path, format: OutputFormat, max_pixels: u64) -> Result<()> {
-    let (_, assembled) = assemble_at(input, max_pixels)?;
+pub fn decode(
+    inputs: &[PathBuf],
+    output: &Path,
+    format: OutputFormat,
+    max_pixels: u64,
+) -> Result<()> {
+    let (_, assembled) = assemble_at(inputs, max_pixels)?;
     let mut out = Output::create(output, Content::Binary("an image"))?;
     let name = out.name().to_path_buf();
     let bytes = format.encode(
@@ -213,12 +225,10 @@ fn describe(a: &Assembled) -> String {
         a.count,
         a.image_id,
         100.0 * a.coverage,
-        if a.preview {
-            ", the rest from the preview"
-        } else if a.coverage < 1.0 {
-            ", the rest interpolated"
-        } else {
-            ""
+        match (a.coverage < 1.0, a.preview) {
+            (false, _) => "",
+            (true, true) => ", the rest from the preview",
+            (true, false) => ", the rest interpolated",
         },
     );
     if !a.missing.is_empty() {
@@ -259,7 +269,7 @@ fn ranges(indices: &[u16]) -> String {
 
 /// `pifs info` of packets: count, sizes, coverage.
 pub fn info(input: &Path, max_pixels: u64) -> Result<()> {
-    let (packets, assembled) = assemble_at(input, max_pixels)?;
+    let (packets, assembled) = assemble_at(&[input.to_path_buf()], max_pixels)?;
     let sizes: Vec<usize> = packets.iter().map(Vec::len).collect();
     let total: usize = sizes.iter().sum();
     let previews = packets
