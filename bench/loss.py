@@ -2,7 +2,8 @@
 """Packets under loss on the Kodak set: what a receiver shows when packets are lost.
 
     python3 bench/loss.py [--colour] [--size 255] [--rates 0.1 0.25 0.5] [--work DIR]
-                          [--pifs target/release/pifs] [IMAGES...]
+                          [--pifs target/release/pifs] [--encode-args "..."] [--csv FILE]
+                          [IMAGES...]
 
 For each image and rate: `pifs encode --packets` (whole packet bytes counted against the
 rate), then the receiver (`pifs decode` of a packet directory) after i.i.d. losses of 1, 5, 10
@@ -78,6 +79,7 @@ def measure(pifs, image, rate, args, work):
               "--packet-size", str(args.size)]
     if not colour:
         encode.append("--gray")
+    encode += args.encode_args.split()
     run(pifs, *encode)
     names = sorted(os.listdir(packets))
     total = sum(os.path.getsize(os.path.join(packets, n)) for n in names)
@@ -155,6 +157,9 @@ def main():
     ap.add_argument("--rates", type=float, nargs="+", default=[0.1, 0.25, 0.5])
     ap.add_argument("--work", default=None)
     ap.add_argument("--pifs", default="target/release/pifs")
+    ap.add_argument("--encode-args", default="",
+                    help="more options for `pifs encode` (such as --repeat-preview)")
+    ap.add_argument("--csv", default=None, help="where the per-image rows go")
     ap.add_argument("images", nargs="*")
     args = ap.parse_args()
     images = args.images or sorted(glob.glob("../shared/images/kodak/kodim*.png"))
@@ -168,7 +173,8 @@ def main():
             print(f"{row['image']} {rate}: {row['packets']} packets, {row['bpp']:.4f} bpp, "
                   f"{row['psnr_0']:.2f} dB, 10% loss {row['psnr_0.1']:.2f} dB, "
                   f"first 10% {row['first_0.1']:.2f} dB", file=sys.stderr, flush=True)
-    out = os.path.join("bench", "results", "loss-colour.csv" if args.colour else "loss.csv")
+    out = args.csv or os.path.join("bench", "results",
+                                   "loss-colour.csv" if args.colour else "loss.csv")
     with open(out, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         writer.writeheader()

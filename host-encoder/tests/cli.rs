@@ -724,7 +724,7 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     ]);
     let line = ok(&out);
     assert!(
-        line.contains("15 packets of at most 64 bytes (1 preview)"),
+        line.contains("15 packets of at most 64 bytes (1 preview, 0 parity)"),
         "{line}"
     );
     let mut names: Vec<String> = std::fs::read_dir(&packets)

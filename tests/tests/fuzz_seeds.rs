@@ -601,8 +601,21 @@ fn all_seeds() -> Vec<(&'static str, Files)> {
     ]
 }
 
-/// Framed packet sets for `decode_packets`: gray and colour, with and without a preview, at
-/// the smallest packet size and a larger one, whole and with packets missing.
+/// One packet seed set: the image, the packet size, the packets, and the options.
+struct PacketSeed {
+    name: &'static str,
+    w: u32,
+    h: u32,
+    colour: bool,
+    size: usize,
+    count: usize,
+    preview: bool,
+    parity: usize,
+}
+
+/// Framed packet sets for `decode_packets`: gray and colour, with and without a preview and
+/// parity packets, at the smallest packet size and larger ones, whole and with packets
+/// missing.
 fn packet_seeds() -> Files {
     use host_encoder::packets::{frame, packetise, PacketOptions};
     let config = EncoderConfig {
@@ -610,13 +623,34 @@ fn packet_seeds() -> Files {
         ..EncoderConfig::default()
     };
     let mut out = Files::new();
-    let cases: [(&str, u32, u32, bool, usize, usize, bool); 4] = [
-        ("gray-48x40", 48, 40, false, 48, 6, true),
-        ("gray-72x24", 72, 24, false, 64, 5, false),
-        ("colour-40x24", 40, 24, true, 64, 5, true),
-        ("colour-23x17", 23, 17, true, 48, 4, false),
+    let seed = |name, w, h, colour, size, count, preview, parity| PacketSeed {
+        name,
+        w,
+        h,
+        colour,
+        size,
+        count,
+        preview,
+        parity,
+    };
+    let cases = [
+        seed("gray-48x40", 48, 40, false, 48, 6, true, 0),
+        seed("gray-72x24", 72, 24, false, 64, 5, false, 0),
+        seed("colour-40x24", 40, 24, true, 64, 5, true, 0),
+        seed("colour-23x17", 23, 17, true, 48, 4, false, 0),
+        seed("gray-96x64-parity", 96, 64, false, 96, 8, true, 2),
     ];
-    for (name, w, h, colour, size, count, preview) in cases {
+    for case in cases {
+        let PacketSeed {
+            name,
+            w,
+            h,
+            colour,
+            size,
+            count,
+            preview,
+            parity,
+        } = case;
         let plane = common::synthetic(w, h, w + h, 6);
         let analysis = if colour {
             host_encoder::analyse_colour(w, h, common::synthetic_rgb(w, h, w * h), &config, &|_| {})
@@ -628,6 +662,8 @@ fn packet_seeds() -> Files {
             size,
             image_id: w as u16,
             preview,
+            repeat_preview: false,
+            parity,
         };
         let made = packetise(&analysis, &config, Target::Bytes(size * count), &options)
             .unwrap_or_else(|e| panic!("{name}: {e}"));

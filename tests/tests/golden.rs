@@ -286,6 +286,8 @@ fn regenerate_packets(dir: &std::path::Path) {
             size: spec.size,
             image_id: 7,
             preview: true,
+            repeat_preview: false,
+            parity: 0,
         };
         let made = packetise(&analysis, &config, Target::Bytes(spec.bytes), &options)
             .unwrap_or_else(|e| panic!("{}: {e}", spec.file));

@@ -33,6 +33,8 @@ fn sets() -> &'static (Packetised, Packetised, Vec<u8>) {
                 size: SIZE,
                 image_id,
                 preview,
+                repeat_preview: false,
+                parity: 0,
             };
             packetise(&analysis, &config(), Target::Bytes(14 * SIZE), &options).unwrap()
         };
@@ -204,4 +206,66 @@ fn images_larger_than_the_limit_are_refused_before_anything_is_allocated() {
             decoder_core::DecodeError::TooLarge { .. }
         )))
     ));
+}
+
+#[test]
+fn a_repeated_preview_is_sent_twice_and_counted_once() {
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let analysis = common::analyse_with(plane, &config());
+    let options = PacketOptions {
+        size: SIZE,
+        image_id: 3,
+        preview: true,
+        repeat_preview: true,
+        parity: 0,
+    };
+    let made = packetise(&analysis, &config(), Target::Bytes(14 * SIZE), &options).unwrap();
+    assert_eq!(made.packets.len(), 14);
+    assert_eq!(made.packets[6], made.packets[0]);
+    let first = Packet::parse(&made.packets[0]).unwrap();
+    assert_eq!((first.kind, first.count), (PacketKind::Preview, 13));
+    // Without the first copy, the second one still gives the whole picture.
+    let image = assemble(made.packets[1..].iter().map(Vec::as_slice), u64::MAX).unwrap();
+    assert!(image.missing.is_empty() && image.preview);
+    assert_eq!(image.pixels, made.reconstruction);
+    let all = assemble(made.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
+    assert_eq!(all.duplicates, 1);
+}
+
+#[test]
+fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let analysis = common::analyse_with(plane, &config());
+    let options = PacketOptions {
+        size: 96,
+        image_id: 4,
+        preview: true,
+        repeat_preview: false,
+        parity: 3,
+    };
+    let made = packetise(&analysis, &config(), Target::Bytes(12 * 96), &options).unwrap();
+    assert_eq!((made.packets.len(), made.parity), (12, 3));
+    assert!(made.packets.iter().all(|p| p.len() <= 96));
+    assert_eq!(Packet::parse(&made.packets[0]).unwrap().count, 9);
+    let all = assemble(made.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
+    assert_eq!(all.pixels, made.reconstruction);
+    // Any three lost (data or parity): everything rebuilt.
+    for lost in [[0, 1, 2], [3, 7, 8], [2, 9, 11], [9, 10, 11]] {
+        let kept = made
+            .packets
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !lost.contains(i))
+            .map(|(_, p)| p.as_slice());
+        let image = assemble(kept, u64::MAX).unwrap();
+        assert!(image.missing.is_empty(), "{lost:?}: {:?}", image.missing);
+        assert_eq!(image.pixels, made.reconstruction, "{lost:?}");
+        let data_lost: Vec<u16> = lost.iter().filter(|&&i| i < 9).map(|&i| i as u16).collect();
+        assert_eq!(image.recovered, data_lost);
+    }
+    // Four lost: nothing rebuilt, the data packets that came are drawn.
+    let kept = made.packets[4..].iter().map(Vec::as_slice);
+    let image = assemble(kept, u64::MAX).unwrap();
+    assert_eq!(image.missing, vec![0, 1, 2, 3]);
+    assert!(image.recovered.is_empty());
 }

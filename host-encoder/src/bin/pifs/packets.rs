@@ -39,6 +39,15 @@ pub struct PacketArgs {
     /// the regions around it).
     #[arg(long)]
     pub no_preview: bool,
+    /// Send the preview twice, first and half way (from 8 packets on; one packet of the
+    /// budget), so that a receiver loses it only when it loses both copies.
+    #[arg(long)]
+    pub repeat_preview: bool,
+    /// Parity packets to send after the others, within the target: any N of the N + K
+    /// packets rebuild them all (a receiver that holds the whole set, such as a gateway or
+    /// `pifs decode`, rebuilds what was lost).
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    pub parity: usize,
 }
 
 impl PacketArgs {
@@ -54,6 +63,8 @@ impl PacketArgs {
                 .unwrap_or(host_encoder::packets::DEFAULT_PACKET_SIZE),
             image_id: self.image_id,
             preview: !self.no_preview,
+            repeat_preview: self.repeat_preview,
+            parity: self.parity,
         }
     }
 }
@@ -77,7 +88,13 @@ pub fn encode(
         .map_err(|e| CliError::Refused(e.to_string()))?;
     let shown = match (&args.packets, output) {
         (Some(dir), _) => {
-            write_kept(dir, &made.packets)?;
+            let named: Vec<(String, &Vec<u8>)> = made
+                .packets
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (packet_name(i), p))
+                .collect();
+            write_named(dir, &named)?;
             dir.clone()
         }
         (None, Some(path)) => {
@@ -105,11 +122,12 @@ fn summary(
     let (w, h) = analysed.size();
     let total = made.total_bytes();
     format!(
-        "{}: {w}x{h} -> {} packets of at most {} bytes ({} preview), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
+        "{}: {w}x{h} -> {} packets of at most {} bytes ({} preview, {} parity), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
         shown.display(),
         made.packets.len(),
         options.size,
         made.previews,
+        made.parity,
         analysed.bpp(total),
         made.overhead_bytes,
         100.0 * made.overhead_bytes as f64 / total.max(1) as f64,
@@ -119,7 +137,7 @@ fn summary(
     )
 }
 
-/// The name of packet `index` in a directory.
+/// The name of the packet sent at position `index` in a directory.
 fn packet_name(index: usize) -> String {
     format!("{index:04}.pkt")
 }
@@ -144,21 +162,32 @@ pub fn is_packet_input(path: &Path) -> bool {
     }
 }
 
+/// The `.pkt` files of the directory `dir`, by name: each name and its bytes.
+fn packet_files(dir: &Path) -> Result<Vec<(String, Vec<u8>)>> {
+    let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", dir.display()));
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(failed)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "pkt") && p.is_file())
+        .collect();
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| {
+            let name = p
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into());
+            Ok((name, std::fs::read(p).map_err(failed)?))
+        })
+        .collect()
+}
+
 /// The packets at `path`: every `.pkt` file of a directory (by name), one packet file, or a
 /// framed file.
 pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
     let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", path.display()));
     if path.is_dir() {
-        let mut names: Vec<PathBuf> = std::fs::read_dir(path)
-            .map_err(failed)?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "pkt") && p.is_file())
-            .collect();
-        names.sort();
-        return names
-            .iter()
-            .map(|p| std::fs::read(p).map_err(failed))
-            .collect();
+        return Ok(packet_files(path)?.into_iter().map(|(_, p)| p).collect());
     }
     let data = std::fs::read(path).map_err(failed)?;
     if Packet::parse(&data).is_ok() {
@@ -231,6 +260,9 @@ fn describe(a: &Assembled) -> String {
             (true, false) => ", the rest interpolated",
         },
     );
+    if !a.recovered.is_empty() {
+        text += &format!("; rebuilt from parity: {}", ranges(&a.recovered));
+    }
     if !a.missing.is_empty() {
         text += &format!("; missing: {}", ranges(&a.missing));
     }
@@ -333,16 +365,16 @@ pub fn drop_packets(args: &DropArgs) -> Result<()> {
             args.input.display()
         )));
     }
-    let packets = read_packets(&args.input)?;
-    let lost = loss_pattern(packets.len(), args.loss, args.burst, args.seed);
-    let kept: Vec<Vec<u8>> = packets
-        .into_iter()
+    let named = packet_files(&args.input)?;
+    let lost = loss_pattern(named.len(), args.loss, args.burst, args.seed);
+    let kept: Vec<(String, &Vec<u8>)> = named
+        .iter()
         .zip(&lost)
         .filter(|(_, &l)| !l)
-        .map(|(p, _)| p)
+        .map(|((name, p), _)| (name.clone(), p))
         .collect();
     let dropped = lost.iter().filter(|&&l| l).count();
-    write_kept(&args.output, &kept)?;
+    write_named(&args.output, &kept)?;
     say!(
         "{}: kept {} of {} packets ({dropped} lost)",
         args.output.display(),
@@ -352,21 +384,9 @@ pub fn drop_packets(args: &DropArgs) -> Result<()> {
     Ok(())
 }
 
-/// Writes packets into `dir`, each named by its index, as a whole: into a new directory
-/// beside it, renamed to `dir` at the end, so that an interrupted command leaves no partial
-/// set. `dir` must not exist, or be empty.
-fn write_kept(dir: &Path, kept: &[Vec<u8>]) -> Result<()> {
-    let named: Vec<(String, &Vec<u8>)> = kept
-        .iter()
-        .map(|p| {
-            let index = Packet::parse(p).map_or(0, |p| usize::from(p.index));
-            (packet_name(index), p)
-        })
-        .collect();
-    write_named(dir, &named)
-}
-
-/// [`write_kept`] under the names given.
+/// Writes packets into `dir` under the names given, as a whole: into a new directory beside
+/// it, renamed to `dir` at the end, so that an interrupted command leaves no partial set.
+/// `dir` must not exist, or be empty.
 fn write_named(dir: &Path, files: &[(String, &Vec<u8>)]) -> Result<()> {
     if dir.exists() && std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
         return Err(CliError::Refused(format!(

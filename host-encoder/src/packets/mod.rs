@@ -18,10 +18,15 @@ use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Targe
 use decoder_core::internal::packet::{packet_crc, PacketHeader, MAX_PACKET_HEADER_LEN};
 use decoder_core::internal::syntax::{Header, FIXED_HEADER_LEN};
 use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Tile, REGION_UNIT};
+use parity::Parity;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::convert::Infallible;
 use std::fmt;
+
+mod parity;
+
+pub use parity::{MAX_SHARDS, PARITY_SYNC};
 
 /// The smallest packet size [`packetise`] accepts, bytes.
 pub const MIN_PACKET_SIZE: usize = 48;
@@ -34,13 +39,20 @@ pub const DEFAULT_PACKET_SIZE: usize = 255;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PacketOptions {
     /// Largest packet, bytes ([`MIN_PACKET_SIZE`] to [`MAX_PACKET_SIZE`]): 255 for LoRa, 233
-    /// for Meshtastic, 51 for LoRaWAN at SF12 (too small for a useful picture: see the
-    /// documentation of [`MIN_PACKET_SIZE`]).
+    /// for Meshtastic (LoRaWAN at SF12 carries 51, below the smallest: a packet's 19 bytes of
+    /// header and checksum would leave too little for a picture).
     pub size: usize,
     /// The image's number, which every packet carries (receivers tell images apart by it).
     pub image_id: u16,
     /// Whether the first packet is a preview of the whole image.
     pub preview: bool,
+    /// Whether the preview is sent twice, first and half way (one packet of the budget), so
+    /// that a receiver loses it only when it loses both.
+    pub repeat_preview: bool,
+    /// Parity packets sent after the others (part of the budget): any `N` of the `N + K`
+    /// packets rebuild all `N` data packets (a Reed–Solomon erasure code; the data packets are
+    /// then 20 bytes shorter, the parity packets' overhead). 0 for none.
+    pub parity: usize,
 }
 
 impl Default for PacketOptions {
@@ -49,6 +61,8 @@ impl Default for PacketOptions {
             size: DEFAULT_PACKET_SIZE,
             image_id: 0,
             preview: true,
+            repeat_preview: false,
+            parity: 0,
         }
     }
 }
@@ -56,10 +70,13 @@ impl Default for PacketOptions {
 /// An image cut into packets, with what a receiver of all of them shows.
 #[derive(Debug, Clone)]
 pub struct Packetised {
-    /// The packets, in sending order (index `i` is `packets[i]`).
+    /// The packets, in sending order (packet `i` is `packets[i]`, but for a repeated preview,
+    /// which is sent twice).
     pub packets: Vec<Vec<u8>>,
     /// How many of them are previews (the first ones).
     pub previews: usize,
+    /// How many of them are parity packets (the last ones).
+    pub parity: usize,
     /// Bytes of packet headers and checksums, in all.
     pub overhead_bytes: usize,
     /// The image all packets decode to (gray, or RGB triples).
@@ -93,6 +110,11 @@ pub enum PacketError {
     StripeTooWide,
     /// The image has more than 65535 packets' worth of data.
     TooManyPackets,
+    /// More packets than a parity code covers ([`MAX_SHARDS`], data and parity).
+    TooManyForParity {
+        /// Data and parity packets asked for.
+        packets: usize,
+    },
     /// Encoding a packet's region failed.
     Encode(EncodeError),
 }
@@ -118,6 +140,10 @@ impl fmt::Display for PacketError {
                 write!(f, "packets carry stripes of at most 512 pixels")
             }
             PacketError::TooManyPackets => write!(f, "more than 65535 packets"),
+            PacketError::TooManyForParity { packets } => write!(
+                f,
+                "{packets} packets with parity: a parity code covers at most {MAX_SHARDS} (use larger packets or fewer bytes)"
+            ),
             PacketError::Encode(e) => write!(f, "{e}"),
         }
     }
@@ -162,7 +188,20 @@ pub fn packetise(
         Target::Psnr(_) => return Err(PacketError::QualityTarget),
         Target::Bpp(_) => return Err(PacketError::Encode(EncodeError::BadTarget(target))),
     };
-    let count = budget / size;
+    let sent = budget / size;
+    let repeat = options.preview && options.repeat_preview && sent >= MIN_PACKETS_TO_REPEAT;
+    let count = sent.saturating_sub(usize::from(repeat) + options.parity);
+    if options.parity > 0 && count + options.parity > MAX_SHARDS {
+        return Err(PacketError::TooManyForParity {
+            packets: count + options.parity,
+        });
+    }
+    // With parity, a data packet leaves room for the parity packets' own fields.
+    let size = if options.parity > 0 {
+        size - parity::PARITY_OVERHEAD - parity::LENGTH_PREFIX
+    } else {
+        size
+    };
     if count == 0 {
         return Err(PacketError::BudgetTooSmall {
             budget,
@@ -221,6 +260,21 @@ pub fn packetise(
     for packet in region_packets {
         packets.push(packet?);
     }
+    let parity_packets = match options.parity {
+        0 => Vec::new(),
+        k => parity::parity_packets(&packets, k, options.image_id).ok_or(
+            PacketError::TooManyForParity {
+                packets: usize::from(count) + k,
+            },
+        )?,
+    };
+    if repeat {
+        let again = packets[0].clone();
+        packets.insert(packets.len() / 2, again);
+    }
+    let parity = parity_packets.len();
+    packets.extend(parity_packets);
+    // Everything but the region streams' payloads: headers, checksums, parity packets.
     let overhead_bytes = packets
         .iter()
         .map(|p| p.len() - payload_of(p).map_or(0, |n| n))
@@ -235,12 +289,16 @@ pub fn packetise(
         .sum();
     Ok(Packetised {
         previews,
+        parity,
         overhead_bytes,
         psnr: psnr(sse, assembled.pixels.len()),
         reconstruction: assembled.pixels,
         packets,
     })
 }
+
+/// The fewest packets of which one is given to a second copy of the preview.
+const MIN_PACKETS_TO_REPEAT: usize = 8;
 
 /// Payload bytes of a valid packet.
 fn payload_of(packet: &[u8]) -> Option<usize> {
@@ -501,6 +559,9 @@ pub struct Assembled {
     pub received: Vec<u16>,
     /// Indices of the packets that did not arrive (or did not decode), ascending.
     pub missing: Vec<u16>,
+    /// Indices of the packets that did not arrive but were rebuilt from parity packets
+    /// (among `received`).
+    pub recovered: Vec<u16>,
     /// Whether the preview was drawn.
     pub preview: bool,
     /// Share of the image's pixels that a region packet drew (the rest is preview or
@@ -540,22 +601,17 @@ pub fn assemble<'a>(
     inputs: impl IntoIterator<Item = &'a [u8]>,
     max_pixels: u64,
 ) -> Result<Assembled, AssembleError> {
-    let mut valid = Vec::new();
+    let mut valid: Vec<(Packet<'a>, &'a [u8])> = Vec::new();
+    let mut parities = Vec::new();
     let mut rejected = 0;
     let mut first_error = None;
     for data in inputs {
-        let parsed = Packet::parse(data).and_then(|p| {
-            if u64::from(p.width) * u64::from(p.height) > max_pixels {
-                Err(DecodeError::TooLarge {
-                    width: p.width,
-                    height: p.height,
-                })
-            } else {
-                Ok(p)
-            }
-        });
-        match parsed {
-            Ok(p) => valid.push(p),
+        if let Some(parity) = Parity::parse(data) {
+            parities.push(parity);
+            continue;
+        }
+        match parse_within(data, max_pixels) {
+            Ok(p) => valid.push((p, data)),
             Err(e) => {
                 rejected += 1;
                 first_error.get_or_insert(e);
@@ -564,7 +620,7 @@ pub fn assemble<'a>(
     }
     // The image most packets agree on: its id and geometry.
     let mut votes: BTreeMap<(u16, u16, u16, u8, u16), usize> = BTreeMap::new();
-    for p in &valid {
+    for (p, _) in &valid {
         *votes.entry(identity(p)).or_default() += 1;
     }
     let Some((&chosen, _)) = votes.iter().max_by_key(|(_, &n)| n) else {
@@ -573,14 +629,40 @@ pub fn assemble<'a>(
     let (image_id, width, height, channels, count) = chosen;
     let mut foreign = 0;
     let mut duplicates = 0;
-    let mut by_index: BTreeMap<u16, Packet<'_>> = BTreeMap::new();
-    for p in valid {
-        if identity(&p) != chosen {
+    let mut raw: BTreeMap<u16, &'a [u8]> = BTreeMap::new();
+    for (p, data) in &valid {
+        if identity(p) != chosen {
             foreign += 1;
-        } else if let std::collections::btree_map::Entry::Vacant(slot) = by_index.entry(p.index) {
-            slot.insert(p);
+        } else if let std::collections::btree_map::Entry::Vacant(slot) = raw.entry(p.index) {
+            slot.insert(data);
         } else {
             duplicates += 1;
+        }
+    }
+    // Missing packets rebuilt from the image's parity packets, when enough arrived.
+    let ours: Vec<Parity<'_>> = parities
+        .into_iter()
+        .filter(|p| p.image_id == image_id && p.count == count)
+        .collect();
+    let rebuilt = if ours.is_empty() || raw.len() == usize::from(count) {
+        Vec::new()
+    } else {
+        let by_index: Vec<Option<&[u8]>> = (0..count).map(|i| raw.get(&i).copied()).collect();
+        parity::rebuild(&by_index, &ours)
+    };
+    let mut by_index: BTreeMap<u16, Packet<'_>> = BTreeMap::new();
+    for (index, data) in &raw {
+        if let Ok(p) = Packet::parse(data) {
+            by_index.insert(*index, p);
+        }
+    }
+    let mut recovered = Vec::new();
+    for (index, data) in &rebuilt {
+        if let Ok(p) = parse_within(data, max_pixels) {
+            if identity(&p) == chosen && p.index == *index {
+                by_index.insert(*index, p);
+                recovered.push(*index);
+            }
         }
     }
     let (w, h, ch) = (u32::from(width), u32::from(height), usize::from(channels));
@@ -621,12 +703,25 @@ pub fn assemble<'a>(
         count,
         received,
         missing,
+        recovered,
         preview,
         coverage,
         rejected,
         foreign,
         duplicates,
     })
+}
+
+/// Parses a packet of an image of at most `max_pixels`.
+fn parse_within(data: &[u8], max_pixels: u64) -> Result<Packet<'_>, DecodeError> {
+    let p = Packet::parse(data)?;
+    if u64::from(p.width) * u64::from(p.height) > max_pixels {
+        return Err(DecodeError::TooLarge {
+            width: p.width,
+            height: p.height,
+        });
+    }
+    Ok(p)
 }
 
 /// What tells one image's packets from another's.
