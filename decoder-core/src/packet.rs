@@ -11,7 +11,7 @@
 use crate::checksum::Crc32;
 use crate::decoder::Decoder;
 use crate::error::{DecodeError, DrawError, HeaderField};
-use crate::format::VERSION;
+use crate::format::{read_leb128, write_leb128, Leb128Error, VERSION};
 use crate::geometry::Rect;
 use crate::syntax::{check_coding_fields, Codebook, Header};
 use crate::synthesis::{PixelSink, Tile};
@@ -295,21 +295,19 @@ impl Reader<'_> {
         Ok(b)
     }
 
-    /// An unsigned LEB128 value of at most 16 bits, without a redundant final zero group.
+    /// A field: an unsigned LEB128 value of at most 16 bits ([`read_field`]).
     fn varint(&mut self) -> Result<u16, DecodeError> {
-        let mut value = 0u32;
-        for k in 0..MAX_VARINT_BYTES {
-            let b = self.byte()?;
-            value |= u32::from(b & 0x7F) << (7 * k);
-            if b & 0x80 == 0 {
-                if k > 0 && b == 0 {
-                    break;
-                }
-                return u16::try_from(value)
-                    .map_err(|_| DecodeError::InvalidHeader(HeaderField::PacketField));
-            }
-        }
-        Err(DecodeError::InvalidHeader(HeaderField::PacketField))
+        read_field(self.data, &mut self.pos)
+    }
+}
+
+/// A packet header's field at `*pos` (advanced past it): an unsigned LEB128 value of at most
+/// 16 bits in at most three bytes, without a redundant final zero group.
+pub fn read_field(data: &[u8], pos: &mut usize) -> Result<u16, DecodeError> {
+    match read_leb128(data, pos, MAX_VARINT_BYTES) {
+        Ok(v) => u16::try_from(v).map_err(|_| DecodeError::InvalidHeader(HeaderField::PacketField)),
+        Err(Leb128Error::Truncated) => Err(DecodeError::Truncated),
+        Err(Leb128Error::Malformed) => Err(DecodeError::InvalidHeader(HeaderField::PacketField)),
     }
 }
 
@@ -333,23 +331,13 @@ impl<S: PixelSink + ?Sized> PixelSink for Placed<'_, S> {
     }
 }
 
-/// Appends `value` as unsigned LEB128 (the packet header's varints) to `out` at `pos`;
-/// returns the new position. For writers of packets (the host encoder).
-pub fn write_varint(out: &mut [u8], mut pos: usize, value: u16) -> usize {
-    let mut v = u32::from(value);
-    loop {
-        let low = (v & 0x7F) as u8;
-        v >>= 7;
-        out[pos] = low | if v != 0 { 0x80 } else { 0 };
-        pos += 1;
-        if v == 0 {
-            return pos;
-        }
-    }
+/// Writes a packet header's field (`value` as unsigned LEB128) into `out` at `pos`; returns
+/// the position after it.
+pub fn write_field(out: &mut [u8], pos: usize, value: u16) -> usize {
+    write_leb128(out, pos, u32::from(value))
 }
 
-/// The fields of a packet header, for writers of packets: [`PacketHeader::write`] then the
-/// payload, then [`packet_crc`] of both.
+/// The fields of a packet header, for writers of packets ([`PacketHeader::write_packet`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PacketHeader {
     /// See [`Packet::image_id`].
@@ -394,16 +382,32 @@ impl PacketHeader {
         out[..5].copy_from_slice(&[PACKET_SYNC, VERSION, id[0], id[1], flags]);
         let mut pos = 5;
         for v in [self.index, self.count, self.width, self.height] {
-            pos = write_varint(out, pos, v);
+            pos = write_field(out, pos, v);
         }
         for v in self.region_units.into_iter().flatten() {
-            pos = write_varint(out, pos, v);
+            pos = write_field(out, pos, v);
         }
         if custom {
             out[pos..pos + 2].copy_from_slice(&self.coding);
             pos += 2;
         }
         pos
+    }
+}
+
+impl PacketHeader {
+    /// Writes the whole packet into `out`: this header, `payload`, the CRC-32; returns its
+    /// length, or `None` when `out` is too short (it needs [`MAX_PACKET_HEADER_LEN`] + the
+    /// payload + 4 bytes at most).
+    pub fn write_packet(&self, payload: &[u8], out: &mut [u8]) -> Option<usize> {
+        let mut head = [0u8; MAX_PACKET_HEADER_LEN];
+        let len = self.write(&mut head);
+        let end = len + payload.len();
+        out.get_mut(..len)?.copy_from_slice(&head[..len]);
+        out.get_mut(len..end)?.copy_from_slice(payload);
+        let crc = packet_crc(&out[..end]);
+        out.get_mut(end..end + CRC_LEN)?.copy_from_slice(&crc);
+        Some(end + CRC_LEN)
     }
 }
 
@@ -472,12 +476,9 @@ mod tests {
     }
 
     fn seal(header: &PacketHeader, payload: &[u8]) -> Vec<u8> {
-        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN];
-        let len = header.write(&mut packet);
+        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN + payload.len() + 4];
+        let len = header.write_packet(payload, &mut packet).unwrap();
         packet.truncate(len);
-        packet.extend_from_slice(payload);
-        let crc = packet_crc(&packet);
-        packet.extend_from_slice(&crc);
         packet
     }
 

@@ -12,7 +12,7 @@ use crate::checksum::Crc32;
 use crate::colour::{chroma_models, ChromaPlane, CHROMA_GRIDS};
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::{DecodeError, HeaderField, SyntaxElement};
-use crate::format::{div_round, med, CODING_TILE};
+use crate::format::{div_round, med, read_leb128, write_leb128, Leb128Error, CODING_TILE};
 pub use crate::format::{MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
 use crate::model::{
@@ -255,21 +255,10 @@ impl Header {
         };
         let mut pos = FIXED_HEADER_LEN;
         // Payload length: LEB128, at most five bytes, no redundant trailing zero group.
-        let mut len = 0u64;
-        for k in 0..MAX_LENGTH_BYTES {
-            let b = *data.get(pos).ok_or(DecodeError::Truncated)?;
-            pos += 1;
-            len |= u64::from(b & 0x7F) << (7 * k);
-            if b & 0x80 == 0 {
-                if k > 0 && b == 0 {
-                    return Err(DecodeError::InvalidHeader(HeaderField::PayloadLength));
-                }
-                break;
-            }
-            if k == MAX_LENGTH_BYTES - 1 {
-                return Err(DecodeError::InvalidHeader(HeaderField::PayloadLength));
-            }
-        }
+        let len = read_leb128(data, &mut pos, MAX_LENGTH_BYTES).map_err(|e| match e {
+            Leb128Error::Truncated => DecodeError::Truncated,
+            Leb128Error::Malformed => DecodeError::InvalidHeader(HeaderField::PayloadLength),
+        })?;
         header.payload_len = u32::try_from(len)
             .map_err(|_| DecodeError::InvalidHeader(HeaderField::PayloadLength))?;
         if flags & FLAG_CODEBOOKS != 0 {
@@ -325,17 +314,7 @@ impl Header {
         ];
         out[..CHECKSUM_BYTES.start].copy_from_slice(&fixed);
         out[CHECKSUM_BYTES].copy_from_slice(&self.checksum.to_le_bytes());
-        let mut pos = FIXED_HEADER_LEN;
-        let mut len = self.payload_len;
-        loop {
-            let low = (len & 0x7F) as u8;
-            len >>= 7;
-            out[pos] = low | if len != 0 { 0x80 } else { 0 };
-            pos += 1;
-            if len == 0 {
-                break;
-            }
-        }
+        let mut pos = write_leb128(out, FIXED_HEADER_LEN, self.payload_len);
         if self.has_codebooks() {
             for book in &self.codebooks {
                 out[pos] = book.len;

@@ -641,31 +641,23 @@ fn packet_seeds() -> Files {
         seed("gray-96x64-parity", 96, 64, false, 96, 8, true, 2),
     ];
     for case in cases {
-        let PacketSeed {
-            name,
-            w,
-            h,
-            colour,
-            size,
-            count,
-            preview,
-            parity,
-        } = case;
+        let PacketSeed { name, w, h, .. } = case;
         let plane = common::synthetic(w, h, w + h, 6);
-        let analysis = if colour {
+        let analysis = if case.colour {
             host_encoder::analyse_colour(w, h, common::synthetic_rgb(w, h, w * h), &config, &|_| {})
                 .unwrap()
         } else {
             common::analyse_with(plane, &config)
         };
         let options = PacketOptions {
-            size,
+            size: case.size,
             image_id: w as u16,
-            preview,
+            preview: case.preview,
             repeat_preview: false,
-            parity,
+            parity: case.parity,
         };
-        let made = packetise(&analysis, &config, Target::Bytes(size * count), &options)
+        let budget = Target::Bytes(case.size * case.count);
+        let made = packetise(&analysis, &config, budget, &options)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         out.push((format!("{name}-all.pifsp"), frame(&made.packets)));
         let odd: Vec<Vec<u8>> = made.packets.iter().skip(1).step_by(2).cloned().collect();

@@ -56,6 +56,28 @@ struct PlanVisitor<'a> {
     meter: Option<Meter<'a>>,
 }
 
+impl<'a> PlanVisitor<'a> {
+    /// A visitor of `plan` that chooses every chroma leaf (recording the choices), counting
+    /// leaves' bits into `meter` if given.
+    fn new(
+        tree: &'a CandidateTree,
+        plan: &'a Plan,
+        colour: Option<&'a ColourPlanes>,
+        meter: Option<Meter<'a>>,
+    ) -> Self {
+        PlanVisitor {
+            tree,
+            plan,
+            leaves: 0,
+            colour,
+            chroma_bits: 0.0,
+            tape: Vec::new(),
+            replay: None,
+            meter,
+        }
+    }
+}
+
 /// The bits of every leaf, as [`leaf_bits`] counts them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LeafBits {
@@ -211,16 +233,9 @@ pub fn write(
         })
     });
     let replay = tape.as_ref().map(|_| 0);
-    let mut visitor = PlanVisitor {
-        tree,
-        plan,
-        leaves: 0,
-        colour,
-        chroma_bits: 0.0,
-        tape: tape.unwrap_or_default(),
-        replay,
-        meter: None,
-    };
+    let mut visitor = PlanVisitor::new(tree, plan, colour, None);
+    visitor.tape = tape.unwrap_or_default();
+    visitor.replay = replay;
     let mut coder = RangeEncoder::new();
     let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
     walk_with(header, &mut coder, &mut visitor, &mut state).map_err(EncodeError::Syntax)?;
@@ -263,20 +278,12 @@ pub fn leaf_bits(
 ) -> Result<Vec<LeafBits>, EncodeError> {
     let colour = colour.filter(|_| header.channels == 3);
     let total = Cell::new(0.0);
-    let mut visitor = PlanVisitor {
-        tree,
-        plan,
-        leaves: 0,
-        colour,
-        chroma_bits: 0.0,
-        tape: Vec::new(),
-        replay: None,
-        meter: Some(Meter {
-            total: &total,
-            last: 0.0,
-            leaves: Vec::new(),
-        }),
+    let meter = Meter {
+        total: &total,
+        last: 0.0,
+        leaves: Vec::new(),
     };
+    let mut visitor = PlanVisitor::new(tree, plan, colour, Some(meter));
     let mut coder = MeteredEncoder {
         inner: RangeEncoder::new(),
         total: &total,

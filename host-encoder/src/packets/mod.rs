@@ -15,7 +15,7 @@
 //! image are counted and ignored.
 
 use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Target};
-use decoder_core::internal::packet::{packet_crc, PacketHeader, MAX_PACKET_HEADER_LEN};
+use decoder_core::internal::packet::{PacketHeader, MAX_PACKET_HEADER_LEN};
 use decoder_core::internal::syntax::{Header, FIXED_HEADER_LEN};
 use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Tile, REGION_UNIT};
 use parity::Parity;
@@ -355,12 +355,11 @@ const CRC_LEN: usize = 4;
 /// most four, the range coder's final flush) as leave its pixels unchanged.
 fn shortest_packet(header: &PacketHeader, payload: &[u8]) -> Result<Vec<u8>, PacketError> {
     let make = |payload: &[u8]| {
-        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN];
-        let len = header.write(&mut packet);
+        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN + payload.len() + CRC_LEN];
+        let len = header
+            .write_packet(payload, &mut packet)
+            .expect("room for the packet");
         packet.truncate(len);
-        packet.extend_from_slice(payload);
-        let crc = packet_crc(&packet);
-        packet.extend_from_slice(&crc);
         packet
     };
     let pixels = |packet: &[u8]| -> Option<Vec<u8>> {

@@ -4,7 +4,7 @@
 //! hosts, not for a microcontroller drawing packets as they come.
 
 use decoder_core::internal::checksum::Crc32;
-use decoder_core::internal::packet::{packet_crc, write_varint};
+use decoder_core::internal::packet::{packet_crc, read_field, write_field};
 use decoder_core::VERSION;
 use reed_solomon_erasure::galois_8::ReedSolomon;
 
@@ -52,7 +52,7 @@ impl<'a> Parity<'a> {
         let mut pos = 4;
         let mut fields = [0u16; 4];
         for field in fields.iter_mut() {
-            *field = read_varint(body, &mut pos)?;
+            *field = read_field(body, &mut pos).ok()?;
         }
         let [index, parity, count, len] = fields;
         let shard = &body[pos..];
@@ -68,20 +68,6 @@ impl<'a> Parity<'a> {
             shard,
         })
     }
-}
-
-/// An unsigned LEB128 value of at most 16 bits in at most three bytes.
-fn read_varint(data: &[u8], pos: &mut usize) -> Option<u16> {
-    let mut value = 0u32;
-    for k in 0..3 {
-        let b = *data.get(*pos)?;
-        *pos += 1;
-        value |= u32::from(b & 0x7F) << (7 * k);
-        if b & 0x80 == 0 {
-            return u16::try_from(value).ok();
-        }
-    }
-    None
 }
 
 /// A data packet as a shard of `len` bytes: its length (two bytes, little-endian), itself,
@@ -114,7 +100,7 @@ pub fn parity_packets(packets: &[Vec<u8>], parity: usize, image_id: u16) -> Opti
             packet[..4].copy_from_slice(&[PARITY_SYNC, VERSION, id[0], id[1]]);
             let mut pos = 4;
             for v in [k, parity, n, len] {
-                pos = write_varint(&mut packet, pos, v as u16);
+                pos = write_field(&mut packet, pos, v as u16);
             }
             packet.truncate(pos);
             packet.extend_from_slice(shard);

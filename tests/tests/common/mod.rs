@@ -155,6 +155,23 @@ pub fn golden_dir() -> PathBuf {
 #[allow(unused_imports)]
 pub use pifs_tests::CoverageSink;
 
+/// The fields of every line of the list `tests/golden/<name>` (blank lines and lines
+/// starting with `#` are skipped), each line checked to have `fields` of them.
+fn list_lines(name: &str, fields: usize) -> Vec<Vec<String>> {
+    let path = golden_dir().join(name);
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (run the `regenerate` golden test)", path.display()));
+    text.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .map(|l| {
+            let f: Vec<String> = l.split_whitespace().map(str::to_string).collect();
+            assert_eq!(f.len(), fields, "{name}: bad line {l:?}");
+            f
+        })
+        .collect()
+}
+
 /// One line of `tests/golden/golden.txt`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GoldenEntry {
@@ -167,21 +184,13 @@ pub struct GoldenEntry {
 /// Parses `tests/golden/golden.txt` (`<file> <width> <height> <sha256>` per line; blank lines
 /// and lines starting with `#` are ignored).
 pub fn golden_list() -> Vec<GoldenEntry> {
-    let path = golden_dir().join("golden.txt");
-    let text = std::fs::read_to_string(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (run the `regenerate` golden test)", path.display()));
-    text.lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with('#'))
-        .map(|l| {
-            let f: Vec<&str> = l.split_whitespace().collect();
-            assert_eq!(f.len(), 4, "golden.txt: bad line {l:?}");
-            GoldenEntry {
-                file: f[0].to_string(),
-                width: f[1].parse().expect("width"),
-                height: f[2].parse().expect("height"),
-                sha256: f[3].to_string(),
-            }
+    list_lines("golden.txt", 4)
+        .into_iter()
+        .map(|f| GoldenEntry {
+            file: f[0].clone(),
+            width: f[1].parse().expect("width"),
+            height: f[2].parse().expect("height"),
+            sha256: f[3].to_string(),
         })
         .collect()
 }
@@ -227,23 +236,15 @@ pub struct GoldenPackets {
 /// Parses `tests/golden/packets.txt` (`<file> <width> <height> <lost,indices> <sha256 of all>
 /// <sha256 with the lost ones missing>` per line).
 pub fn golden_packets() -> Vec<GoldenPackets> {
-    let path = golden_dir().join("packets.txt");
-    let text = std::fs::read_to_string(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (run the `regenerate` golden test)", path.display()));
-    text.lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with('#'))
-        .map(|l| {
-            let f: Vec<&str> = l.split_whitespace().collect();
-            assert_eq!(f.len(), 6, "packets.txt: bad line {l:?}");
-            GoldenPackets {
-                file: f[0].to_string(),
-                width: f[1].parse().expect("width"),
-                height: f[2].parse().expect("height"),
-                lost: f[3].split(',').map(|i| i.parse().expect("index")).collect(),
-                sha256_all: f[4].to_string(),
-                sha256_lossy: f[5].to_string(),
-            }
+    list_lines("packets.txt", 6)
+        .into_iter()
+        .map(|f| GoldenPackets {
+            file: f[0].clone(),
+            width: f[1].parse().expect("width"),
+            height: f[2].parse().expect("height"),
+            lost: f[3].split(',').map(|i| i.parse().expect("index")).collect(),
+            sha256_all: f[4].to_string(),
+            sha256_lossy: f[5].to_string(),
         })
         .collect()
 }
