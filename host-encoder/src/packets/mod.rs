@@ -51,7 +51,7 @@ pub struct PacketOptions {
     pub repeat_preview: bool,
     /// Parity packets sent after the others (part of the budget): any `N` of the `N + K`
     /// packets rebuild all `N` data packets (a Reed–Solomon erasure code; the data packets are
-    /// then 20 bytes shorter, the parity packets' overhead). 0 for none.
+    /// then about 15 bytes shorter, the parity packets' own fields). 0 for none.
     pub parity: usize,
 }
 
@@ -198,7 +198,7 @@ pub fn packetise(
     }
     // With parity, a data packet leaves room for the parity packets' own fields.
     let size = if options.parity > 0 {
-        size - parity::PARITY_OVERHEAD - parity::LENGTH_PREFIX
+        parity::data_packet_size(size, count, options.parity)
     } else {
         size
     };

@@ -14,12 +14,29 @@ pub const PARITY_SYNC: u8 = b'q';
 /// The most packets, data and parity, one code covers (the field's size).
 pub const MAX_SHARDS: usize = 256;
 
-/// Bytes a parity packet adds to its shard: sync, version, image id, four varints of at most
-/// three bytes, the checksum.
-pub const PARITY_OVERHEAD: usize = 4 + 4 * 3 + 4;
+/// The most bytes a parity packet adds to its shard: sync, version, image id, four fields of
+/// at most three bytes, the checksum.
+const MAX_PARITY_OVERHEAD: usize = 4 + 4 * 3 + 4;
+
+/// The largest data packet that `parity` parity packets over `count` data packets of at most
+/// `size` bytes each leave room for: each parity packet carries a shard two bytes longer than
+/// the longest data packet, behind its own fields.
+pub fn data_packet_size(size: usize, count: usize, parity: usize) -> usize {
+    let field = |v: usize| {
+        if v < 128 {
+            1
+        } else if v < 16384 {
+            2
+        } else {
+            3
+        }
+    };
+    let overhead = 4 + field(parity) * 2 + field(count) + field(size) + 4;
+    size.saturating_sub(overhead + LENGTH_PREFIX)
+}
 
 /// Bytes a data packet takes in a shard besides itself: its length.
-pub const LENGTH_PREFIX: usize = 2;
+const LENGTH_PREFIX: usize = 2;
 
 /// One parity packet, parsed and checked.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -96,7 +113,7 @@ pub fn parity_packets(packets: &[Vec<u8>], parity: usize, image_id: u16) -> Opti
         .iter()
         .enumerate()
         .map(|(k, shard)| {
-            let mut packet = vec![0u8; PARITY_OVERHEAD - 4];
+            let mut packet = vec![0u8; MAX_PARITY_OVERHEAD - 4];
             packet[..4].copy_from_slice(&[PARITY_SYNC, VERSION, id[0], id[1]]);
             let mut pos = 4;
             for v in [k, parity, n, len] {
