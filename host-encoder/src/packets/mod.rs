@@ -173,102 +173,41 @@ pub fn packetise(
     target: Target,
     options: &PacketOptions,
 ) -> Result<Packetised, PacketError> {
-    let size = options.size;
-    if !(MIN_PACKET_SIZE..=MAX_PACKET_SIZE).contains(&size) {
-        return Err(PacketError::BadSize(size));
-    }
     if config.stripe == 0 || config.stripe > 4 {
         return Err(PacketError::StripeTooWide);
     }
-    let (width, height) = (analysis.width(), analysis.height());
-    let pixels = width as usize * height as usize;
+    let pixels = analysis.width() as usize * analysis.height() as usize;
     let budget = match target {
         Target::Bpp(b) if b.is_finite() && b > 0.0 => (b * pixels as f64 / 8.0).floor() as usize,
         Target::Bytes(n) => n,
         Target::Psnr(_) => return Err(PacketError::QualityTarget),
         Target::Bpp(_) => return Err(PacketError::Encode(EncodeError::BadTarget(target))),
     };
-    let sent = budget / size;
-    let repeat = options.preview && options.repeat_preview && sent >= MIN_PACKETS_TO_REPEAT;
-    let count = sent.saturating_sub(usize::from(repeat) + options.parity);
-    if options.parity > 0 && count + options.parity > MAX_SHARDS {
-        return Err(PacketError::TooManyForParity {
-            packets: count + options.parity,
-        });
-    }
-    // With parity, a data packet leaves room for the parity packets' own fields.
-    let size = if options.parity > 0 {
-        parity::data_packet_size(size, count, options.parity)
-    } else {
-        size
-    };
-    if count == 0 {
-        return Err(PacketError::BudgetTooSmall {
-            budget,
-            packet: size,
-        });
-    }
-    let count = u16::try_from(count).map_err(|_| PacketError::TooManyPackets)?;
-    let previews = usize::from(options.preview && count > 1);
-    let regions = usize::from(count) - previews;
-    let channels = analysis.channels();
-    let leaf_sizes = analysis.max_leaf_log2() << 4 | analysis.min_leaf_log2();
+    let layout = Layout::of(budget, options)?;
     let base = PacketHeader {
         image_id: options.image_id,
         index: 0,
-        count,
-        width: width as u16,
-        height: height as u16,
-        channels,
+        count: layout.count,
+        width: analysis.width() as u16,
+        height: analysis.height() as u16,
+        channels: analysis.channels(),
         region_units: None,
-        coding: [leaf_sizes, config.stripe],
+        coding: [
+            analysis.max_leaf_log2() << 4 | analysis.min_leaf_log2(),
+            config.stripe,
+        ],
         deblock: 0,
     };
-
-    // Where a single stream of the regions' share of the budget spends its bits.
-    let mut head = [0u8; MAX_PACKET_HEADER_LEN];
-    let typical_header = base.write(&mut head) + 4 * 2 + 4;
-    let share = regions * (size - typical_header);
-    let leaves = analysis.leaf_bits(share.max(64))?;
-    let mass = BitMass::of(width, height, &leaves);
-    let areas = spread(mass.cut(regions));
-
-    let region_config = EncoderConfig {
-        codebook_levels: 0,
-        ..config.clone()
-    };
-    let mut packets: Vec<Vec<u8>> = Vec::with_capacity(usize::from(count));
-    if previews == 1 {
-        let header = base;
-        packets.push(fill_packet(&header, size, |capacity| {
-            analysis.encode_plain(capacity)
-        })?);
-    }
-    let region_packets: Vec<Result<Vec<u8>, PacketError>> = areas
-        .par_iter()
-        .enumerate()
-        .map(|(i, area)| {
-            let header = PacketHeader {
-                index: (previews + i) as u16,
-                region_units: Some(units_of(area)),
-                ..base
-            };
-            let region = analysis.region(*area, &region_config)?;
-            fill_packet(&header, size, |capacity| region.encode_plain(capacity))
-        })
-        .collect();
-    for packet in region_packets {
-        packets.push(packet?);
-    }
+    let mut packets = data_packets(analysis, config, &layout, &base)?;
     let parity_packets = match options.parity {
         0 => Vec::new(),
         k => parity::parity_packets(&packets, k, options.image_id).ok_or(
             PacketError::TooManyForParity {
-                packets: usize::from(count) + k,
+                packets: packets.len() + k,
             },
         )?,
     };
-    if repeat {
+    if layout.repeat {
         let again = packets[0].clone();
         packets.insert(packets.len() / 2, again);
     }
@@ -288,13 +227,108 @@ pub fn packetise(
         .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
         .sum();
     Ok(Packetised {
-        previews,
+        previews: layout.previews,
         parity,
         overhead_bytes,
         psnr: psnr(sse, assembled.pixels.len()),
         reconstruction: assembled.pixels,
         packets,
     })
+}
+
+/// How a budget divides into packets.
+struct Layout {
+    /// Distinct data packets (the packets' `count`).
+    count: u16,
+    /// Previews among them (0 or 1, the first).
+    previews: usize,
+    /// Whether the preview is sent twice.
+    repeat: bool,
+    /// Largest data packet, bytes (less than the packet size when parity packets must hold
+    /// them).
+    data_size: usize,
+}
+
+impl Layout {
+    fn of(budget: usize, options: &PacketOptions) -> Result<Layout, PacketError> {
+        let size = options.size;
+        if !(MIN_PACKET_SIZE..=MAX_PACKET_SIZE).contains(&size) {
+            return Err(PacketError::BadSize(size));
+        }
+        let sent = budget / size;
+        let repeat = options.preview && options.repeat_preview && sent >= MIN_PACKETS_TO_REPEAT;
+        let count = sent.saturating_sub(usize::from(repeat) + options.parity);
+        if count == 0 {
+            return Err(PacketError::BudgetTooSmall {
+                budget,
+                packet: size,
+            });
+        }
+        if options.parity > 0 && count + options.parity > MAX_SHARDS {
+            return Err(PacketError::TooManyForParity {
+                packets: count + options.parity,
+            });
+        }
+        let data_size = match options.parity {
+            0 => size,
+            k => parity::data_packet_size(size, count, k),
+        };
+        Ok(Layout {
+            count: u16::try_from(count).map_err(|_| PacketError::TooManyPackets)?,
+            previews: usize::from(options.preview && count > 1),
+            repeat,
+            data_size,
+        })
+    }
+
+    fn regions(&self) -> usize {
+        usize::from(self.count) - self.previews
+    }
+}
+
+/// The preview (if any) and the region packets, by index: the image cut where a single stream
+/// of the regions' share of the budget spends equal bits, each part encoded on its own.
+fn data_packets(
+    analysis: &Analysis,
+    config: &EncoderConfig,
+    layout: &Layout,
+    base: &PacketHeader,
+) -> Result<Vec<Vec<u8>>, PacketError> {
+    let size = layout.data_size;
+    let mut head = [0u8; MAX_PACKET_HEADER_LEN];
+    // A region header is the preview's and four one- or two-byte fields; then the checksum.
+    let typical_header = base.write(&mut head) + 4 * 2 + CRC_LEN;
+    let share = layout.regions() * size.saturating_sub(typical_header);
+    let leaves = analysis.leaf_bits(share.max(64))?;
+    let mass = BitMass::of(analysis.width(), analysis.height(), &leaves);
+    let areas = spread(mass.cut(layout.regions()));
+    let region_config = EncoderConfig {
+        codebook_levels: 0,
+        ..config.clone()
+    };
+    let mut packets = Vec::with_capacity(usize::from(layout.count));
+    if layout.previews == 1 {
+        packets.push(fill_packet(base, size, |capacity| {
+            analysis.encode_plain(capacity)
+        })?);
+    }
+    let regions: Vec<Result<Vec<u8>, PacketError>> = areas
+        .par_iter()
+        .enumerate()
+        .map(|(i, area)| {
+            let header = PacketHeader {
+                index: (layout.previews + i) as u16,
+                region_units: Some(units_of(area)),
+                ..*base
+            };
+            let region = analysis.region(*area, &region_config)?;
+            fill_packet(&header, size, |capacity| region.encode_plain(capacity))
+        })
+        .collect();
+    for packet in regions {
+        packets.push(packet?);
+    }
+    Ok(packets)
 }
 
 /// The fewest packets of which one is given to a second copy of the preview.
