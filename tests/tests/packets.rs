@@ -244,13 +244,16 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
         parity: 3,
     };
     let made = packetise(&analysis, &config(), Target::Bytes(12 * 96), &options).unwrap();
-    assert_eq!((made.packets.len(), made.parity), (12, 3));
+    // Ten data packets of at most 81 bytes (room for the parity packets' fields), three
+    // parity packets of 96.
+    assert_eq!((made.packets.len(), made.parity), (13, 3));
     assert!(made.packets.iter().all(|p| p.len() <= 96));
-    assert_eq!(Packet::parse(&made.packets[0]).unwrap().count, 9);
+    assert!(made.total_bytes() <= 12 * 96);
+    assert_eq!(Packet::parse(&made.packets[0]).unwrap().count, 10);
     let all = assemble(made.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
     assert_eq!(all.pixels, made.reconstruction);
     // Any three lost (data or parity): everything rebuilt.
-    for lost in [[0, 1, 2], [3, 7, 8], [2, 9, 11], [9, 10, 11]] {
+    for lost in [[0, 1, 2], [3, 7, 8], [2, 10, 12], [10, 11, 12]] {
         let kept = made
             .packets
             .iter()
@@ -260,7 +263,11 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
         let image = assemble(kept, u64::MAX).unwrap();
         assert!(image.missing.is_empty(), "{lost:?}: {:?}", image.missing);
         assert_eq!(image.pixels, made.reconstruction, "{lost:?}");
-        let data_lost: Vec<u16> = lost.iter().filter(|&&i| i < 9).map(|&i| i as u16).collect();
+        let data_lost: Vec<u16> = lost
+            .iter()
+            .filter(|&&i| i < 10)
+            .map(|&i| i as u16)
+            .collect();
         assert_eq!(image.recovered, data_lost);
     }
     // Four lost: nothing rebuilt, the data packets that came are drawn.

@@ -255,24 +255,27 @@ impl Layout {
         if !(MIN_PACKET_SIZE..=MAX_PACKET_SIZE).contains(&size) {
             return Err(PacketError::BadSize(size));
         }
-        let sent = budget / size;
-        let repeat = options.preview && options.repeat_preview && sent >= MIN_PACKETS_TO_REPEAT;
-        let count = sent.saturating_sub(usize::from(repeat) + options.parity);
+        // With parity, data packets leave room for the parity packets' own fields, and the
+        // parity packets (full size) come out of the budget first.
+        let k = options.parity;
+        let data_size = match k {
+            0 => size,
+            k => parity::data_packet_size(size, MAX_SHARDS, k),
+        };
+        let for_data = budget.saturating_sub(k * size);
+        let repeat = options.preview
+            && options.repeat_preview
+            && for_data / data_size >= MIN_PACKETS_TO_REPEAT;
+        let count = (for_data / data_size).saturating_sub(usize::from(repeat));
         if count == 0 {
             return Err(PacketError::BudgetTooSmall {
                 budget,
                 packet: size,
             });
         }
-        if options.parity > 0 && count + options.parity > MAX_SHARDS {
-            return Err(PacketError::TooManyForParity {
-                packets: count + options.parity,
-            });
+        if k > 0 && count + k > MAX_SHARDS {
+            return Err(PacketError::TooManyForParity { packets: count + k });
         }
-        let data_size = match options.parity {
-            0 => size,
-            k => parity::data_packet_size(size, count, k),
-        };
         Ok(Layout {
             count: u16::try_from(count).map_err(|_| PacketError::TooManyPackets)?,
             previews: usize::from(options.preview && count > 1),
