@@ -208,7 +208,7 @@ def report(rows, args, out):
               + " | ".join(f"{p:.2f}" for p in s.get("prefix", [])) + " |")
     if ssdv:
         print(f"\nSSDV: {os.path.normpath(path)} (its stored run; 256-byte packets).")
-    print("\nFirst packets (PSIFS's sending order), mean PSNR:\n")
+    print("\nFirst packets (in PIFS's sending order), mean PSNR:\n")
     print("| rate | " + " | ".join(f"first {k}" for k in PREFIX_COUNTS) + " |")
     print("|---|" + "---:|" * len(PREFIX_COUNTS))
     for rate in args.rates:

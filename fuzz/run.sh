@@ -36,6 +36,7 @@ version=$(sed -n 's/^pub const VERSION: u8 = \([0-9]*\);.*/\1/p' ../decoder-core
 seeds_of() {
     case "$1" in
         decode_bytes | stream_equals_slice) echo "seeds/streams ../tests/golden" ;;
+        decode_packets) echo "seeds/packets" ;;
         *) echo "seeds/$1" ;;
     esac
 }

@@ -3,13 +3,15 @@
 //! packet 0, comes last), without the packets `packets.txt` loses; every region is drawn as it
 //! arrives, and the preview only around the regions already drawn. The frame buffer's hash
 //! (`PIFS-PACKETS name=<file> received=<n> sha256=<hex>`) must equal the host's assembly of
-//! the same packets.
+//! the same packets. `stack=<bytes>` is the largest peak stack of one packet's parse and
+//! decode (the decoder's own RAM; the receiver adds its packet buffer and the list of regions
+//! drawn).
 
 use cortex_m_semihosting::heprintln;
 use decoder_core::{Packet, PacketKind, PixelSink, Rect, Tile};
 use sha2::{Digest, Sha256};
 
-use crate::{Hex, PACKET_FRAME_LEN, PACKET_SETS};
+use crate::{measure, Hex, PACKET_FRAME_LEN, PACKET_SETS};
 
 /// A framed packet set (`tests/golden/packets.txt`).
 pub struct PacketSet {
@@ -96,42 +98,60 @@ fn receive(set: &PacketSet) -> bool {
     let mut drawn = [Rect::of_size(0, 0); MAX_REGIONS];
     let mut regions = 0;
     let mut received = 0;
+    let mut stack = 0;
     for bytes in frames_reversed(set.data) {
         // The radio hands over one packet: it is copied into the receiver's buffer.
         let n = bytes.len().min(MAX_PACKET);
         buffer[..n].copy_from_slice(&bytes[..n]);
-        let packet = match Packet::parse(&buffer[..n]) {
-            Ok(p) => p,
+        let index = match Packet::parse(&buffer[..n]) {
+            Ok(p) => p.index,
             Err(e) => {
                 heprintln!("PIFS-ERROR name={} packet: {}", set.name, e);
                 return false;
             }
         };
-        if set.lost.contains(&packet.index) {
+        if set.lost.contains(&index) {
             continue;
         }
-        let result = match packet.kind {
-            PacketKind::Region => {
-                if regions < MAX_REGIONS {
-                    drawn[regions] = packet.region;
-                    regions += 1;
-                }
-                packet.decode(&mut frame)
-            }
-            PacketKind::Preview => packet.decode_around(&drawn[..regions], &mut frame),
-        };
+        measure::paint();
+        let base = measure::sp();
+        let result = draw(&buffer[..n], &mut frame, &mut drawn, &mut regions);
+        stack = stack.max(measure::peak(base));
         if let Err(e) = result {
-            heprintln!("PIFS-ERROR name={} packet {}: {}", set.name, packet.index, e);
+            heprintln!("PIFS-ERROR name={} packet {}: {}", set.name, index, e);
             return false;
         }
         received += 1;
     }
     let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
     heprintln!(
-        "PIFS-PACKETS name={} received={} sha256={}",
+        "PIFS-PACKETS name={} received={} stack={} sha256={}",
         set.name,
         received,
+        stack,
         Hex(hash)
     );
     true
+}
+
+/// One received packet, parsed and drawn: a region as it is (and remembered), a preview
+/// around the regions already drawn. Not inlined, so that its stack is measured alone.
+#[inline(never)]
+fn draw(
+    bytes: &[u8],
+    frame: &mut Frame<'_>,
+    drawn: &mut [Rect; MAX_REGIONS],
+    regions: &mut usize,
+) -> Result<(), decoder_core::DrawError<core::convert::Infallible>> {
+    let packet = Packet::parse(bytes)?;
+    match packet.kind {
+        PacketKind::Region => {
+            if *regions < MAX_REGIONS {
+                drawn[*regions] = packet.region;
+                *regions += 1;
+            }
+            packet.decode(frame)
+        }
+        PacketKind::Preview => packet.decode_around(&drawn[..*regions], frame),
+    }
 }

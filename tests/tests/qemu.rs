@@ -388,6 +388,8 @@ fn check_packets(context: &str, lines: &[&str]) {
             "{context}: {}: the firmware's packets draw other pixels than the host's",
             g.file
         );
+        let stack: usize = f["stack"].parse().expect("stack");
+        assert!(stack > 0, "{context}: {}: no stack measured", g.file);
         seen += 1;
     }
     assert_eq!(seen, sets.len(), "{context}: packet sets missing");
