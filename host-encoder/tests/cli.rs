@@ -756,6 +756,15 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     let from_framed = dir.join("framed.png");
     ok(&pifs(&["decode", &s(&framed), "-o", &s(&from_framed)]));
     assert_eq!(png_pixels(&whole), png_pixels(&from_framed));
+    // The framed form on standard input.
+    let from_stdin = dir.join("stdin.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_pifs"))
+        .args(["decode", "-", "--packets", "-o", &s(&from_stdin)])
+        .stdin(std::fs::File::open(&framed).unwrap())
+        .output()
+        .unwrap();
+    ok(&out);
+    assert_eq!(png_pixels(&whole), png_pixels(&from_stdin));
     // Loss: the survivors decode, and the report names the missing packets.
     let lossy = dir.join("lossy");
     let line = ok(&pifs(&[

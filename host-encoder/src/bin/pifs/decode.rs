@@ -89,6 +89,7 @@ pub fn run(
     format: Option<OutputFormat>,
     limits: &Limits,
     scale: Scale,
+    packets: bool,
 ) -> Result<()> {
     let input = inputs.first().map_or(Path::new("-"), |p| p.as_path());
     let start = Instant::now();
@@ -105,7 +106,7 @@ pub fn run(
     if io::is_std_stream(output) {
         say::stdout_is_data();
     }
-    if inputs.len() > 1 || crate::packets::is_packet_input(input) {
+    if packets || inputs.len() > 1 || crate::packets::is_packet_input(input) {
         if scale != Scale::One {
             return Err(CliError::Refused(
                 "packets decode at their coded size only".into(),

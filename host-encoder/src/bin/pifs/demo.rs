@@ -49,6 +49,7 @@ pub fn run() -> Result<()> {
             None,
             &decoder_core::Limits::NONE,
             decoder_core::Scale::One,
+            false,
         )?;
     }
     say!(

@@ -77,6 +77,10 @@ enum Command {
         /// ceil(height x scale).
         #[arg(long, default_value = "1", value_parser = decode::parse_scale)]
         scale: decoder_core::Scale,
+        /// Read the input as packets even when it could be a stream: for framed packets on
+        /// standard input ("-").
+        #[arg(long)]
+        packets: bool,
     },
     /// Describe a PIFS stream; with --svg, draw its quadtree over the decoded image.
     ///
@@ -163,12 +167,14 @@ fn main() -> ExitCode {
             format,
             max_pixels,
             scale,
+            packets,
         }) => decode::run(
             &input,
             &output,
             format,
             &decoder_core::Limits::pixels(max_pixels),
             scale,
+            packets,
         ),
         Some(Command::Info {
             input,

@@ -162,6 +162,9 @@ pub fn is_packet_input(path: &Path) -> bool {
     }
 }
 
+/// The largest packet file (or standard input) read: 64 MiB, 250 000 packets of 255 bytes.
+const MAX_PACKET_INPUT: u64 = 1 << 26;
+
 /// The `.pkt` files of the directory `dir`, by name: each name and its bytes.
 fn packet_files(dir: &Path) -> Result<Vec<(String, Vec<u8>)>> {
     let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", dir.display()));
@@ -183,13 +186,13 @@ fn packet_files(dir: &Path) -> Result<Vec<(String, Vec<u8>)>> {
 }
 
 /// The packets at `path`: every `.pkt` file of a directory (by name), one packet file, or a
-/// framed file.
+/// framed file or standard input ("-").
 pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
     let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", path.display()));
     if path.is_dir() {
         return Ok(packet_files(path)?.into_iter().map(|(_, p)| p).collect());
     }
-    let data = std::fs::read(path).map_err(failed)?;
+    let data = io::read_input(path, "PIFS packets", MAX_PACKET_INPUT)?;
     if Packet::parse(&data).is_ok() {
         return Ok(vec![data]);
     }
