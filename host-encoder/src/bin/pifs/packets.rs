@@ -188,7 +188,6 @@ fn packet_files(dir: &Path) -> Result<Vec<(String, Vec<u8>)>> {
 /// The packets at `path`: every `.pkt` file of a directory (by name), one packet file, or a
 /// framed file or standard input ("-").
 pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
-    let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", path.display()));
     if path.is_dir() {
         return Ok(packet_files(path)?.into_iter().map(|(_, p)| p).collect());
     }
