@@ -756,6 +756,21 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     let from_framed = dir.join("framed.png");
     ok(&pifs(&["decode", &s(&framed), "-o", &s(&from_framed)]));
     assert_eq!(png_pixels(&whole), png_pixels(&from_framed));
+    // The framed form on standard output holds the packets alone (the summary goes to
+    // standard error).
+    let out = pifs(&[
+        "encode",
+        &s(&png),
+        "-o",
+        "-",
+        "--packet-size",
+        "64",
+        "--bytes",
+        "960",
+    ]);
+    assert!(out.status.success());
+    assert_eq!(out.stdout, std::fs::read(&framed).unwrap());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("15 packets"));
     // The framed form on standard input.
     let from_stdin = dir.join("stdin.png");
     let out = Command::new(env!("CARGO_BIN_EXE_pifs"))

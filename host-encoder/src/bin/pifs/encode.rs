@@ -632,6 +632,9 @@ fn encode_packets(args: &EncodeArgs, job: Job) -> Result<()> {
     }
     if let Some(output) = &args.output {
         output::check(output, Some(input), Kind::Stream)?;
+        if io::is_std_stream(output) {
+            say::stdout_is_data();
+        }
     }
     let checked = check_image(input, &args.limits, &args.analysis, args.gray)?;
     let image = checked.decode(args.gray)?;
