@@ -11,9 +11,12 @@
 //! leaf's two grids and a chroma frontier (the last chroma row of each column pair of a stripe
 //! and the last chroma column of each row pair of a band).
 //!
-//! Output pixel `(x, y)` takes the chroma pixel `(x / 2, y / 2)` (nearest, as JFIF decoders
-//! without upsampling do) and is converted to RGB with the integer BT.601 full-range
-//! conversion of [`ycbcr_to_rgb`].
+//! Chroma is **upsampled** as it is drawn, not repeated over 2 x 2 luma pixels: output pixel
+//! `(x, y)` of a leaf takes the leaf's bilinear chroma surface at the pixel's own centre,
+//! `(x / 2 - 1/4, y / 2 - 1/4)` in chroma pixels (JFIF's centred siting); across the leaf's
+//! top and left edges, a quarter pixel before the surface, the chroma beside the leaf (which
+//! the chroma frontier holds) is mixed in, on both sides of the edge. The pixel is converted to
+//! RGB with the integer BT.601 full-range conversion of [`ycbcr_to_rgb`].
 
 use crate::format::{CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
@@ -138,14 +141,37 @@ impl ChromaPatch {
         let plane = &self.planes[p & 1];
         sample(plane, self.node.log2, i, j)
     }
+
+    /// The 8-bit value of plane `p` under the luma pixel at offset `(i, j)` (column, row) from
+    /// the leaf's luma corner: the bilinear interpolation of the control grid at the pixel's
+    /// centre, `((2i - 1) / 4, (2j - 1) / 4)` chroma pixels (0 for the first row and column),
+    /// rounded as [`ChromaPatch::value`].
+    #[inline]
+    pub fn value_under(&self, p: usize, i: u32, j: u32) -> u8 {
+        let quarter = |v: u32| (2 * v).saturating_sub(1);
+        sample_at(
+            &self.planes[p & 1],
+            self.node.log2,
+            2,
+            quarter(i),
+            quarter(j),
+        )
+    }
 }
 
 /// [`ChromaPatch::value`] of one plane of a leaf of side `2^log2`.
 #[inline]
 pub fn sample(plane: &ChromaPlane, log2: u8, i: u32, j: u32) -> u8 {
+    sample_at(plane, log2, 0, i, j)
+}
+
+/// The bilinear interpolation of `plane`'s grid (a leaf of side `2^log2`) at `(i, j)` in units
+/// of `2^-sub` chroma pixels.
+#[inline]
+fn sample_at(plane: &ChromaPlane, log2: u8, sub: u32, i: u32, j: u32) -> u8 {
     let g = u32::from(plane.grid.max(1));
     let side = g as usize + 1;
-    let sh = u32::from(log2).saturating_sub(g.trailing_zeros());
+    let sh = u32::from(log2).saturating_sub(g.trailing_zeros()) + sub;
     let mask = (1u32 << sh) - 1;
     let (a, f) = ((i >> sh).min(g - 1) as usize, (i & mask) as i32);
     let (b, e) = ((j >> sh).min(g - 1) as usize, (j & mask) as i32);
@@ -278,8 +304,8 @@ impl<const STRIPE: usize> SamplePrediction for ChromaPrediction<'_, STRIPE> {
 /// A [`TileOut`] that turns luma tiles into RGB tiles: each pixel takes its chroma from the
 /// current leaf's [`ChromaPatch`] when it lies in the leaf, else (a pixel of an earlier leaf
 /// that waited for this one, just above or left of it) from the chroma frontier, which still
-/// holds the earlier leaves' last chroma row and column. Tiles come in output coordinates of a
-/// decode at `scale`.
+/// holds the earlier leaves' last chroma row and column; either way upsampled (the module's
+/// documentation). Tiles come in output coordinates of a decode at `scale`.
 pub struct ColourOut<'a, const STRIPE: usize> {
     /// The current leaf's chroma.
     pub patch: &'a ChromaPatch,
@@ -300,25 +326,154 @@ impl<const STRIPE: usize> core::fmt::Debug for ColourOut<'_, STRIPE> {
 }
 
 impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
-    /// The chroma pixel (both planes) under coded luma pixel `(x, y)`.
-    #[inline]
-    fn chroma(&self, x: u32, y: u32) -> (u8, u8) {
+    /// The chroma (both planes) under coded luma pixel `(x, y)` of an earlier leaf, drawn with
+    /// this one (it waited with the row above the leaf or the column left of it): the chroma
+    /// pixel the frontier holds, a quarter of the way to this leaf's chroma pixel beside it.
+    fn waiting_chroma(&self, x: u32, y: u32) -> (u8, u8) {
         let (cx, cy) = (x / 2, y / 2);
         let n = &self.patch.node;
-        if cy < n.y {
-            (
-                self.frontier.stored(0, true, cx, cy),
-                self.frontier.stored(1, true, cx, cy),
-            )
-        } else if cx < n.x {
-            (
-                self.frontier.stored(0, false, cx, cy),
-                self.frontier.stored(1, false, cx, cy),
-            )
-        } else {
-            let (i, j) = (cx - n.x, cy - n.y);
-            (self.patch.value(0, i, j), self.patch.value(1, i, j))
+        let s = n.size();
+        let above = cy < n.y;
+        let next = |p| {
+            if above {
+                (cx >= n.x && cx - n.x < s).then(|| self.patch.value(p, cx - n.x, 0))
+            } else {
+                (cy >= n.y && cy - n.y < s).then(|| self.patch.value(p, 0, cy - n.y))
+            }
+        };
+        let towards = |p| {
+            let stored = self.frontier.stored(p, above, cx, cy);
+            match next(p) {
+                Some(next) => quarter(stored, next),
+                None => stored,
+            }
+        };
+        (towards(0), towards(1))
+    }
+
+    /// Fills `row` with the chroma of the tile row of coded luma row `y` whose pixels are at
+    /// coded columns `columns`: pixels of the leaf take its surface
+    /// ([`ChromaPatch::value_under`]) with the chroma beside the leaf mixed in a quarter on its
+    /// first column and row; waiting pixels of an earlier leaf, [`ColourOut::waiting_chroma`].
+    fn chroma_row(&self, y: u32, columns: impl Iterator<Item = u32>, row: &mut [(u8, u8)]) {
+        let n = &self.patch.node;
+        let (left, top) = (2 * n.x, 2 * n.y);
+        let mut planes = (y >= top).then(|| {
+            let q = (2 * (y - top)).saturating_sub(1);
+            [0, 1].map(|p| SurfaceRow::new(&self.patch.planes[p], n.log2, 2, q))
+        });
+        let mut last: Option<(u32, (u8, u8))> = None;
+        for (slot, x) in row.iter_mut().zip(columns) {
+            *slot = match (last, planes.as_mut()) {
+                (Some((lx, c)), _) if lx == x => c,
+                (_, Some([cb, cr])) if x >= left => {
+                    let (i, j) = (x - left, y - top);
+                    let q = (2 * i).saturating_sub(1);
+                    let mut c = (cb.at(q), cr.at(q));
+                    if i == 0 || j == 0 {
+                        c = (
+                            self.beside_edges(0, c.0, (x, y), (i, j)),
+                            self.beside_edges(1, c.1, (x, y), (i, j)),
+                        );
+                    }
+                    last = Some((x, c));
+                    c
+                }
+                _ => {
+                    let c = self.waiting_chroma(x, y);
+                    last = Some((x, c));
+                    c
+                }
+            };
         }
+    }
+
+    /// Chroma `c` of plane `p` under luma pixel `(x, y)` (offset `(i, j)` in the leaf) with the
+    /// chroma beside the leaf mixed in a quarter on its first column and first row, when known.
+    #[inline(never)]
+    fn beside_edges(&self, p: usize, c: u8, (x, y): (u32, u32), (i, j): (u32, u32)) -> u8 {
+        let n = &self.patch.node;
+        let plane = self.frontier.plane(p);
+        let mut c = c;
+        if i == 0 {
+            if let Some(left) = plane.beside(false, n.x, y / 2) {
+                c = quarter(c, (left >> SAMPLE_BITS) as u8);
+            }
+        }
+        if j == 0 {
+            if let Some(above) = plane.beside(true, x / 2, n.y) {
+                c = quarter(c, (above >> SAMPLE_BITS) as u8);
+            }
+        }
+        c
+    }
+}
+
+/// `a` a quarter of the way to `b`: `(3 a + b + 2) >> 2`.
+#[inline]
+fn quarter(a: u8, b: u8) -> u8 {
+    ((3 * u32::from(a) + u32::from(b) + 2) >> 2) as u8
+}
+
+/// One chroma plane's surface along one row (a luma row of the leaf, or a chroma row), stepped
+/// along it: the grid's vertical interpolation at the two grid columns around the current
+/// position is kept until the row leaves that cell (the same integers as [`sample_at`], summed
+/// in another order).
+struct SurfaceRow<'a> {
+    plane: &'a ChromaPlane,
+    g: u32,
+    /// Fraction bits of a position within a grid cell.
+    sh: u32,
+    /// The row's grid row and its weight (`b`, `e`).
+    b: usize,
+    e: i32,
+    /// The grid column whose interpolations the cell's line holds (`u32::MAX`: none yet).
+    a: u32,
+    /// The row's line across that cell: `one * c0 + f * (c1 - c0)` for the interpolations `c0`
+    /// and `c1` at its two grid columns.
+    base: i32,
+    slope: i32,
+}
+
+impl<'a> SurfaceRow<'a> {
+    /// The surface of `plane` (a leaf of side `2^log2` chroma pixels) along row `q`, positions
+    /// in units of `2^-sub` chroma pixels ([`sample_at`]).
+    fn new(plane: &'a ChromaPlane, log2: u8, sub: u32, q: u32) -> Self {
+        let g = u32::from(plane.grid.max(1));
+        let sh = u32::from(log2).saturating_sub(g.trailing_zeros()) + sub;
+        SurfaceRow {
+            plane,
+            g,
+            sh,
+            b: (q >> sh).min(g - 1) as usize,
+            e: (q & ((1 << sh) - 1)) as i32,
+            a: u32::MAX,
+            base: 0,
+            slope: 0,
+        }
+    }
+
+    /// The 8-bit value at position `q` along the row.
+    #[inline]
+    fn at(&mut self, q: u32) -> u8 {
+        let a = (q >> self.sh).min(self.g - 1);
+        let f = (q & ((1 << self.sh) - 1)) as i32;
+        let one = 1i32 << self.sh;
+        if a != self.a {
+            self.a = a;
+            let side = self.g as usize + 1;
+            let at = |r: usize, c: usize| {
+                i32::from(self.plane.control.get(r * side + c).copied().unwrap_or(0))
+            };
+            let (b, e, a) = (self.b, self.e, a as usize);
+            let c0 = (one - e) * at(b, a) + e * at(b + 1, a);
+            let c1 = (one - e) * at(b, a + 1) + e * at(b + 1, a + 1);
+            self.base = one * c0;
+            self.slope = c1 - c0;
+        }
+        let v = self.base + f * self.slope;
+        let shift = 2 * self.sh + SAMPLE_BITS;
+        ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
     }
 }
 
@@ -338,27 +493,17 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
                 v << (-k)
             }
         };
-        // The chroma of a tile row, kept for the next row when it has the same chroma row
-        // (two luma rows share one at the coded size).
+        // The chroma of a tile row, kept for the next row when it is the same coded row (an
+        // enlarged decode repeats coded pixels).
         let mut row = [(128u8, 128u8); TILE];
         let mut row_of = None;
         let mut at = 0;
         for j in 0..h {
             let cy = coded(y + j);
-            if row_of != Some(cy / 2) {
-                row_of = Some(cy / 2);
-                let mut last: Option<(u32, (u8, u8))> = None;
-                for (i, slot) in row.iter_mut().enumerate().take(w as usize) {
-                    let cx = coded(x + i as u32);
-                    *slot = match last {
-                        Some((lx, c)) if lx == cx / 2 => c,
-                        _ => {
-                            let c = self.chroma(cx, cy);
-                            last = Some((cx / 2, c));
-                            c
-                        }
-                    };
-                }
+            if row_of != Some(cy) {
+                row_of = Some(cy);
+                let columns = (0..w).map(|i| coded(x + i));
+                self.chroma_row(cy, columns, &mut row[..w as usize]);
             }
             for c in row.iter().take(w as usize) {
                 let px = ycbcr_to_rgb(tile.pixels[at], c.0, c.1);
@@ -427,6 +572,64 @@ mod tests {
         }
         assert_eq!(sample(&grid, 1, 1, 1), 40);
         assert_eq!(sample(&grid, 1, 0, 1), 30);
+    }
+
+    /// Under luma pixels, chroma is the surface at each pixel's centre: a ramp of 16 levels
+    /// per chroma pixel gives 8 per luma pixel, from the leaf's edge value on its first column.
+    #[test]
+    fn chroma_is_upsampled_inside_a_leaf() {
+        let one = SAMPLE_ONE as i16;
+        let mut patch = ChromaPatch::EMPTY;
+        patch.node = Node {
+            x: 2,
+            y: 2,
+            log2: 2,
+        };
+        patch.planes[0].control[..4].copy_from_slice(&[0, 64 * one, 0, 64 * one]);
+        let row: [u8; 8] = core::array::from_fn(|i| patch.value_under(0, i as u32, 5));
+        assert_eq!(row, [0, 4, 12, 20, 28, 36, 44, 52]);
+        // Constant down the leaf, the first row included.
+        assert_eq!(patch.value_under(0, 3, 0), row[3]);
+        assert_eq!(patch.value_under(1, 3, 3), 128);
+    }
+
+    /// The row-stepped surface of the drawing is [`ChromaPatch::value_under`], bit for bit, on
+    /// every grid and leaf size, with control values over the whole sample range.
+    #[test]
+    fn the_stepped_surface_is_the_surface() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for (k, &(g, _)) in CHROMA_GRIDS.iter().enumerate() {
+            for log2 in (k as u8)..=6 {
+                let mut patch = ChromaPatch::EMPTY;
+                patch.node.log2 = log2;
+                patch.planes[0].grid = g;
+                for v in patch.planes[0].control.iter_mut() {
+                    let span = (crate::model::SAMPLE_MAX - crate::model::SAMPLE_MIN) as u64;
+                    *v = (crate::model::SAMPLE_MIN + (next() % (span + 1)) as i32) as i16;
+                }
+                let side = 2 << log2;
+                let quarter = |v: u32| (2 * v).saturating_sub(1);
+                for j in 0..side {
+                    let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, quarter(j));
+                    for i in 0..side {
+                        let v = patch.value_under(0, i, j);
+                        assert_eq!(row.at(quarter(i)), v, "g {g} log2 {log2}");
+                    }
+                }
+                for j in 0..side / 2 {
+                    let mut row = SurfaceRow::new(&patch.planes[0], log2, 0, j);
+                    for i in 0..side / 2 {
+                        assert_eq!(row.at(i), patch.value(0, i, j), "g {g} log2 {log2}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

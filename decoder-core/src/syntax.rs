@@ -26,7 +26,7 @@ use control::{
     transform_order, WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, RASTER_ORDER,
     WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
-use initial_contexts::INITIAL_PROBABILITIES;
+use initial_contexts::{CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES};
 
 /// Size of the fixed part of the header, in bytes (the checksum included).
 pub const FIXED_HEADER_LEN: usize = 19;
@@ -750,10 +750,19 @@ impl ChromaContexts {
         control: [IntContexts::FRESH; CONTROL_CLASSES],
     };
 
-    /// The state at the start of a stream: every context at probability one half
-    /// (`q = 128`), as if [`crate::entropy::INITIAL_COUNT`] bits had been coded.
+    /// The state at the start of a stream: the trained probability of
+    /// [`CHROMA_INITIAL_PROBABILITIES`], in [`ChromaContexts::for_each_prob`] order, as if
+    /// [`crate::entropy::INITIAL_COUNT`] bits had been coded with it (as luma's
+    /// [`Contexts::start`]).
     pub fn start(&mut self) {
-        let mut f = |p: &mut Prob| *p = Prob::initial(128);
+        let mut table = CHROMA_INITIAL_PROBABILITIES.iter();
+        self.for_each_prob(|p| *p = Prob::initial(table.next().copied().unwrap_or(128)));
+    }
+
+    /// Calls `f` on every context, in the order of the specification's table of chroma initial
+    /// probabilities: model by chroma level (row-major), cquant by model, coding by model, the
+    /// control integer classes (each as [`IntContexts::for_each_prob`]).
+    pub fn for_each_prob(&mut self, mut f: impl FnMut(&mut Prob)) {
         self.model.iter_mut().flatten().for_each(&mut f);
         self.cquant.iter_mut().flatten().for_each(&mut f);
         self.coding.iter_mut().for_each(&mut f);
@@ -762,6 +771,11 @@ impl ChromaContexts {
         }
     }
 }
+
+/// Number of adaptive contexts of a colour stream's chroma ([`ChromaContexts::for_each_prob`]).
+pub const CHROMA_CONTEXT_COUNT: usize = MAX_LEAF_LOG2 as usize * CHROMA_GRIDS.len()
+    + CHROMA_GRIDS.len() * (CHROMA_CQUANT_NODES + 1)
+    + CONTROL_CLASSES * IntContexts::COUNT;
 
 /// Codes one chroma plane of a leaf whose chroma node is `node` (side `2^log2`, chroma
 /// coordinates): the chroma model (unary over the [`chroma_models`] allowed), the control
@@ -850,6 +864,10 @@ pub fn reconstruct_chroma(
     );
     if grid.side == usize::from(g) {
         expand_pixel_grid(&mut plane.control, grid.side);
+    }
+    // Within the sample range, so that the upsampled surface's sums fit 32 bits.
+    for v in plane.control.iter_mut() {
+        *v = i32::from(*v).clamp(SAMPLE_MIN, SAMPLE_MAX) as i16;
     }
     Ok(())
 }
@@ -1279,5 +1297,23 @@ mod tests {
             assert_eq!(p.count(), crate::entropy::INITIAL_COUNT);
         });
         assert_eq!(contexts, Contexts::default());
+    }
+
+    /// The same for the chroma contexts and their table.
+    #[test]
+    fn every_chroma_context_starts_from_its_table_entry() {
+        let mut contexts = ChromaContexts::FRESH;
+        let mut count = 0;
+        contexts.for_each_prob(|_| count += 1);
+        assert_eq!(count, CHROMA_CONTEXT_COUNT);
+        contexts.start();
+        let mut table = CHROMA_INITIAL_PROBABILITIES.iter();
+        contexts.for_each_prob(|p| {
+            let q = *table.next().expect("an entry per context");
+            assert_eq!(*p, Prob::initial(q));
+            assert_eq!(p.count(), crate::entropy::INITIAL_COUNT);
+        });
+        assert!(table.next().is_none());
+        assert_eq!(contexts, ChromaContexts::default());
     }
 }

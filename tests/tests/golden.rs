@@ -508,23 +508,32 @@ fn golden_specs_match_golden_list() {
     assert_eq!(from_specs, from_list);
 }
 
-/// The specification's table of initial context probabilities (`docs/initial-contexts.md`) is
-/// the one decoder-core starts every stream from.
+/// The specification's tables of initial context probabilities (`docs/initial-contexts.md`,
+/// luma's then chroma's) are the ones decoder-core starts every stream from.
 #[test]
-fn initial_context_table_matches_the_specification() {
+fn initial_context_tables_match_the_specification() {
+    use decoder_core::internal::syntax::initial_contexts::{
+        CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES,
+    };
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/initial-contexts.md");
     let text = std::fs::read_to_string(path).expect("docs/initial-contexts.md");
-    let block = text
+    let tables: Vec<Vec<u8>> = text
         .split("```")
-        .nth(1)
-        .expect("a code block holding the table");
-    let table: Vec<u8> = block
-        .split(|c: char| c == ',' || c.is_whitespace())
-        .filter(|t| !t.is_empty())
-        .map(|t| t.parse().expect("a probability in 1/256"))
+        .skip(1)
+        .step_by(2)
+        .map(|block| {
+            block
+                .split(|c: char| c == ',' || c.is_whitespace())
+                .filter(|t| !t.is_empty())
+                .map(|t| t.parse().expect("a probability in 1/256"))
+                .collect()
+        })
         .collect();
     assert_eq!(
-        table,
-        decoder_core::internal::syntax::initial_contexts::INITIAL_PROBABILITIES.to_vec()
+        tables,
+        [
+            INITIAL_PROBABILITIES.to_vec(),
+            CHROMA_INITIAL_PROBABILITIES.to_vec()
+        ]
     );
 }

@@ -6,7 +6,7 @@
 mod common;
 
 use common::{golden_streams, sealed_stream, CoverageSink};
-use decoder_core::internal::format::MAGIC;
+use decoder_core::internal::format::{MAGIC, VERSION};
 use decoder_core::internal::syntax::{
     seal, Codebook, Header, CHECKSUM_BYTES, FIXED_HEADER_LEN, FLAG_CODEBOOKS,
 };
@@ -187,14 +187,14 @@ fn header_errors_are_typed() {
             DecodeError::UnsupportedVersion(12),
         ),
         (
-            "version 13",
-            with(4, 13),
-            DecodeError::UnsupportedVersion(13),
+            "the version before",
+            with(4, VERSION - 1),
+            DecodeError::UnsupportedVersion(VERSION - 1),
         ),
         (
-            "version 15",
-            with(4, 15),
-            DecodeError::UnsupportedVersion(15),
+            "the version after",
+            with(4, VERSION + 1),
+            DecodeError::UnsupportedVersion(VERSION + 1),
         ),
         (
             "edge-smoothing strength 17",
