@@ -574,18 +574,25 @@ mod tests {
         assert_eq!(sample(&grid, 1, 0, 1), 30);
     }
 
+    /// A 4 x 4 chroma leaf at `(at, at)` whose plane `p` is a ramp of 16 levels per pixel
+    /// across (0, 16, 32, 48), the other plane neutral.
+    fn ramp_leaf(at: u32, p: usize) -> ChromaPatch {
+        let one = SAMPLE_ONE as i16;
+        let mut patch = ChromaPatch::EMPTY;
+        patch.node = Node {
+            x: at,
+            y: at,
+            log2: 2,
+        };
+        patch.planes[p].control[..4].copy_from_slice(&[0, 64 * one, 0, 64 * one]);
+        patch
+    }
+
     /// Under luma pixels, chroma is the surface at each pixel's centre: a ramp of 16 levels
     /// per chroma pixel gives 8 per luma pixel, from the leaf's edge value on its first column.
     #[test]
     fn chroma_is_upsampled_inside_a_leaf() {
-        let one = SAMPLE_ONE as i16;
-        let mut patch = ChromaPatch::EMPTY;
-        patch.node = Node {
-            x: 2,
-            y: 2,
-            log2: 2,
-        };
-        patch.planes[0].control[..4].copy_from_slice(&[0, 64 * one, 0, 64 * one]);
+        let patch = ramp_leaf(2, 0);
         let row: [u8; 8] = core::array::from_fn(|i| patch.value_under(0, i as u32, 5));
         assert_eq!(row, [0, 4, 12, 20, 28, 36, 44, 52]);
         // Constant down the leaf, the first row included.
@@ -636,15 +643,7 @@ mod tests {
     fn the_frontier_keeps_the_last_row_and_column() {
         let mut f = ChromaFrontier::<256>::EMPTY;
         assert!(f.start(20, 20, 128));
-        let one = SAMPLE_ONE as i16;
-        let mut patch = ChromaPatch::EMPTY;
-        patch.node = Node {
-            x: 0,
-            y: 0,
-            log2: 2,
-        };
-        patch.planes[1].control[..4].copy_from_slice(&[0, 64 * one, 0, 64 * one]);
-        f.record(&patch);
+        f.record(&ramp_leaf(0, 1));
         assert_eq!(f.plane(1).above(2, 4), Some(32 * SAMPLE_ONE));
         assert_eq!(f.plane(0).above(2, 4), Some(128 * SAMPLE_ONE));
         assert_eq!(f.plane(1).left(4, 1), Some(48 * SAMPLE_ONE));
