@@ -148,15 +148,16 @@ impl ChromaPatch {
     /// rounded as [`ChromaPatch::value`].
     #[inline]
     pub fn value_under(&self, p: usize, i: u32, j: u32) -> u8 {
-        let quarter = |v: u32| (2 * v).saturating_sub(1);
-        sample_at(
-            &self.planes[p & 1],
-            self.node.log2,
-            2,
-            quarter(i),
-            quarter(j),
-        )
+        sample_at(&self.planes[p & 1], self.node.log2, 2, centre(i), centre(j))
     }
+}
+
+/// The centre of the luma pixel at offset `v` from a leaf's luma corner, in quarter chroma
+/// pixels from the leaf's chroma corner: `2 v - 1`, or 0 for the first (a quarter pixel
+/// before the leaf, where its surface starts).
+#[inline]
+fn centre(v: u32) -> u32 {
+    (2 * v).saturating_sub(1)
 }
 
 /// [`ChromaPatch::value`] of one plane of a leaf of side `2^log2`.
@@ -359,8 +360,7 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
         let n = &self.patch.node;
         let (left, top) = (2 * n.x, 2 * n.y);
         let mut planes = (y >= top).then(|| {
-            let q = (2 * (y - top)).saturating_sub(1);
-            [0, 1].map(|p| SurfaceRow::new(&self.patch.planes[p], n.log2, 2, q))
+            [0, 1].map(|p| SurfaceRow::new(&self.patch.planes[p], n.log2, 2, centre(y - top)))
         });
         let mut last: Option<(u32, (u8, u8))> = None;
         for (slot, x) in row.iter_mut().zip(columns) {
@@ -368,8 +368,7 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
                 (Some((lx, c)), _) if lx == x => c,
                 (_, Some([cb, cr])) if x >= left => {
                     let (i, j) = (x - left, y - top);
-                    let q = (2 * i).saturating_sub(1);
-                    let mut c = (cb.at(q), cr.at(q));
+                    let mut c = (cb.at(centre(i)), cr.at(centre(i)));
                     if i == 0 || j == 0 {
                         c = (
                             self.beside_edges(0, c.0, (x, y), (i, j)),
@@ -621,12 +620,11 @@ mod tests {
                     *v = (crate::model::SAMPLE_MIN + (next() % (span + 1)) as i32) as i16;
                 }
                 let side = 2 << log2;
-                let quarter = |v: u32| (2 * v).saturating_sub(1);
                 for j in 0..side {
-                    let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, quarter(j));
+                    let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, centre(j));
                     for i in 0..side {
                         let v = patch.value_under(0, i, j);
-                        assert_eq!(row.at(quarter(i)), v, "g {g} log2 {log2}");
+                        assert_eq!(row.at(centre(i)), v, "g {g} log2 {log2}");
                     }
                 }
                 for j in 0..side / 2 {
