@@ -12,7 +12,7 @@
 use super::candidates::{
     Candidate, CandidateSelection, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
 };
-use super::chroma::{self, ColourPlanes};
+use super::chroma::{self, ChromaCache, ColourPlanes};
 use super::config::EncoderConfig;
 use super::error::EncodeError;
 use super::fit::{fit_default, fit_weighted, prepare_projections, Fit};
@@ -61,6 +61,8 @@ pub struct Analysis {
     /// The chroma of a colour image (the analysis itself sees `plane`, its luma): streams
     /// are then colour streams.
     pub(super) colour: Option<ColourPlanes>,
+    /// Chroma options the writes of colour streams reconstructed, for the next writes.
+    pub(super) chroma_cache: ChromaCache,
 }
 
 /// How long each stage of an analysis took (wall time), for a caller that reports it.
@@ -143,6 +145,7 @@ impl Analysis {
             deblock: config.deblock.map(|d| d.min(MAX_DEBLOCK)),
             timing: AnalysisTiming::default(),
             colour,
+            chroma_cache: ChromaCache::default(),
         };
         let started = Instant::now();
         let fitted: u64 = analysis
@@ -173,10 +176,11 @@ impl Analysis {
         // A rough plan only gathers coding statistics.
         let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
         self.trial = plan.anchor();
-        let snapshot = match writer::write(&self.tree, &self.header, &plan, None) {
-            Ok(w) => w.final_contexts,
-            Err(_) => Contexts::default(),
-        };
+        let snapshot =
+            match writer::write(&self.tree, &self.header, &plan, None, &self.chroma_cache) {
+                Ok(w) => w.final_contexts,
+                Err(_) => Contexts::default(),
+            };
         let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
         let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);

@@ -31,7 +31,8 @@ use decoder_core::internal::syntax::{
 };
 use decoder_core::Node;
 use nalgebra::DMatrix;
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
 
 /// What an error of one level in `Cb` and `Cr` adds to the RGB squared error, relative to one
 /// in `Y` (which adds 3, one per channel): BT.601's `(0.344^2 + 1.772^2) / 3` and
@@ -238,51 +239,198 @@ struct ChromaOption {
     bits: f64,
 }
 
+/// The part of a chroma option that depends on the image alone: its control indices (over
+/// the coded grid only) and its weighted error. Its bits depend on the write (the contexts
+/// and the chroma frontier), so they are priced each time.
+struct Reconstructed {
+    cquant: u8,
+    control: Box<[i16]>,
+    weighted_sse: f64,
+}
+
+/// One chroma model and control coding: its options from the coarsest step on, as far as a
+/// choice has needed them (`None` where decoder-core cannot reconstruct one).
+struct Series {
+    model: u8,
+    coding: ControlCoding,
+    steps: Vec<Option<Reconstructed>>,
+}
+
+/// The options of one chroma plane at one chroma node, reconstructed when first needed and
+/// kept for the next write that codes the same leaf.
+struct NodeOptions {
+    /// Every chroma model and coding the node allows, in the order they are visited.
+    series: Vec<Series>,
+    /// The control targets of each model.
+    targets: Vec<Vec<f64>>,
+}
+
+impl NodeOptions {
+    /// No option reconstructed yet, the targets of every model fitted to `plane` at `node`.
+    fn new(plane: &Plane, node: &Node) -> Self {
+        let mut series = Vec::new();
+        for (model, &(g, _)) in CHROMA_GRIDS
+            .iter()
+            .enumerate()
+            .take(chroma_models(node.log2))
+        {
+            let codings: &[ControlCoding] = if g >= 2 {
+                &[ControlCoding::Dpcm, ControlCoding::Transform]
+            } else {
+                &[ControlCoding::Dpcm]
+            };
+            for &coding in codings {
+                series.push(Series {
+                    model: model as u8,
+                    coding,
+                    steps: Vec::new(),
+                });
+            }
+        }
+        let pixels = leaf_pixels(plane, node);
+        let targets = (0..chroma_models(node.log2))
+            .map(|model| targets(&pixels, node, model))
+            .collect();
+        NodeOptions { series, targets }
+    }
+
+    /// Bytes this holds (roughly), for the cache's bound.
+    fn bytes(&self) -> usize {
+        let steps: usize = self
+            .series
+            .iter()
+            .flat_map(|s| &s.steps)
+            .map(|r| 40 + r.as_ref().map_or(0, |r| 2 * r.control.len()))
+            .sum();
+        let targets: usize = self.targets.iter().map(|t| 8 * t.len()).sum();
+        64 + steps + targets
+    }
+
+    /// Option `k` (0 the coarsest step) of series `s`, reconstructed if not yet.
+    fn step(
+        &mut self,
+        plane: &Plane,
+        p: usize,
+        node: &Node,
+        s: usize,
+        k: usize,
+    ) -> Option<&Reconstructed> {
+        while self.series[s].steps.len() <= k {
+            let (model, coding) = (self.series[s].model, self.series[s].coding);
+            let cq = (CONTROL_QUANTISERS - 1 - self.series[s].steps.len()) as u8;
+            let t = &self.targets[usize::from(model)];
+            let option = quantised(t, node, model, cq, coding).map(|(syntax, rec)| {
+                let side = chroma_grid(&syntax, node.log2).side;
+                Reconstructed {
+                    cquant: cq,
+                    control: syntax.control[..side * side].into(),
+                    weighted_sse: 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, node, &rec),
+                }
+            });
+            self.series[s].steps.push(option);
+        }
+        self.series[s].steps[k].as_ref()
+    }
+}
+
+/// Chroma options already reconstructed, by plane and chroma node: a budget's writes code
+/// mostly the same leaves again, and only their bits change from one write to the next.
+/// Bounded: emptied when it would hold more than [`ChromaCache::LIMIT`] bytes.
+#[derive(Default)]
+pub struct ChromaCache {
+    held: Mutex<Held>,
+}
+
+/// What a [`ChromaCache`] holds: options by plane and chroma node, and their bytes.
+#[derive(Default)]
+struct Held {
+    nodes: HashMap<(usize, Node), NodeOptions>,
+    bytes: usize,
+}
+
+impl ChromaCache {
+    /// Bytes of options held before the cache starts afresh.
+    const LIMIT: usize = 64 << 20;
+
+    /// The options of plane `p` at `node` (new ones if not held), for [`ChromaCache::put`].
+    fn take(&self, plane: &Plane, p: usize, node: &Node) -> NodeOptions {
+        let mut held = self.held.lock().unwrap_or_else(|e| e.into_inner());
+        let options = held.nodes.remove(&(p, *node));
+        if let Some(o) = &options {
+            held.bytes -= o.bytes();
+        }
+        options.unwrap_or_else(|| NodeOptions::new(plane, node))
+    }
+
+    /// Keeps `options` of plane `p` at `node` for the next write.
+    fn put(&self, p: usize, node: &Node, options: NodeOptions) {
+        let mut held = self.held.lock().unwrap_or_else(|e| e.into_inner());
+        let bytes = options.bytes();
+        if held.bytes + bytes > Self::LIMIT {
+            *held = Held::default();
+        }
+        held.bytes += bytes;
+        held.nodes.insert((p, *node), options);
+    }
+}
+
+impl Clone for ChromaCache {
+    /// An empty cache: what it holds is only ever a shortcut.
+    fn clone(&self) -> Self {
+        ChromaCache::default()
+    }
+}
+
+impl std::fmt::Debug for ChromaCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let held = self.held.lock().unwrap_or_else(|e| e.into_inner());
+        f.debug_struct("ChromaCache")
+            .field("nodes", &held.nodes.len())
+            .field("bytes", &held.bytes)
+            .finish()
+    }
+}
+
 /// Visits the ways of coding plane `p` (0: `Cb`, 1: `Cr`, `plane` its pixels) at chroma node
 /// `node`: every chroma model and control coding, each with its control steps from coarse to
-/// fine for as long as `visit` returns `true`. Each is reconstructed by decoder-core and priced
-/// with the chroma contexts `contexts` and the chroma frontier `prediction`.
+/// fine for as long as `visit` returns `true`. Each is reconstructed by decoder-core (or
+/// taken from `options`, which keeps them) and priced with the chroma contexts `contexts` and
+/// the chroma frontier `prediction`.
 fn for_each_option<P: SamplePrediction>(
     plane: &Plane,
     p: usize,
     node: &Node,
     prediction: &P,
     contexts: &ChromaContexts,
+    options: &mut NodeOptions,
     visit: &mut dyn FnMut(&ChromaOption) -> bool,
 ) {
-    let pixels = leaf_pixels(plane, node);
-    let weight = 4.0 * CHROMA_WEIGHTS[p & 1];
     let mut ctx = contexts.clone();
-    for (model, &(g, _)) in CHROMA_GRIDS
-        .iter()
-        .enumerate()
-        .take(chroma_models(node.log2))
-    {
-        let t = targets(&pixels, node, model);
-        let codings: &[ControlCoding] = if g >= 2 {
-            &[ControlCoding::Dpcm, ControlCoding::Transform]
-        } else {
-            &[ControlCoding::Dpcm]
-        };
-        for &coding in codings {
-            for cq in (0..CONTROL_QUANTISERS as u8).rev() {
-                let Some((syntax, rec)) = quantised(&t, node, model as u8, cq, coding) else {
-                    continue;
-                };
-                let sse = plane_sse(plane, node, &rec);
-                let mut counter = BitCounter::frozen();
-                let mut coded = syntax;
-                if code_chroma(&mut counter, &mut ctx, node, prediction, &mut coded).is_err() {
-                    continue;
-                }
-                let option = ChromaOption {
-                    syntax,
-                    weighted_sse: weight * sse,
-                    bits: counter.bits(),
-                };
-                if !visit(&option) {
-                    break;
-                }
+    for s in 0..options.series.len() {
+        let (model, coding) = (options.series[s].model, options.series[s].coding);
+        for k in 0..CONTROL_QUANTISERS {
+            let Some(r) = options.step(plane, p, node, s, k) else {
+                continue;
+            };
+            let mut syntax = ChromaSyntax {
+                model,
+                cquant: r.cquant,
+                coding,
+                control: [0; MAX_CONTROL],
+            };
+            syntax.control[..r.control.len()].copy_from_slice(&r.control);
+            let mut counter = BitCounter::frozen();
+            let mut coded = syntax;
+            if code_chroma(&mut counter, &mut ctx, node, prediction, &mut coded).is_err() {
+                continue;
+            }
+            let option = ChromaOption {
+                syntax,
+                weighted_sse: r.weighted_sse,
+                bits: counter.bits(),
+            };
+            if !visit(&option) {
+                break;
             }
         }
     }
@@ -299,34 +447,45 @@ pub fn choose<P: SamplePrediction>(
     prediction: &P,
     contexts: &ChromaContexts,
     lambda: f64,
+    cache: &ChromaCache,
 ) -> ChromaChoice {
     let mut best: Option<(f64, ChromaChoice)> = None;
     let (mut previous, mut worse) = (f64::INFINITY, 0);
     let mut series = None;
-    for_each_option(plane, p, node, prediction, contexts, &mut |o| {
-        // A new model or coding starts a new series of steps.
-        let key = (o.syntax.model, o.syntax.coding);
-        if series != Some(key) {
-            series = Some(key);
-            (previous, worse) = (f64::INFINITY, 0);
-        }
-        let j = o.weighted_sse + lambda * o.bits;
-        if best.as_ref().is_none_or(|(b, _)| j < *b) {
-            let choice = ChromaChoice {
-                syntax: o.syntax,
-                bits: o.bits,
-            };
-            best = Some((j, choice));
-        }
-        // From coarse to fine steps: stop once finer steps stop paying.
-        if j > previous {
-            worse += 1;
-        } else {
-            worse = 0;
-        }
-        previous = j;
-        worse < 2
-    });
+    let mut options = cache.take(plane, p, node);
+    for_each_option(
+        plane,
+        p,
+        node,
+        prediction,
+        contexts,
+        &mut options,
+        &mut |o| {
+            // A new model or coding starts a new series of steps.
+            let key = (o.syntax.model, o.syntax.coding);
+            if series != Some(key) {
+                series = Some(key);
+                (previous, worse) = (f64::INFINITY, 0);
+            }
+            let j = o.weighted_sse + lambda * o.bits;
+            if best.as_ref().is_none_or(|(b, _)| j < *b) {
+                let choice = ChromaChoice {
+                    syntax: o.syntax,
+                    bits: o.bits,
+                };
+                best = Some((j, choice));
+            }
+            // From coarse to fine steps: stop once finer steps stop paying.
+            if j > previous {
+                worse += 1;
+            } else {
+                worse = 0;
+            }
+            previous = j;
+            worse < 2
+        },
+    );
+    cache.put(p, node, options);
     best.map(|(_, c)| c).unwrap_or(ChromaChoice {
         syntax: ChromaSyntax::default(),
         bits: 0.0,
@@ -350,10 +509,19 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost 
             stripe: stripe / 2,
         };
         let mut options = Vec::new();
-        for_each_option(plane, p, &cnode, &prediction, &contexts, &mut |o| {
-            options.push((o.bits, o.weighted_sse));
-            true
-        });
+        let mut reconstructed = NodeOptions::new(plane, &cnode);
+        for_each_option(
+            plane,
+            p,
+            &cnode,
+            &prediction,
+            &contexts,
+            &mut reconstructed,
+            &mut |o| {
+                options.push((o.bits, o.weighted_sse));
+                true
+            },
+        );
         *hull = lower_hull(&options)
             .into_iter()
             .map(|k| {
@@ -415,5 +583,62 @@ mod tests {
         let one = f64::from(SAMPLE_ONE);
         assert!((t[0] - 10.0 * one).abs() < 0.01, "{t:?}");
         assert!((t[1] - 42.0 * one).abs() < 0.01, "{t:?}");
+    }
+
+    /// A textured plane of side 32 with a choice of multipliers: what the writer's cache
+    /// must not change.
+    fn textured_plane() -> Plane {
+        let data = (0..32u32 * 32)
+            .map(|k| {
+                let (x, y) = (k % 32, k / 32);
+                (128 + ((x * 7 + y * 3) % 23) as i32 - 11 + ((x * y) % 5) as i32 * 6) as u8
+            })
+            .collect();
+        Plane::new(32, 32, data)
+    }
+
+    #[test]
+    fn the_cache_changes_no_choice() {
+        let plane = textured_plane();
+        let prediction = ImagePrediction {
+            plane: &plane,
+            stripe: 256,
+        };
+        let cache = ChromaCache::default();
+        let mut adapted = ChromaContexts::default();
+        for (i, node) in [(0, 0, 4), (16, 0, 4), (0, 16, 3), (8, 24, 3), (0, 0, 5)]
+            .into_iter()
+            .map(|(x, y, log2)| Node { x, y, log2 })
+            .enumerate()
+        {
+            // Fine and coarse multipliers visit different steps; contexts that have adapted
+            // price the same options differently.
+            for lambda in [0.5, 40.0, 3000.0] {
+                for p in 0..2 {
+                    let cold = choose(
+                        &plane,
+                        p,
+                        &node,
+                        &prediction,
+                        &adapted,
+                        lambda,
+                        &ChromaCache::default(),
+                    );
+                    let warm = choose(&plane, p, &node, &prediction, &adapted, lambda, &cache);
+                    assert_eq!(
+                        cold.syntax, warm.syntax,
+                        "node {i}, lambda {lambda}, plane {p}"
+                    );
+                    assert_eq!(cold.bits.to_bits(), warm.bits.to_bits());
+                }
+            }
+            let mut coded = choose(&plane, 0, &node, &prediction, &adapted, 40.0, &cache).syntax;
+            let mut counter = BitCounter::default();
+            code_chroma(&mut counter, &mut adapted, &node, &prediction, &mut coded).expect("codes");
+        }
+        let held = cache.held.lock().expect("lock");
+        assert_eq!(held.nodes.len(), 10, "every plane of every node is kept");
+        let bytes: usize = held.nodes.values().map(NodeOptions::bytes).sum();
+        assert_eq!(held.bytes, bytes);
     }
 }

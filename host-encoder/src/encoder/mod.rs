@@ -152,7 +152,13 @@ impl Analysis {
     }
 
     fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
-        writer::write(&self.tree, header, plan, self.colour.as_ref())
+        writer::write(
+            &self.tree,
+            header,
+            plan,
+            self.colour.as_ref(),
+            &self.chroma_cache,
+        )
     }
 
     /// Best stream of at most `budget` bytes: planned without edge smoothing, then, if a
@@ -391,7 +397,13 @@ impl Analysis {
             ..self.header
         };
         let (plan, _) = self.fit_budget(&header, budget)?;
-        writer::leaf_bits(&self.tree, &header, &plan, self.colour.as_ref())
+        writer::leaf_bits(
+            &self.tree,
+            &header,
+            &plan,
+            self.colour.as_ref(),
+            &self.chroma_cache,
+        )
     }
 
     /// The analysis of the rectangle `area` of this analysis's image, as an image of its own

@@ -5,7 +5,7 @@
 //! whose trial encode it writes.
 
 use super::candidates::CandidateTree;
-use super::chroma::{choose, ChromaChoice, ColourPlanes};
+use super::chroma::{choose, ChromaCache, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
@@ -46,6 +46,8 @@ struct PlanVisitor<'a> {
     leaves: usize,
     /// The chroma of a colour stream.
     colour: Option<&'a ColourPlanes>,
+    /// Chroma options reconstructed by earlier writes.
+    cache: &'a ChromaCache,
     chroma_bits: f64,
     /// Chroma choices in coding order: replayed from an earlier write of the same plan, or
     /// recorded for a later one ([`ChromaMemo`]).
@@ -63,6 +65,7 @@ impl<'a> PlanVisitor<'a> {
         tree: &'a CandidateTree,
         plan: &'a Plan,
         colour: Option<&'a ColourPlanes>,
+        cache: &'a ChromaCache,
         meter: Option<Meter<'a>>,
     ) -> Self {
         PlanVisitor {
@@ -70,6 +73,7 @@ impl<'a> PlanVisitor<'a> {
             plan,
             leaves: 0,
             colour,
+            cache,
             chroma_bits: 0.0,
             tape: Vec::new(),
             replay: None,
@@ -177,6 +181,7 @@ impl TreeVisitor for PlanVisitor<'_> {
                 prediction,
                 contexts,
                 self.plan.lambda,
+                self.cache,
             );
             *leaf = choice.syntax;
             self.chroma_bits += choice.bits;
@@ -207,12 +212,14 @@ impl TreeVisitor for PlanVisitor<'_> {
 }
 
 /// Writes the stream for `plan` (of `tree`'s candidates) with `header`; a colour stream's
-/// chroma (`header.channels == 3`) is chosen leaf by leaf from `colour`.
+/// chroma (`header.channels == 3`) is chosen leaf by leaf from `colour`, with the options
+/// `cache` holds (and keeps) for them.
 pub fn write(
     tree: &CandidateTree,
     header: &Header,
     plan: &Plan,
     colour: Option<&ColourPlanes>,
+    cache: &ChromaCache,
 ) -> Result<Written, EncodeError> {
     let colour = colour.filter(|_| header.channels == 3);
     let key_header = Header {
@@ -233,7 +240,7 @@ pub fn write(
         })
     });
     let replay = tape.as_ref().map(|_| 0);
-    let mut visitor = PlanVisitor::new(tree, plan, colour, None);
+    let mut visitor = PlanVisitor::new(tree, plan, colour, cache, None);
     visitor.tape = tape.unwrap_or_default();
     visitor.replay = replay;
     let mut coder = RangeEncoder::new();
@@ -275,6 +282,7 @@ pub fn leaf_bits(
     header: &Header,
     plan: &Plan,
     colour: Option<&ColourPlanes>,
+    cache: &ChromaCache,
 ) -> Result<Vec<LeafBits>, EncodeError> {
     let colour = colour.filter(|_| header.channels == 3);
     let total = Cell::new(0.0);
@@ -283,7 +291,7 @@ pub fn leaf_bits(
         last: 0.0,
         leaves: Vec::new(),
     };
-    let mut visitor = PlanVisitor::new(tree, plan, colour, Some(meter));
+    let mut visitor = PlanVisitor::new(tree, plan, colour, cache, Some(meter));
     let mut coder = MeteredEncoder {
         inner: RangeEncoder::new(),
         total: &total,
