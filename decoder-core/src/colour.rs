@@ -122,6 +122,12 @@ pub struct ChromaPatch {
     pub planes: [ChromaPlane; 2],
 }
 
+impl Default for ChromaPatch {
+    fn default() -> Self {
+        ChromaPatch::EMPTY
+    }
+}
+
 impl ChromaPatch {
     /// Neutral chroma at the origin.
     pub const EMPTY: ChromaPatch = ChromaPatch {
@@ -253,28 +259,32 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
         slot.copied().unwrap_or(128)
     }
 
-    /// Learns a chroma leaf's last row and column (those of its pixels in the plane).
-    pub fn record(&mut self, patch: &ChromaPatch) {
+    /// Learns the last row and column of the chroma node `region` (those of its pixels in the
+    /// plane), which `patch` covers: a leaf's own chroma, or a subtree's chroma over one of
+    /// its leaves.
+    pub fn record(&mut self, patch: &ChromaPatch, region: &Node) {
         let n = &patch.node;
-        let s = n.size();
+        let s = region.size();
         let (w, h) = (self.width, self.height);
         let stripe = self.stripe.max(1);
-        let last_row = n.y + s - 1;
+        // Offsets of the region's first pixel in the patch, and of its last row and column.
+        let (ox, oy) = (region.x.wrapping_sub(n.x), region.y.wrapping_sub(n.y));
+        let last_row = region.y + s - 1;
         if last_row < h {
-            for cx in n.x..(n.x + s).min(w) {
+            for cx in region.x..(region.x + s).min(w) {
                 for p in 0..2 {
-                    let v = patch.value(p, cx - n.x, s - 1);
+                    let v = patch.value(p, cx - region.x + ox, s - 1 + oy);
                     if let Some(slot) = self.columns.get_mut(2 * (cx % stripe) as usize + p) {
                         *slot = v;
                     }
                 }
             }
         }
-        let last_column = n.x + s - 1;
+        let last_column = region.x + s - 1;
         if last_column < w {
-            for cy in n.y..(n.y + s).min(h) {
+            for cy in region.y..(region.y + s).min(h) {
                 for p in 0..2 {
-                    let v = patch.value(p, s - 1, cy - n.y);
+                    let v = patch.value(p, s - 1 + ox, cy - region.y + oy);
                     if let Some(slot) = self.rows.get_mut(2 * (cy % CHROMA_BAND) as usize + p) {
                         *slot = v;
                     }
@@ -641,10 +651,37 @@ mod tests {
     fn the_frontier_keeps_the_last_row_and_column() {
         let mut f = ChromaFrontier::<256>::EMPTY;
         assert!(f.start(20, 20, 128));
-        f.record(&ramp_leaf(0, 1));
+        let leaf = ramp_leaf(0, 1);
+        f.record(&leaf, &leaf.node);
         assert_eq!(f.plane(1).above(2, 4), Some(32 * SAMPLE_ONE));
         assert_eq!(f.plane(0).above(2, 4), Some(128 * SAMPLE_ONE));
         assert_eq!(f.plane(1).left(4, 1), Some(48 * SAMPLE_ONE));
         assert_eq!(f.plane(1).left(0, 1), None);
+    }
+
+    /// A subtree's chroma over one of its leaves: the frontier learns the leaf's last row and
+    /// column with the subtree patch's values there.
+    #[test]
+    fn the_frontier_learns_a_leaf_from_its_subtree_patch() {
+        let one = SAMPLE_ONE as i16;
+        let mut patch = ChromaPatch::EMPTY;
+        patch.node = Node {
+            x: 0,
+            y: 0,
+            log2: 3,
+        };
+        // 8 levels per chroma pixel across.
+        patch.planes[1].control[..4].copy_from_slice(&[0, 64 * one, 0, 64 * one]);
+        let mut f = ChromaFrontier::<256>::EMPTY;
+        assert!(f.start(20, 20, 128));
+        let leaf = Node {
+            x: 4,
+            y: 4,
+            log2: 2,
+        };
+        f.record(&patch, &leaf);
+        assert_eq!(f.plane(1).above(5, 8), Some(40 * SAMPLE_ONE));
+        assert_eq!(f.plane(1).left(8, 5), Some(56 * SAMPLE_ONE));
+        assert_eq!(f.plane(0).left(8, 5), Some(128 * SAMPLE_ONE));
     }
 }

@@ -731,6 +731,8 @@ pub struct ChromaContexts {
     cquant: [[Prob; CHROMA_CQUANT_NODES]; CHROMA_GRIDS.len()],
     coding: [Prob; CHROMA_GRIDS.len()],
     control: [IntContexts; CONTROL_CLASSES],
+    /// Whether a split node codes the chroma of its whole subtree, by the node's luma level.
+    subtree: [Prob; MAX_LEAF_LOG2 as usize + 1],
 }
 
 impl Default for ChromaContexts {
@@ -748,6 +750,7 @@ impl ChromaContexts {
         cquant: [[Prob::FRESH; CHROMA_CQUANT_NODES]; CHROMA_GRIDS.len()],
         coding: [Prob::FRESH; CHROMA_GRIDS.len()],
         control: [IntContexts::FRESH; CONTROL_CLASSES],
+        subtree: [Prob::FRESH; MAX_LEAF_LOG2 as usize + 1],
     };
 
     /// The state at the start of a stream: the trained probability of
@@ -761,7 +764,8 @@ impl ChromaContexts {
 
     /// Calls `f` on every context, in the order of the specification's table of chroma initial
     /// probabilities: model by chroma level (row-major), cquant by model, coding by model, the
-    /// control integer classes (each as [`IntContexts::for_each_prob`]).
+    /// control integer classes (each as [`IntContexts::for_each_prob`]), the subtree flag by
+    /// luma level.
     pub fn for_each_prob(&mut self, mut f: impl FnMut(&mut Prob)) {
         self.model.iter_mut().flatten().for_each(&mut f);
         self.cquant.iter_mut().flatten().for_each(&mut f);
@@ -769,13 +773,32 @@ impl ChromaContexts {
         for class in self.control.iter_mut() {
             class.for_each_prob(&mut f);
         }
+        self.subtree.iter_mut().for_each(&mut f);
     }
 }
 
 /// Number of adaptive contexts of a colour stream's chroma ([`ChromaContexts::for_each_prob`]).
 pub const CHROMA_CONTEXT_COUNT: usize = MAX_LEAF_LOG2 as usize * CHROMA_GRIDS.len()
     + CHROMA_GRIDS.len() * (CHROMA_CQUANT_NODES + 1)
-    + CONTROL_CLASSES * IntContexts::COUNT;
+    + CONTROL_CLASSES * IntContexts::COUNT
+    + MAX_LEAF_LOG2 as usize
+    + 1;
+
+/// Codes whether the split node `node` of a colour stream (not inside a subtree whose chroma
+/// is coded already) codes the chroma of its whole subtree (`subtree`), with a context by the
+/// node's luma level.
+pub fn code_chroma_subtree<C: Coder>(
+    c: &mut C,
+    ctx: &mut ChromaContexts,
+    node: &Node,
+    subtree: &mut bool,
+) -> Result<(), DecodeError> {
+    let p = ctx
+        .subtree
+        .get_mut(usize::from(node.log2))
+        .ok_or(DecodeError::InvalidData(SyntaxElement::NodeSize))?;
+    c.bit(p, subtree)
+}
 
 /// Codes one chroma plane of a leaf whose chroma node is `node` (side `2^log2`, chroma
 /// coordinates): the chroma model (unary over the [`chroma_models`] allowed), the control

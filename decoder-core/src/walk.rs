@@ -18,8 +18,8 @@ use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
 pub use crate::geometry::Node;
 use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
-    code_chroma, code_leaf, code_split, reconstruct_chroma, reconstruct_into, ChromaContexts,
-    ChromaSyntax, Contexts, ControlCoding, Header, LeafSyntax,
+    code_chroma, code_chroma_subtree, code_leaf, code_split, reconstruct_chroma, reconstruct_into,
+    ChromaContexts, ChromaSyntax, Contexts, ControlCoding, Header, LeafSyntax,
 };
 use crate::synthesis::Patch;
 
@@ -89,7 +89,15 @@ pub trait TreeVisitor {
     ) {
     }
 
-    /// [`TreeVisitor::leaf`] for a leaf of a colour stream, with its chroma (`chroma`) and the
+    /// Encoder: whether the split node `node` of a colour stream codes the chroma of its whole
+    /// subtree (asked only outside such a subtree; its leaves then code no chroma). Decoders
+    /// may return anything: the flag read from the stream replaces it.
+    fn chroma_subtree(&mut self, _node: &Node) -> bool {
+        false
+    }
+
+    /// [`TreeVisitor::leaf`] for a leaf of a colour stream, with its chroma (`chroma`: the
+    /// leaf's own, or that of the subtree it lies in, whose node covers the leaf) and the
     /// chroma of the leaves before it (`chroma_frontier`, which the walk updates after this
     /// call). By default, the luma leaf alone.
     fn leaf_colour<const STRIPE: usize>(
@@ -104,13 +112,16 @@ pub trait TreeVisitor {
     }
 }
 
-/// The chroma state of a colour stream's walk: the chroma contexts and frontier.
+/// The chroma state of a colour stream's walk: the chroma contexts and frontier, and the
+/// chroma being drawn.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct ChromaState<const STRIPE: usize = DEFAULT_STRIPE> {
     /// Adaptive contexts of the chroma planes.
     pub contexts: ChromaContexts,
     /// Chroma prediction memory.
     pub frontier: ChromaFrontier<STRIPE>,
+    /// The chroma of the current leaf, or of the subtree the walk is in.
+    pub patch: ChromaPatch,
 }
 
 /// What a walk reports about a coded leaf besides its patch.
@@ -190,6 +201,7 @@ fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     let mut chroma = ChromaState::<STRIPE> {
         contexts: ChromaContexts::FRESH,
         frontier: ChromaFrontier::EMPTY,
+        patch: ChromaPatch::EMPTY,
     };
     chroma.contexts.start();
     walk_planes(header, coder, visitor, state, Some(&mut chroma))
@@ -250,19 +262,46 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     let mut node = root;
     let mut path = [0u8; MAX_DEPTH];
     let mut depth = 0usize;
+    // The depth of the node whose chroma covers its subtree, while the walk is in it.
+    let mut subtree: Option<usize> = None;
     loop {
         let split = match node_kind(header, &node) {
             NodeKind::Outside => false,
             NodeKind::ForcedSplit => true,
             NodeKind::ForcedLeaf => {
-                walk_leaf(header, coder, visitor, state, chroma.as_deref_mut(), node)?;
+                let own = subtree.is_none();
+                walk_leaf(
+                    header,
+                    coder,
+                    visitor,
+                    state,
+                    chroma.as_deref_mut(),
+                    own,
+                    node,
+                )?;
                 false
             }
             NodeKind::Flagged => {
                 let mut split = visitor.split(&node);
                 code_split(coder, &mut state.contexts, node.log2, &mut split)?;
                 if !split {
-                    walk_leaf(header, coder, visitor, state, chroma.as_deref_mut(), node)?;
+                    let own = subtree.is_none();
+                    walk_leaf(
+                        header,
+                        coder,
+                        visitor,
+                        state,
+                        chroma.as_deref_mut(),
+                        own,
+                        node,
+                    )?;
+                } else if let Some(c) = chroma.as_deref_mut().filter(|_| subtree.is_none()) {
+                    let mut here = visitor.chroma_subtree(&node);
+                    code_chroma_subtree(coder, &mut c.contexts, &node, &mut here)?;
+                    if here {
+                        code_chroma_patch(coder, visitor, c, &node)?;
+                        subtree = Some(depth);
+                    }
                 }
                 split
             }
@@ -296,12 +335,16 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
             }
             node = parent;
             depth = last;
+            if subtree == Some(depth) {
+                subtree = None;
+            }
         }
     }
 }
 
 /// A leaf's reconstruction and drawing: out of line, so that the patch is not part of the walk's
-/// own frame.
+/// own frame. A colour stream's leaf codes its own chroma when `own_chroma` (it is not in a
+/// subtree whose chroma is coded).
 #[inline(never)]
 fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     header: &Header,
@@ -309,51 +352,70 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
     chroma: Option<&mut ChromaState<STRIPE>>,
+    own_chroma: bool,
     node: Node,
 ) -> Result<(), V::Error> {
     let mut patch = Patch::EMPTY;
     let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
     match chroma {
         None => visitor.leaf(&info, &patch, &mut state.frontier),
-        Some(chroma) => colour_leaf(coder, visitor, chroma, &info, &patch, &mut state.frontier),
+        Some(chroma) => colour_leaf(
+            coder,
+            visitor,
+            chroma,
+            own_chroma,
+            &info,
+            &patch,
+            &mut state.frontier,
+        ),
     }
 }
 
-/// The chroma of a colour stream's leaf, coded, reconstructed and drawn with its luma. Out of
-/// line, so that a grayscale decode's leaf frame holds no chroma.
+/// The chroma of a colour stream's leaf, coded and reconstructed (when `own_chroma`, else the
+/// subtree's is drawn), and drawn with its luma. Out of line, so that a grayscale decode's
+/// leaf frame holds no chroma.
 #[inline(never)]
 fn colour_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     coder: &mut C,
     visitor: &mut V,
     chroma: &mut ChromaState<STRIPE>,
+    own_chroma: bool,
     info: &LeafInfo,
     patch: &Patch,
     frontier: &mut Frontier<STRIPE>,
 ) -> Result<(), V::Error> {
-    let mut colour = ChromaPatch::EMPTY;
-    code_chroma_patch(coder, visitor, chroma, &info.node, &mut colour)?;
-    visitor.leaf_colour(info, patch, &colour, frontier, &chroma.frontier)?;
-    chroma.frontier.record(&colour);
+    if own_chroma {
+        code_chroma_patch(coder, visitor, chroma, &info.node)?;
+    }
+    visitor.leaf_colour(info, patch, &chroma.patch, frontier, &chroma.frontier)?;
+    chroma
+        .frontier
+        .record(&chroma.patch, &chroma_node(&info.node));
     Ok(())
 }
 
-/// The two chroma planes of the leaf `node` of a colour stream, coded and reconstructed into
-/// `patch`. Out of line, like [`code_leaf_patch`].
+/// The two chroma planes of the node `node` (a leaf, or a node whose chroma covers its
+/// subtree) of a colour stream, coded and reconstructed into `chroma.patch`. Out of line, like
+/// [`code_leaf_patch`].
 #[inline(never)]
 fn code_chroma_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     coder: &mut C,
     visitor: &mut V,
     chroma: &mut ChromaState<STRIPE>,
     node: &Node,
-    patch: &mut ChromaPatch,
 ) -> Result<(), DecodeError> {
     let cnode = chroma_node(node);
+    let ChromaState {
+        contexts,
+        frontier,
+        patch,
+    } = chroma;
     patch.node = cnode;
     for (p, plane) in patch.planes.iter_mut().enumerate() {
         let mut leaf = ChromaSyntax::default();
-        let prediction = chroma.frontier.plane(p);
-        visitor.prepare_chroma(&cnode, p, &prediction, &chroma.contexts, &mut leaf);
-        code_chroma(coder, &mut chroma.contexts, &cnode, &prediction, &mut leaf)?;
+        let prediction = frontier.plane(p);
+        visitor.prepare_chroma(&cnode, p, &prediction, contexts, &mut leaf);
+        code_chroma(coder, contexts, &cnode, &prediction, &mut leaf)?;
         reconstruct_chroma(&leaf, cnode.log2, plane)?;
     }
     Ok(())

@@ -950,4 +950,43 @@ mod tests {
             unseen.psnr
         );
     }
+
+    /// Fine luma under a smooth colour: the cut splits for luma, and split nodes code the
+    /// chroma of their whole subtree once instead of a chroma leaf pair per leaf; the stream
+    /// decodes to the encoder's reconstruction.
+    #[test]
+    fn split_nodes_code_a_smooth_colour_once() {
+        use super::super::rate::Decision;
+        let (w, h) = (64u32, 64u32);
+        let rgb: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (x, y) = (i % w, i / w);
+                let luma = 128.0 + 60.0 * (f64::from(x) / 1.7).sin() * (f64::from(y) / 2.3).cos();
+                let (cb, cr) = (90 + x, 170 - y / 2);
+                decoder_core::internal::colour::ycbcr_to_rgb(luma as u8, cb as u8, cr as u8)
+            })
+            .collect();
+        let (y, colour) = ColourPlanes::from_rgb(w, h, rgb);
+        let analysis = Analysis::run(y, Some(colour), &EncoderConfig::default(), &|_| {})
+            .expect("an analysis");
+        let plan = analysis
+            .rates
+            .plan_for_bits(&analysis, &analysis.header, 8.0 * 1500.0, None);
+        let count = |decisions: &[Vec<Decision>], d: Decision| {
+            decisions.iter().flatten().filter(|&&x| x == d).count()
+        };
+        assert!(
+            count(&plan.decisions, Decision::SplitWithChroma) > 0,
+            "{plan:?}"
+        );
+        assert_eq!(count(&plan.subtree_decisions, Decision::SplitWithChroma), 0);
+        let encoded = analysis
+            .encode(super::super::config::Target::Bytes(1500))
+            .expect("an encode");
+        let mut pixels = vec![0u8; encoded.reconstruction.len()];
+        decoder_core::Decoder::new(&encoded.bytes)
+            .and_then(|d| d.decode_into(&mut pixels))
+            .expect("a valid stream");
+        assert_eq!(pixels, encoded.reconstruction);
+    }
 }

@@ -56,6 +56,8 @@ struct PlanVisitor<'a> {
     replay: Option<usize>,
     /// Where each leaf's bits are counted, when they are ([`leaf_bits`]).
     meter: Option<Meter<'a>>,
+    /// The node whose chroma covers its subtree, while the walk may be in it.
+    subtree: Option<Node>,
 }
 
 impl<'a> PlanVisitor<'a> {
@@ -78,7 +80,24 @@ impl<'a> PlanVisitor<'a> {
             tape: Vec::new(),
             replay: None,
             meter,
+            subtree: None,
         }
+    }
+
+    /// The plan's decision for `node`, the next node of the walk: inside the subtree whose
+    /// chroma a node above codes, the plan's decisions for such subtrees.
+    fn decision(&mut self, node: &Node) -> Option<Decision> {
+        let inside = self.subtree.is_some_and(|s| {
+            node.log2 < s.log2
+                && node.x >= s.x
+                && node.y >= s.y
+                && node.x - s.x < s.size()
+                && node.y - s.y < s.size()
+        });
+        if !inside {
+            self.subtree = None;
+        }
+        self.plan.decision(self.tree, node, inside)
     }
 }
 
@@ -125,6 +144,7 @@ impl Coder for MeteredEncoder<'_> {
 /// other smoothing strengths replay them instead of choosing every leaf's chroma again.
 struct ChromaMemo {
     decisions: Vec<Vec<Decision>>,
+    subtree_decisions: Vec<Vec<Decision>>,
     lambda: u64,
     image: (usize, usize),
     header: Header,
@@ -139,7 +159,16 @@ impl TreeVisitor for PlanVisitor<'_> {
     type Error = DecodeError;
 
     fn split(&mut self, node: &Node) -> bool {
-        !matches!(self.plan.decision(self.tree, node), Some(Decision::Leaf(_)))
+        !matches!(self.decision(node), Some(Decision::Leaf(_)))
+    }
+
+    fn chroma_subtree(&mut self, node: &Node) -> bool {
+        let here = self.colour.is_some()
+            && self.plan.decision(self.tree, node, false) == Some(Decision::SplitWithChroma);
+        if here {
+            self.subtree = Some(*node);
+        }
+        here
     }
 
     fn prepare_leaf<P: SamplePrediction>(
@@ -149,7 +178,7 @@ impl TreeVisitor for PlanVisitor<'_> {
         leaf: &mut LeafSyntax,
     ) {
         let na = self.tree.node(node);
-        if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.plan.decision(self.tree, node)) {
+        if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.decision(node)) {
             let c = &na.candidates[usize::from(ci)];
             *leaf = na.leaf(c);
         }
@@ -235,7 +264,8 @@ pub fn write(
                 && memo.lambda == plan.lambda.to_bits()
                 && memo.image == image
                 && memo.header == key_header
-                && memo.decisions == plan.decisions)
+                && memo.decisions == plan.decisions
+                && memo.subtree_decisions == plan.subtree_decisions)
                 .then_some(memo.choices)
         })
     });
@@ -249,6 +279,7 @@ pub fn write(
     if colour.is_some() {
         let memo = ChromaMemo {
             decisions: plan.decisions.clone(),
+            subtree_decisions: plan.subtree_decisions.clone(),
             lambda: plan.lambda.to_bits(),
             image,
             header: key_header,
