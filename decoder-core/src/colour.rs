@@ -4,7 +4,10 @@
 //! A colour stream codes luma (`Y`) exactly as a grayscale stream codes its one plane, and two
 //! chroma planes (`Cb`, `Cr`) at half the width and height (4:2:0). The quadtree cut is shared:
 //! every luma leaf of side `S` at `(x, y)` is followed in the stream by the two chroma leaves of
-//! side `max(S / 2, 1)` at `(x / 2, y / 2)` of their planes. A chroma leaf is a grid of control
+//! side `max(S / 2, 1)` at `(x / 2, y / 2)` of their planes, unless a split node above it coded
+//! the chroma of its whole subtree (a flag after its split flag, then its own chroma leaves,
+//! which cover every leaf of the subtree: chroma may be coarser than the cut, never finer). A
+//! chroma leaf is a grid of control
 //! values (coded like a luma leaf's: DPCM or the grid transform, predicted from the chroma
 //! pixels beside it) that is interpolated **bilinearly**, so that any of its pixels can be made
 //! on its own, in the order luma is drawn, with no buffer: the decoder keeps no more than the
