@@ -265,47 +265,31 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     // The depth of the node whose chroma covers its subtree, while the walk is in it.
     let mut subtree: Option<usize> = None;
     loop {
-        let split = match node_kind(header, &node) {
+        let kind = node_kind(header, &node);
+        let split = match kind {
             NodeKind::Outside => false,
             NodeKind::ForcedSplit => true,
-            NodeKind::ForcedLeaf => {
-                let own = subtree.is_none();
-                walk_leaf(
-                    header,
-                    coder,
-                    visitor,
-                    state,
-                    chroma.as_deref_mut(),
-                    own,
-                    node,
-                )?;
-                false
-            }
+            NodeKind::ForcedLeaf => false,
             NodeKind::Flagged => {
                 let mut split = visitor.split(&node);
                 code_split(coder, &mut state.contexts, node.log2, &mut split)?;
-                if !split {
-                    let own = subtree.is_none();
-                    walk_leaf(
-                        header,
-                        coder,
-                        visitor,
-                        state,
-                        chroma.as_deref_mut(),
-                        own,
-                        node,
-                    )?;
-                } else if let Some(c) = chroma.as_deref_mut().filter(|_| subtree.is_none()) {
-                    let mut here = visitor.chroma_subtree(&node);
-                    code_chroma_subtree(coder, &mut c.contexts, &node, &mut here)?;
-                    if here {
-                        code_chroma_patch(coder, visitor, c, &node)?;
-                        subtree = Some(depth);
-                    }
-                }
                 split
             }
         };
+        let own_chroma = subtree.is_none();
+        if !split && kind != NodeKind::Outside {
+            let chroma = chroma.as_deref_mut();
+            walk_leaf(header, coder, visitor, state, chroma, own_chroma, node)?;
+        } else if kind == NodeKind::Flagged && own_chroma {
+            if let Some(c) = chroma.as_deref_mut() {
+                let mut here = visitor.chroma_subtree(&node);
+                code_chroma_subtree(coder, &mut c.contexts, &node, &mut here)?;
+                if here {
+                    code_chroma_patch(coder, visitor, c, &node)?;
+                    subtree = Some(depth);
+                }
+            }
+        }
         if split {
             // Split nodes are larger than the smallest leaf, so log2 >= 1 here.
             if depth == MAX_DEPTH || node.log2 == 0 {

@@ -905,12 +905,22 @@ mod tests {
         let encoded = analysis
             .encode(super::super::config::Target::Bpp(4.0))
             .expect("an encode");
-        let mut pixels = vec![0u8; plane.data.len()];
-        decoder_core::Decoder::new(&encoded.bytes)
-            .and_then(|d| d.decode_into(&mut pixels))
-            .expect("a valid stream");
-        assert_eq!(pixels, encoded.reconstruction);
+        assert_decodes_to_reconstruction(&encoded);
         assert!(encoded.psnr > 40.0, "PSNR {}", encoded.psnr);
+    }
+
+    /// The analysis, with the default settings, of the 64 x 64 colour image whose pixel
+    /// `(x, y)` has the YCbCr values `ycbcr(x, y)`.
+    fn colour_analysis(ycbcr: impl Fn(u32, u32) -> [u8; 3]) -> Analysis {
+        let (w, h) = (64u32, 64u32);
+        let rgb: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let [l, cb, cr] = ycbcr(i % w, i / w);
+                decoder_core::internal::colour::ycbcr_to_rgb(l, cb, cr)
+            })
+            .collect();
+        let (y, colour) = ColourPlanes::from_rgb(w, h, rgb);
+        Analysis::run(y, Some(colour), &EncoderConfig::default(), &|_| {}).expect("an analysis")
     }
 
     /// The quadtree's cut weighs each leaf's chroma with its luma: on an image whose colour
@@ -919,19 +929,12 @@ mod tests {
     /// its chroma costs cleared).
     #[test]
     fn the_cut_sees_chroma() {
-        let (w, h) = (64u32, 64u32);
         // Smooth luma, and two colours meeting on a line that no large leaf's edge follows.
-        let rgb: Vec<u8> = (0..w * h)
-            .flat_map(|i| {
-                let (x, y) = (i % w, i / w);
-                let luma = 128.0 + 50.0 * (f64::from(x) / 9.0).sin() * (f64::from(y) / 13.0).cos();
-                let (cb, cr) = if x + y / 3 < 27 { (70, 190) } else { (190, 80) };
-                decoder_core::internal::colour::ycbcr_to_rgb(luma as u8, cb, cr)
-            })
-            .collect();
-        let config = EncoderConfig::default();
-        let (y, colour) = ColourPlanes::from_rgb(w, h, rgb);
-        let seeing = Analysis::run(y, Some(colour), &config, &|_| {}).expect("an analysis");
+        let seeing = colour_analysis(|x, y| {
+            let luma = 128.0 + 50.0 * (f64::from(x) / 9.0).sin() * (f64::from(y) / 13.0).cos();
+            let (cb, cr) = if x + y / 3 < 27 { (70, 190) } else { (190, 80) };
+            [luma as u8, cb, cr]
+        });
         let mut blind = seeing.clone();
         for level in blind.tree.levels_mut() {
             for na in level.nodes.iter_mut().flatten() {
@@ -957,18 +960,10 @@ mod tests {
     #[test]
     fn split_nodes_code_a_smooth_colour_once() {
         use super::super::rate::Decision;
-        let (w, h) = (64u32, 64u32);
-        let rgb: Vec<u8> = (0..w * h)
-            .flat_map(|i| {
-                let (x, y) = (i % w, i / w);
-                let luma = 128.0 + 60.0 * (f64::from(x) / 1.7).sin() * (f64::from(y) / 2.3).cos();
-                let (cb, cr) = (90 + x, 170 - y / 2);
-                decoder_core::internal::colour::ycbcr_to_rgb(luma as u8, cb as u8, cr as u8)
-            })
-            .collect();
-        let (y, colour) = ColourPlanes::from_rgb(w, h, rgb);
-        let analysis = Analysis::run(y, Some(colour), &EncoderConfig::default(), &|_| {})
-            .expect("an analysis");
+        let analysis = colour_analysis(|x, y| {
+            let luma = 128.0 + 60.0 * (f64::from(x) / 1.7).sin() * (f64::from(y) / 2.3).cos();
+            [luma as u8, (90 + x) as u8, (170 - y / 2) as u8]
+        });
         let plan = analysis
             .rates
             .plan_for_bits(&analysis, &analysis.header, 8.0 * 1500.0, None);
@@ -983,6 +978,11 @@ mod tests {
         let encoded = analysis
             .encode(super::super::config::Target::Bytes(1500))
             .expect("an encode");
+        assert_decodes_to_reconstruction(&encoded);
+    }
+
+    /// decoder-core decodes `encoded`'s stream to the encoder's reconstruction.
+    fn assert_decodes_to_reconstruction(encoded: &super::super::Encoded) {
         let mut pixels = vec![0u8; encoded.reconstruction.len()];
         decoder_core::Decoder::new(&encoded.bytes)
             .and_then(|d| d.decode_into(&mut pixels))
