@@ -905,7 +905,7 @@ mod tests {
         let encoded = analysis
             .encode(super::super::config::Target::Bpp(4.0))
             .expect("an encode");
-        assert_decodes_to_reconstruction(&encoded);
+        assert_decodes_to(&encoded.bytes, &encoded.reconstruction);
         assert!(encoded.psnr > 40.0, "PSNR {}", encoded.psnr);
     }
 
@@ -978,15 +978,15 @@ mod tests {
         let encoded = analysis
             .encode(super::super::config::Target::Bytes(1500))
             .expect("an encode");
-        assert_decodes_to_reconstruction(&encoded);
+        assert_decodes_to(&encoded.bytes, &encoded.reconstruction);
     }
 
-    /// decoder-core decodes `encoded`'s stream to the encoder's reconstruction.
-    fn assert_decodes_to_reconstruction(encoded: &super::super::Encoded) {
-        let mut pixels = vec![0u8; encoded.reconstruction.len()];
-        decoder_core::Decoder::new(&encoded.bytes)
+    /// decoder-core decodes `stream` to the encoder's `reconstruction`.
+    fn assert_decodes_to(stream: &[u8], reconstruction: &[u8]) {
+        let mut pixels = vec![0u8; reconstruction.len()];
+        decoder_core::Decoder::new(stream)
             .and_then(|d| d.decode_into(&mut pixels))
             .expect("a valid stream");
-        assert_eq!(pixels, encoded.reconstruction);
+        assert_eq!(pixels, reconstruction);
     }
 }
