@@ -266,17 +266,16 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
     /// plane), which `patch` covers: a leaf's own chroma, or a subtree's chroma over one of
     /// its leaves.
     pub fn record(&mut self, patch: &ChromaPatch, region: &Node) {
+        // The patch's node contains the region: offsets from it are never negative.
         let n = &patch.node;
         let s = region.size();
         let (w, h) = (self.width, self.height);
         let stripe = self.stripe.max(1);
-        // Offsets of the region's first pixel in the patch, and of its last row and column.
-        let (ox, oy) = (region.x.wrapping_sub(n.x), region.y.wrapping_sub(n.y));
         let last_row = region.y + s - 1;
         if last_row < h {
             for cx in region.x..(region.x + s).min(w) {
                 for p in 0..2 {
-                    let v = patch.value(p, cx - region.x + ox, s - 1 + oy);
+                    let v = patch.value(p, cx - n.x, last_row - n.y);
                     if let Some(slot) = self.columns.get_mut(2 * (cx % stripe) as usize + p) {
                         *slot = v;
                     }
@@ -287,7 +286,7 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
         if last_column < w {
             for cy in region.y..(region.y + s).min(h) {
                 for p in 0..2 {
-                    let v = patch.value(p, s - 1 + ox, cy - region.y + oy);
+                    let v = patch.value(p, last_column - n.x, cy - n.y);
                     if let Some(slot) = self.rows.get_mut(2 * (cy % CHROMA_BAND) as usize + p) {
                         *slot = v;
                     }

@@ -213,13 +213,16 @@ impl Cost {
         bits: f64::INFINITY,
     };
 
-    /// Error `sse` for `bits` bits at multiplier `lambda`.
-    fn of(sse: f64, bits: f64, lambda: f64) -> Cost {
-        Cost {
-            j: sse + lambda * bits,
-            sse,
-            bits,
-        }
+    /// This cost with chroma `chroma` (both planes) at its cheapest for `lambda` added.
+    fn with_chroma(self, chroma: &ChromaCost, lambda: f64) -> Cost {
+        chroma.cheapest(lambda).fold(self, |cost, p| {
+            let (sse, bits) = (f64::from(p.sse), f64::from(p.bits));
+            cost.plus(Cost {
+                j: sse + lambda * bits,
+                sse,
+                bits,
+            })
+        })
     }
 
     /// The costs of two subtrees together.
@@ -252,9 +255,7 @@ struct LeafChoice {
 impl LeafChoice {
     /// This leaf with its chroma, at its cheapest for `lambda`, added to its cost.
     fn with_chroma(self, chroma: &ChromaCost, lambda: f64) -> LeafChoice {
-        let cost = chroma.cheapest(lambda).fold(self.cost, |cost, p| {
-            cost.plus(Cost::of(f64::from(p.sse), f64::from(p.bits), lambda))
-        });
+        let cost = self.cost.with_chroma(chroma, lambda);
         LeafChoice { cost, ..self }
     }
 }
@@ -478,28 +479,19 @@ impl RateTable {
                     let mut with_chroma = false;
                     let split = (level.log2 > min).then(|| {
                         let own = below_ref.split(cx, cy);
-                        match (kind, na) {
-                            (NodeKind::Flagged, Some(na)) => {
-                                let own = own.with_flag(lambda, SUBTREE_FLAG_BITS[0]);
-                                let covered = na
-                                    .chroma
-                                    .cheapest(lambda)
-                                    .fold(below_luma_ref.split(cx, cy), |c, p| {
-                                        c.plus(Cost::of(
-                                            f64::from(p.sse),
-                                            f64::from(p.bits),
-                                            lambda,
-                                        ))
-                                    })
-                                    .with_flag(lambda, SUBTREE_FLAG_BITS[1]);
-                                with_chroma = covered.j < own.j;
-                                if with_chroma {
-                                    covered
-                                } else {
-                                    own
-                                }
-                            }
-                            _ => own,
+                        let (NodeKind::Flagged, Some(na)) = (kind, na) else {
+                            return own;
+                        };
+                        let own = own.with_flag(lambda, SUBTREE_FLAG_BITS[0]);
+                        let covered = below_luma_ref
+                            .split(cx, cy)
+                            .with_chroma(&na.chroma, lambda)
+                            .with_flag(lambda, SUBTREE_FLAG_BITS[1]);
+                        with_chroma = covered.j < own.j;
+                        if with_chroma {
+                            covered
+                        } else {
+                            own
                         }
                     });
                     let (cost, mut decision) = decide(kind, leaf, split, lambda, flag);
