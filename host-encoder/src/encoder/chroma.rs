@@ -354,12 +354,16 @@ impl ChromaCache {
 
     /// The options of plane `p` at `node` (new ones if not held), for [`ChromaCache::put`].
     fn take(&self, plane: &Plane, p: usize, node: &Node) -> NodeOptions {
-        let mut held = self.held.lock().unwrap_or_else(|e| e.into_inner());
-        let options = held.nodes.remove(&(p, *node));
-        if let Some(o) = &options {
-            held.bytes -= o.bytes();
-        }
-        options.unwrap_or_else(|| NodeOptions::new(plane, node))
+        let held = {
+            let mut held = self.held.lock().unwrap_or_else(|e| e.into_inner());
+            let options = held.nodes.remove(&(p, *node));
+            if let Some(o) = &options {
+                held.bytes -= o.bytes();
+            }
+            options
+        };
+        // New options are made outside the lock.
+        held.unwrap_or_else(|| NodeOptions::new(plane, node))
     }
 
     /// Keeps `options` of plane `p` at `node` for the next write.
