@@ -22,6 +22,22 @@
 //! patch is that attractor, up to the tabulation's roundings (`cargo run --example ifs` draws
 //! them).
 //!
+//! [`curve`] is the thesis's other half for curves: a projected-IFS curve fitted to a polyline
+//! or a sampled function by Levenberg–Marquardt on the thesis's arc-length distance
+//! ([`curve::fit_curve`]), tabulated at any depth, stored as JSON (`pifs curve`), and the affine
+//! IFS of function data of Guérin & Tosan ([`curve::fit_affine`]).
+//!
+//! ```
+//! use host_encoder::curve::{fit_curve, CurveFitConfig, ProjectedCurve};
+//! // The points of a cubic Bézier curve are fitted exactly by 4 control points, 2 maps.
+//! let data = ProjectedCurve::bezier(vec![[0.0, 0.0], [1.0, 3.0], [3.0, -1.0], [4.0, 1.0]], 2)
+//!     .tabulate(10);
+//! let fit = fit_curve(&data, &CurveFitConfig::new(4, 2)).unwrap();
+//! assert!(fit.rms < 1e-6);
+//! let drawn = fit.curve.tabulate(12); // 4097 points
+//! # assert_eq!(drawn.len(), 4097);
+//! ```
+//!
 //! The `pifs` tool is behind the default cargo feature `cli`; a library user writes
 //! `host-encoder = { version = "…", default-features = false }` and gets no command-line
 //! dependencies (`clap`, `indicatif`, `plotters`).
@@ -31,6 +47,7 @@
     rustdoc::broken_intra_doc_links
 )]
 
+pub mod curve;
 mod encoder;
 mod entropy;
 pub mod ifs;

@@ -850,3 +850,167 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     assert!(leftovers.is_empty(), "{leftovers:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `pifs curve fit`, `render` and `info` through files: CSV and SVG in, JSON, SVG and CSV
+/// out; bad input refused in one line with no output left behind.
+#[test]
+fn curve_fit_render_info_round_trip() {
+    let dir = scratch("curve");
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    // A cubic Bézier's points (control points 0,0 1,3 3,-1 4,1), as CSV and as an SVG path.
+    let bezier = |t: f64| {
+        let b = [
+            (1.0 - t).powi(3),
+            3.0 * t * (1.0 - t).powi(2),
+            3.0 * t * t * (1.0 - t),
+            t.powi(3),
+        ];
+        let (xs, ys) = ([0.0, 1.0, 3.0, 4.0], [0.0, 3.0, -1.0, 1.0]);
+        let dot = |v: [f64; 4]| b.iter().zip(v).map(|(w, c)| w * c).sum::<f64>();
+        (dot(xs), dot(ys))
+    };
+    let points: Vec<(f64, f64)> = (0..=256).map(|i| bezier(i as f64 / 256.0)).collect();
+    let csv: String = std::iter::once("x,y\n".to_string())
+        .chain(points.iter().map(|(x, y)| format!("{x},{y}\n")))
+        .collect();
+    std::fs::write(path("in.csv"), csv).unwrap();
+    let d: Vec<String> = points.iter().map(|(x, y)| format!("{x},{y}")).collect();
+    std::fs::write(
+        path("in.svg"),
+        format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg"><path d="M{}"/></svg>"#,
+            d.join(" L")
+        ),
+    )
+    .unwrap();
+    for (input, json) in [("in.csv", "c.json"), ("in.svg", "s.json")] {
+        let out = pifs(&[
+            "curve",
+            "fit",
+            &path(input),
+            "--points",
+            "4",
+            "--smooth",
+            "-o",
+            &path(json),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(String::from_utf8_lossy(&out.stdout).contains("8 parameters"));
+        let file: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path(json)).unwrap()).unwrap();
+        assert_eq!(file["format"], "pifs-curve");
+        assert_eq!(file["y_down"], input.ends_with(".svg"));
+        // The smooth rules reproduce a Bézier: the fit is exact to rounding.
+        let rms = file["fit"]["rms"].as_f64().unwrap();
+        assert!(rms < 1e-4, "{input}: rms {rms}");
+    }
+    let out = pifs(&[
+        "curve",
+        "render",
+        &path("c.json"),
+        "--depth",
+        "4",
+        "-o",
+        &path("t.csv"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let table = std::fs::read_to_string(path("t.csv")).unwrap();
+    assert_eq!(table.lines().count(), 17);
+    let last: Vec<f64> = table
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        (last[0] - 4.0).abs() < 1e-3 && (last[1] - 1.0).abs() < 1e-3,
+        "{last:?}"
+    );
+    let out = pifs(&[
+        "curve",
+        "render",
+        &path("s.json"),
+        "--data",
+        &path("in.svg"),
+        "-o",
+        &path("d.svg"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(std::fs::read_to_string(path("d.svg"))
+        .unwrap()
+        .contains("projected-IFS curve"));
+    let out = pifs(&["curve", "info", &path("c.json"), "--data", &path("in.csv")]);
+    assert!(out.status.success());
+    let info = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        info.contains("4 control points, 2 maps") && info.contains("against"),
+        "{info}"
+    );
+
+    // Refusals: one line, non-zero exit, no output file.
+    std::fs::write(path("bad.csv"), "0,0\n1,one\n").unwrap();
+    std::fs::write(path("bad.json"), "{\"format\": \"pifs-curve\"}").unwrap();
+    for args in [
+        vec![
+            "curve",
+            "fit",
+            &path("bad.csv"),
+            "--points",
+            "4",
+            "-o",
+            &path("x.json"),
+        ],
+        vec![
+            "curve",
+            "fit",
+            &path("in.csv"),
+            "--points",
+            "1",
+            "-o",
+            &path("x.json"),
+        ],
+        vec![
+            "curve",
+            "fit",
+            &path("in.csv"),
+            "--points",
+            "4",
+            "--depth",
+            "40",
+            "-o",
+            &path("x.json"),
+        ],
+        vec![
+            "curve",
+            "fit",
+            &path("in.csv"),
+            "--points",
+            "4",
+            "-o",
+            &path("x.png"),
+        ],
+        vec!["curve", "render", &path("bad.json"), "-o", &path("x.svg")],
+        vec!["curve", "render", &path("c.json"), "-o", &path("x.txt")],
+    ] {
+        let out = pifs(&args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    }
+    for name in ["x.json", "x.png", "x.svg", "x.txt"] {
+        assert!(!dir.join(name).exists(), "{name}");
+    }
+}

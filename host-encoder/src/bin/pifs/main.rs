@@ -5,6 +5,7 @@ mod say;
 
 mod batch;
 mod compare;
+mod curve;
 mod decode;
 mod demo;
 mod encode;
@@ -106,6 +107,10 @@ enum Command {
     /// Tools for packets: simulate their loss on a link.
     #[command(subcommand)]
     Packets(PacketsCommand),
+    /// Fractal curves: fit a projected-IFS curve to a polyline or a sampled function, draw it,
+    /// describe it.
+    #[command(subcommand)]
+    Curve(curve::CurveCommand),
     /// Encode and decode the bundled sample into ./pifs-demo/ (what `pifs` alone does).
     ///
     /// The sample is built into the binary; the outputs go under the current directory.
@@ -187,6 +192,7 @@ fn main() -> ExitCode {
         ),
         Some(Command::Rd(args)) => rd::run(&args),
         Some(Command::Packets(PacketsCommand::Drop(args))) => packets::drop_packets(&args),
+        Some(Command::Curve(command)) => curve::run(&command),
         Some(Command::Demo) | None => demo::run(),
     };
     match result {

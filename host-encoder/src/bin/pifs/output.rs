@@ -18,6 +18,8 @@ pub enum Kind {
     Svg,
     /// A CSV table: any name but an image format's.
     Csv,
+    /// A JSON file: any name but an image format's.
+    Json,
 }
 
 /// Refuses, before any work, an output path that cannot be written, that would replace
@@ -55,6 +57,7 @@ pub fn check_kind(output: &Path, kind: Kind) -> Result<()> {
         Kind::Stream => ("a PIFS stream", ".pifs"),
         Kind::Svg => ("an SVG drawing", ".svg"),
         Kind::Csv => ("a CSV table", ".csv"),
+        Kind::Json => ("a JSON curve file", ".json"),
     };
     if io::has_image_extension(output) {
         return Err(CliError::Refused(format!(
