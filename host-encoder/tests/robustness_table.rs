@@ -110,6 +110,22 @@ fn make_inputs(dir: &Path) {
     gray_png(&p("noise.png"), 64, 64, noise);
     gray_png(&p("wide-65535x1.png"), 65535, 1, |x, _| (x % 251) as u8);
     gray_png(&p("too-wide-65536x1.png"), 65536, 1, |x, _| x as u8);
+    // Curves.
+    let curve: String = (0..40).map(|i| format!("{i},{}\n", (i * i) % 7)).collect();
+    std::fs::write(p("curve.csv"), curve).unwrap();
+    std::fs::write(p("bad-curve.csv"), "x,y\n0,1\n1,two\n").unwrap();
+    std::fs::write(p("one-point.csv"), "0,1\n").unwrap();
+    std::fs::write(p("random.csv"), &random).unwrap();
+    std::fs::write(
+        p("curved-path.svg"),
+        r#"<svg xmlns="http://www.w3.org/2000/svg"><path d="M0 0 C1 1 2 1 3 0"/></svg>"#,
+    )
+    .unwrap();
+    std::fs::write(
+        p("not-a-curve.json"),
+        r#"{"format": "pifs-curve", "version": 2}"#,
+    )
+    .unwrap();
     // Streams.
     let stream = p("good.pifs");
     let out = pifs()
@@ -649,6 +665,111 @@ fn cases(dir: &Path) -> Vec<Case> {
             &["encode", "{dir}/one-pixel.png", "-o", "{dir}/a12.pifs"],
             "{dir}/a12.pifs",
         ),
+        // curves
+        refuse(
+            "curve CSV with a line that is not numbers",
+            &[
+                "curve",
+                "fit",
+                "{dir}/bad-curve.csv",
+                "--points",
+                "4",
+                "-o",
+                "{dir}/c1.json",
+            ],
+            Some("{dir}/c1.json"),
+        ),
+        keep(refuse(
+            "curve CSV of one point (existing output kept)",
+            &[
+                "curve",
+                "fit",
+                "{dir}/one-point.csv",
+                "--points",
+                "4",
+                "-o",
+                "{dir}/c2.json",
+            ],
+            Some("{dir}/c2.json"),
+        )),
+        refuse(
+            "random bytes named .csv",
+            &[
+                "curve",
+                "fit",
+                "{dir}/random.csv",
+                "--points",
+                "4",
+                "-o",
+                "{dir}/c3.json",
+            ],
+            Some("{dir}/c3.json"),
+        ),
+        refuse(
+            "SVG path with curved segments",
+            &[
+                "curve",
+                "fit",
+                "{dir}/curved-path.svg",
+                "--points",
+                "4",
+                "-o",
+                "{dir}/c4.json",
+            ],
+            Some("{dir}/c4.json"),
+        ),
+        refuse(
+            "more parameters than resampled coordinates",
+            &[
+                "curve",
+                "fit",
+                "{dir}/curve.csv",
+                "--points",
+                "12",
+                "--resample",
+                "20",
+                "-o",
+                "{dir}/c5.json",
+            ],
+            Some("{dir}/c5.json"),
+        ),
+        refuse(
+            "curve fit to an image name",
+            &[
+                "curve",
+                "fit",
+                "{dir}/curve.csv",
+                "--points",
+                "4",
+                "-o",
+                "{dir}/c6.png",
+            ],
+            Some("{dir}/c6.png"),
+        ),
+        refuse(
+            "curve file of another version",
+            &[
+                "curve",
+                "render",
+                "{dir}/not-a-curve.json",
+                "-o",
+                "{dir}/c7.svg",
+            ],
+            Some("{dir}/c7.svg"),
+        ),
+        accept(
+            "curve fit of a CSV polyline",
+            &[
+                "curve",
+                "fit",
+                "{dir}/curve.csv",
+                "--points",
+                "4",
+                "-o",
+                "{dir}/c8.json",
+            ],
+            "{dir}/c8.json",
+        ),
     ]
 }
 
@@ -710,6 +831,10 @@ fn run(case: &Case, dir: &Path) -> String {
                 ];
                 decoder
                     .decode_into(&mut px)
+                    .unwrap_or_else(|e| panic!("{label}: {e}"));
+            } else if path.extension().is_some_and(|e| e == "json") {
+                let text = String::from_utf8(bytes).unwrap();
+                host_encoder::curve::CurveFile::parse(&text)
                     .unwrap_or_else(|e| panic!("{label}: {e}"));
             } else {
                 image::open(path).unwrap_or_else(|e| panic!("{label}: {e}"));

@@ -272,12 +272,16 @@ impl CurveFile {
     /// Parses and checks a curve file: its format and version, finite numbers, and matrices
     /// that make a curve ([`ProjectedCurve::is_joined`]).
     pub fn parse(text: &str) -> Result<CurveFile, CurveFileError> {
-        let file: CurveFile =
-            serde_json::from_str(text).map_err(|e| CurveFileError::Json(e.to_string()))?;
         let bad = |why: &str| Err(CurveFileError::Json(why.to_string()));
-        if file.format != CURVE_FORMAT || file.version != 1 {
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| CurveFileError::Json(e.to_string()))?;
+        if value.get("format").and_then(|f| f.as_str()) != Some(CURVE_FORMAT)
+            || value.get("version").and_then(|v| v.as_u64()) != Some(1)
+        {
             return bad("not a version 1 pifs-curve file");
         }
+        let file: CurveFile = serde_json::from_value(value)
+            .map_err(|e| CurveFileError::Json(e.to_string().replace('`', "'")))?;
         if file.points.len() < 2 || file.depth > 24 {
             return bad("fewer than 2 control points, or a depth above 24");
         }

@@ -1,7 +1,8 @@
 //! Fitting a projected-IFS curve to a sampled curve (thesis II.3): Levenberg–Marquardt on the
 //! distance of [`super::distance`] between the curve's tabulation and the data, the control
 //! points started on the data at uniform arc length with the smooth (Bézier) rules, fitted
-//! first alone, then with the subdivision weights.
+//! first alone, then with the subdivision weights (from two starts, one coarse to fine in the
+//! tabulation depth).
 
 use super::distance::{length, resample};
 use super::lm::{minimise, LmConfig};
@@ -79,6 +80,12 @@ pub enum CurveFitError {
     /// The tabulation would have more than [`MAX_TABULATION`] points.
     TooDeep,
 }
+
+/// The weights are fitted from two starts, the closer kept: at the fit's depth at once, and
+/// coarse to fine, first through the tabulation at the first depth with at least this many
+/// points, then at each depth after it. Neither start is the better one on every curve of
+/// `bench/curves.sh` (`docs/decisions.md`).
+const COARSE_POINTS: usize = 81;
 
 /// Most points a fit tabulates (`N^depth + 1`).
 pub const MAX_TABULATION: usize = 1 << 22;
@@ -158,8 +165,8 @@ pub fn fit_curve(data: &[Point], config: &CurveFitConfig) -> Result<CurveFit, Cu
     let start = resample(&local, config.points - 1);
     let mut curve = ProjectedCurve::bezier(start, config.maps);
     let layout = Layout::new(config.points, config.maps);
-    let residual = |curve: &ProjectedCurve, r: &mut Vec<f64>| {
-        let model = resample(&curve.tabulate(config.depth), config.resample);
+    let residual_at = |curve: &ProjectedCurve, depth: u32, r: &mut Vec<f64>| {
+        let model = resample(&curve.tabulate(depth), config.resample);
         for (p, q) in model.iter().zip(&target) {
             r.extend([p[0] - q[0], p[1] - q[1]]);
         }
@@ -171,27 +178,47 @@ pub fn fit_curve(data: &[Point], config: &CurveFitConfig) -> Result<CurveFit, Cu
         &mut params,
         |a, r| {
             layout.set_points(&mut trial, a);
-            residual(&trial, r)
+            residual_at(&trial, config.depth, r)
         },
         &config.lm,
     );
     layout.set_points(&mut curve, &params);
     let mut iterations = first.iterations;
     let mut distance = first.error();
-    // Stage 2: the weights too.
+    // Stage 2: the weights too, from two starts (the final depth at once, and coarse to
+    // fine); the closer fit is kept.
     if config.weights {
-        let mut params = layout.params(&curve);
-        let second = minimise(
-            &mut params,
-            |a, r| {
-                layout.set_all(&mut trial, a);
-                residual(&trial, r)
-            },
-            &config.lm,
-        );
+        let start = layout.params(&curve);
+        let mut coarse = 1;
+        while config.maps.pow(coarse) < COARSE_POINTS && coarse < config.depth {
+            coarse += 1;
+        }
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for first in [config.depth, coarse] {
+            let mut params = start.clone();
+            let mut error = f64::INFINITY;
+            for d in first..=config.depth {
+                let report = minimise(
+                    &mut params,
+                    |a, r| {
+                        layout.set_all(&mut trial, a);
+                        residual_at(&trial, d, r)
+                    },
+                    &config.lm,
+                );
+                iterations += report.iterations;
+                error = report.error();
+            }
+            if best.as_ref().is_none_or(|(e, _)| error < *e) {
+                best = Some((error, params));
+            }
+            if coarse == config.depth {
+                break;
+            }
+        }
+        let (error, params) = best.expect("one start at least");
         layout.set_all(&mut curve, &params);
-        iterations += second.iterations;
-        distance = second.error();
+        distance = error;
     }
     for p in &mut curve.points {
         *p = frame.to_data(*p);

@@ -1,0 +1,75 @@
+"""The PSNR-RGB ceiling of 4:2:0 chroma with exact luma, on a set of images, for two ways of
+making the half-size chroma planes: the means of 2 x 2 blocks (what the encoder does) and
+the least-squares planes for the decoder's drawing (linear interpolation at the centred
+siting, luma x at chroma x / 2 - 1/4, clamped at the edges). Conversions are decoder-core's
+integer BT.601 ones (docs/bitstream.md, "Drawing in RGB"). docs/decisions.md, "Colour:
+chroma tools measured", quotes its means on Kodak.
+
+    python3 bench/experiments/chroma_ceiling.py ../shared/images/kodak/*.png
+
+Needs numpy and Pillow. Images of even sizes.
+"""
+import sys
+
+import numpy as np
+from PIL import Image
+
+
+def to_ycbcr(rgb):
+    r, g, b = (rgb[..., i].astype(np.int64) for i in range(3))
+    y = (19595 * r + 38470 * g + 7471 * b + 32768) >> 16
+    cb = np.clip(128 + ((-11059 * r - 21709 * g + 32768 * b + 32768) >> 16), 0, 255)
+    cr = np.clip(128 + ((32768 * r - 27439 * g - 5329 * b + 32768) >> 16), 0, 255)
+    return y, cb, cr
+
+
+def to_rgb(y, cb, cr):
+    cb, cr = cb - 128, cr - 128
+    r = np.clip(y + ((91881 * cr + 32768) >> 16), 0, 255)
+    g = np.clip(y + ((-22554 * cb - 46802 * cr + 32768) >> 16), 0, 255)
+    b = np.clip(y + ((116130 * cb + 32768) >> 16), 0, 255)
+    return np.stack([r, g, b], -1)
+
+
+def interpolation(n):
+    """The n x n/2 matrix of the drawing's linear interpolation along one axis."""
+    nc = n // 2
+    u = np.zeros((n, nc))
+    for x in range(n):
+        s = min(max(x / 2 - 0.25, 0), nc - 1)
+        i = int(np.floor(s))
+        f = s - i
+        u[x, i] += 1 - f
+        u[x, min(i + 1, nc - 1)] += f
+    return u
+
+
+def psnr(a, b):
+    return 10 * np.log10(255**2 / np.mean((a.astype(float) - b) ** 2))
+
+
+def main(paths):
+    means, least = [], []
+    for path in paths:
+        rgb = np.asarray(Image.open(path).convert("RGB"))
+        h, w, _ = rgb.shape
+        y, cb, cr = to_ycbcr(rgb)
+        uy, ux = interpolation(h), interpolation(w)
+
+        def draw(c):
+            return np.round(uy @ c @ ux.T).astype(np.int64)
+
+        def mean2x2(c):
+            return np.round(c.reshape(h // 2, 2, w // 2, 2).mean(axis=(1, 3)))
+
+        def least_squares(c):
+            return np.clip(np.round(np.linalg.pinv(uy) @ c @ np.linalg.pinv(ux).T), 0, 255)
+
+        means.append(psnr(rgb, to_rgb(y, draw(mean2x2(cb)), draw(mean2x2(cr)))))
+        least.append(psnr(rgb, to_rgb(y, draw(least_squares(cb)), draw(least_squares(cr)))))
+        print(f"{path}: 2x2 means {means[-1]:.2f} dB, least squares {least[-1]:.2f} dB")
+    print(f"mean over {len(paths)}: 2x2 means {np.mean(means):.2f} dB, least squares {np.mean(least):.2f} dB")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
