@@ -963,48 +963,33 @@ fn curve_fit_render_info_round_trip() {
     // Refusals: one line, non-zero exit, no output file.
     std::fs::write(path("bad.csv"), "0,0\n1,one\n").unwrap();
     std::fs::write(path("bad.json"), "{\"format\": \"pifs-curve\"}").unwrap();
+    let fit = |input: &str, options: &[&str], output: &str| -> Vec<String> {
+        let (input, output) = (path(input), path(output));
+        ["curve", "fit", &input]
+            .into_iter()
+            .chain(options.iter().copied())
+            .chain(["-o", &output])
+            .map(String::from)
+            .collect()
+    };
+    let render = |input: &str, output: &str| -> Vec<String> {
+        vec![
+            "curve".into(),
+            "render".into(),
+            path(input),
+            "-o".into(),
+            path(output),
+        ]
+    };
     for args in [
-        vec![
-            "curve",
-            "fit",
-            &path("bad.csv"),
-            "--points",
-            "4",
-            "-o",
-            &path("x.json"),
-        ],
-        vec![
-            "curve",
-            "fit",
-            &path("in.csv"),
-            "--points",
-            "1",
-            "-o",
-            &path("x.json"),
-        ],
-        vec![
-            "curve",
-            "fit",
-            &path("in.csv"),
-            "--points",
-            "4",
-            "--depth",
-            "40",
-            "-o",
-            &path("x.json"),
-        ],
-        vec![
-            "curve",
-            "fit",
-            &path("in.csv"),
-            "--points",
-            "4",
-            "-o",
-            &path("x.png"),
-        ],
-        vec!["curve", "render", &path("bad.json"), "-o", &path("x.svg")],
-        vec!["curve", "render", &path("c.json"), "-o", &path("x.txt")],
+        fit("bad.csv", &["--points", "4"], "x.json"),
+        fit("in.csv", &["--points", "1"], "x.json"),
+        fit("in.csv", &["--points", "4", "--depth", "40"], "x.json"),
+        fit("in.csv", &["--points", "4"], "x.png"),
+        render("bad.json", "x.svg"),
+        render("c.json", "x.txt"),
     ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let out = pifs(&args);
         assert!(!out.status.success(), "{args:?}");
         let err = String::from_utf8_lossy(&out.stderr);
