@@ -884,7 +884,7 @@ fn curve_fit_render_info_round_trip() {
     )
     .unwrap();
     for (input, json) in [("in.csv", "c.json"), ("in.svg", "s.json")] {
-        let out = pifs(&[
+        let stdout = ok(&pifs(&[
             "curve",
             "fit",
             &path(input),
@@ -893,13 +893,8 @@ fn curve_fit_render_info_round_trip() {
             "--smooth",
             "-o",
             &path(json),
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        assert!(String::from_utf8_lossy(&out.stdout).contains("8 parameters"));
+        ]));
+        assert!(stdout.contains("8 parameters"), "{stdout}");
         let file: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(path(json)).unwrap()).unwrap();
         assert_eq!(file["format"], "pifs-curve");
@@ -908,7 +903,7 @@ fn curve_fit_render_info_round_trip() {
         let rms = file["fit"]["rms"].as_f64().unwrap();
         assert!(rms < 1e-4, "{input}: rms {rms}");
     }
-    let out = pifs(&[
+    ok(&pifs(&[
         "curve",
         "render",
         &path("c.json"),
@@ -916,12 +911,7 @@ fn curve_fit_render_info_round_trip() {
         "4",
         "-o",
         &path("t.csv"),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ]));
     let table = std::fs::read_to_string(path("t.csv")).unwrap();
     assert_eq!(table.lines().count(), 17);
     let last: Vec<f64> = table
@@ -935,7 +925,7 @@ fn curve_fit_render_info_round_trip() {
         (last[0] - 4.0).abs() < 1e-3 && (last[1] - 1.0).abs() < 1e-3,
         "{last:?}"
     );
-    let out = pifs(&[
+    ok(&pifs(&[
         "curve",
         "render",
         &path("s.json"),
@@ -943,18 +933,17 @@ fn curve_fit_render_info_round_trip() {
         &path("in.svg"),
         "-o",
         &path("d.svg"),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ]));
     assert!(std::fs::read_to_string(path("d.svg"))
         .unwrap()
         .contains("projected-IFS curve"));
-    let out = pifs(&["curve", "info", &path("c.json"), "--data", &path("in.csv")]);
-    assert!(out.status.success());
-    let info = String::from_utf8_lossy(&out.stdout);
+    let info = ok(&pifs(&[
+        "curve",
+        "info",
+        &path("c.json"),
+        "--data",
+        &path("in.csv"),
+    ]));
     assert!(
         info.contains("4 control points, 2 maps") && info.contains("against"),
         "{info}"
@@ -990,10 +979,7 @@ fn curve_fit_render_info_round_trip() {
         render("c.json", "x.txt"),
     ] {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        let out = pifs(&args);
-        assert!(!out.status.success(), "{args:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        refused(&pifs(&args));
     }
     for name in ["x.json", "x.png", "x.svg", "x.txt"] {
         assert!(!dir.join(name).exists(), "{name}");
