@@ -263,43 +263,31 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
         Ok(())
     }
 
-    /// The zero flag, the sign and the prefix bits are decided in one loop, so that the
-    /// binary decision is inlined once: a zero (the commonest value) costs one decision.
+    /// The zero flag first, on its own (a zero, the commonest value, costs one decision and
+    /// nothing more), then the sign and the prefix bits.
     #[inline(never)]
     fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
-        let probs = &mut ints.probs;
-        let mut at = ctx.min(ZERO_CONTEXTS - 1);
-        // Decisions so far: 0 the zero flag, 1 the sign, then 2 + k for prefix bit k.
-        let mut stage = 0usize;
-        let mut negative = false;
-        loop {
-            let Some(p) = probs.get_mut(at) else {
-                return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
-            };
-            let bit = self.decision(p)?;
-            match stage {
-                0 if !bit => {
-                    *v = 0;
-                    return Ok(());
-                }
-                0 => at = SIGN,
-                1 => {
-                    negative = bit;
-                    at = PREFIX;
-                }
-                _ if !bit => break,
-                _ => {
-                    if stage > MAX_PREFIX {
-                        return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
-                    }
-                    at = PREFIX + (stage - 1).min(PREFIX_CONTEXTS - 1);
-                }
-            }
-            stage += 1;
+        let [zero @ .., sign, p0, p1, p2, p3, p4, p5] = &mut ints.probs;
+        if !self.decision(&mut zero[ctx.min(ZERO_CONTEXTS - 1)])? {
+            *v = 0;
+            return Ok(());
         }
-        // stage - 2 prefix bits were ones: the magnitude has that many suffix bits.
+        let negative = self.decision(sign)?;
+        let prefix = [p0, p1, p2, p3, p4, p5];
+        // Ones of the Exp-Golomb prefix so far: the magnitude has that many suffix bits.
+        let mut k = 0;
+        loop {
+            let p = &mut *prefix[k.min(PREFIX_CONTEXTS - 1)];
+            if !self.decision(p)? {
+                break;
+            }
+            k += 1;
+            if k >= MAX_PREFIX {
+                return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
+            }
+        }
         let mut mag: u32 = 1;
-        for _ in 2..stage {
+        for _ in 0..k {
             mag = (mag << 1) | u32::from(self.even()?);
         }
         // mag < 2^MAX_PREFIX, so the cast is lossless.

@@ -73,6 +73,15 @@ pub const MODELS: [ModelType; MODEL_COUNT] = [
     },
 ];
 
+// [`ModelType::spacing`] divides by a model's interval count with a shift.
+const _: () = {
+    let mut i = 0;
+    while i < MODELS.len() {
+        assert!(MODELS[i].intervals.is_power_of_two());
+        i += 1;
+    }
+};
+
 impl ModelType {
     /// Side of the control grid, `m + 1`.
     pub const fn grid(self) -> usize {
@@ -138,7 +147,8 @@ impl ModelType {
     /// model fits, [`ModelType::fits_block`]).
     pub const fn spacing(self, log2: u8) -> u32 {
         let size = if log2 < 16 { 1u32 << log2 } else { 1 << 15 };
-        size / self.intervals as u32
+        // Every model's interval count is a power of two: a shift, not a division.
+        size >> self.intervals.trailing_zeros()
     }
 
     /// Side of the grid of control values a leaf of side `2^log2` codes: the whole control

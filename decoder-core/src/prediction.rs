@@ -122,6 +122,48 @@ pub fn edge_pixels<P: SamplePrediction + ?Sized>(
     Some((pixel(along)?, pixel(along - spacing)?))
 }
 
+/// A stripe width, a whole number of coding tiles, whose remainders are made by a multiply
+/// and shifts rather than a division (a Cortex-M0 has no divide instruction); coordinates are
+/// below 2^16. One word: the tile count in the low [`TILE_COUNT_BITS`] bits, above them
+/// `ceil(2^RECIPROCAL_BITS / tiles)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct StripeWidth(u32);
+
+/// Precision of [`StripeWidth`]'s reciprocal: exact for quotients of numbers below
+/// `MAX_TILES` by divisors up to `MAX_TILES` (`tests::stripe_remainders_are_exact`).
+const RECIPROCAL_BITS: u32 = 18;
+/// The most coding tiles in a stripe: as wide as the widest image.
+const MAX_TILES: u32 = 512;
+/// Bits of [`StripeWidth`] that hold the tile count.
+const TILE_COUNT_BITS: u32 = 10;
+
+impl StripeWidth {
+    /// A stripe of `pixels`, if that is a whole number of coding tiles, at most [`MAX_TILES`].
+    const fn new(pixels: u32) -> Option<StripeWidth> {
+        let tiles = pixels / CODING_TILE;
+        if !pixels.is_multiple_of(CODING_TILE) || tiles == 0 || tiles > MAX_TILES {
+            return None;
+        }
+        let reciprocal = (1u32 << RECIPROCAL_BITS).div_ceil(tiles);
+        Some(StripeWidth(reciprocal << TILE_COUNT_BITS | tiles))
+    }
+
+    /// The width of no stream (before [`Frontier::start`]).
+    const NONE: StripeWidth = StripeWidth(0);
+
+    /// `x mod width`, for `x` below 2^16 (`x` for [`StripeWidth::NONE`]). Out of line: it is
+    /// called from a few places per leaf, and inlined copies cost more flash than the call
+    /// saves time.
+    #[inline(never)]
+    fn column(self, x: u32) -> u32 {
+        let tiles = self.0 & ((1 << TILE_COUNT_BITS) - 1);
+        let reciprocal = self.0 >> TILE_COUNT_BITS;
+        let tile = (x / CODING_TILE) & (MAX_TILES - 1);
+        let quotient = (tile * reciprocal) >> RECIPROCAL_BITS;
+        x.wrapping_sub(quotient * tiles * CODING_TILE)
+    }
+}
+
 /// The decoder's prediction memory: the last pixel decoded in each column of the current
 /// stripe and in each row of the current band, for an image of `width x height` coded in
 /// stripes of `stripe` pixels; holds stripes of up to `STRIPE` pixels.
@@ -131,7 +173,7 @@ pub struct Frontier<const STRIPE: usize = DEFAULT_STRIPE> {
     rows: [u8; CODING_TILE as usize],
     width: u32,
     height: u32,
-    stripe: u32,
+    stripe: StripeWidth,
     /// The stream's edge-smoothing strength ([`Capture`]).
     deblock: u8,
     /// For each row of a band: whether the pixel `rows` holds is a leaf's bottom-right pixel
@@ -153,7 +195,7 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
         rows: [0; CODING_TILE as usize],
         width: 0,
         height: 0,
-        stripe: 0,
+        stripe: StripeWidth::NONE,
         deblock: 0,
         corners: [0; CORNER_BYTES],
     };
@@ -163,18 +205,33 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
 
     /// Starts a stream of a `width x height` image coded in stripes of `stripe` pixels (a
     /// positive multiple of [`CODING_TILE`]) whose leaf edges are smoothed with strength
-    /// `deblock` ([`Capture`]); `false`, and nothing set, when such a stripe is wider than
-    /// this frontier holds. The slots keep what they hold: a slot is only read once a leaf of
+    /// `deblock` ([`Capture`]); `false`, and nothing set, when the stripe is not such a
+    /// multiple or is wider than this frontier holds. The slots keep what they hold: a slot is only read once a leaf of
     /// the stream has written it ([`beside_known`]).
     pub fn start(&mut self, width: u32, height: u32, stripe: u32, deblock: u8) -> bool {
-        if stripe == 0 || stripe > Self::CAPACITY {
+        let Some(stripe_width) = StripeWidth::new(stripe) else {
+            return false;
+        };
+        if stripe > Self::CAPACITY {
             return false;
         }
         self.width = width;
         self.height = height;
-        self.stripe = stripe;
+        self.stripe = stripe_width;
         self.deblock = deblock;
         true
+    }
+
+    /// [`beside_known`] for this frontier's stream, without a division.
+    #[inline]
+    fn known(&self, above: bool, x: u32, y: u32) -> bool {
+        x < self.width
+            && y < self.height
+            && if above {
+                y > 0
+            } else {
+                self.stripe.column(x) != 0
+            }
     }
 
     /// Does for a leaf that is not drawn what drawing it through [`Frontier::capture`] does,
@@ -212,8 +269,10 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
         out: &'a mut dyn TileOut,
     ) -> Capture<'a> {
         let last = node.size() - 1;
-        let (w, h, stripe) = (self.width, self.height, self.stripe.max(1));
+        let (w, h, stripe) = (self.width, self.height, self.stripe);
         let (right, bottom) = (node.x + last, node.y + last);
+        let above_known = self.known(true, node.x, node.y);
+        let left_known = self.known(false, node.x, node.y);
         Capture {
             columns: &mut self.columns,
             rows: &mut self.rows,
@@ -225,9 +284,9 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
             right,
             bottom,
             defer_row: bottom + 1 < h,
-            defer_column: right + 1 < w && (right + 1) % stripe != 0,
-            above_known: beside_known(true, node.x, node.y, w, h, stripe),
-            left_known: beside_known(false, node.x, node.y, w, h, stripe),
+            defer_column: right + 1 < w && stripe.column(right + 1) != 0,
+            above_known,
+            left_known,
             limit: i32::from(self.deblock) * step,
         }
     }
@@ -250,7 +309,7 @@ pub struct Capture<'a> {
     columns: &'a mut [u8],
     rows: &'a mut [u8],
     corners: &'a mut [u8; CORNER_BYTES],
-    stripe: u32,
+    stripe: StripeWidth,
     out: &'a mut dyn TileOut,
     left: u32,
     top: u32,
@@ -322,9 +381,10 @@ impl Capture<'_> {
     /// pixels above, which are smoothed, drawn and kept.
     fn top_edge(&mut self, x: u32, y: u32, row: &mut [u8], original: &[u8]) -> Result<(), Stop> {
         let mut above = [0u8; TILE];
+        // A tile lies inside one stripe (stripes are whole coding tiles).
+        let first = self.stripe.column(x) as usize;
         for (i, (q, &q_before)) in row.iter_mut().zip(original).enumerate() {
-            let column = ((x + i as u32) % self.stripe) as usize;
-            let Some(slot) = self.columns.get_mut(column) else {
+            let Some(slot) = self.columns.get_mut(first + i) else {
                 continue;
             };
             if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
@@ -418,11 +478,10 @@ impl TileOut for Capture<'_> {
                 self.set_corner(py, py == self.bottom && self.defer_row);
             }
             if py == self.bottom {
-                for (i, &p) in buf[j * wu..(j + 1) * wu].iter().enumerate() {
-                    let column = ((x + i as u32) % self.stripe) as usize;
-                    if let Some(slot) = self.columns.get_mut(column) {
-                        *slot = p;
-                    }
+                let first = self.stripe.column(x) as usize;
+                let row = &buf[j * wu..(j + 1) * wu];
+                if let Some(slots) = self.columns.get_mut(first..first + wu) {
+                    slots.copy_from_slice(row);
                 }
             }
         }
@@ -453,11 +512,11 @@ impl TileOut for Capture<'_> {
 impl<const STRIPE: usize> SamplePrediction for Frontier<STRIPE> {
     #[inline]
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
-        if !beside_known(above, x, y, self.width, self.height, self.stripe) {
+        if !self.known(above, x, y) {
             return None;
         }
         let slot = if above {
-            self.columns.get((x % self.stripe) as usize)
+            self.columns.get(self.stripe.column(x) as usize)
         } else {
             self.rows.get((y % CODING_TILE) as usize)
         };
@@ -468,6 +527,23 @@ impl<const STRIPE: usize> SamplePrediction for Frontier<STRIPE> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The reciprocal remainder is the remainder for every stripe of whole coding tiles and
+    /// every coordinate below 2^16; other widths are refused.
+    #[test]
+    fn stripe_remainders_are_exact() {
+        for tiles in 1..=MAX_TILES {
+            let pixels = tiles * CODING_TILE;
+            let stripe = StripeWidth::new(pixels).unwrap();
+            for x in 0..1u32 << 16 {
+                assert_eq!(stripe.column(x), x % pixels, "{tiles} tiles, {x}");
+            }
+        }
+        for pixels in [0, 1, 100, 129, (MAX_TILES + 1) * CODING_TILE] {
+            assert_eq!(StripeWidth::new(pixels), None, "{pixels}");
+        }
+        assert_eq!(StripeWidth::NONE.column(5), 5);
+    }
     use crate::model::{Weights, MODELS};
 
     /// A bilinear patch with corner values `v` (sample units).

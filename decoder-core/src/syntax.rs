@@ -16,15 +16,15 @@ use crate::format::{div_round, med, read_leb128, write_leb128, Leb128Error, CODI
 pub use crate::format::{MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
 use crate::model::{
-    for_each_free_tap, ModelType, Weights, MAX_CONTROL, MAX_WEIGHTS, MODELS, MODEL_COUNT,
+    for_each_free_tap, ModelType, Weights, MAX_CONTROL, MAX_GRID, MAX_WEIGHTS, MODELS, MODEL_COUNT,
     SAMPLE_MAX, SAMPLE_MIN, WEIGHT_LIMIT,
 };
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
 use crate::synthesis::Patch;
 use control::{
-    band_level, coefficient_step, expand_pixel_grid, grid_position, inverse_grid_transform,
-    transform_order, WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, RASTER_ORDER,
-    WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+    band_level, band_level_table, band_multiplier_table, coefficient_step, expand_pixel_grid,
+    grid_position, inverse_grid_transform, scaled_step, transform_order, WeightQuantiser,
+    CONTROL_QUANTISERS, CONTROL_STEPS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
 };
 use initial_contexts::{CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES};
 
@@ -663,22 +663,16 @@ pub fn transform_control_values(
     out: &mut [i16; MAX_CONTROL],
 ) {
     *out = [0; MAX_CONTROL];
-    for (i, (v, &k)) in out.iter_mut().zip(indices).take(side * side).enumerate() {
+    let multipliers = band_multiplier_table(side);
+    for ((v, &k), &b) in out.iter_mut().zip(indices).zip(multipliers) {
         // A 16-bit index times a step below 2^14: no overflow.
-        let c = i32::from(k) * coefficient_step(side, i, step);
+        let c = i32::from(k) * scaled_step(step, b);
         *v = c.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
     }
     inverse_grid_transform(out, side);
     for v in out.iter_mut().take(side * side) {
         *v = (*v).clamp(SAMPLE_MIN as i16, SAMPLE_MAX as i16);
     }
-}
-
-/// What a control index is coded against: the first one's prediction, or the pixels beside an
-/// index of DPCM's first row or column (if known).
-enum Prediction {
-    First(i32),
-    Edge(Option<(i32, i32)>),
 }
 
 /// The shape of a leaf's control coding: its step, the coded grid's side, the spacing of its
@@ -937,68 +931,146 @@ fn code_control<C: Coder>(
         spacing,
         transform,
     } = *grid;
-    let order = if transform {
-        transform_order(side)
+    if side == 0 || side > MAX_GRID {
+        return Ok(());
+    }
+    // The first coded value is grid position 0 in both orders. A grid transform's low band is
+    // the block's mean, DPCM's first value its corner.
+    let (width, q) = if transform {
+        (node.size(), coefficient_step(side, 0, step))
     } else {
-        &RASTER_ORDER[..side * side]
+        (1, step)
     };
-    // The first coded value is grid position 0 in both orders: its residual's magnitude is
-    // kept for its neighbours' contexts.
-    let mut first_magnitude = 0;
-    // DPCM: the last values reconstructed on the first row and in the first column, which the
-    // next ones there are predicted from.
-    let (mut row_value, mut column_value) = (0, 0);
-    for (n, &i) in order.iter().enumerate() {
+    let (p, exact) = prediction.predict(node.x, node.y, width);
+    let class = if exact { CLASS_SHARED } else { CLASS_FIRST };
+    let predicted = div_round(p, q);
+    let mut residual = i32::from(control[0]) - predicted;
+    contexts[class].code(c, 0, &mut residual)?;
+    control[0] = control_index(predicted + residual)?;
+    // Its residual's magnitude stands for it in its neighbours' contexts.
+    let first_magnitude = residual.unsigned_abs().min(2) as usize;
+    if transform {
+        code_details(c, contexts, side, first_magnitude, control)
+    } else {
+        let edges = DpcmEdges {
+            node,
+            prediction,
+            spacing,
+            step,
+        };
+        code_dpcm(c, contexts, side, first_magnitude, &edges, control)
+    }
+}
+
+/// The context magnitude of a coded index: `min(|k|, 2)`.
+#[inline(always)]
+fn magnitude(index: i16) -> usize {
+    usize::from(index.unsigned_abs().min(2))
+}
+
+/// A control index, which a stream must keep within 16 bits.
+#[inline]
+fn control_index(index: i32) -> Result<i16, DecodeError> {
+    i16::try_from(index).map_err(|_| DecodeError::InvalidData(SyntaxElement::ControlValue))
+}
+
+/// The grid transform's detail coefficients, after the low band: coded as they are, class by
+/// transform level, in the transform's coding order.
+fn code_details<C: Coder>(
+    c: &mut C,
+    contexts: &mut [IntContexts; CONTROL_CLASSES],
+    side: usize,
+    first_magnitude: usize,
+    control: &mut [i16; MAX_CONTROL],
+) -> Result<(), DecodeError> {
+    let levels = band_level_table(side);
+    for &i in transform_order(side).iter().skip(1) {
         let i = usize::from(i);
         let (r, col) = grid_position(i, side);
-        let base = match (n, r) {
-            (0, _) => 0,
-            (_, 0) => row_value,
-            _ => column_value,
-        };
-        let (pred_index, class) = if n == 0 {
-            // A grid transform's low band is the block's mean, DPCM's first value its corner.
-            let width = if transform { node.size() } else { 1 };
-            let (p, exact) = prediction.predict(node.x, node.y, width);
-            let q = if transform {
-                coefficient_step(side, i, step)
-            } else {
-                step
-            };
-            let class = if exact { CLASS_SHARED } else { CLASS_FIRST };
-            (Prediction::First(div_round(p, q)), class)
-        } else {
-            let class = control_class(transform, side, r, col);
-            let beside = if transform || (r > 0 && col > 0) {
-                None
-            } else {
-                edge_pixels(prediction, node, spacing, r == 0, r + col)
-            };
-            (Prediction::Edge(beside), class)
-        };
+        let level = usize::from(levels.get(i).copied().unwrap_or(0));
+        let class = CLASS_DETAIL + level.min(DETAIL_CLASSES - 1);
         let ctx = zero_context(control, first_magnitude, side, r, col);
-        let (pred_index, ctx) = match pred_index {
-            Prediction::First(p) => (p, ctx),
-            Prediction::Edge(Some((a, b))) => {
-                (edge_offset(base, a, b, step), edge_context(ctx, a, b, step))
-            }
-            Prediction::Edge(None) => (0, ctx),
+        let mut index = i32::from(control[i]);
+        contexts[class].code(c, ctx, &mut index)?;
+        // A coded integer has fewer than 16 bits.
+        control[i] = index as i16;
+    }
+    Ok(())
+}
+
+/// What a DPCM leaf's first row and column are predicted from: the pixels beside the leaf.
+struct DpcmEdges<'a> {
+    node: &'a Node,
+    prediction: &'a dyn SamplePrediction,
+    spacing: u32,
+    step: i32,
+}
+
+impl DpcmEdges<'_> {
+    /// Codes the index at position `k` of the first row (`row`) or column, whose value before it
+    /// in the leaf is `base` and whose zero-flag context is `ctx` before the pixels beside it
+    /// are seen; returns its reconstructed value.
+    #[inline]
+    fn code<C: Coder>(
+        &self,
+        c: &mut C,
+        ints: &mut IntContexts,
+        (row, k): (bool, usize),
+        (base, ctx): (i32, usize),
+        index: &mut i16,
+    ) -> Result<i32, DecodeError> {
+        let step = self.step;
+        let (predicted, ctx) = match edge_pixels(self.prediction, self.node, self.spacing, row, k) {
+            Some((a, b)) => (edge_offset(base, a, b, step), edge_context(ctx, a, b, step)),
+            None => (0, ctx),
         };
-        let mut residual = i32::from(control[i]) - pred_index;
-        contexts[class].code(c, ctx, &mut residual)?;
-        let index = pred_index + residual;
-        control[i] = i16::try_from(index)
-            .map_err(|_| DecodeError::InvalidData(SyntaxElement::ControlValue))?;
-        // The first value and the first row and column, reconstructed (DPCM's).
-        let value = i32::from(dequantise_control(base, step, index));
-        if n == 0 {
-            first_magnitude = residual.unsigned_abs().min(2) as usize;
-        }
-        if r == 0 {
-            row_value = value;
-        }
-        if col == 0 {
-            column_value = value;
+        let mut residual = i32::from(*index) - predicted;
+        ints.code(c, ctx, &mut residual)?;
+        let k = predicted + residual;
+        *index = control_index(k)?;
+        Ok(i32::from(dequantise_control(base, step, k)))
+    }
+}
+
+/// DPCM after the first value, in raster order: the first row and column (class *edge*,
+/// predicted from the pixels beside them where known), the interior (class *interior*, coded
+/// as it is).
+fn code_dpcm<C: Coder>(
+    c: &mut C,
+    contexts: &mut [IntContexts; CONTROL_CLASSES],
+    side: usize,
+    first_magnitude: usize,
+    edges: &DpcmEdges<'_>,
+    control: &mut [i16; MAX_CONTROL],
+) -> Result<(), DecodeError> {
+    let first_value = i32::from(dequantise_control(0, edges.step, i32::from(control[0])));
+    let mut value = first_value;
+    let mut before = first_magnitude;
+    for (k, at) in (1..).zip(&mut control[1..side]) {
+        let ctx = 2 * before;
+        value = edges.code(c, &mut contexts[CLASS_EDGE], (true, k), (value, ctx), at)?;
+        before = magnitude(*at);
+    }
+    let mut value = first_value;
+    let mut above = first_magnitude;
+    for r in 1..side {
+        let row = r * side;
+        let at = &mut control[row];
+        value = edges.code(
+            c,
+            &mut contexts[CLASS_EDGE],
+            (false, r),
+            (value, 2 * above),
+            at,
+        )?;
+        above = magnitude(*at);
+        let interior = &mut contexts[CLASS_INTERIOR];
+        for i in row + 1..row + side {
+            let ctx = magnitude(control[i - 1]) + magnitude(control[i - side]);
+            let mut index = i32::from(control[i]);
+            interior.code(c, ctx, &mut index)?;
+            // A coded integer has fewer than 16 bits.
+            control[i] = index as i16;
         }
     }
     Ok(())

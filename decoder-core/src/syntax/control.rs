@@ -80,6 +80,11 @@ const fn band_levels(side: usize) -> [u8; MAX_CONTROL] {
     out
 }
 
+/// [`band_level`] of every position of a coded grid of side `side`, row-major.
+pub fn band_level_table(side: usize) -> &'static [u8] {
+    grid_entries(&BAND_LEVELS, side)
+}
+
 /// [`band_levels`] of every coded grid side.
 const BAND_LEVELS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandLevels);
 
@@ -209,66 +214,61 @@ pub fn expand_pixel_grid(values: &mut [i16; MAX_CONTROL], m: usize) {
     }
 }
 
-/// Row-major order: the coding order of DPCM control values.
-pub const RASTER_ORDER: [u8; MAX_CONTROL] = raster_order();
-
-const fn raster_order() -> [u8; MAX_CONTROL] {
-    let mut out = [0u8; MAX_CONTROL];
-    let mut i = 0;
-    while i < MAX_CONTROL {
-        out[i] = i as u8;
-        i += 1;
-    }
-    out
-}
-
 /// One inverse lifting step of the reversible 5/3 wavelet (LeGall, as in JPEG 2000's
 /// lossless path, with symmetric extension) on the `m` values of `g` at `start`, `start +
 /// stride`, ...: low-band values first, then high-band values; replaced by the signal, each
 /// value saturated to the `i16` range it is stored in. (The intermediate values are sums of a
-/// few 16-bit values, so 32 bits hold them exactly.)
-const fn inverse_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, m: usize) {
+/// few 16-bit values, so 32 bits hold them exactly.) `y` is scratch space for the band values.
+const fn inverse_line(
+    g: &mut [i16; MAX_CONTROL],
+    y: &mut [i16; MAX_GRID],
+    start: usize,
+    stride: usize,
+    m: usize,
+) {
     if m < 2 || m > MAX_GRID || start + (m - 1) * stride >= MAX_CONTROL {
         return;
     }
     let nl = m.div_ceil(2);
     let nh = m / 2;
     // The band values, read once (the signal is written over them).
-    let mut y = [0i16; MAX_GRID];
     let mut i = 0;
+    let mut at = start;
     while i < m {
-        y[i] = g[start + i * stride];
+        y[i] = g[at];
+        at += stride;
         i += 1;
     }
-    // Even samples: low band minus the update from the neighbouring details; odd samples:
-    // detail plus the prediction from the neighbouring even samples (the one to the right is
-    // made first).
-    let mut left = even_sample(&y, 0, nl, nh);
+    // Even samples: low band minus the update from the neighbouring details (mirrored at the
+    // ends: d[-1] = d[0], d[nh] = d[nh - 1]); odd samples: detail plus the prediction from the
+    // neighbouring even samples (the one to the right is made first; past the end, the one to
+    // the left).
+    let mut detail = y[nl] as i32;
+    let mut left = y[0] as i32 - ((2 * detail + 2) >> 2);
     g[start] = narrow(left);
+    let mut at = start + stride;
     i = 0;
     while i < nh {
+        let next = if i + 1 < nh {
+            y[nl + i + 1] as i32
+        } else {
+            detail
+        };
         let more = 2 * i + 2 < m;
         let right = if more {
-            even_sample(&y, i + 1, nl, nh)
+            y[i + 1] as i32 - ((detail + next + 2) >> 2)
         } else {
             left
         };
-        g[start + (2 * i + 1) * stride] = narrow(y[nl + i] as i32 + ((left + right + 1) >> 1));
+        g[at] = narrow(detail + ((left + right + 1) >> 1));
         if more {
-            g[start + (2 * i + 2) * stride] = narrow(right);
+            g[at + stride] = narrow(right);
         }
+        at += 2 * stride;
         left = right;
+        detail = next;
         i += 1;
     }
-}
-
-/// Even sample `i` of the inverse lifting step: low-band value `i` minus the update from the
-/// neighbouring details (high-band values `nl + i - 1` and `nl + i`, mirrored at the ends).
-#[inline(always)]
-const fn even_sample(y: &[i16; MAX_GRID], i: usize, nl: usize, nh: usize) -> i32 {
-    let l = if i == 0 { 0 } else { i - 1 };
-    let r = if i < nh { i } else { nh - 1 };
-    y[i] as i32 - ((y[nl + l] as i32 + y[nl + r] as i32 + 2) >> 2)
 }
 
 /// `v` saturated to the `i16` range.
@@ -288,18 +288,20 @@ const fn narrow(v: i32) -> i16 {
 /// values (saturating), so that a decoder needs no wider copy of the grid.
 pub const fn inverse_grid_transform(g: &mut [i16; MAX_CONTROL], side: usize) {
     let (sizes, levels) = grid_sizes(side);
+    // One line's band values at a time (cleared once, not per line).
+    let mut y = [0i16; MAX_GRID];
     let mut k = levels;
     while k > 0 {
         k -= 1;
         let m = sizes[k];
         let mut j = 0;
         while j < m {
-            inverse_line(g, j, side, m);
+            inverse_line(g, &mut y, j, side, m);
             j += 1;
         }
         j = 0;
         while j < m {
-            inverse_line(g, j * side, 1, m);
+            inverse_line(g, &mut y, j * side, 1, m);
             j += 1;
         }
     }
@@ -355,9 +357,21 @@ const BAND_MULTIPLIERS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandMul
 /// The quantiser step of coefficient `i` (row-major) of a control grid of side `side` for the
 /// control step `step`: `max(1, (step * multiplier + 32) >> 6)`.
 pub fn coefficient_step(side: usize, i: usize, step: i32) -> i32 {
-    let table = grid_entries(&BAND_MULTIPLIERS, side);
-    let mult = i32::from(table.get(i).copied().unwrap_or(0));
-    ((step * mult + BAND_ONE / 2) >> 6).max(1)
+    scaled_step(
+        step,
+        band_multiplier_table(side).get(i).copied().unwrap_or(0),
+    )
+}
+
+/// The band multipliers of a coded grid of side `side`, row-major ([`band_multipliers`]).
+pub fn band_multiplier_table(side: usize) -> &'static [u8] {
+    grid_entries(&BAND_MULTIPLIERS, side)
+}
+
+/// A control step scaled by a band multiplier: `max(1, (step * multiplier + 32) >> 6)`.
+#[inline]
+pub fn scaled_step(step: i32, multiplier: u8) -> i32 {
+    ((step * i32::from(multiplier) + BAND_ONE / 2) >> 6).max(1)
 }
 
 /// Number of control-value quantisers (the 'cquant' element, coded on 4 bits).
