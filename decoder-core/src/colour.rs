@@ -399,6 +399,40 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
         }
     }
 
+    /// The RGB pixels of a coded-size tile `area` (luma `luma`, row-major) that lies in the
+    /// leaf: [`ColourOut::chroma_row`]'s chroma, made row by row along the leaf's surfaces
+    /// and converted as it is made.
+    fn convert_inside(&self, area: Rect, luma: &[u8], rgb: &mut [u8; 3 * TILE * TILE]) {
+        let n = &self.patch.node;
+        let (i0, j0) = (area.x - 2 * n.x, area.y - 2 * n.y);
+        let w = (area.w as usize).min(TILE);
+        let mut rows = luma.chunks_exact(w).zip(rgb.chunks_exact_mut(3 * w));
+        for j in j0..j0 + area.h {
+            let Some((luma, rgb)) = rows.next() else {
+                return;
+            };
+            // Each plane's row on its own (a short loop the registers hold), then the edges
+            // beside the leaf mixed in, then the conversion.
+            let mut chroma = [[0u8; TILE]; 2];
+            for (plane, row) in self.patch.planes.iter().zip(chroma.iter_mut()) {
+                SurfaceRow::new(plane, n.log2, 2, centre(j)).fill(i0, &mut row[..w]);
+            }
+            if i0 == 0 || j == 0 {
+                let (x, y) = (area.x, area.y + j - j0);
+                let last = if j == 0 { w } else { 1 };
+                for (k, i) in (i0..).take(last).enumerate() {
+                    for (p, row) in chroma.iter_mut().enumerate() {
+                        row[k] = self.beside_edges(p, row[k], (x + k as u32, y), (i, j));
+                    }
+                }
+            }
+            let [cb, cr] = &chroma;
+            for (((&l, px), &b), &r) in luma.iter().zip(rgb.chunks_exact_mut(3)).zip(cb).zip(cr) {
+                px.copy_from_slice(&ycbcr_to_rgb(l, b, r));
+            }
+        }
+    }
+
     /// Chroma `c` of plane `p` under luma pixel `(x, y)` (offset `(i, j)` in the leaf) with the
     /// chroma beside the leaf mixed in a quarter on its first column and first row, when known.
     #[inline(never)]
@@ -464,6 +498,15 @@ impl<'a> SurfaceRow<'a> {
         }
     }
 
+    /// The values under consecutive luma columns `first, first + 1, ...` of the leaf (at
+    /// their centres, [`centre`]), one per entry of `out`.
+    #[inline(never)]
+    fn fill(&mut self, first: u32, out: &mut [u8]) {
+        for (i, v) in (first..).zip(out.iter_mut()) {
+            *v = self.at(centre(i));
+        }
+    }
+
     /// The 8-bit value at position `q` along the row.
     #[inline]
     fn at(&mut self, q: u32) -> u8 {
@@ -497,6 +540,15 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
             return Ok(());
         }
         let k = self.scale.log2();
+        let node = &self.patch.node;
+        if k == 0 && x >= 2 * node.x && y >= 2 * node.y {
+            self.convert_inside(tile.area, tile.pixels, &mut rgb);
+            return self.out.put(Tile {
+                area: tile.area,
+                pixels: &rgb[..3 * n],
+                channels: 3,
+            });
+        }
         let coded = |v: u32| {
             if k >= 0 {
                 v >> k
