@@ -19,7 +19,7 @@ use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 use crate::format::DEFAULT_STRIPE;
 use crate::geometry::Rect;
-use crate::prediction::{Frontier, SamplePrediction};
+use crate::prediction::{Frontier, SamplePrediction, RECORD_WHOLE};
 use crate::syntax::control_step;
 use crate::syntax::{
     stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
@@ -631,6 +631,10 @@ fn draw_leaf<const CAPACITY: usize>(
                 out: &mut clipped,
             },
         );
+        if node.size() <= RECORD_WHOLE {
+            // Recorded whole: every pixel of the leaf went to the subsampling.
+            return;
+        }
         // The leaf's first row and column are the edges' (its last ones are off the grid).
         let (x, y, n) = (node.x >> shift, node.y >> shift, node.size() >> shift);
         let interior = Rect {

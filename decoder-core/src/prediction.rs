@@ -164,6 +164,10 @@ impl StripeWidth {
     }
 }
 
+/// The side up to which [`Frontier::record`] draws a leaf whole: its four edge strips would
+/// tabulate more tiles than the whole leaf (a 16 px leaf is 2 x 2 tiles; its strips cross 8).
+pub const RECORD_WHOLE: u32 = 2 * TILE as u32;
+
 /// The decoder's prediction memory: the last pixel decoded in each column of the current
 /// stripe and in each row of the current band, for an image of `width x height` coded in
 /// stripes of `stripe` pixels; holds stripes of up to `STRIPE` pixels.
@@ -235,13 +239,20 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
     }
 
     /// Does for a leaf that is not drawn what drawing it through [`Frontier::capture`] does,
-    /// rendering only the leaf's edges from its patch (each pixel once, the first row and column
-    /// first) and handing `out` only the pixels beside the leaf that it draws (see
-    /// [`Capture`]); the leaf's own pixels go to `out` too, for a caller that cuts them away.
+    /// handing `out` the pixels beside the leaf that it draws (see [`Capture`]) and the leaf's
+    /// own pixels, for a caller that cuts them away: a leaf of at most [`RECORD_WHOLE`] pixels
+    /// a side is drawn whole (all its pixels go to `out`); a larger one has only its edges
+    /// rendered from its patch (each pixel once, the first row and column first).
     #[inline(never)]
     pub fn record(&mut self, node: &Node, step: i32, patch: &Patch, out: &mut dyn TileOut) {
         let s = node.size();
         let image = Rect::of_size(self.width, self.height);
+        if s <= RECORD_WHOLE {
+            let whole = node.rect().intersect(&image);
+            // A stop is the caller's to report: its own out stops it again.
+            let _ = patch.render_to(node, whole, &mut self.capture(node, step, out));
+            return;
+        }
         let strip = |x: u32, y: u32, w: u32, h: u32| Rect { x, y, w, h };
         let strips = [
             strip(node.x, node.y, s, 1),
