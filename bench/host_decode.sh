@@ -6,20 +6,20 @@
 #      stream; with OLD=path/to/another/pifs, runs of the two binaries are interleaved and the
 #      ratio of their medians is printed too (this machine's load drifts, so only interleaved
 #      runs compare binaries).
-# Streams: STREAMS_DIR/kodimNN-RATEbpp.pifs (default target/kodak-streams, made with
-# `pifs rd IMAGE --out-dir target/kodak-streams` for every Kodak image when missing).
+# Streams: STREAMS_DIR/kodimNN-RATEbpp.pifs (default target/kodak-streams-gray, made with
+# `pifs rd --gray IMAGE --out-dir target/kodak-streams-gray` for every Kodak image when missing).
 #
 #   [OLD=target/baseline/pifs-before] [REPEATS=15] [ROUNDS=5] bash bench/host_decode.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-dir=${STREAMS_DIR:-target/kodak-streams}
+dir=${STREAMS_DIR:-target/kodak-streams-gray}
 repeats=${REPEATS:-15}
 rounds=${ROUNDS:-5}
 cargo build --release -q -p host-encoder --bin pifs --example decode_speed
 mkdir -p "$dir"
 for img in ../shared/images/kodak/kodim*.png; do
     stem=$(basename "$img" .png)
-    [ -s "$dir/$stem-0.5bpp.pifs" ] || ./target/release/pifs rd "$img" --out-dir "$dir" >/dev/null
+    [ -s "$dir/$stem-0.5bpp.pifs" ] || ./target/release/pifs rd --gray "$img" --out-dir "$dir" >/dev/null
 done
 echo "| rate (bpp) | in process, median of the per-image medians (ms) | min | max |"
 echo "|---:|---:|---:|---:|"

@@ -28,8 +28,9 @@ fn main() {
     for path in std::env::args().skip(1) {
         let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
         let decoder = Decoder::new(&data).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let channels = usize::from(decoder.header().channels);
         let (w, h) = decoder.scale(scale).output_size();
-        let mut out = vec![0u8; (w * h) as usize];
+        let mut out = vec![0u8; (w * h) as usize * channels];
         let mut times = Vec::with_capacity(repeats);
         for _ in 0..repeats {
             let start = Instant::now();
