@@ -70,13 +70,21 @@ pub trait SamplePrediction {
 /// stripe's left edge. The frontier's availability rule, shared by decoders and encoders.
 #[inline]
 pub fn beside_known(above: bool, x: u32, y: u32, width: u32, height: u32, stripe: u32) -> bool {
-    x < width
-        && y < height
-        && if above {
-            y > 0
-        } else {
-            stripe > 0 && !x.is_multiple_of(stripe)
-        }
+    beside_rule(above, (x, y), (width, height), || {
+        x.checked_rem(stripe).unwrap_or(0)
+    })
+}
+
+/// [`beside_known`] with the stripe's column of `x` (`x mod stripe`, 0 for no stripe) made by
+/// `column`, only for a pixel to the left.
+#[inline(always)]
+fn beside_rule(
+    above: bool,
+    (x, y): (u32, u32),
+    (width, height): (u32, u32),
+    column: impl FnOnce() -> u32,
+) -> bool {
+    x < width && y < height && if above { y > 0 } else { column() != 0 }
 }
 
 /// The index a DPCM leaf's first-row or first-column control value is coded against, in steps
@@ -229,13 +237,8 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
     /// [`beside_known`] for this frontier's stream, without a division.
     #[inline]
     fn known(&self, above: bool, x: u32, y: u32) -> bool {
-        x < self.width
-            && y < self.height
-            && if above {
-                y > 0
-            } else {
-                self.stripe.column(x) != 0
-            }
+        let size = (self.width, self.height);
+        beside_rule(above, (x, y), size, || self.stripe.column(x))
     }
 
     /// Does for a leaf that is not drawn what drawing it through [`Frontier::capture`] does,
