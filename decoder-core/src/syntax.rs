@@ -395,12 +395,18 @@ pub const STEP_GROUPS: usize = 3;
 #[inline]
 pub fn control_class(transform: bool, side: usize, r: usize, c: usize) -> usize {
     if transform {
-        CLASS_DETAIL + band_level(side, r, c).min(DETAIL_CLASSES - 1)
+        detail_class(band_level(side, r, c))
     } else if r == 0 || c == 0 {
         CLASS_EDGE
     } else {
         CLASS_INTERIOR
     }
+}
+
+/// The class of a grid-transform coefficient of band level `level` (0: the finest detail).
+#[inline(always)]
+fn detail_class(level: usize) -> usize {
+    CLASS_DETAIL + level.min(DETAIL_CLASSES - 1)
 }
 
 /// The control step of control quantiser `cq`, in sample units (0 for a value no leaf has).
@@ -987,8 +993,7 @@ fn code_details<C: Coder>(
     for &i in transform_order(side).iter().skip(1) {
         let i = usize::from(i);
         let (r, col) = grid_position(i, side);
-        let level = usize::from(levels.get(i).copied().unwrap_or(0));
-        let class = CLASS_DETAIL + level.min(DETAIL_CLASSES - 1);
+        let class = detail_class(usize::from(levels.get(i).copied().unwrap_or(0)));
         let ctx = zero_context(control, first_magnitude, side, r, col);
         let mut index = i32::from(control[i]);
         contexts[class].code(c, ctx, &mut index)?;
