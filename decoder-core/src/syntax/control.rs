@@ -363,7 +363,7 @@ pub fn coefficient_step(side: usize, i: usize, step: i32) -> i32 {
     )
 }
 
-/// The band multipliers of a coded grid of side `side`, row-major ([`band_multipliers`]).
+/// The band multipliers of a coded grid of side `side`, row-major (see `band_multipliers`).
 pub fn band_multiplier_table(side: usize) -> &'static [u8] {
     grid_entries(&BAND_MULTIPLIERS, side)
 }
