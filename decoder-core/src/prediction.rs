@@ -218,8 +218,8 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
     /// Starts a stream of a `width x height` image coded in stripes of `stripe` pixels (a
     /// positive multiple of [`CODING_TILE`]) whose leaf edges are smoothed with strength
     /// `deblock` ([`Capture`]); `false`, and nothing set, when the stripe is not such a
-    /// multiple or is wider than this frontier holds. The slots keep what they hold: a slot is only read once a leaf of
-    /// the stream has written it ([`beside_known`]).
+    /// multiple or is wider than this frontier holds. The slots keep what they hold: a slot is
+    /// only read once a leaf of the stream has written it ([`beside_known`]).
     pub fn start(&mut self, width: u32, height: u32, stripe: u32, deblock: u8) -> bool {
         let Some(stripe_width) = StripeWidth::new(stripe) else {
             return false;
