@@ -147,6 +147,11 @@ struct SequentialFactor {
     weights: Vec<f64>,
     /// The form itself, in the same order.
     form: DMatrix<f64>,
+    /// The reciprocal of each row's last entry (a multiply, where a division would stall the
+    /// sequential quantisation's chain).
+    inverse_last: Vec<f64>,
+    /// The reciprocal of each diagonal entry of the form.
+    inverse_weights: Vec<f64>,
 }
 
 impl SequentialFactor {
@@ -163,11 +168,15 @@ impl SequentialFactor {
             let col = n - 1 - k;
             rows.extend((0..=k).map(|j| l[(n - 1 - j, col)]));
         }
-        let weights = (0..n).map(|k| g[(k, k)]).collect();
+        let weights: Vec<f64> = (0..n).map(|k| g[(k, k)]).collect();
+        let inverse_last = (0..n).map(|k| 1.0 / rows[k * (k + 1) / 2 + k]).collect();
+        let inverse_weights = weights.iter().map(|w| 1.0 / w).collect();
         Some(SequentialFactor {
             rows,
             weights,
             form: g.clone(),
+            inverse_last,
+            inverse_weights,
         })
     }
 
@@ -369,6 +378,7 @@ fn quantise_dpcm(
         e.feedback.values.weights[..n].iter().sum::<f64>() / n as f64
     });
     let mut form = 0.0;
+    let inverse_step = 1.0 / f64::from(step);
     for i in 0..n {
         // With error feedback: the row's partial product and last entry.
         let feedback = exact.map(|e| {
@@ -376,8 +386,9 @@ fn quantise_dpcm(
             (f.partial(i, &errors[..i]), f.row(i)[i])
         });
         let (target, relative_weight) = match (exact, feedback) {
-            (Some(e), Some((partial, last))) => (
-                (e.samples[i] - partial / last).clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX)),
+            (Some(e), Some((partial, _))) => (
+                (e.samples[i] - partial * e.feedback.values.inverse_last[i])
+                    .clamp(f64::from(SAMPLE_MIN), f64::from(SAMPLE_MAX)),
                 e.feedback.values.weights[i] / mean_weight,
             ),
             _ => (targets.samples[i], 1.0),
@@ -404,7 +415,7 @@ fn quantise_dpcm(
             + rounding.round(
                 indices,
                 i,
-                (target - f64::from(base)) / f64::from(step) - f64::from(offset),
+                (target - f64::from(base)) * inverse_step - f64::from(offset),
                 relative_weight,
                 context,
             );
@@ -433,15 +444,18 @@ fn quantise_coefficients(
     let order = transform_order(side);
     let n = order.len();
     let mut steps = [0.0f64; MAX_CONTROL];
-    for (s, &i) in steps.iter_mut().zip(order) {
+    let mut inverse_steps = [0.0f64; MAX_CONTROL];
+    for ((s, inverse), &i) in steps.iter_mut().zip(&mut inverse_steps).zip(order) {
         *s = f64::from(coefficient_step(side, usize::from(i), step));
+        *inverse = 1.0 / *s;
     }
     let Some(exact) = &targets.exact else {
         for (k, &i) in order.iter().enumerate() {
             let i = usize::from(i);
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
             indices[i] =
-                rounding.round(indices, i, targets.coefficients[i] / steps[k], 1.0, None) as i16;
+                rounding.round(indices, i, targets.coefficients[i] * inverse_steps[k], 1.0, None)
+                    as i16;
         }
         return None;
     };
@@ -459,8 +473,14 @@ fn quantise_coefficients(
     for (k, &i) in order.iter().enumerate() {
         let i = usize::from(i);
         let (partial, last) = (f.partial(k, &errors[..k]), f.row(k)[k]);
-        let target = exact.coefficients[i] - partial / last;
-        let index = rounding.round(indices, i, target / steps[k], relative_weights[k], None);
+        let target = exact.coefficients[i] - partial * f.inverse_last[k];
+        let index = rounding.round(
+            indices,
+            i,
+            target * inverse_steps[k],
+            relative_weights[k],
+            None,
+        );
         indices[i] = index as i16;
         errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
         rows[k] = partial + last * errors[k];
@@ -471,9 +491,11 @@ fn quantise_coefficients(
         rounding,
         order,
         steps: &steps,
+        inverse_steps: &inverse_steps,
         relative_weights: &relative_weights,
         exact: &exact.coefficients,
         form: &f.form,
+        inverse_diagonal: &f.inverse_weights,
     };
     quantiser.refine(&mut errors, &mut gradient, indices);
     // e^T G e, from the gradient kept up to date.
@@ -490,11 +512,15 @@ struct CoefficientQuantiser<'a> {
     rounding: &'a IndexRounding,
     order: &'a [u8],
     steps: &'a [f64; MAX_CONTROL],
+    /// The steps' reciprocals.
+    inverse_steps: &'a [f64; MAX_CONTROL],
     relative_weights: &'a [f64; MAX_CONTROL],
     /// The exact coefficients, by grid position.
     exact: &'a [f64; MAX_CONTROL],
     /// The patch error's quadratic form over the coefficients in coding order.
     form: &'a DMatrix<f64>,
+    /// The reciprocals of the form's diagonal.
+    inverse_diagonal: &'a [f64],
 }
 
 impl CoefficientQuantiser<'_> {
@@ -516,11 +542,11 @@ impl CoefficientQuantiser<'_> {
             for (k, &i) in self.order.iter().enumerate() {
                 let i = usize::from(i);
                 let column = &g[k * n..(k + 1) * n];
-                let target = self.exact[i] + errors[k] - gradient[k] / column[k];
+                let target = self.exact[i] + errors[k] - gradient[k] * self.inverse_diagonal[k];
                 let index = self.rounding.round(
                     indices,
                     i,
-                    target / self.steps[k],
+                    target * self.inverse_steps[k],
                     self.relative_weights[k],
                     None,
                 );
