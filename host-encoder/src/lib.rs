@@ -58,5 +58,5 @@ pub mod packets;
 
 pub use encoder::{
     analyse, analyse_colour, psnr, Analysis, AnalysisTiming, ColourPlanes, EncodeError, Encoded,
-    EncoderConfig, Plane, Target, CHROMA_WEIGHTS, MIN_TRIAL_BPP,
+    EncoderConfig, Plane, Target, CHROMA_WEIGHTS, FINE_STEP_MARGIN, MIN_TRIAL_BPP,
 };

@@ -1,6 +1,8 @@
 //! The analysis (thesis Alg. 1), the driver that runs the stages below it on one image: every
 //! model that a block can support is fitted at every quadtree node down to the smallest leaf
-//! ([`super::fit`]), then quantised with every quantiser ([`super::quantise`]), each candidate's
+//! ([`super::fit`]), then quantised ([`super::quantise`]) with every quantiser (or, for an
+//! analysis that serves rate targets, with the coarse control steps, then the finer ones only
+//! while they pay near the multiplier of a plan at the trial rate), each candidate's
 //! distortion measured (by an exact fit's quadratic form, or through decoder-core's own
 //! reconstruction); then the candidates are pruned to those rate control can choose
 //! ([`super::rate`]), under the contexts of a trial encode ([`super::writer`]). For a colour
@@ -22,7 +24,7 @@ use super::quantise::{
     lloyd_max, quantise, weight_classes, ControlTargets, Quantised, ROUNDING_LAMBDA,
     ROUNDING_VARIANTS,
 };
-use super::rate::{prune_node, Anchor, RateTable};
+use super::rate::{candidate_bits, node_bits, prune_node, Anchor, RateTable};
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
@@ -37,7 +39,7 @@ use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-/// The result of the exhaustive analysis of one image: serves any number of targets
+/// The result of the analysis of one image: serves any number of targets
 /// ([`Analysis::encode`]). Made by [`crate::analyse`].
 #[derive(Debug, Clone)]
 pub struct Analysis {
@@ -71,7 +73,7 @@ pub struct Analysis {
 pub struct AnalysisTiming {
     /// Fitting every model at every node.
     pub fits: Duration,
-    /// Quantising every fit with every quantiser and measuring each candidate's error.
+    /// Quantising the fits and measuring each candidate's error.
     pub candidates: Duration,
     /// Pruning the candidates, the trial encode included.
     pub pruning: Duration,
@@ -155,7 +157,9 @@ impl Analysis {
             .filter(|l| l.log2 <= analysis.header.max_leaf_log2)
             .map(|l| l.nodes.len() as u64)
             .sum();
-        let first = analysis.measure_candidates(&|n| progress(fitted + n));
+        let first = analysis.measure_candidates(config.trial_bpp, config.fine_steps, &|n| {
+            progress(fitted + n)
+        });
         let candidates = started.elapsed();
         let started = Instant::now();
         analysis.prune_candidates(config.trial_bpp, first);
@@ -246,27 +250,83 @@ impl Analysis {
         }
     }
 
-    /// Quantises every fit with every quantiser and measures each candidate's distortion;
-    /// keeps at each node, as soon as it is done, only the candidates near its hull under the
+    /// Quantises every fit with every quantiser (with `fine_steps`, the coarse steps, a plan at
+    /// `trial_bpp` from them, then the finer steps that pay: [`EncoderConfig::fine_steps`])
+    /// and measures each candidate's distortion; keeps at each node, as soon as it is done, only the candidates near its hull under the
     /// rates every stream starts from (the trained contexts change the rates only a little, so
     /// what is far from the hull under the first rates does not reach it under the trained
     /// ones): the rest is never stored. Returns the kept candidates' rates. `progress` is
     /// called with the number of nodes done so far (those not analysed included), smallest
     /// nodes first.
-    fn measure_candidates(&mut self, progress: &(dyn Fn(u64) + Sync)) -> RateTable {
-        let plane = &self.plane;
-        let header = &self.header;
-        let done = AtomicU64::new(0);
-        let prediction = ImagePrediction {
-            plane,
-            stripe: header.stripe_width(),
-        };
+    fn measure_candidates(
+        &mut self,
+        trial_bpp: f64,
+        fine_steps: Option<f64>,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> RateTable {
         let start = Contexts::default();
         let lambdas = 1e-2..=1e6;
+        let first = if fine_steps.is_some() {
+            FIRST_COARSE
+        } else {
+            0
+        };
+        // A pass that is followed by another reports each node as half done.
+        let passes = if fine_steps.is_some() { 2 } else { 1 };
+        let done = AtomicU64::new(0);
+        let report = |counted: bool| {
+            if counted {
+                progress((done.fetch_add(1, Ordering::Relaxed) + 1) / passes);
+            }
+        };
+        let (mut bits, ends) = self.coarse_pass(&start, first, &report);
+        let Some(margin) = fine_steps else {
+            return RateTable::of_bits(&self.tree, bits, &start);
+        };
+        // The multiplier of a plan at the trial rate from the coarse steps alone: a plan
+        // with finer steps too reaches that rate at about the same multiplier or above.
+        let coarse = RateTable::of_bits(&self.tree, bits.clone(), &start);
+        let pixels = self.header.pixel_count() as f64;
+        let plan = coarse.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
+        let search = FineSearch {
+            start: &start,
+            first,
+            floor: plan.anchor().lambda / margin,
+        };
+        let (plane, header) = (&self.plane, &self.header);
+        for ((level, bits), ends) in self.tree.levels_mut().iter_mut().zip(&mut bits).zip(&ends) {
+            let counted = level.log2 <= header.max_leaf_log2;
+            level
+                .nodes
+                .par_iter_mut()
+                .zip(bits)
+                .zip(ends)
+                .for_each(|((na, bits), ends)| {
+                    if let Some(na) = na {
+                        fine_candidates(plane, header, na, ends, &search, bits);
+                        *bits = prune_node(na, bits, &lambdas, HULL_LAYERS);
+                    }
+                    report(counted);
+                });
+        }
+        RateTable::of_bits(&self.tree, bits, &start)
+    }
+
+    /// The coarse pass of [`Analysis::measure_candidates`] over every node: its candidates
+    /// from control step `first` up, pruned (a candidate off the hull layers stays off them
+    /// when finer steps join); returns the bits of what it keeps and the chains' ends, per
+    /// level and node.
+    fn coarse_pass(
+        &mut self,
+        start: &Contexts,
+        first: u8,
+        report: &(dyn Fn(bool) + Sync),
+    ) -> (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>) {
+        let (plane, header) = (&self.plane, &self.header);
         let colour = self.colour.as_ref();
         let stripe = header.stripe_width();
-        let bits = self
-            .tree
+        let lambdas = 1e-2..=1e6;
+        self.tree
             .levels_mut()
             .iter_mut()
             .map(|level| {
@@ -275,25 +335,23 @@ impl Analysis {
                     .nodes
                     .par_iter_mut()
                     .map(|na| {
-                        let bits = match na {
+                        let out = match na {
                             Some(na) => {
                                 if let Some(colour) = colour {
                                     na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
                                 }
-                                (na.candidates, na.indices) = node_candidates(plane, header, na);
-                                prune_node(na, &prediction, &start, &lambdas, HULL_LAYERS)
+                                let (bits, ends) =
+                                    coarse_candidates(plane, header, na, start, first);
+                                (prune_node(na, &bits, &lambdas, HULL_LAYERS), ends)
                             }
-                            None => Vec::new(),
+                            None => (Vec::new(), Vec::new()),
                         };
-                        if counted {
-                            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-                        }
-                        bits
+                        report(counted);
+                        out
                     })
-                    .collect()
+                    .unzip()
             })
-            .collect();
-        RateTable::of_bits(&self.tree, bits, &start)
+            .unzip()
     }
 }
 
@@ -464,78 +522,202 @@ fn fit_node(plane: &Plane, node: &Node, config: &EncoderConfig) -> Vec<Fit> {
     fits
 }
 
-/// Every candidate of the node `na` (its fits quantised with every quantiser that suits them),
-/// with their indices one after the other.
-fn node_candidates(
+/// One way of quantising a fit at successive control steps: the fit (an index into the node's
+/// fits), its weight quantiser and its control coding.
+#[derive(Debug, Clone, Copy)]
+struct Chain {
+    fit: u8,
+    wq: WeightQuantiserId,
+    coding: ControlCoding,
+}
+
+impl Chain {
+    /// Whether the chain quantises with control quantiser `cq`: weighted variants are tried on
+    /// every other control step (a step ratio of 2), as they are rarely chosen.
+    fn tries(&self, cq: ControlQuantiserId) -> bool {
+        self.wq == WeightQuantiserId::DEFAULT || cq.get().is_multiple_of(2)
+    }
+}
+
+/// The chains of fit `fit` (the node's fit number `fi`): the default weights unless the
+/// weights were fitted, then each weight quantiser that suits them; both control codings
+/// where the syntax allows a choice, for the default weights, DPCM only for weighted ones.
+fn chains_of(header: &Header, fi: usize, fit: &Fit) -> Vec<Chain> {
+    let model = fit.model.model();
+    let mut chains = Vec::new();
+    for wq in WeightQuantiserId::all() {
+        let usable = match wq.kind() {
+            WeightQuantiser::Default => !fit.weighted,
+            WeightQuantiser::Uniform(_) => fit.weighted,
+            WeightQuantiser::Codebook => fit.weighted && header.has_codebooks(),
+        };
+        let weighted = wq != WeightQuantiserId::DEFAULT;
+        if !usable || (weighted && model.weight_count() == 0) {
+            continue;
+        }
+        let codings: &[ControlCoding] = if !weighted && model.has_coding_choice() {
+            &[ControlCoding::Dpcm, ControlCoding::Transform]
+        } else {
+            &[ControlCoding::Dpcm]
+        };
+        chains.extend(codings.iter().map(|&coding| Chain {
+            fit: fi as u8,
+            wq,
+            coding,
+        }));
+    }
+    chains
+}
+
+/// The quantisation targets of fit `fit` of the node `node`.
+fn targets_of(plane: &Plane, header: &Header, node: &Node, fit: &Fit) -> ControlTargets {
+    ControlTargets::of(fit, node.log2).with_edges(&prediction_of(plane, header), node, fit.model)
+}
+
+/// Prediction from the pixels of `plane`, coded under `header`, as the analysis estimates it.
+fn prediction_of<'a>(plane: &'a Plane, header: &Header) -> ImagePrediction<'a> {
+    ImagePrediction {
+        plane,
+        stripe: header.stripe_width(),
+    }
+}
+
+/// Quantises `fit` (the node's fit of chain `chain`, whose targets are `targets`) with control
+/// quantiser `cq`, measures its error and adds it to `na`'s candidates.
+fn add_candidate(
     plane: &Plane,
     header: &Header,
-    na: &NodeAnalysis,
-) -> (Vec<Candidate>, Vec<i16>) {
-    let mut out = Vec::new();
-    let mut indices = Vec::new();
-    for (fi, fit) in na.fits.iter().enumerate() {
-        let model = fit.model.model();
-        let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-            &ImagePrediction {
-                plane,
-                stripe: header.stripe_width(),
-            },
-            &na.node,
-            fit.model,
-        );
-        let fitted_weights = fit.weighted;
-        for cq in ControlQuantiserId::all() {
-            for wq in WeightQuantiserId::all() {
-                let kind = wq.kind();
-                let usable = match kind {
-                    WeightQuantiser::Default => !fitted_weights,
-                    WeightQuantiser::Uniform(_) => fitted_weights,
-                    WeightQuantiser::Codebook => fitted_weights && header.has_codebooks(),
-                };
-                // Weighted variants are tried on every other control step (a step ratio of
-                // 2): they are rarely chosen, and this halves their cost.
-                let weighted = wq != WeightQuantiserId::DEFAULT;
-                if !usable || (weighted && (model.weight_count() == 0 || cq.get() % 2 == 1)) {
-                    continue;
-                }
-                // Both control codings where the syntax allows a choice, for the default
-                // weights; weighted variants (rare) with DPCM only.
-                let codings: &[ControlCoding] = if !weighted && model.has_coding_choice() {
-                    &[ControlCoding::Dpcm, ControlCoding::Transform]
-                } else {
-                    &[ControlCoding::Dpcm]
-                };
-                for &coding in codings {
-                    let q = quantise(
-                        fit,
-                        &targets,
-                        cq,
-                        wq,
-                        coding,
-                        &header.codebooks,
-                        ROUNDING_LAMBDA,
-                    );
-                    let sse = quantised_sse(plane, header, &na.node, fit, &q);
-                    let leaf = q.leaf;
-                    let (nc, nw) = (model.control_count(), model.weight_count());
-                    let at = indices.len() as u32;
-                    indices.extend_from_slice(&leaf.control[..nc]);
-                    if kind != WeightQuantiser::Default {
-                        indices.extend_from_slice(&leaf.weights[..nw]);
-                    }
-                    out.push(Candidate {
-                        fit: fi as u8,
-                        cq,
-                        wq,
-                        coding,
-                        sse,
-                        at,
-                    });
+    na: &mut NodeAnalysis,
+    targets: &ControlTargets,
+    chain: Chain,
+    cq: ControlQuantiserId,
+) {
+    let fit = &na.fits[usize::from(chain.fit)];
+    let q = quantise(
+        fit,
+        targets,
+        cq,
+        chain.wq,
+        chain.coding,
+        &header.codebooks,
+        ROUNDING_LAMBDA,
+    );
+    let sse = quantised_sse(plane, header, &na.node, fit, &q);
+    let model = fit.model.model();
+    let (nc, nw) = (model.control_count(), model.weight_count());
+    let at = na.indices.len() as u32;
+    na.indices.extend_from_slice(&q.leaf.control[..nc]);
+    if chain.wq.kind() != WeightQuantiser::Default {
+        na.indices.extend_from_slice(&q.leaf.weights[..nw]);
+    }
+    na.candidates.push(Candidate {
+        fit: chain.fit,
+        cq,
+        wq: chain.wq,
+        coding: chain.coding,
+        sse,
+        at,
+    });
+}
+
+/// Something per analysed node, level by level (smallest nodes first) and node by node.
+type PerNode<T> = Vec<Vec<T>>;
+
+/// Where a chain's coarse pass ended: the chain, and the bits and error of its finest step.
+#[derive(Debug, Clone, Copy)]
+struct ChainEnd {
+    chain: Chain,
+    bits: f32,
+    sse: f64,
+}
+
+/// The coarse pass at node `na`: every chain of every fit at every control step from `first`
+/// up, rated from `start`. Replaces the node's candidates; returns their bits and where each
+/// chain ended.
+fn coarse_candidates(
+    plane: &Plane,
+    header: &Header,
+    na: &mut NodeAnalysis,
+    start: &Contexts,
+    first: u8,
+) -> (Vec<f32>, Vec<ChainEnd>) {
+    na.candidates.clear();
+    na.indices.clear();
+    let mut finest = Vec::new();
+    for fi in 0..na.fits.len() {
+        let targets = targets_of(plane, header, &na.node, &na.fits[fi]);
+        for chain in chains_of(header, fi, &na.fits[fi]) {
+            let mut first_of_chain = None;
+            for cq in ControlQuantiserId::all().filter(|cq| cq.get() >= first) {
+                if chain.tries(cq) {
+                    first_of_chain.get_or_insert(na.candidates.len());
+                    add_candidate(plane, header, na, &targets, chain, cq);
                 }
             }
+            finest.extend(first_of_chain.map(|k| (chain, k)));
         }
     }
-    (out, indices)
+    let bits = node_bits(na, &prediction_of(plane, header), start);
+    let ends = finest
+        .into_iter()
+        .map(|(chain, k)| ChainEnd {
+            chain,
+            bits: bits[k],
+            sse: na.candidates[k].sse,
+        })
+        .collect();
+    (bits, ends)
+}
+
+/// What the fine pass searches: steps finer than control quantiser `first`, rated from
+/// `start`, while they lower a node's error by at least `floor` per bit.
+struct FineSearch<'a> {
+    start: &'a Contexts,
+    first: u8,
+    floor: f64,
+}
+
+/// The fine pass at node `na`, after the coarse one ended at `ends` (`bits`: the bits of the
+/// node's candidates, to which it adds those it makes): each chain goes on to finer steps
+/// while a step lowers the error by at least the floor per bit it adds; a step that buys
+/// less only pays for multipliers below the floor, and a finer one still, less again.
+fn fine_candidates(
+    plane: &Plane,
+    header: &Header,
+    na: &mut NodeAnalysis,
+    ends: &[ChainEnd],
+    search: &FineSearch,
+    bits: &mut Vec<f32>,
+) {
+    let prediction = prediction_of(plane, header);
+    let mut ctx = search.start.clone();
+    let mut targets: Option<(u8, ControlTargets)> = None;
+    for end in ends {
+        let chain = end.chain;
+        if targets.as_ref().is_none_or(|(fi, _)| *fi != chain.fit) {
+            let fit = &na.fits[usize::from(chain.fit)];
+            targets = Some((chain.fit, targets_of(plane, header, &na.node, fit)));
+        }
+        let Some((_, targets)) = &targets else { break };
+        let (mut last_bits, mut last_sse) = (end.bits, end.sse);
+        for cq in ControlQuantiserId::all()
+            .filter(|cq| cq.get() < search.first)
+            .rev()
+        {
+            if !chain.tries(cq) {
+                continue;
+            }
+            add_candidate(plane, header, na, targets, chain, cq);
+            let c = na.candidates[na.candidates.len() - 1];
+            let b = candidate_bits(na, &c, &prediction, &mut ctx);
+            bits.push(b);
+            let added = f64::from(b) - f64::from(last_bits);
+            if added > 0.0 && last_sse - c.sse < search.floor * added {
+                break;
+            }
+            (last_bits, last_sse) = (b, c.sse);
+        }
+    }
 }
 
 /// The 5x5/4x4 model (5x5 control values, 4x4 transforms).
@@ -547,6 +729,10 @@ const MODEL_5X5_4X4: ModelId = ModelId::new(3);
 fn searched_with_default_weights(m: ModelId) -> bool {
     m != MODEL_5X5_4X4
 }
+
+/// With [`EncoderConfig::fine_steps`], control quantisers from this one up (steps of 128 and
+/// coarser, 1/16 grey) are tried at every node, finer ones only while they pay.
+const FIRST_COARSE: u8 = 5;
 
 /// Layers of the lower convex hull (rate, error) that are kept from the first, untrained rates
 /// for rating again under trained contexts.
@@ -648,6 +834,7 @@ fn design_codebooks(levels: &[Level], size: usize) -> [Codebook; 2] {
 
 #[cfg(test)]
 mod tests {
+    use super::super::config::{Target, FINE_STEP_MARGIN};
     use super::*;
 
     /// A textured test image: a smooth pattern plus noise.
@@ -723,6 +910,91 @@ mod tests {
         assert!(kept_variants > 0, "no node kept a rounding variant");
     }
 
+    /// The fine pass takes each chain on from its coarse end one step at a time, and stops a
+    /// chain at the first step that lowers the error by less than the floor per bit added:
+    /// with an infinite floor at the first step that adds bits, with none at no step, which
+    /// then gives the candidates of the exhaustive search.
+    #[test]
+    fn fine_steps_go_on_while_they_pay() {
+        let plane = textured_plane(64, 64);
+        let header = header_for(&plane, &EncoderConfig::default()).expect("a header");
+        let start = Contexts::default();
+        let node = Node {
+            x: 16,
+            y: 16,
+            log2: 4,
+        };
+        let fresh = || NodeAnalysis {
+            node,
+            fits: fit_node(&plane, &node, &EncoderConfig::default()),
+            candidates: Vec::new(),
+            indices: Vec::new(),
+            chroma: ChromaCost::default(),
+        };
+        let key = |c: &Candidate| (c.fit, c.wq.get(), c.coding == ControlCoding::Transform);
+        let steps = |na: &NodeAnalysis| {
+            let mut s: Vec<_> = na.candidates.iter().map(|c| (key(c), c.cq)).collect();
+            s.sort_unstable();
+            s
+        };
+        let mut all = fresh();
+        coarse_candidates(&plane, &header, &mut all, &start, 0);
+        for floor in [f64::INFINITY, f64::NEG_INFINITY] {
+            let mut na = fresh();
+            let (mut bits, ends) = coarse_candidates(&plane, &header, &mut na, &start, 5);
+            assert!(na.candidates.iter().all(|c| c.cq.get() >= 5));
+            let coarse = na.candidates.len();
+            let search = FineSearch {
+                start: &start,
+                first: 5,
+                floor,
+            };
+            fine_candidates(&plane, &header, &mut na, &ends, &search, &mut bits);
+            assert_eq!(bits.len(), na.candidates.len());
+            if floor == f64::NEG_INFINITY {
+                assert_eq!(steps(&na), steps(&all));
+                continue;
+            }
+            // Each chain's finer steps, in the order made: every one but the last adds no
+            // bits to the one before; the last adds some, or is the finest step.
+            for end in &ends {
+                let c = end.chain;
+                let of_chain = (c.fit, c.wq.get(), c.coding == ControlCoding::Transform);
+                let chain: Vec<usize> = (coarse..na.candidates.len())
+                    .filter(|&k| key(&na.candidates[k]) == of_chain)
+                    .collect();
+                assert!(!chain.is_empty());
+                let mut last = end.bits;
+                for (j, &k) in chain.iter().enumerate() {
+                    let adds = bits[k] > last;
+                    let finest = na.candidates[k].cq.get() == 0;
+                    assert_eq!(adds || finest, j + 1 == chain.len(), "{chain:?}");
+                    last = bits[k];
+                }
+            }
+        }
+    }
+
+    /// Searching the fine steps only where they pay near the trial's multiplier keeps the
+    /// quality of the exhaustive search at the trial rate.
+    #[test]
+    fn fine_steps_near_the_trial_keep_its_quality() {
+        let plane = textured_plane(96, 64);
+        let target = Target::Bpp(0.5);
+        let config = EncoderConfig::for_targets(&[target], 96 * 64);
+        assert_eq!(config.fine_steps, Some(FINE_STEP_MARGIN));
+        let exhaustive = EncoderConfig {
+            fine_steps: None,
+            ..config.clone()
+        };
+        let psnr_of = |config: &EncoderConfig| {
+            let analysis = Analysis::run(plane.clone(), None, config, &|_| {}).expect("analysis");
+            analysis.encode(target).expect("an encode").psnr
+        };
+        let (fine, all) = (psnr_of(&config), psnr_of(&exhaustive));
+        assert!(fine > all - 0.05, "{fine} dB against {all} dB");
+    }
+
     /// A node that a bilinear patch reproduces ends the analysis below it: the flat half of an
     /// image costs only its largest nodes, the textured half is analysed down to the smallest
     /// leaf, and the flat half still decodes exactly.
@@ -787,7 +1059,7 @@ mod tests {
             indices: Vec::new(),
             chroma: ChromaCost::default(),
         };
-        (na.candidates, na.indices) = node_candidates(&plane, &header, &na);
+        coarse_candidates(&plane, &header, &mut na, &Contexts::default(), 0);
         let keep: Vec<u16> = (0..na.candidates.len() as u16).step_by(3).collect();
         let before: Vec<LeafSyntax> = keep
             .iter()

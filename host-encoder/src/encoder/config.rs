@@ -35,6 +35,12 @@ pub struct EncoderConfig {
     /// decoder-core's `MAX_DEBLOCK`), or `None` to choose it per stream: the strongest that
     /// does not add to the stream's error.
     pub deblock: Option<u8>,
+    /// `Some(m)`: quantise every fit at the coarse control steps, make a plan at the trial
+    /// rate from them, and try finer steps at a node only while each lowers its error by at
+    /// least that plan's multiplier over `m` per bit added (steps that pay only at rates far
+    /// above the trial's are not searched). `None`: every step at every node, for an
+    /// analysis that must serve any target.
+    pub fine_steps: Option<f64>,
 }
 
 /// The default stripe width, in coding tiles: decoder-core's default stripe capacity.
@@ -43,10 +49,15 @@ pub const DEFAULT_STRIPE_TILES: u8 =
 
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
-    /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`].
+    /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`], and fine steps
+    /// searched near it ([`FINE_STEP_MARGIN`]) when a target is a rate.
     pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
         EncoderConfig {
             trial_bpp: Target::trial_bpp(targets, pixels),
+            fine_steps: targets
+                .iter()
+                .any(|t| t.bpp(pixels).is_some())
+                .then_some(FINE_STEP_MARGIN),
             ..EncoderConfig::default()
         }
     }
@@ -62,9 +73,14 @@ impl Default for EncoderConfig {
             trial_bpp: MIN_TRIAL_BPP,
             stripe: DEFAULT_STRIPE_TILES,
             deblock: None,
+            fine_steps: None,
         }
     }
 }
+
+/// The margin of [`EncoderConfig::fine_steps`] that [`EncoderConfig::for_targets`] chooses
+/// for rate targets (see docs/decisions.md).
+pub const FINE_STEP_MARGIN: f64 = 16.0;
 
 /// The lowest trial rate [`Target::trial_bpp`] chooses: below it, trials at the targets' own
 /// rates made no measurable difference (see docs/decisions.md).

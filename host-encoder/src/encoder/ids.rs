@@ -62,7 +62,7 @@ impl ControlQuantiserId {
     }
 
     /// Every control quantiser, finest step first.
-    pub fn all() -> impl Iterator<Item = ControlQuantiserId> {
+    pub fn all() -> impl DoubleEndedIterator<Item = ControlQuantiserId> {
         (0..CONTROL_QUANTISERS as u8).map(ControlQuantiserId)
     }
 

@@ -31,7 +31,7 @@ mod layering;
 
 pub use analysis::{Analysis, AnalysisTiming};
 pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
-pub use config::{EncoderConfig, Target, MIN_TRIAL_BPP};
+pub use config::{EncoderConfig, Target, FINE_STEP_MARGIN, MIN_TRIAL_BPP};
 pub use error::EncodeError;
 pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;

@@ -453,9 +453,13 @@ fn quantise_coefficients(
         for (k, &i) in order.iter().enumerate() {
             let i = usize::from(i);
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-            indices[i] =
-                rounding.round(indices, i, targets.coefficients[i] * inverse_steps[k], 1.0, None)
-                    as i16;
+            indices[i] = rounding.round(
+                indices,
+                i,
+                targets.coefficients[i] * inverse_steps[k],
+                1.0,
+                None,
+            ) as i16;
         }
         return None;
     };

@@ -9,7 +9,7 @@
 //! writes the [`Plan`]s it makes.
 
 use super::candidates::{
-    CandidateSelection, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates,
+    Candidate, CandidateSelection, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates,
 };
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
@@ -617,19 +617,28 @@ impl Planner<'_> {
 /// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
 /// candidate is priced from the same state), in the order of its candidate list; infinite for
 /// a candidate the syntax cannot code.
-fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
+pub fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
     let mut ctx = snapshot.clone();
     na.candidates
         .iter()
-        .map(|c| {
-            let mut leaf = na.leaf(c);
-            let mut counter = BitCounter::frozen();
-            match code_leaf(&mut counter, &mut ctx, &na.node, prediction, &mut leaf) {
-                Ok(()) => counter.bits() as f32,
-                Err(_) => f32::INFINITY,
-            }
-        })
+        .map(|c| candidate_bits(na, c, prediction, &mut ctx))
         .collect()
+}
+
+/// The bits of candidate `c` of `na`, coded from the context state `ctx` (left as it is);
+/// infinite if the syntax cannot code it.
+pub fn candidate_bits(
+    na: &NodeAnalysis,
+    c: &Candidate,
+    prediction: &ImagePrediction,
+    ctx: &mut Contexts,
+) -> f32 {
+    let mut leaf = na.leaf(c);
+    let mut counter = BitCounter::frozen();
+    match code_leaf(&mut counter, ctx, &na.node, prediction, &mut leaf) {
+        Ok(()) => counter.bits() as f32,
+        Err(_) => f32::INFINITY,
+    }
 }
 
 /// The points (rate, error) on the lower convex hull whose multipliers meet `lambdas`, and
@@ -653,18 +662,16 @@ fn hull_layers(
     keep
 }
 
-/// Keeps of the candidates of `na` those [`RateTable::lambda_optimal`] keeps over `lambdas`
-/// with `layers`, rated from `snapshot` as [`RateTable::new`] rates them, and returns their
-/// bits: the same choice, made while a node is analysed, so that what no multiplier wants is
-/// never stored.
+/// Keeps of the candidates of `na`, whose bits are `bits` (rated as [`RateTable::new`] rates
+/// them), those [`RateTable::lambda_optimal`] keeps over `lambdas` with `layers`, and returns
+/// their bits: the same choice, made while a node is analysed, so that what no multiplier
+/// wants is never stored.
 pub fn prune_node(
     na: &mut NodeAnalysis,
-    prediction: &ImagePrediction,
-    snapshot: &Contexts,
+    bits: &[f32],
     lambdas: &std::ops::RangeInclusive<f64>,
     layers: usize,
 ) -> Vec<f32> {
-    let bits = node_bits(na, prediction, snapshot);
     let points = bits
         .iter()
         .zip(&na.candidates)
