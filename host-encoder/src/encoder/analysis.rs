@@ -194,7 +194,9 @@ impl Analysis {
         let window = (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW);
         let vary = self.rates.lambda_optimal(window, 1);
         self.add_rounding_variants(&vary);
-        let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
+        let rates = self
+            .rates
+            .extended(&self.tree, &self.prediction(), &snapshot);
         let keep = rates.lambda_optimal(1e-2..=1e6, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);

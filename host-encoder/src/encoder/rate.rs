@@ -348,6 +348,44 @@ impl RateTable {
         RateTable::of_bits(tree, bits, snapshot)
     }
 
+    /// The rates of `tree`, whose nodes hold this table's candidates followed by new ones
+    /// (as adding candidates leaves them): the known bits kept, the new candidates rated from
+    /// `snapshot`, the state this table was rated from; the same as [`RateTable::new`] at the
+    /// cost of the new candidates only.
+    pub fn extended(
+        &self,
+        tree: &CandidateTree,
+        prediction: &ImagePrediction,
+        snapshot: &Contexts,
+    ) -> RateTable {
+        let bits = tree
+            .levels()
+            .iter()
+            .zip(&self.levels)
+            .map(|(level, rates)| {
+                level
+                    .nodes
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, na)| {
+                        let Some(na) = na else { return Vec::new() };
+                        let mut bits = rates.bits[rates.range(i)].to_vec();
+                        if let Some(new) = na.candidates.get(bits.len()..).filter(|n| !n.is_empty())
+                        {
+                            let mut ctx = snapshot.clone();
+                            bits.extend(
+                                new.iter()
+                                    .map(|c| candidate_bits(na, c, prediction, &mut ctx)),
+                            );
+                        }
+                        bits
+                    })
+                    .collect()
+            })
+            .collect();
+        RateTable::of_bits(tree, bits, snapshot)
+    }
+
     /// The rate table of `tree` from the bits of its candidates (per level, per node, in the
     /// order of its candidate list) coded from the context state `snapshot`.
     pub fn of_bits(
