@@ -37,6 +37,7 @@ pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;
 
 use decoder_core::internal::syntax::{Codebook, Header};
+use rayon::prelude::*;
 
 /// An encoded stream with its figures.
 #[derive(Debug, Clone)]
@@ -352,15 +353,26 @@ impl Analysis {
             // Fixed: already in the header.
             return Ok(None);
         }
-        for &deblock in DEBLOCK_STRENGTHS.iter().rev() {
-            if deblock == 0 {
-                break;
-            }
-            let header = Header { deblock, ..*header };
-            let written = self.write(&header, plan)?;
-            let encoded = self.finish(plan, written)?;
-            if encoded.sse <= unsmoothed.sse {
-                return Ok(Some(deblock));
+        // Strongest first, as many at once as there are threads: each is a sequential write.
+        let strengths: Vec<u8> = DEBLOCK_STRENGTHS
+            .iter()
+            .rev()
+            .copied()
+            .filter(|&d| d != 0)
+            .collect();
+        for batch in strengths.chunks(rayon::current_num_threads().max(1)) {
+            let errors: Vec<Result<f64, EncodeError>> = batch
+                .par_iter()
+                .map(|&deblock| {
+                    let header = Header { deblock, ..*header };
+                    let written = self.write(&header, plan)?;
+                    Ok(self.finish(plan, written)?.sse)
+                })
+                .collect();
+            for (&deblock, sse) in batch.iter().zip(errors) {
+                if sse? <= unsmoothed.sse {
+                    return Ok(Some(deblock));
+                }
             }
         }
         Ok(None)
