@@ -977,6 +977,18 @@ mod tests {
         }
     }
 
+    /// Only an analysis whose every target is a rate searches fine steps near its trial: a
+    /// quality target's rate is not known before the analysis.
+    #[test]
+    fn fine_steps_only_for_rate_targets() {
+        let of = |targets: &[Target]| EncoderConfig::for_targets(targets, 1000).fine_steps;
+        assert_eq!(of(&[Target::Bpp(0.1), Target::Bytes(300)]), Some(FINE_STEP_MARGIN));
+        assert_eq!(of(&[Target::Bytes(300), Target::Psnr(30.0)]), None);
+        assert_eq!(of(&[Target::Psnr(30.0)]), None);
+        assert_eq!(of(&[]), None);
+        assert_eq!(EncoderConfig::default().fine_steps, None);
+    }
+
     /// Searching the fine steps only where they pay near the trial's multiplier keeps the
     /// quality of the exhaustive search at the trial rate.
     #[test]

@@ -50,13 +50,12 @@ pub const DEFAULT_STRIPE_TILES: u8 =
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
     /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`], and fine steps
-    /// searched near it ([`FINE_STEP_MARGIN`]) when a target is a rate.
+    /// searched near it ([`FINE_STEP_MARGIN`]) when every target is a rate (a quality
+    /// target's rate is not known before the analysis).
     pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
         EncoderConfig {
             trial_bpp: Target::trial_bpp(targets, pixels),
-            fine_steps: targets
-                .iter()
-                .any(|t| t.bpp(pixels).is_some())
+            fine_steps: (!targets.is_empty() && targets.iter().all(|t| t.bpp(pixels).is_some()))
                 .then_some(FINE_STEP_MARGIN),
             ..EncoderConfig::default()
         }
