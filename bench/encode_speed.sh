@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Encoder speed on the grayscale Kodak set, whole process, on this machine:
-#   1. `pifs encode --bpp 0.25` per image, wall time (median of REPEATS runs per image), then
-#      the median over the images: the "one target, analysis included" figure;
+# Encoder speed on the Kodak set, whole process, on this machine:
+#   1. `pifs encode --gray --bpp 0.25` and `pifs encode --bpp 0.25` (colour) per image, wall and
+#      CPU time (user + system; median of REPEATS interleaved runs per image), then the median
+#      over the images: the "one target, analysis included" figures;
 #   2. extra targets from one analysis: the per-target encode time of `rd_sweep` (0.05, 0.1,
 #      0.25 and 0.5 bpp), median over images and rates, apart for each smallest leaf size;
 #   3. scaling: the wall time of (1) on THREADS_IMAGES images with 1 and with 2 threads
@@ -22,19 +23,25 @@ wall() { # command... -> wall seconds on stdout
     /usr/bin/time -f "%e" -o "$out/t" "$@" >/dev/null 2>&1
     cat "$out/t"
 }
+times() { # command... -> "wall cpu" seconds on stdout
+    /usr/bin/time -f "%e %U %S" -o "$out/t" "$@" >/dev/null 2>&1
+    python3 -c 'import sys; w,u,s=map(float,sys.argv[1:]); print(f"{w:.2f} {u+s:.2f}")' $(cat "$out/t")
+}
 median() { python3 -c 'import sys,statistics; print(f"{statistics.median(float(x) for x in sys.argv[1:]):.3f}")' "$@"; }
 
-per_image=()
+gray_wall=(); gray_cpu=(); colour_wall=(); colour_cpu=()
 for img in "${images[@]}"; do
-    runs=()
+    gw=(); gc=(); cw=(); cc=()
     for _ in $(seq "$REPEATS"); do
-        runs+=("$(wall ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)")
+        read -r w c < <(times ./target/release/pifs encode "$img" --gray -o "$out/x.pifs" --bpp 0.25)
+        gw+=("$w"); gc+=("$c")
+        read -r w c < <(times ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)
+        cw+=("$w"); cc+=("$c")
     done
-    m=$(median "${runs[@]}")
-    per_image+=("$m")
-    echo "$(basename "$img"): ${m} s (runs: ${runs[*]})" >&2
+    gray_wall+=("$(median "${gw[@]}")"); gray_cpu+=("$(median "${gc[@]}")")
+    colour_wall+=("$(median "${cw[@]}")"); colour_cpu+=("$(median "${cc[@]}")")
+    echo "$(basename "$img"): gray ${gray_wall[-1]} s wall ${gray_cpu[-1]} s CPU, colour ${colour_wall[-1]} s wall ${colour_cpu[-1]} s CPU" >&2
 done
-one_target=$(median "${per_image[@]}")
 
 ./target/release/examples/rd_sweep "${images[@]}" >"$out/sweep.csv"
 extra=$(python3 - "$out/sweep.csv" <<'PY'
@@ -56,8 +63,8 @@ PY
 subset=("${images[@]:0:$THREADS_IMAGES}")
 t1=(); t2=()
 for img in "${subset[@]}"; do
-    t1+=("$(RAYON_NUM_THREADS=1 wall ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)")
-    t2+=("$(RAYON_NUM_THREADS=2 wall ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)")
+    t1+=("$(RAYON_NUM_THREADS=1 wall ./target/release/pifs encode "$img" --gray -o "$out/x.pifs" --bpp 0.25)")
+    t2+=("$(RAYON_NUM_THREADS=2 wall ./target/release/pifs encode "$img" --gray -o "$out/x.pifs" --bpp 0.25)")
 done
 s1=$(median "${t1[@]}"); s2=$(median "${t2[@]}")
 speedup=$(python3 -c "print(f'{$s1/$s2:.2f}')")
@@ -66,6 +73,7 @@ echo
 echo "| measure | value |"
 echo "|---|---:|"
 echo "| images | ${#images[@]} |"
-echo "| one target (--bpp 0.25), whole process, median wall | ${one_target} s |"
-echo "| each extra target from the same analysis, median | ${extra} |"
-echo "| 1 thread / 2 threads (${#subset[@]} images, median wall) | ${s1} s / ${s2} s = ${speedup}x |"
+echo "| one target, grayscale (--gray --bpp 0.25), whole process, median wall / CPU | $(median "${gray_wall[@]}") s / $(median "${gray_cpu[@]}") s |"
+echo "| one target, colour (--bpp 0.25), whole process, median wall / CPU | $(median "${colour_wall[@]}") s / $(median "${colour_cpu[@]}") s |"
+echo "| each extra target from the same analysis (grayscale), median | ${extra} |"
+echo "| 1 thread / 2 threads (grayscale, ${#subset[@]} images, median wall) | ${s1} s / ${s2} s = ${speedup}x |"
