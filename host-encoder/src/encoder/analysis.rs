@@ -186,7 +186,7 @@ impl Analysis {
                 Err(_) => Contexts::default(),
             };
         let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
-        let keep = rates.lambda_optimal(1e-2..=1e6, 1);
+        let keep = rates.lambda_optimal(ALL_LAMBDAS, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);
         // The kept candidates near the trial's multiplier, rounded with other multipliers,
@@ -197,7 +197,7 @@ impl Analysis {
         let rates = self
             .rates
             .extended(&self.tree, &self.prediction(), &snapshot);
-        let keep = rates.lambda_optimal(1e-2..=1e6, 1);
+        let keep = rates.lambda_optimal(ALL_LAMBDAS, 1);
         self.rates = rates.select(&keep);
         self.tree.retain(&keep);
     }
@@ -218,14 +218,7 @@ impl Analysis {
                     }
                     let fit = &na.fits[usize::from(c.fit)];
                     let n = fit.model.model().control_count();
-                    let targets = ControlTargets::of(fit, na.node.log2).with_edges(
-                        &ImagePrediction {
-                            plane,
-                            stripe: header.stripe_width(),
-                        },
-                        &na.node,
-                        fit.model,
-                    );
+                    let targets = targets_of(plane, header, &na.node, fit);
                     for lambda in ROUNDING_VARIANTS {
                         let q = quantise(
                             fit,
@@ -254,12 +247,12 @@ impl Analysis {
 
     /// Quantises every fit with every quantiser (with `fine_steps`, the coarse steps, a plan at
     /// `trial_bpp` from them, then the finer steps that pay: [`EncoderConfig::fine_steps`])
-    /// and measures each candidate's distortion; keeps at each node, as soon as it is done, only the candidates near its hull under the
-    /// rates every stream starts from (the trained contexts change the rates only a little, so
-    /// what is far from the hull under the first rates does not reach it under the trained
-    /// ones): the rest is never stored. Returns the kept candidates' rates. `progress` is
-    /// called with the number of nodes done so far (those not analysed included), smallest
-    /// nodes first.
+    /// and measures each candidate's distortion; keeps at each node, as soon as it is done,
+    /// only the candidates near its hull under the rates every stream starts from (the
+    /// trained contexts change the rates only a little, so what is far from the hull under the
+    /// first rates does not reach it under the trained ones): the rest is never stored.
+    /// Returns the kept candidates' rates. `progress` is called with the number of nodes done
+    /// so far (those not analysed included), smallest nodes first.
     fn measure_candidates(
         &mut self,
         trial_bpp: f64,
@@ -267,7 +260,6 @@ impl Analysis {
         progress: &(dyn Fn(u64) + Sync),
     ) -> RateTable {
         let start = Contexts::default();
-        let lambdas = 1e-2..=1e6;
         let first = if fine_steps.is_some() {
             FIRST_COARSE
         } else {
@@ -306,7 +298,7 @@ impl Analysis {
                 .for_each(|((na, bits), ends)| {
                     if let Some(na) = na {
                         fine_candidates(plane, header, na, ends, &search, bits);
-                        *bits = prune_node(na, bits, &lambdas, HULL_LAYERS);
+                        *bits = prune_node(na, bits, &ALL_LAMBDAS, HULL_LAYERS);
                     }
                     report(counted);
                 });
@@ -327,7 +319,6 @@ impl Analysis {
         let (plane, header) = (&self.plane, &self.header);
         let colour = self.colour.as_ref();
         let stripe = header.stripe_width();
-        let lambdas = 1e-2..=1e6;
         self.tree
             .levels_mut()
             .iter_mut()
@@ -344,7 +335,7 @@ impl Analysis {
                                 }
                                 let (bits, ends) =
                                     coarse_candidates(plane, header, na, start, first);
-                                (prune_node(na, &bits, &lambdas, HULL_LAYERS), ends)
+                                (prune_node(na, &bits, &ALL_LAMBDAS, HULL_LAYERS), ends)
                             }
                             None => (Vec::new(), Vec::new()),
                         };
@@ -360,10 +351,7 @@ impl Analysis {
 impl Analysis {
     /// Prediction from the image's own pixels, as the analysis estimates it.
     fn prediction(&self) -> ImagePrediction<'_> {
-        ImagePrediction {
-            plane: &self.plane,
-            stripe: self.header.stripe_width(),
-        }
+        prediction_of(&self.plane, &self.header)
     }
 }
 
@@ -736,6 +724,9 @@ fn searched_with_default_weights(m: ModelId) -> bool {
 /// coarser, 1/16 grey) are tried at every node, finer ones only while they pay.
 const FIRST_COARSE: u8 = 5;
 
+/// The multipliers the analysis keeps candidates for: every target's.
+const ALL_LAMBDAS: std::ops::RangeInclusive<f64> = 1e-2..=1e6;
+
 /// Layers of the lower convex hull (rate, error) that are kept from the first, untrained rates
 /// for rating again under trained contexts.
 const HULL_LAYERS: usize = 2;
@@ -982,7 +973,10 @@ mod tests {
     #[test]
     fn fine_steps_only_for_rate_targets() {
         let of = |targets: &[Target]| EncoderConfig::for_targets(targets, 1000).fine_steps;
-        assert_eq!(of(&[Target::Bpp(0.1), Target::Bytes(300)]), Some(FINE_STEP_MARGIN));
+        assert_eq!(
+            of(&[Target::Bpp(0.1), Target::Bytes(300)]),
+            Some(FINE_STEP_MARGIN)
+        );
         assert_eq!(of(&[Target::Bytes(300), Target::Psnr(30.0)]), None);
         assert_eq!(of(&[Target::Psnr(30.0)]), None);
         assert_eq!(of(&[]), None);
