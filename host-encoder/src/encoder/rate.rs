@@ -331,20 +331,7 @@ impl RateTable {
         prediction: &ImagePrediction,
         snapshot: &Contexts,
     ) -> RateTable {
-        let bits = tree
-            .levels()
-            .iter()
-            .map(|level| {
-                level
-                    .nodes
-                    .par_iter()
-                    .map(|na| {
-                        na.as_ref()
-                            .map_or_else(Vec::new, |na| node_bits(na, prediction, snapshot))
-                    })
-                    .collect()
-            })
-            .collect();
+        let bits = bits_per_node(tree, |_, _, na| node_bits(na, prediction, snapshot));
         RateTable::of_bits(tree, bits, snapshot)
     }
 
@@ -358,31 +345,18 @@ impl RateTable {
         prediction: &ImagePrediction,
         snapshot: &Contexts,
     ) -> RateTable {
-        let bits = tree
-            .levels()
-            .iter()
-            .zip(&self.levels)
-            .map(|(level, rates)| {
-                level
-                    .nodes
-                    .par_iter()
-                    .enumerate()
-                    .map(|(i, na)| {
-                        let Some(na) = na else { return Vec::new() };
-                        let mut bits = rates.bits[rates.range(i)].to_vec();
-                        if let Some(new) = na.candidates.get(bits.len()..).filter(|n| !n.is_empty())
-                        {
-                            let mut ctx = snapshot.clone();
-                            bits.extend(
-                                new.iter()
-                                    .map(|c| candidate_bits(na, c, prediction, &mut ctx)),
-                            );
-                        }
-                        bits
-                    })
-                    .collect()
-            })
-            .collect();
+        let bits = bits_per_node(tree, |l, i, na| {
+            let rates = &self.levels[l];
+            let mut bits = rates.bits[rates.range(i)].to_vec();
+            if let Some(new) = na.candidates.get(bits.len()..).filter(|n| !n.is_empty()) {
+                let mut ctx = snapshot.clone();
+                bits.extend(
+                    new.iter()
+                        .map(|c| candidate_bits(na, c, prediction, &mut ctx)),
+                );
+            }
+            bits
+        });
         RateTable::of_bits(tree, bits, snapshot)
     }
 
@@ -652,7 +626,27 @@ impl Planner<'_> {
     }
 }
 
-/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
+/// The bits of the candidates of every analysed node of `tree`, level by level and node by
+/// node, each node's from `rate` (given its level's and its own index), in parallel.
+fn bits_per_node(
+    tree: &CandidateTree,
+    rate: impl Fn(usize, usize, &NodeAnalysis) -> Vec<f32> + Sync,
+) -> Vec<Vec<Vec<f32>>> {
+    tree.levels()
+        .iter()
+        .enumerate()
+        .map(|(l, level)| {
+            level
+                .nodes
+                .par_iter()
+                .enumerate()
+                .map(|(i, na)| na.as_ref().map_or_else(Vec::new, |na| rate(l, i, na)))
+                .collect()
+        })
+        .collect()
+}
+
+/// The bits of every candidate of `na`, coded from the context state `snapshot`/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
 /// candidate is priced from the same state), in the order of its candidate list; infinite for
 /// a candidate the syntax cannot code.
 pub fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
