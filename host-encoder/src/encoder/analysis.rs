@@ -509,6 +509,8 @@ fn fit_node(plane: &Plane, node: &Node, config: &EncoderConfig) -> Vec<Fit> {
         fits.push(plain);
         fits.extend(weighted);
     }
+    // Kept until the analysis ends: no spare room.
+    fits.shrink_to_fit();
     fits
 }
 
@@ -537,9 +539,9 @@ fn chains_of(header: &Header, fi: usize, fit: &Fit) -> Vec<Chain> {
     let mut chains = Vec::new();
     for wq in WeightQuantiserId::all() {
         let usable = match wq.kind() {
-            WeightQuantiser::Default => !fit.weighted,
-            WeightQuantiser::Uniform(_) => fit.weighted,
-            WeightQuantiser::Codebook => fit.weighted && header.has_codebooks(),
+            WeightQuantiser::Default => !fit.weighted(),
+            WeightQuantiser::Uniform(_) => fit.weighted(),
+            WeightQuantiser::Codebook => fit.weighted() && header.has_codebooks(),
         };
         let weighted = wq != WeightQuantiserId::DEFAULT;
         if !usable || (weighted && model.weight_count() == 0) {

@@ -25,29 +25,39 @@ const MAX_PROJECTION_LOG2: u8 = 8;
 /// Levenberg-Marquardt iterations per fit.
 pub const MAX_ITERATIONS: usize = 5;
 
-/// Fitted real-valued parameters of one model on one block.
+/// Fitted real-valued parameters of one model on one block. Every node keeps its fits until
+/// the analysis ends, so they hold no more than they need (see docs/decisions.md).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
     /// Model type.
     pub model: ModelId,
     /// Control values, grey levels, row-major.
-    pub control: Vec<f64>,
-    /// For a projection fit (an exact least-squares fit, see [`gram`]): the unclamped
-    /// least-squares control values (the centre of
-    /// [`Fit::error_of`]'s quadratic form); else empty.
-    pub exact: Vec<f64>,
-    /// Deviations of the free weights from the default scheme (1.0 = one).
-    pub weights: Vec<f64>,
-    /// Whether the weights were fitted (else they are all zero: the default scheme).
-    pub weighted: bool,
+    pub control: Box<[f64]>,
+    /// For a projection fit whose least-squares control values clamping changed: those
+    /// unclamped values ([`Fit::exact`]).
+    unclamped: Option<Box<[f64]>>,
+    /// Deviations of the fitted weights from the default scheme (1.0 = one); empty for the
+    /// default scheme itself.
+    pub weights: Box<[f64]>,
     /// For an exact least-squares fit over every pixel of an interior block (a projection,
     /// see [`gram`]): its squared error (before clamping the control values). Then the error
-    /// of any other control values `c` is this plus `(c - control)^T G (c - control)`, with `G`
+    /// of any other control values `c` is this plus `(c - exact)^T G (c - exact)`, with `G`
     /// the projection's Gram matrix ([`Fit::error_of`]), without rendering anything.
     pub residual: Option<f64>,
 }
 
 impl Fit {
+    /// Whether the weights were fitted (else the fit has the default scheme).
+    pub fn weighted(&self) -> bool {
+        !self.weights.is_empty()
+    }
+
+    /// For a projection fit ([`Fit::residual`] is known): the unclamped least-squares control
+    /// values, the centre of [`Fit::error_of`]'s quadratic form.
+    pub fn exact(&self) -> &[f64] {
+        self.unclamped.as_deref().unwrap_or(&self.control)
+    }
+
     /// Squared error over the block's pixels of the patch with control values `control` (grey
     /// levels) and the default weights, by the quadratic form of an exact fit; `None` when this
     /// fit is not one (weights fitted, or a block at the image's edge).
@@ -57,7 +67,7 @@ impl Fit {
         let n = projection.gram.nrows();
         let mut d = [0.0f64; decoder_core::internal::model::MAX_CONTROL];
         for (k, dk) in d.iter_mut().enumerate().take(n) {
-            *dk = control[k] - self.exact[k];
+            *dk = control[k] - self.exact()[k];
         }
         Some(residual + projection.quadratic_form(&d[..n]))
     }
@@ -148,24 +158,24 @@ pub fn fit_block(plane: &Plane, node: &Node, model: ModelId) -> Fit {
 pub fn fit_default(plane: &Plane, node: &Node, model_id: ModelId) -> Fit {
     let model = model_id.model();
     let lattice = Lattice::new(plane, node);
-    let (mut control, exact, residual) =
-        if lattice.is_interior() && node.log2 <= MAX_PROJECTION_LOG2 {
-            let (c, residual) = Projection::of(model_id, node.log2).apply(plane, node);
-            (c.clone(), c, Some(residual))
-        } else {
-            let mut c = initial_control(plane, node, model);
-            let nc = c.len();
-            levenberg_marquardt(plane, node, model, &lattice, &mut c, nc);
-            (c, Vec::new(), None)
-        };
+    let (exact, residual) = if lattice.is_interior() && node.log2 <= MAX_PROJECTION_LOG2 {
+        let (c, residual) = Projection::of(model_id, node.log2).apply(plane, node);
+        (c, Some(residual))
+    } else {
+        let mut c = initial_control(plane, node, model);
+        let nc = c.len();
+        levenberg_marquardt(plane, node, model, &lattice, &mut c, nc);
+        (c, None)
+    };
+    let mut control = exact.clone();
     let nc = control.len();
     clamp_params(&mut control, nc);
+    let unclamped = (residual.is_some() && control != exact).then(|| exact.into());
     Fit {
         model: model_id,
-        control,
-        exact,
-        weights: vec![0.0; model.weight_count()],
-        weighted: false,
+        control: control.into(),
+        unclamped,
+        weights: Box::default(),
         residual,
     }
 }
@@ -184,16 +194,15 @@ pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
     if nw == 0 || !model.subdivides(node.log2) || count < 3 * (nc + nw) {
         return None;
     }
-    let mut theta = plain.control.clone();
+    let mut theta = plain.control.to_vec();
     theta.resize(nc + nw, 0.0);
     levenberg_marquardt(plane, node, model, &lattice, &mut theta, nc);
     let weights = theta.split_off(nc);
     Some(Fit {
         model: plain.model,
-        control: theta,
-        exact: Vec::new(),
-        weights,
-        weighted: true,
+        control: theta.into(),
+        unclamped: None,
+        weights: weights.into(),
         residual: None,
     })
 }

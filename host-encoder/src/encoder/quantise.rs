@@ -69,7 +69,7 @@ impl ControlTargets {
         let (samples, coefficients) = in_samples(&fit.control, true);
         let exact = match (fit.residual, ErrorFeedback::of(fit.model, log2)) {
             (Some(_), Some(feedback)) => {
-                let (samples, coefficients) = in_samples(&fit.exact, false);
+                let (samples, coefficients) = in_samples(fit.exact(), false);
                 Some(ExactTargets {
                     samples,
                     coefficients,
