@@ -19,7 +19,7 @@ use nalgebra::{DMatrix, DVector};
 /// Largest number of samples used to fit one block: bigger blocks are fitted on a regular
 /// sub-lattice of their pixels (the closed-loop distortion still counts every pixel).
 pub const MAX_FIT_SAMPLES: u32 = 32 * 32;
-/// Largest block fitted by a [`Projection`] (its matrices grow with the block's pixels: 42 MB
+/// Largest block fitted by a [`Projection`] (its build tabulates the patch at every pixel: 42 MB
 /// for the 9x9 model at 256 x 256); larger blocks are fitted on a lattice.
 const MAX_PROJECTION_LOG2: u8 = 8;
 /// Levenberg-Marquardt iterations per fit.
@@ -214,12 +214,132 @@ pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
 /// `pinv = (B^T B)^-1 B^T`. Every pixel of the block counts, whatever its size. One per model
 /// and block size, built on first use.
 struct Projection {
-    offsets: Vec<(u32, u32)>,
-    pinv: DMatrix<f64>,
+    solver: Solver,
     gram: DMatrix<f64>,
     /// `U` with `G = U^T U` (the transposed Cholesky factor), its upper triangle packed by
     /// rows; `None` when `G` is singular.
     factor: Option<Vec<f64>>,
+}
+
+/// The pixel offsets of a block of side `2^log2` and the derivatives there of model `model`'s
+/// patch with respect to its control values (column `p` for the pixel at `offsets[p]`).
+fn derivatives(model: ModelId, log2: u8) -> (Vec<(u32, u32)>, DMatrix<f64>) {
+    let model = model.model();
+    let nc = model.control_count();
+    let size = 1u32 << log2;
+    let mut offsets = Vec::with_capacity((size * size) as usize);
+    let mut rows: Vec<f64> = Vec::with_capacity((size * size) as usize * nc);
+    let mut tab = Tabulator::new(model, &[], true);
+    tab.run(
+        &vec![0.0; nc],
+        log2,
+        &|dx, dy| dx < size && dy < size,
+        &|dx, dy, _| dx < size && dy < size,
+        &mut |dx, dy, s| {
+            offsets.push((dx, dy));
+            rows.extend_from_slice(&s[1..1 + nc]);
+        },
+    );
+    let bt = DMatrix::from_column_slice(nc, offsets.len(), &rows);
+    (offsets, bt)
+}
+
+/// How a [`Projection`] turns a block's pixels into its control values.
+enum Solver {
+    /// Control value `k` is row `k` of `pinv` dotted with the pixels at `offsets`.
+    Matrix {
+        offsets: Vec<(u32, u32)>,
+        pinv: DMatrix<f64>,
+    },
+    /// A tensor-product patch (`B = B_1 ⊗ B_1`, checked when built): then
+    /// `pinv = P ⊗ P` with `P = (B_1^T B_1)^-1 B_1^T`, applied along the block's rows and
+    /// then down its columns. `axis` holds `P` row-major (`side` rows of the block's size):
+    /// a few kilobytes where the matrix takes megabytes, and a fraction of its work.
+    Separable { axis: Vec<f64>, side: usize },
+}
+
+impl Solver {
+    /// The separable solver of the tabulated patch derivatives `bt` (column `p` for the pixel
+    /// at `offsets[p]`, in a block of side `size`), if the patch is a tensor product of one
+    /// curve scheme whose first row's weights sum to one.
+    fn separable(bt: &DMatrix<f64>, offsets: &[(u32, u32)], size: usize) -> Option<Solver> {
+        let nc = bt.nrows();
+        let side = (1..=nc).find(|s| s * s == nc)?;
+        let mut at = vec![usize::MAX; size * size];
+        for (p, &(dx, dy)) in offsets.iter().enumerate() {
+            at[dy as usize * size + dx as usize] = p;
+        }
+        if at.contains(&usize::MAX) {
+            return None;
+        }
+        // The curve's basis: the first row of pixels, its control values summed by column.
+        let mut b = DMatrix::<f64>::zeros(size, side);
+        for d in 0..size {
+            for j in 0..side {
+                b[(d, j)] = (0..side).map(|i| bt[(i * side + j, at[d])]).sum();
+            }
+        }
+        let tensor = (0..size * size).all(|p| {
+            let (dx, dy) = (p % size, p / size);
+            (0..nc).all(|k| {
+                let (i, j) = (k / side, k % side);
+                (bt[(k, at[p])] - b[(dy, i)] * b[(dx, j)]).abs() <= 1e-12
+            })
+        });
+        if !tensor {
+            return None;
+        }
+        let p = (b.transpose() * &b).cholesky()?.inverse() * b.transpose();
+        let axis = (0..side)
+            .flat_map(|j| (0..size).map(move |d| (j, d)))
+            .map(|(j, d)| p[(j, d)])
+            .collect();
+        Some(Solver::Separable { axis, side })
+    }
+
+    /// The control values of the pixels of the interior block `node`, with the sum of the
+    /// pixels' squares.
+    fn apply(&self, plane: &Plane, node: &Node) -> (Vec<f64>, f64) {
+        match self {
+            Solver::Matrix { offsets, pinv } => {
+                let y = DVector::from_iterator(
+                    offsets.len(),
+                    offsets
+                        .iter()
+                        .map(|&(dx, dy)| f64::from(plane.get(node.x + dx, node.y + dy))),
+                );
+                ((pinv * &y).iter().copied().collect(), y.norm_squared())
+            }
+            Solver::Separable { axis, side } => {
+                let size = node.size() as usize;
+                let mut squares = 0.0;
+                let mut row = vec![0.0; size];
+                // Along each row: rows[dy][j] = sum over dx of pixel(dx, dy) P[j][dx].
+                let mut rows = vec![0.0; size * side];
+                for (dy, out) in rows.chunks_exact_mut(*side).enumerate() {
+                    let y = node.y as usize + dy;
+                    let start = y * plane.width as usize + node.x as usize;
+                    for (r, &v) in row.iter_mut().zip(&plane.data[start..start + size]) {
+                        *r = f64::from(v);
+                        squares += *r * *r;
+                    }
+                    for (o, p) in out.iter_mut().zip(axis.chunks_exact(size)) {
+                        *o = p.iter().zip(&row).map(|(a, b)| a * b).sum();
+                    }
+                }
+                // Down each column: c[i][j] = sum over dy of P[i][dy] rows[dy][j].
+                let mut control = vec![0.0; side * side];
+                for (out, p) in control.chunks_exact_mut(*side).zip(axis.chunks_exact(size)) {
+                    for (&a, r) in p.iter().zip(rows.chunks_exact(*side)) {
+                        for (o, &v) in out.iter_mut().zip(r) {
+                            *o += a * v;
+                        }
+                    }
+                }
+                (control, squares)
+            }
+        }
+    }
 }
 
 /// Builds, in parallel, the projections of every model usable at the block sizes
@@ -283,47 +403,42 @@ impl Projection {
     }
 
     fn build(model: ModelId, log2: u8) -> Projection {
+        let (offsets, bt) = derivatives(model, log2);
         let model = model.model();
         let nc = model.control_count();
         let size = 1u32 << log2;
-        let mut offsets = Vec::with_capacity((size * size) as usize);
-        let mut rows: Vec<f64> = Vec::with_capacity((size * size) as usize * nc);
-        let mut tab = Tabulator::new(model, &[], true);
-        tab.run(
-            &vec![0.0; nc],
-            log2,
-            &|dx, dy| dx < size && dy < size,
-            &|dx, dy, _| dx < size && dy < size,
-            &mut |dx, dy, s| {
-                offsets.push((dx, dy));
-                rows.extend_from_slice(&s[1..1 + nc]);
-            },
-        );
-        // Stored transposed: column k is the derivative vector of sample k.
-        let bt = DMatrix::from_column_slice(nc, offsets.len(), &rows);
         let mut gram = &bt * bt.transpose();
         if !model.subdivides(log2) {
             gram += extrapolation_penalty(model);
         }
-        let (pinv, factor) = match gram.clone().cholesky() {
-            // G^-1 B^T as one matrix product (fast) rather than a triangular solve per pixel.
+        let separable = model
+            .subdivides(log2)
+            .then(|| Solver::separable(&bt, &offsets, size as usize))
+            .flatten();
+        let (solver, factor) = match gram.clone().cholesky() {
             Some(chol) => {
                 let l = chol.l();
                 let upper = (0..nc).flat_map(|i| (i..nc).map(move |j| (i, j)));
                 let factor = upper.map(|(i, j)| l[(j, i)]).collect();
-                (chol.inverse() * &bt, Some(factor))
+                // G^-1 B^T as one matrix product (fast) rather than a triangular solve per
+                // pixel.
+                let solver = separable.unwrap_or_else(|| Solver::Matrix {
+                    pinv: chol.inverse() * &bt,
+                    offsets,
+                });
+                (solver, Some(factor))
             }
             // Fewer independent pixels than control values: the minimum-norm solution.
-            None => (
-                bt.transpose()
+            None => {
+                let pinv = bt
+                    .transpose()
                     .pseudo_inverse(1e-9)
-                    .unwrap_or_else(|_| DMatrix::zeros(nc, offsets.len())),
-                None,
-            ),
+                    .unwrap_or_else(|_| DMatrix::zeros(nc, offsets.len()));
+                (Solver::Matrix { offsets, pinv }, None)
+            }
         };
         Projection {
-            offsets,
-            pinv,
+            solver,
             gram,
             factor,
         }
@@ -359,15 +474,10 @@ impl Projection {
 
     /// The least-squares control values of the interior block `node` and their squared error.
     fn apply(&self, plane: &Plane, node: &Node) -> (Vec<f64>, f64) {
-        let y = DVector::from_iterator(
-            self.offsets.len(),
-            self.offsets
-                .iter()
-                .map(|&(dx, dy)| f64::from(plane.get(node.x + dx, node.y + dy))),
-        );
-        let c = &self.pinv * &y;
+        let (c, squares) = self.solver.apply(plane, node);
+        let c = DVector::from_vec(c);
         // |y - Bc|^2 = |y|^2 - c^T G c at the least-squares optimum.
-        let residual = (y.norm_squared() - c.dot(&(&self.gram * &c))).max(0.0);
+        let residual = (squares - c.dot(&(&self.gram * &c))).max(0.0);
         (c.iter().copied().collect(), residual)
     }
 }
@@ -550,7 +660,8 @@ mod inverse_problem;
 
 #[cfg(test)]
 mod tests {
-    use super::{ModelId, Projection};
+    use super::{derivatives, ModelId, Plane, Projection, Solver};
+    use decoder_core::Node;
 
     /// The factored quadratic form equals the Gram matrix's, for every model and block size
     /// that has a projection.
@@ -575,5 +686,43 @@ mod tests {
             }
         }
         assert!(factored > 10, "only {factored} projections have a factor");
+    }
+
+    /// Where the patch is a tensor product, the separable solver gives the control values the
+    /// full projection matrix gives, and it is used for every model that subdivides.
+    #[test]
+    fn separable_projections_equal_the_matrix() {
+        let size = 64u32;
+        let data = (0..size * size)
+            .map(|p| {
+                let (x, y) = (f64::from(p % size), f64::from(p / size));
+                (128.0 + 60.0 * (x * 0.37).sin() * (y * 0.21).cos() + (p * 7 % 23) as f64) as u8
+            })
+            .collect();
+        let plane = Plane::new(size, size, data);
+        let mut separable = 0;
+        for log2 in 2..=6u8 {
+            for m in ModelId::for_block(log2) {
+                let (offsets, bt) = derivatives(m, log2);
+                let found = Solver::separable(&bt, &offsets, 1 << log2);
+                assert_eq!(
+                    found.is_some(),
+                    m.model().subdivides(log2),
+                    "model {m} at {log2}"
+                );
+                let Some(found) = found else { continue };
+                separable += 1;
+                let pinv = (&bt * bt.transpose()).cholesky().unwrap().inverse() * &bt;
+                let matrix = Solver::Matrix { offsets, pinv };
+                let node = Node { x: 0, y: 0, log2 };
+                let (a, sa) = found.apply(&plane, &node);
+                let (b, sb) = matrix.apply(&plane, &node);
+                assert_eq!(sa, sb);
+                for (a, b) in a.iter().zip(&b) {
+                    assert!((a - b).abs() <= 1e-9, "model {m} at {log2}: {a} vs {b}");
+                }
+            }
+        }
+        assert!(separable > 10, "only {separable} separable projections");
     }
 }
