@@ -12,7 +12,7 @@
 //! Above every stage; below the public API (`super`), which encodes targets from its result.
 
 use super::candidates::{
-    Candidate, CandidateSelection, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
+    Candidate, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
 };
 use super::chroma::{self, ChromaCache, ColourPlanes};
 use super::config::EncoderConfig;
@@ -24,7 +24,7 @@ use super::quantise::{
     lloyd_max, quantise, weight_classes, ControlTargets, Quantised, ROUNDING_LAMBDA,
     ROUNDING_VARIANTS,
 };
-use super::rate::{candidate_bits, node_bits, prune_node, Anchor, RateTable};
+use super::rate::{candidate_bits, node_bits, node_hull, prune_node, Anchor, RateTable};
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
@@ -185,64 +185,28 @@ impl Analysis {
                 Ok(w) => w.final_contexts,
                 Err(_) => Contexts::default(),
             };
-        let rates = RateTable::new(&self.tree, &self.prediction(), &snapshot);
-        let keep = rates.lambda_optimal(ALL_LAMBDAS, 1);
-        self.rates = rates.select(&keep);
-        self.tree.retain(&keep);
-        // The kept candidates near the trial's multiplier, rounded with other multipliers,
-        // join them, rated under the same contexts; the hull then keeps what pays.
-        let window = (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW);
-        let vary = self.rates.lambda_optimal(window, 1);
-        self.add_rounding_variants(&vary);
-        let rates = self
-            .rates
-            .extended(&self.tree, &self.prediction(), &snapshot);
-        let keep = rates.lambda_optimal(ALL_LAMBDAS, 1);
-        self.rates = rates.select(&keep);
-        self.tree.retain(&keep);
-    }
-
-    /// Adds to every node, for each candidate `vary` lists that has the default weights, the
-    /// same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
-    /// that changes an index): points between those of its control steps.
-    fn add_rounding_variants(&mut self, vary: &CandidateSelection) {
-        let plane = &self.plane;
-        let header = &self.header;
-        for (level, vary) in self.tree.levels_mut().iter_mut().zip(vary) {
-            level.nodes.par_iter_mut().zip(vary).for_each(|(na, vary)| {
-                let Some(na) = na else { return };
-                for &k in vary {
-                    let c = na.candidates[usize::from(k)];
-                    if c.wq != WeightQuantiserId::DEFAULT {
-                        continue;
-                    }
-                    let fit = &na.fits[usize::from(c.fit)];
-                    let n = fit.model.model().control_count();
-                    let targets = targets_of(plane, header, &na.node, fit);
-                    for lambda in ROUNDING_VARIANTS {
-                        let q = quantise(
-                            fit,
-                            &targets,
-                            c.cq,
-                            c.wq,
-                            c.coding,
-                            &header.codebooks,
-                            lambda,
-                        );
-                        let at = na.indices.len();
-                        if na.indices[c.at as usize..][..n] == q.leaf.control[..n] {
-                            continue;
-                        }
-                        na.indices.extend_from_slice(&q.leaf.control[..n]);
-                        na.candidates.push(Candidate {
-                            sse: quantised_sse(plane, header, &na.node, fit, &q),
-                            at: at as u32,
-                            ..c
-                        });
-                    }
-                }
-            });
-        }
+        let trial = Trial {
+            prediction: prediction_of(&self.plane, &self.header),
+            snapshot: &snapshot,
+            window: (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW),
+        };
+        let (plane, header) = (&self.plane, &self.header);
+        let bits = self
+            .tree
+            .levels_mut()
+            .iter_mut()
+            .map(|level| {
+                level
+                    .nodes
+                    .par_iter_mut()
+                    .map(|na| match na {
+                        Some(na) => final_candidates(plane, header, na, &trial),
+                        None => Vec::new(),
+                    })
+                    .collect()
+            })
+            .collect();
+        self.rates = RateTable::of_bits(&self.tree, bits, &snapshot);
     }
 
     /// Quantises every fit with every quantiser (with `fine_steps`, the coarse steps, a plan at
@@ -345,13 +309,6 @@ impl Analysis {
                     .unzip()
             })
             .unzip()
-    }
-}
-
-impl Analysis {
-    /// Prediction from the image's own pixels, as the analysis estimates it.
-    fn prediction(&self) -> ImagePrediction<'_> {
-        prediction_of(&self.plane, &self.header)
     }
 }
 
@@ -610,6 +567,74 @@ fn add_candidate(
         sse,
         at,
     });
+}
+
+/// What the final pruning of every node needs from the trial encode.
+struct Trial<'a> {
+    /// Prediction from the image's own pixels.
+    prediction: ImagePrediction<'a>,
+    /// The contexts the trial encode ended with: every candidate is rated from them.
+    snapshot: &'a Contexts,
+    /// The multipliers near the trial's, whose candidates get rounding variants.
+    window: std::ops::RangeInclusive<f64>,
+}
+
+/// The final pruning of node `na`, under the trial encode's contexts: keeps the candidates
+/// that are its best leaf for some multiplier, adds the rounding variants of those best near
+/// the trial's multiplier ([`add_rounding_variants`]), and keeps again what pays. Returns the
+/// kept candidates' bits. Node by node, so that no node's variants wait for the others'.
+fn final_candidates(
+    plane: &Plane,
+    header: &Header,
+    na: &mut NodeAnalysis,
+    trial: &Trial,
+) -> Vec<f32> {
+    let bits = node_bits(na, &trial.prediction, trial.snapshot);
+    let mut bits = prune_node(na, &bits, &ALL_LAMBDAS, 1);
+    let vary = node_hull(na, &bits, &trial.window, 1);
+    let known = na.candidates.len();
+    add_rounding_variants(plane, header, na, &vary);
+    let mut ctx = trial.snapshot.clone();
+    for c in &na.candidates[known..] {
+        bits.push(candidate_bits(na, c, &trial.prediction, &mut ctx));
+    }
+    prune_node(na, &bits, &ALL_LAMBDAS, 1)
+}
+
+/// Adds to node `na`, for each of its candidates `vary` lists that has the default weights,
+/// the same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
+/// that changes an index): points between those of its control steps.
+fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, vary: &[u16]) {
+    for &k in vary {
+        let c = na.candidates[usize::from(k)];
+        if c.wq != WeightQuantiserId::DEFAULT {
+            continue;
+        }
+        let fit = &na.fits[usize::from(c.fit)];
+        let n = fit.model.model().control_count();
+        let targets = targets_of(plane, header, &na.node, fit);
+        for lambda in ROUNDING_VARIANTS {
+            let q = quantise(
+                fit,
+                &targets,
+                c.cq,
+                c.wq,
+                c.coding,
+                &header.codebooks,
+                lambda,
+            );
+            let at = na.indices.len();
+            if na.indices[c.at as usize..][..n] == q.leaf.control[..n] {
+                continue;
+            }
+            na.indices.extend_from_slice(&q.leaf.control[..n]);
+            na.candidates.push(Candidate {
+                sse: quantised_sse(plane, header, &na.node, fit, &q),
+                at: at as u32,
+                ..c
+            });
+        }
+    }
 }
 
 /// Something per analysed node, level by level (smallest nodes first) and node by node.

@@ -143,10 +143,6 @@ impl Level {
     }
 }
 
-/// For every level (smallest leaf first) and node, a list of candidate indices (into the node's
-/// list, ascending): which candidates a selection keeps.
-pub type CandidateSelection = Vec<Vec<Vec<u16>>>;
-
 /// Every analysed node's candidates, level by level from the smallest leaf to the root.
 #[derive(Debug, Clone)]
 pub struct CandidateTree {
@@ -192,17 +188,6 @@ impl CandidateTree {
     /// The analysis of `node`, if it was analysed.
     pub fn node(&self, node: &Node) -> Option<&NodeAnalysis> {
         self.level(node.log2).and_then(|l| l.get(node.x, node.y))
-    }
-
-    /// Keeps at every node the candidates `keep` lists.
-    pub fn retain(&mut self, keep: &CandidateSelection) {
-        for (level, keep) in self.levels.iter_mut().zip(keep) {
-            for (na, keep) in level.nodes.iter_mut().zip(keep) {
-                if let Some(na) = na {
-                    na.retain(keep);
-                }
-            }
-        }
     }
 }
 

@@ -8,9 +8,7 @@
 //! Above [`super::candidates`] (it rates and chooses among them); below [`super::writer`], which
 //! writes the [`Plan`]s it makes.
 
-use super::candidates::{
-    Candidate, CandidateSelection, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates,
-};
+use super::candidates::{Candidate, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates};
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
 use decoder_core::internal::syntax::control::WeightQuantiser;
@@ -41,30 +39,6 @@ struct LevelRates {
 impl LevelRates {
     fn range(&self, node: usize) -> std::ops::Range<usize> {
         self.first[node] as usize..self.first[node + 1] as usize
-    }
-
-    /// Number of nodes (analysed or not).
-    fn node_count(&self) -> usize {
-        self.first.len() - 1
-    }
-
-    /// The level's candidates `keep` lists per node (indices into each node's list).
-    fn select(&self, keep: &[Vec<u16>]) -> LevelRates {
-        let mut out = LevelRates {
-            first: vec![0],
-            ..LevelRates::default()
-        };
-        for (i, keep) in keep.iter().enumerate() {
-            let start = self.first[i] as usize;
-            for &ci in keep {
-                let k = start + usize::from(ci);
-                out.bits.push(self.bits[k]);
-                out.sse.push(self.sse[k]);
-                out.codebook.push(self.codebook[k]);
-            }
-            out.first.push(out.bits.len() as u32);
-        }
-        out
     }
 
     /// The candidate of node `node` with the least cost `sse + lambda * bits` (the first of
@@ -100,20 +74,6 @@ impl RateTable {
         RateTable {
             levels: Vec::new(),
             split_bits: Vec::new(),
-        }
-    }
-
-    /// This table restricted to the candidates `keep` lists per node (as
-    /// [`RateTable::lambda_optimal`] returns them), for the candidate lists pruned to them.
-    pub fn select(&self, keep: &CandidateSelection) -> RateTable {
-        RateTable {
-            levels: self
-                .levels
-                .iter()
-                .zip(keep)
-                .map(|(level, keep)| level.select(keep))
-                .collect(),
-            split_bits: self.split_bits.clone(),
         }
     }
 }
@@ -324,42 +284,6 @@ fn decide(
 }
 
 impl RateTable {
-    /// Rates of every candidate of `tree` (the analysis of the image `prediction` predicts
-    /// from), coded from the context state `snapshot`.
-    pub fn new(
-        tree: &CandidateTree,
-        prediction: &ImagePrediction,
-        snapshot: &Contexts,
-    ) -> RateTable {
-        let bits = bits_per_node(tree, |_, _, na| node_bits(na, prediction, snapshot));
-        RateTable::of_bits(tree, bits, snapshot)
-    }
-
-    /// The rates of `tree`, whose nodes hold this table's candidates followed by new ones
-    /// (as adding candidates leaves them): the known bits kept, the new candidates rated from
-    /// `snapshot`, the state this table was rated from; the same as [`RateTable::new`] at the
-    /// cost of the new candidates only.
-    pub fn extended(
-        &self,
-        tree: &CandidateTree,
-        prediction: &ImagePrediction,
-        snapshot: &Contexts,
-    ) -> RateTable {
-        let bits = bits_per_node(tree, |l, i, na| {
-            let rates = &self.levels[l];
-            let mut bits = rates.bits[rates.range(i)].to_vec();
-            if let Some(new) = na.candidates.get(bits.len()..).filter(|n| !n.is_empty()) {
-                let mut ctx = snapshot.clone();
-                bits.extend(
-                    new.iter()
-                        .map(|c| candidate_bits(na, c, prediction, &mut ctx)),
-                );
-            }
-            bits
-        });
-        RateTable::of_bits(tree, bits, snapshot)
-    }
-
     /// The rate table of `tree` from the bits of its candidates (per level, per node, in the
     /// order of its candidate list) coded from the context state `snapshot`.
     pub fn of_bits(
@@ -404,33 +328,6 @@ impl RateTable {
             })
             .collect();
         RateTable { levels, split_bits }
-    }
-
-    /// For every node, the candidates that are the node's best leaf for some multiplier in
-    /// `lambdas` (indices into its candidate list, ascending): the vertices of the lower convex
-    /// hull of its (rate, error) points whose multipliers meet the range. With `layers` above
-    /// one, also those of the hulls of what is left, layer by layer (candidates that come close
-    /// to being best).
-    pub fn lambda_optimal(
-        &self,
-        lambdas: std::ops::RangeInclusive<f64>,
-        layers: usize,
-    ) -> CandidateSelection {
-        self.levels
-            .iter()
-            .map(|rates| {
-                (0..rates.node_count())
-                    .into_par_iter()
-                    .map(|i| {
-                        let points = rates
-                            .range(i)
-                            .map(|k| (f64::from(rates.bits[k]), rates.sse[k]))
-                            .collect();
-                        hull_layers(points, &lambdas, layers)
-                    })
-                    .collect()
-            })
-            .collect()
     }
 
     /// The best cut of `tree` (whose candidates this table rates) for multiplier `lambda`
@@ -626,26 +523,6 @@ impl Planner<'_> {
     }
 }
 
-/// The bits of the candidates of every analysed node of `tree`, level by level and node by
-/// node, each node's from `rate` (given its level's and its own index), in parallel.
-fn bits_per_node(
-    tree: &CandidateTree,
-    rate: impl Fn(usize, usize, &NodeAnalysis) -> Vec<f32> + Sync,
-) -> Vec<Vec<Vec<f32>>> {
-    tree.levels()
-        .iter()
-        .enumerate()
-        .map(|(l, level)| {
-            level
-                .nodes
-                .par_iter()
-                .enumerate()
-                .map(|(i, na)| na.as_ref().map_or_else(Vec::new, |na| rate(l, i, na)))
-                .collect()
-        })
-        .collect()
-}
-
 /// The bits of every candidate of `na`, coded from the context state `snapshot`/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
 /// candidate is priced from the same state), in the order of its candidate list; infinite for
 /// a candidate the syntax cannot code.
@@ -694,22 +571,32 @@ fn hull_layers(
     keep
 }
 
-/// Keeps of the candidates of `na`, whose bits are `bits` (rated as [`RateTable::new`] rates
-/// them), those [`RateTable::lambda_optimal`] keeps over `lambdas` with `layers`, and returns
-/// their bits: the same choice, made while a node is analysed, so that what no multiplier
-/// wants is never stored.
+/// The candidates of `na`, whose bits are `bits`, that are its best leaf for some multiplier
+/// in `lambdas`, with `layers` above one also those of the hulls of what is left, layer by
+/// layer: their indices, ascending.
+pub fn node_hull(
+    na: &NodeAnalysis,
+    bits: &[f32],
+    lambdas: &std::ops::RangeInclusive<f64>,
+    layers: usize,
+) -> Vec<u16> {
+    let points = bits
+        .iter()
+        .zip(&na.candidates)
+        .map(|(&b, c)| (f64::from(b), c.sse))
+        .collect();
+    hull_layers(points, lambdas, layers)
+}
+
+/// Keeps of the candidates of `na`, whose bits are `bits`, those [`node_hull`] lists, and
+/// returns their bits: what no multiplier wants is never stored.
 pub fn prune_node(
     na: &mut NodeAnalysis,
     bits: &[f32],
     lambdas: &std::ops::RangeInclusive<f64>,
     layers: usize,
 ) -> Vec<f32> {
-    let points = bits
-        .iter()
-        .zip(&na.candidates)
-        .map(|(&b, c)| (f64::from(b), c.sse))
-        .collect();
-    let keep = hull_layers(points, lambdas, layers);
+    let keep = node_hull(na, bits, lambdas, layers);
     na.retain(&keep);
     keep.iter().map(|&k| bits[usize::from(k)]).collect()
 }

@@ -4,20 +4,17 @@
 //! settled node: easy content needs much less), and the candidates near each node's
 //! rate/distortion hull: its memory grows with the pixels. Measured peaks
 //! (`/usr/bin/time -f %M pifs encode IN.png --gray -o x.pifs --bpp 0.25`, the default
-//! settings): 500² of noise 223 MB, tilings of 512² Kodak crops of 1024² 607 MB and 1536²
-//! 1.33 GB, that is 530 to 650 bytes per pixel beside the fixed part; with `--min-leaf-log2 1`
-//! 393 MB and 1.13 GB for the first two (1 040 to 1 340 bytes), with 3 124 MB and 324 MB (240
-//! to 250), with `--fit-weights` 273 MB and 792 MB (710 to 850). [`encode_bytes`] rounds
-//! these up.
+//! settings): 500² of noise 84 MB, tilings of 512² Kodak crops of 1024² 220 MB and 1536²
+//! 477 MB, that is 200 bytes per pixel beside a fixed part of about 10 MB, and 300 for noise;
+//! with `--min-leaf-log2 1` 177 MB and 466 MB for the first two (455 to 710 bytes), with 3
+//! 40 MB and 97 MB (94 to 160), with `--fit-weights` 89 MB and 238 MB (230 to 355).
+//! [`encode_bytes`] rounds these up.
 //!
 //! A colour encode analyses the luma plane and keeps, at every node, what its chroma costs
-//! (the hull of its chroma options): RGB noise of 500² peaked at 247 288 KB against 223 404 KB
-//! in grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs`), about 95 bytes per
-//! pixel more, priced in [`image_bytes_per_pixel`]. Before the cut saw chroma, measured with
-//! `/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`, with and without `--gray`
-//! (peak resident KB, gray / colour): the 1024² tiling 607 180 / 612 492, RGB noise of 500²
-//! 223 404 / 229 148: colour adds 5 to 23 bytes per pixel; [`encode_bytes`] adds 10 for
-//! the RGB buffers a colour encode holds.
+//! (the hull of its chroma options): RGB noise of 500² peaked at 97 MB against 84 MB in
+//! grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`), about 50 bytes
+//! per pixel more, the 1024² tiling 223 MB against 220 MB; [`image_bytes_per_pixel`] prices
+//! the larger.
 //!
 //! The test `encode_is_bounded_by_its_memory_budget` (host-encoder/tests/robustness_table/
 //! host.rs) checks the estimate against measured peaks of a grayscale and a colour encode, so
@@ -33,9 +30,9 @@
 /// weights are fitted.
 fn analysis_bytes_per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
     let base = match min_leaf_log2 {
-        0 | 1 => 1_400,
-        2 => 750,
-        _ => 300,
+        0 | 1 => 800,
+        2 => 400,
+        _ => 200,
     };
     if fit_weights {
         base * 13 / 10
@@ -54,8 +51,8 @@ const FIXED_BYTES: u64 = 64 << 20;
 /// where grayscale's are 1 and within its analysis figure).
 fn image_bytes_per_pixel(channels: u8) -> u64 {
     if channels == 3 {
-        // 3 + 3 + 1 + 0.5 + 2 * (3 - 1), rounded up, and the nodes' chroma costs (96).
-        12 + 96
+        // 3 + 3 + 1 + 0.5 + 2 * (3 - 1), rounded up, and the nodes' chroma costs (48).
+        12 + 48
     } else {
         2
     }
@@ -211,14 +208,14 @@ mod tests {
     #[test]
     fn the_estimate_grows_with_the_pixels_and_the_settings() {
         let small = encode_bytes(1_000_000, 3_000_000, 1, 2, false);
-        assert!(small > 800_000_000 && small < 850_000_000, "{small}");
+        assert!(small > 450_000_000 && small < 490_000_000, "{small}");
         assert!(encode_bytes(1_000_000, 3_000_000, 1, 1, false) > small);
         assert!(encode_bytes(1_000_000, 3_000_000, 1, 3, false) < small);
         assert!(encode_bytes(1_000_000, 3_000_000, 1, 2, true) > small);
         // Colour: the RGB pixels and the nodes' chroma costs beside the luma analysis.
         let colour = encode_bytes(1_000_000, 3_000_000, 3, 2, false);
-        assert_eq!(colour - small, 106_000_000);
-        assert_eq!(per_pixel(3, 2, false) - per_pixel(1, 2, false), 106);
+        assert_eq!(colour - small, 58_000_000);
+        assert_eq!(per_pixel(3, 2, false) - per_pixel(1, 2, false), 58);
         assert_eq!(encode_bytes(u64::MAX, u64::MAX, 3, 2, true), u64::MAX);
     }
 
