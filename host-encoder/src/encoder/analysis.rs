@@ -179,6 +179,7 @@ impl Analysis {
         let pixels = self.header.pixel_count() as f64;
         // A rough plan only gathers coding statistics.
         let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
+        drop(first);
         self.trial = plan.anchor();
         let snapshot =
             match writer::write(&self.tree, &self.header, &plan, None, &self.chroma_cache) {
@@ -243,13 +244,17 @@ impl Analysis {
         };
         // The multiplier of a plan at the trial rate from the coarse steps alone: a plan
         // with finer steps too reaches that rate at about the same multiplier or above.
-        let coarse = RateTable::of_bits(&self.tree, bits.clone(), &start);
-        let pixels = self.header.pixel_count() as f64;
-        let plan = coarse.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
+        // The table and the plan are dropped before the fine pass adds its candidates.
+        let trial_lambda = {
+            let coarse = RateTable::of_bits(&self.tree, bits.clone(), &start);
+            let pixels = self.header.pixel_count() as f64;
+            let plan = coarse.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
+            plan.anchor().lambda
+        };
         let search = FineSearch {
             start: &start,
             first,
-            floor: plan.anchor().lambda / margin,
+            floor: trial_lambda / margin,
         };
         let (plane, header) = (&self.plane, &self.header);
         for ((level, bits), ends) in self.tree.levels_mut().iter_mut().zip(&mut bits).zip(&ends) {
