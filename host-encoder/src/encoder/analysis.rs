@@ -213,9 +213,10 @@ impl Analysis {
     /// Quantises every fit with every quantiser (with `fine_steps`, the coarse steps, a plan at
     /// `trial_bpp` from them, then the finer steps that pay: [`EncoderConfig::fine_steps`])
     /// and measures each candidate's distortion; keeps at each node, as soon as it is done,
-    /// only the candidates near its hull under the rates every stream starts from (the
-    /// trained contexts change the rates only a little, so what is far from the hull under the
-    /// first rates does not reach it under the trained ones): the rest is never stored.
+    /// only the candidates on its hull under the rates every stream starts from (the trained
+    /// contexts change the rates only a little, so what is off the hull under the first rates
+    /// seldom reaches it under the trained ones; see docs/decisions.md): the rest is never
+    /// stored.
     /// Returns the kept candidates' rates. `progress` is called with the number of nodes done
     /// so far (those not analysed included), smallest nodes first.
     fn measure_candidates(
@@ -267,7 +268,7 @@ impl Analysis {
                 .for_each(|((na, bits), ends)| {
                     if let Some(na) = na {
                         fine_candidates(plane, header, na, ends, &search, bits);
-                        *bits = prune_node(na, bits, &ALL_LAMBDAS, HULL_LAYERS);
+                        *bits = prune_node(na, bits, &ALL_LAMBDAS);
                     }
                     report(counted);
                 });
@@ -276,8 +277,8 @@ impl Analysis {
     }
 
     /// The coarse pass of [`Analysis::measure_candidates`] over every node: its candidates
-    /// from control step `first` up, pruned (a candidate off the hull layers stays off them
-    /// when finer steps join); returns the bits of what it keeps and the chains' ends, per
+    /// from control step `first` up, pruned (a candidate off the hull stays off it when finer
+    /// steps join); returns the bits of what it keeps and the chains' ends, per
     /// level and node.
     fn coarse_pass(
         &mut self,
@@ -304,7 +305,7 @@ impl Analysis {
                                 }
                                 let (bits, ends) =
                                     coarse_candidates(plane, header, na, start, first);
-                                (prune_node(na, &bits, &ALL_LAMBDAS, HULL_LAYERS), ends)
+                                (prune_node(na, &bits, &ALL_LAMBDAS), ends)
                             }
                             None => (Vec::new(), Vec::new()),
                         };
@@ -595,15 +596,15 @@ fn final_candidates(
     trial: &Trial,
 ) -> Vec<f32> {
     let bits = node_bits(na, &trial.prediction, trial.snapshot);
-    let mut bits = prune_node(na, &bits, &ALL_LAMBDAS, 1);
-    let vary = node_hull(na, &bits, &trial.window, 1);
+    let mut bits = prune_node(na, &bits, &ALL_LAMBDAS);
+    let vary = node_hull(na, &bits, &trial.window);
     let known = na.candidates.len();
     add_rounding_variants(plane, header, na, &vary);
     let mut ctx = trial.snapshot.clone();
     for c in &na.candidates[known..] {
         bits.push(candidate_bits(na, c, &trial.prediction, &mut ctx));
     }
-    prune_node(na, &bits, &ALL_LAMBDAS, 1)
+    prune_node(na, &bits, &ALL_LAMBDAS)
 }
 
 /// Adds to node `na`, for each of its candidates `vary` lists that has the default weights,
@@ -758,10 +759,6 @@ const FIRST_COARSE: u8 = 5;
 
 /// The multipliers the analysis keeps candidates for: every target's.
 const ALL_LAMBDAS: std::ops::RangeInclusive<f64> = 1e-2..=1e6;
-
-/// Layers of the lower convex hull (rate, error) that are kept from the first, untrained rates
-/// for rating again under trained contexts.
-const HULL_LAYERS: usize = 2;
 
 /// Rounding variants are made of the candidates on a node's hull for multipliers within this
 /// factor of the trial's: the targets an analysis serves lie around its trial rate, and

@@ -550,42 +550,19 @@ pub fn candidate_bits(
     }
 }
 
-/// The points (rate, error) on the lower convex hull whose multipliers meet `lambdas`, and
-/// with `layers` above one those of the hulls of what is left, layer by layer: their indices,
-/// ascending.
-fn hull_layers(
-    mut points: Vec<(f64, f64)>,
-    lambdas: &std::ops::RangeInclusive<f64>,
-    layers: usize,
-) -> Vec<u16> {
-    let mut keep = Vec::new();
-    for _ in 0..layers {
-        let layer = lower_hull_in(&points, lambdas);
-        for &k in &layer {
-            // Out of the next layer's way.
-            points[usize::from(k)] = (f64::INFINITY, f64::INFINITY);
-        }
-        keep.extend(layer);
-    }
-    keep.sort_unstable();
-    keep
-}
-
 /// The candidates of `na`, whose bits are `bits`, that are its best leaf for some multiplier
-/// in `lambdas`, with `layers` above one also those of the hulls of what is left, layer by
-/// layer: their indices, ascending.
+/// in `lambdas`: their indices, ascending.
 pub fn node_hull(
     na: &NodeAnalysis,
     bits: &[f32],
     lambdas: &std::ops::RangeInclusive<f64>,
-    layers: usize,
 ) -> Vec<u16> {
-    let points = bits
+    let points: Vec<(f64, f64)> = bits
         .iter()
         .zip(&na.candidates)
         .map(|(&b, c)| (f64::from(b), c.sse))
         .collect();
-    hull_layers(points, lambdas, layers)
+    lower_hull_in(&points, lambdas)
 }
 
 /// Keeps of the candidates of `na`, whose bits are `bits`, those [`node_hull`] lists, and
@@ -594,9 +571,8 @@ pub fn prune_node(
     na: &mut NodeAnalysis,
     bits: &[f32],
     lambdas: &std::ops::RangeInclusive<f64>,
-    layers: usize,
 ) -> Vec<f32> {
-    let keep = node_hull(na, bits, lambdas, layers);
+    let keep = node_hull(na, bits, lambdas);
     na.retain(&keep);
     keep.iter().map(|&k| bits[usize::from(k)]).collect()
 }
