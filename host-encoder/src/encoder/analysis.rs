@@ -714,31 +714,30 @@ fn fine_candidates(
 ) {
     let prediction = prediction_of(plane, header);
     let mut ctx = search.start.clone();
-    let mut targets: Option<(u8, ControlTargets)> = None;
-    for end in ends {
-        let chain = end.chain;
-        if targets.as_ref().is_none_or(|(fi, _)| *fi != chain.fit) {
-            let fit = &na.fits[usize::from(chain.fit)];
-            targets = Some((chain.fit, targets_of(plane, header, &na.node, fit)));
-        }
-        let Some((_, targets)) = &targets else { break };
-        let (mut last_bits, mut last_sse) = (end.bits, end.sse);
-        for cq in ControlQuantiserId::all()
-            .filter(|cq| cq.get() < search.first)
-            .rev()
-        {
-            if !chain.tries(cq) {
-                continue;
+    // The chains of one fit are consecutive: its targets are made once.
+    for same_fit in ends.chunk_by(|a, b| a.chain.fit == b.chain.fit) {
+        let fit = &na.fits[usize::from(same_fit[0].chain.fit)];
+        let targets = targets_of(plane, header, &na.node, fit);
+        for end in same_fit {
+            let chain = end.chain;
+            let (mut last_bits, mut last_sse) = (end.bits, end.sse);
+            for cq in ControlQuantiserId::all()
+                .filter(|cq| cq.get() < search.first)
+                .rev()
+            {
+                if !chain.tries(cq) {
+                    continue;
+                }
+                add_candidate(plane, header, na, &targets, chain, cq);
+                let c = na.candidates[na.candidates.len() - 1];
+                let b = candidate_bits(na, &c, &prediction, &mut ctx);
+                bits.push(b);
+                let added = f64::from(b) - f64::from(last_bits);
+                if added > 0.0 && last_sse - c.sse < search.floor * added {
+                    break;
+                }
+                (last_bits, last_sse) = (b, c.sse);
             }
-            add_candidate(plane, header, na, targets, chain, cq);
-            let c = na.candidates[na.candidates.len() - 1];
-            let b = candidate_bits(na, &c, &prediction, &mut ctx);
-            bits.push(b);
-            let added = f64::from(b) - f64::from(last_bits);
-            if added > 0.0 && last_sse - c.sse < search.floor * added {
-                break;
-            }
-            (last_bits, last_sse) = (b, c.sse);
         }
     }
 }
