@@ -5,6 +5,7 @@
 #      over the images: the "one target, analysis included" figures;
 #   2. extra targets from one analysis: the per-target encode time of `rd_sweep` (0.05, 0.1,
 #      0.25 and 0.5 bpp), median over images and rates, apart for each smallest leaf size;
+#      The peak resident memory of the same runs: median over the images, and the largest;
 #   3. scaling: the wall time of (1) on THREADS_IMAGES images with 1 and with 2 threads
 #      (RAYON_NUM_THREADS), and the speed-up.
 # Prints a markdown summary. Needs python3 (standard library) and GNU time (/usr/bin/time).
@@ -23,24 +24,25 @@ wall() { # command... -> wall seconds on stdout
     /usr/bin/time -f "%e" -o "$out/t" "$@" >/dev/null 2>&1
     cat "$out/t"
 }
-times() { # command... -> "wall cpu" seconds on stdout
-    /usr/bin/time -f "%e %U %S" -o "$out/t" "$@" >/dev/null 2>&1
-    python3 -c 'import sys; w,u,s=map(float,sys.argv[1:]); print(f"{w:.2f} {u+s:.2f}")' $(cat "$out/t")
+times() { # command... -> "wall cpu peak" (seconds, seconds, MB of 10^6 bytes) on stdout
+    /usr/bin/time -f "%e %U %S %M" -o "$out/t" "$@" >/dev/null 2>&1
+    python3 -c 'import sys; w,u,s,m=map(float,sys.argv[1:]); print(f"{w:.2f} {u+s:.2f} {m*1.024/1000:.1f}")' $(cat "$out/t")
 }
+largest() { python3 -c 'import sys; print(f"{max(float(x) for x in sys.argv[1:]):.1f}")' "$@"; }
 median() { python3 -c 'import sys,statistics; print(f"{statistics.median(float(x) for x in sys.argv[1:]):.3f}")' "$@"; }
 
-gray_wall=(); gray_cpu=(); colour_wall=(); colour_cpu=()
+gray_wall=(); gray_cpu=(); gray_peak=(); colour_wall=(); colour_cpu=(); colour_peak=()
 for img in "${images[@]}"; do
-    gw=(); gc=(); cw=(); cc=()
+    gw=(); gc=(); gm=(); cw=(); cc=(); cm=()
     for _ in $(seq "$REPEATS"); do
-        read -r w c < <(times ./target/release/pifs encode "$img" --gray -o "$out/x.pifs" --bpp 0.25)
-        gw+=("$w"); gc+=("$c")
-        read -r w c < <(times ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)
-        cw+=("$w"); cc+=("$c")
+        read -r w c m < <(times ./target/release/pifs encode "$img" --gray -o "$out/x.pifs" --bpp 0.25)
+        gw+=("$w"); gc+=("$c"); gm+=("$m")
+        read -r w c m < <(times ./target/release/pifs encode "$img" -o "$out/x.pifs" --bpp 0.25)
+        cw+=("$w"); cc+=("$c"); cm+=("$m")
     done
-    gray_wall+=("$(median "${gw[@]}")"); gray_cpu+=("$(median "${gc[@]}")")
-    colour_wall+=("$(median "${cw[@]}")"); colour_cpu+=("$(median "${cc[@]}")")
-    echo "$(basename "$img"): gray ${gray_wall[-1]} s wall ${gray_cpu[-1]} s CPU, colour ${colour_wall[-1]} s wall ${colour_cpu[-1]} s CPU" >&2
+    gray_wall+=("$(median "${gw[@]}")"); gray_cpu+=("$(median "${gc[@]}")"); gray_peak+=("$(median "${gm[@]}")")
+    colour_wall+=("$(median "${cw[@]}")"); colour_cpu+=("$(median "${cc[@]}")"); colour_peak+=("$(median "${cm[@]}")")
+    echo "$(basename "$img"): gray ${gray_wall[-1]} s wall ${gray_cpu[-1]} s CPU ${gray_peak[-1]} MB, colour ${colour_wall[-1]} s wall ${colour_cpu[-1]} s CPU ${colour_peak[-1]} MB" >&2
 done
 
 ./target/release/examples/rd_sweep "${images[@]}" >"$out/sweep.csv"
@@ -75,5 +77,7 @@ echo "|---|---:|"
 echo "| images | ${#images[@]} |"
 echo "| one target, grayscale (--gray --bpp 0.25), whole process, median wall / CPU | $(median "${gray_wall[@]}") s / $(median "${gray_cpu[@]}") s |"
 echo "| one target, colour (--bpp 0.25), whole process, median wall / CPU | $(median "${colour_wall[@]}") s / $(median "${colour_cpu[@]}") s |"
+echo "| peak resident memory, grayscale, median / largest over the images | $(median "${gray_peak[@]}") MB / $(largest "${gray_peak[@]}") MB |"
+echo "| peak resident memory, colour, median / largest over the images | $(median "${colour_peak[@]}") MB / $(largest "${colour_peak[@]}") MB |"
 echo "| each extra target from the same analysis (grayscale), median | ${extra} |"
 echo "| 1 thread / 2 threads (grayscale, ${#subset[@]} images, median wall) | ${s1} s / ${s2} s = ${speedup}x |"

@@ -1,19 +1,19 @@
 //! How much memory an encode may use, and how much it needs.
 //!
 //! The analysis keeps every model's fit at every quadtree node it analyses (none inside a
-//! settled node: easy content needs much less), and the candidates near each node's
+//! settled node: easy content needs much less), and the candidates on each node's
 //! rate/distortion hull: its memory grows with the pixels. Measured peaks
 //! (`/usr/bin/time -f %M pifs encode IN.png --gray -o x.pifs --bpp 0.25`, the default
-//! settings): 500² of noise 84 MB, tilings of 512² Kodak crops of 1024² 220 MB and 1536²
-//! 477 MB, that is 200 bytes per pixel beside a fixed part of about 10 MB, and 300 for noise;
-//! with `--min-leaf-log2 1` 177 MB and 466 MB for the first two (455 to 710 bytes), with 3
-//! 40 MB and 97 MB (94 to 160), with `--fit-weights` 89 MB and 238 MB (230 to 355).
-//! [`encode_bytes`] rounds these up.
+//! settings): 500² of noise 67 MB, tilings of 512² Kodak crops of 1024² 170 MB and 1536²
+//! 385 MB, a 3072x2048 mosaic of Kodak images 985 MB: about 165 bytes per pixel beside a fixed
+//! part of about 10 MB, and 230 for noise; with `--min-leaf-log2 1` 135 MB and 373 MB for the
+//! first two (355 to 500 bytes), with 3 39 MB and 80 MB (76 to 115), with `--fit-weights`
+//! 68 MB and 194 MB (185 to 230). [`encode_bytes`] rounds these up.
 //!
 //! A colour encode analyses the luma plane and keeps, at every node, what its chroma costs
-//! (the hull of its chroma options): RGB noise of 500² peaked at 97 MB against 84 MB in
-//! grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`), about 50 bytes
-//! per pixel more, the 1024² tiling 223 MB against 220 MB; [`image_bytes_per_pixel`] prices
+//! (the hull of its chroma options): RGB noise of 500² peaked at 78 MB against 67 MB in
+//! grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`), about 45 bytes
+//! per pixel more, the 1024² tiling 172 MB against 170 MB; [`image_bytes_per_pixel`] prices
 //! the larger.
 //!
 //! The test `encode_is_bounded_by_its_memory_budget` (host-encoder/tests/robustness_table/
