@@ -258,7 +258,8 @@ impl Analysis {
             floor: trial_lambda / margin,
         };
         let (plane, header) = (&self.plane, &self.header);
-        for ((level, bits), ends) in self.tree.levels_mut().iter_mut().zip(&mut bits).zip(&ends) {
+        // Each node's chain ends are dropped once its fine pass is done.
+        for ((level, bits), ends) in self.tree.levels_mut().iter_mut().zip(&mut bits).zip(ends) {
             let counted = level.log2 <= header.max_leaf_log2;
             level
                 .nodes
@@ -267,7 +268,7 @@ impl Analysis {
                 .zip(ends)
                 .for_each(|((na, bits), ends)| {
                     if let Some(na) = na {
-                        fine_candidates(plane, header, na, ends, &search, bits);
+                        fine_candidates(plane, header, na, &ends, &search, bits);
                         *bits = prune_node(na, bits, &ALL_LAMBDAS);
                     }
                     report(counted);
