@@ -299,7 +299,7 @@ impl Solver {
 
     /// The control values of the pixels of the interior block `node`, with the sum of the
     /// pixels' squares.
-    fn apply(&self, plane: &Plane, node: &Node) -> (Vec<f64>, f64) {
+    fn apply(&self, plane: &Plane, node: &Node) -> (DVector<f64>, f64) {
         match self {
             Solver::Matrix { offsets, pinv } => {
                 let y = DVector::from_iterator(
@@ -308,7 +308,7 @@ impl Solver {
                         .iter()
                         .map(|&(dx, dy)| f64::from(plane.get(node.x + dx, node.y + dy))),
                 );
-                ((pinv * &y).iter().copied().collect(), y.norm_squared())
+                (pinv * &y, y.norm_squared())
             }
             Solver::Separable { axis, side } => {
                 let size = node.size() as usize;
@@ -336,7 +336,7 @@ impl Solver {
                         }
                     }
                 }
-                (control, squares)
+                (DVector::from_vec(control), squares)
             }
         }
     }
@@ -475,10 +475,9 @@ impl Projection {
     /// The least-squares control values of the interior block `node` and their squared error.
     fn apply(&self, plane: &Plane, node: &Node) -> (Vec<f64>, f64) {
         let (c, squares) = self.solver.apply(plane, node);
-        let c = DVector::from_vec(c);
         // |y - Bc|^2 = |y|^2 - c^T G c at the least-squares optimum.
         let residual = (squares - c.dot(&(&self.gram * &c))).max(0.0);
-        (c.iter().copied().collect(), residual)
+        (c.data.into(), residual)
     }
 }
 

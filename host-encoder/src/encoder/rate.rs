@@ -523,7 +523,7 @@ impl Planner<'_> {
     }
 }
 
-/// The bits of every candidate of `na`, coded from the context state `snapshot`/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
+/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
 /// candidate is priced from the same state), in the order of its candidate list; infinite for
 /// a candidate the syntax cannot code.
 pub fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
