@@ -12,7 +12,7 @@
 //! Above every stage; below the public API (`super`), which encodes targets from its result.
 
 use super::candidates::{
-    Candidate, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
+    Candidate, CandidateTree, ChromaCost, KeptFit, Level, NodeAnalysis, WithCandidates,
 };
 use super::chroma::{self, ChromaCache, ColourPlanes};
 use super::config::EncoderConfig;
@@ -131,8 +131,8 @@ impl Analysis {
             header.channels = 3;
         }
         let started = Instant::now();
-        let levels = fit_levels(&plane, colour.as_ref(), &header, config, progress);
-        let fits = started.elapsed();
+        let (levels, fits) = fit_levels(&plane, colour.as_ref(), &header, config, progress);
+        let fit_time = started.elapsed();
         header.codebooks = design_codebooks(&levels, config.codebook_levels);
         let mut analysis = Analysis {
             tree: CandidateTree::new(levels, header.min_leaf_log2),
@@ -157,14 +157,14 @@ impl Analysis {
             .filter(|l| l.log2 <= analysis.header.max_leaf_log2)
             .map(|l| l.nodes.len() as u64)
             .sum();
-        let first = analysis.measure_candidates(config.trial_bpp, config.fine_steps, &|n| {
+        let first = analysis.measure_candidates(fits, config.trial_bpp, config.fine_steps, &|n| {
             progress(fitted + n)
         });
         let candidates = started.elapsed();
         let started = Instant::now();
         analysis.prune_candidates(config.trial_bpp, first);
         analysis.timing = AnalysisTiming {
-            fits,
+            fits: fit_time,
             candidates,
             pruning: started.elapsed(),
         };
@@ -221,6 +221,7 @@ impl Analysis {
     /// so far (those not analysed included), smallest nodes first.
     fn measure_candidates(
         &mut self,
+        fits: PerNode<Vec<Fit>>,
         trial_bpp: f64,
         fine_steps: Option<f64>,
         progress: &(dyn Fn(u64) + Sync),
@@ -239,7 +240,7 @@ impl Analysis {
                 progress((done.fetch_add(1, Ordering::Relaxed) + 1) / passes);
             }
         };
-        let (mut bits, ends) = self.coarse_pass(&start, first, &report);
+        let (mut bits, ends) = self.coarse_pass(fits, &start, first, &report);
         let Some(margin) = fine_steps else {
             return RateTable::of_bits(&self.tree, bits, &start);
         };
@@ -283,6 +284,7 @@ impl Analysis {
     /// level and node.
     fn coarse_pass(
         &mut self,
+        fits: PerNode<Vec<Fit>>,
         start: &Contexts,
         first: u8,
         report: &(dyn Fn(bool) + Sync),
@@ -293,19 +295,21 @@ impl Analysis {
         self.tree
             .levels_mut()
             .iter_mut()
-            .map(|level| {
+            .zip(fits)
+            .map(|(level, fits)| {
                 let counted = level.log2 <= header.max_leaf_log2;
                 level
                     .nodes
                     .par_iter_mut()
-                    .map(|na| {
+                    .zip(fits)
+                    .map(|(na, fits)| {
                         let out = match na {
                             Some(na) => {
                                 if let Some(colour) = colour {
                                     na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
                                 }
                                 let (bits, ends) =
-                                    coarse_candidates(plane, header, na, start, first);
+                                    coarse_candidates(plane, header, na, &fits, start, first);
                                 (prune_node(na, &bits, &ALL_LAMBDAS), ends)
                             }
                             None => (Vec::new(), Vec::new()),
@@ -355,8 +359,9 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
     })
 }
 
-/// Every level of the quadtree of `header`, from the smallest leaf to the root, with the fits
-/// of every node of a leaf size (the candidates come later). The levels are fitted from the
+/// Every level of the quadtree of `header`, from the smallest leaf to the root, and beside
+/// them the fits of every node of a leaf size, for the coarse pass (the nodes keep only what
+/// [`KeptFit`] says; the candidates come later). The levels are fitted from the
 /// root down, and a node inside a settled one ([`settles`]) is not analysed: its parent is a
 /// leaf as good as any cut below it, so easy content (flat or smooth areas) costs only its
 /// largest nodes. `progress` is called with the number of nodes fitted (or skipped) so far.
@@ -366,11 +371,11 @@ fn fit_levels(
     header: &Header,
     config: &EncoderConfig,
     progress: &(dyn Fn(u64) + Sync),
-) -> Vec<Level> {
+) -> (Vec<Level>, PerNode<Vec<Fit>>) {
     let root = header.root_log2();
     prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
     let done = AtomicU64::new(0);
-    let mut levels = Vec::new();
+    let (mut levels, mut all_fits) = (Vec::new(), Vec::new());
     // Whether each node of the level above (the last one fitted) is settled.
     let mut settled_above: Vec<bool> = Vec::new();
     for log2 in (header.min_leaf_log2..=root).rev() {
@@ -378,7 +383,7 @@ fn fit_levels(
         let rows = (plane.height + (1 << log2) - 1) >> log2;
         let cols_above = (plane.width + (2 << log2) - 1) >> (log2 + 1);
         let analyse = log2 <= header.max_leaf_log2;
-        let (nodes, settled): (Vec<Option<NodeAnalysis>>, Vec<bool>) = (0..cols * rows)
+        let ((nodes, fits), settled): ((Vec<_>, Vec<_>), Vec<bool>) = (0..cols * rows)
             .into_par_iter()
             .map(|i| {
                 let (cx, cy) = (i % cols, i / cols);
@@ -388,14 +393,14 @@ fn fit_levels(
                     log2,
                 };
                 if !analyse {
-                    return (None, false);
+                    return ((None, Vec::new()), false);
                 }
                 let parent = ((cy / 2) * cols_above + cx / 2) as usize;
                 let inside_settled = settled_above.get(parent).copied().unwrap_or(false);
                 let n = done.fetch_add(1, Ordering::Relaxed);
                 if inside_settled {
                     progress(n + 1);
-                    return (None, true);
+                    return ((None, Vec::new()), true);
                 }
                 let fits = fit_node(plane, &node, config);
                 progress(n + 1);
@@ -403,19 +408,21 @@ fn fit_levels(
                     && colour.is_none_or(|c| chroma::smooth_within(c, &node, SETTLED_MSE));
                 let na = NodeAnalysis {
                     node,
-                    fits,
+                    fits: fits.iter().map(KeptFit::of).collect(),
                     candidates: Vec::new(),
                     indices: Vec::new(),
                     chroma: ChromaCost::default(),
                 };
-                (Some(na), settled)
+                ((Some(na), fits), settled)
             })
             .unzip();
         settled_above = settled;
         levels.push(Level { log2, cols, nodes });
+        all_fits.push(fits);
     }
     levels.reverse();
-    levels
+    all_fits.reverse();
+    (levels, all_fits)
 }
 
 /// Mean squared error per pixel (grey levels squared) within which a node's best fit
@@ -473,8 +480,6 @@ fn fit_node(plane: &Plane, node: &Node, config: &EncoderConfig) -> Vec<Fit> {
         fits.push(plain);
         fits.extend(weighted);
     }
-    // Kept until the analysis ends: no spare room.
-    fits.shrink_to_fit();
     fits
 }
 
@@ -544,11 +549,10 @@ fn add_candidate(
     plane: &Plane,
     header: &Header,
     na: &mut NodeAnalysis,
-    targets: &ControlTargets,
+    (fit, targets): (&Fit, &ControlTargets),
     chain: Chain,
     cq: ControlQuantiserId,
 ) {
-    let fit = &na.fits[usize::from(chain.fit)];
     let q = quantise(
         fit,
         targets,
@@ -612,18 +616,25 @@ fn final_candidates(
 /// the same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
 /// that changes an index): points between those of its control steps.
 fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, vary: &[u16]) {
+    // Each fit is made again (with its targets) once, for all its candidates.
+    let mut made: Vec<Option<(Fit, ControlTargets)>> = (0..na.fits.len()).map(|_| None).collect();
     for &k in vary {
         let c = na.candidates[usize::from(k)];
         if c.wq != WeightQuantiserId::DEFAULT {
             continue;
         }
-        let fit = &na.fits[usize::from(c.fit)];
+        let (fit, targets) = made[usize::from(c.fit)].get_or_insert_with(|| {
+            let fit = na.fits[usize::from(c.fit)]
+                .fit(plane, &na.node)
+                .into_owned();
+            let targets = targets_of(plane, header, &na.node, &fit);
+            (fit, targets)
+        });
         let n = fit.model.model().control_count();
-        let targets = targets_of(plane, header, &na.node, fit);
         for lambda in ROUNDING_VARIANTS {
             let q = quantise(
                 fit,
-                &targets,
+                targets,
                 c.cq,
                 c.wq,
                 c.coding,
@@ -662,20 +673,21 @@ fn coarse_candidates(
     plane: &Plane,
     header: &Header,
     na: &mut NodeAnalysis,
+    fits: &[Fit],
     start: &Contexts,
     first: u8,
 ) -> (Vec<f32>, Vec<ChainEnd>) {
     na.candidates.clear();
     na.indices.clear();
     let mut finest = Vec::new();
-    for fi in 0..na.fits.len() {
-        let targets = targets_of(plane, header, &na.node, &na.fits[fi]);
-        for chain in chains_of(header, fi, &na.fits[fi]) {
+    for (fi, fit) in fits.iter().enumerate() {
+        let targets = targets_of(plane, header, &na.node, fit);
+        for chain in chains_of(header, fi, fit) {
             let mut first_of_chain = None;
             for cq in ControlQuantiserId::all().filter(|cq| cq.get() >= first) {
                 if chain.tries(cq) {
                     first_of_chain.get_or_insert(na.candidates.len());
-                    add_candidate(plane, header, na, &targets, chain, cq);
+                    add_candidate(plane, header, na, (fit, &targets), chain, cq);
                 }
             }
             finest.extend(first_of_chain.map(|k| (chain, k)));
@@ -717,8 +729,9 @@ fn fine_candidates(
     let mut ctx = search.start.clone();
     // The chains of one fit are consecutive: its targets are made once.
     for same_fit in ends.chunk_by(|a, b| a.chain.fit == b.chain.fit) {
-        let fit = &na.fits[usize::from(same_fit[0].chain.fit)];
-        let targets = targets_of(plane, header, &na.node, fit);
+        let kept = na.fits[usize::from(same_fit[0].chain.fit)].clone();
+        let fit = kept.fit(plane, &na.node);
+        let targets = targets_of(plane, header, &na.node, &fit);
         for end in same_fit {
             let chain = end.chain;
             let (mut last_bits, mut last_sse) = (end.bits, end.sse);
@@ -729,7 +742,7 @@ fn fine_candidates(
                 if !chain.tries(cq) {
                     continue;
                 }
-                add_candidate(plane, header, na, &targets, chain, cq);
+                add_candidate(plane, header, na, (&fit, &targets), chain, cq);
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
                 bits.push(b);
@@ -836,7 +849,10 @@ fn design_codebooks(levels: &[Level], size: usize) -> [Codebook; 2] {
     }
     let mut samples = [Vec::new(), Vec::new()];
     for na in levels.iter().flat_map(|l| l.nodes.iter().flatten()) {
-        for fit in &na.fits {
+        for kept in &na.fits {
+            let KeptFit::Weighted(fit) = kept else {
+                continue;
+            };
             if fit.weights.iter().all(|&w| w == 0.0) {
                 continue;
             }
@@ -946,9 +962,10 @@ mod tests {
             y: 16,
             log2: 4,
         };
+        let fits = fit_node(&plane, &node, &EncoderConfig::default());
         let fresh = || NodeAnalysis {
             node,
-            fits: fit_node(&plane, &node, &EncoderConfig::default()),
+            fits: fits.iter().map(KeptFit::of).collect(),
             candidates: Vec::new(),
             indices: Vec::new(),
             chroma: ChromaCost::default(),
@@ -960,10 +977,10 @@ mod tests {
             s
         };
         let mut all = fresh();
-        coarse_candidates(&plane, &header, &mut all, &start, 0);
+        coarse_candidates(&plane, &header, &mut all, &fits, &start, 0);
         for floor in [f64::INFINITY, f64::NEG_INFINITY] {
             let mut na = fresh();
-            let (mut bits, ends) = coarse_candidates(&plane, &header, &mut na, &start, 5);
+            let (mut bits, ends) = coarse_candidates(&plane, &header, &mut na, &fits, &start, 5);
             assert!(na.candidates.iter().all(|c| c.cq.get() >= 5));
             let coarse = na.candidates.len();
             let search = FineSearch {
@@ -1089,14 +1106,15 @@ mod tests {
             y: 16,
             log2: 4,
         };
+        let fits = fit_node(&plane, &node, &EncoderConfig::default());
         let mut na = NodeAnalysis {
             node,
-            fits: fit_node(&plane, &node, &EncoderConfig::default()),
+            fits: fits.iter().map(KeptFit::of).collect(),
             candidates: Vec::new(),
             indices: Vec::new(),
             chroma: ChromaCost::default(),
         };
-        coarse_candidates(&plane, &header, &mut na, &Contexts::default(), 0);
+        coarse_candidates(&plane, &header, &mut na, &fits, &Contexts::default(), 0);
         let keep: Vec<u16> = (0..na.candidates.len() as u16).step_by(3).collect();
         let before: Vec<LeafSyntax> = keep
             .iter()
@@ -1109,10 +1127,34 @@ mod tests {
         let held: usize = na
             .candidates
             .iter()
-            .map(|c| na.fits[usize::from(c.fit)].model.model().control_count())
+            .map(|c| na.fits[usize::from(c.fit)].model().model().control_count())
             .sum();
         assert_eq!(na.indices.len(), held);
         assert!(held < all / 2, "{held} of {all} indices kept");
+    }
+
+    /// A node keeps a default-weight fit by its model only: made again, it is the same fit,
+    /// inside the image and at its edge (where it is fitted iteratively); a fit with weights is
+    /// kept whole.
+    #[test]
+    fn kept_fits_are_made_again_unchanged() {
+        let plane = textured_plane(40, 40);
+        let config = EncoderConfig {
+            fit_weights: true,
+            ..EncoderConfig::default()
+        };
+        let mut weighted = 0;
+        for (x, y) in [(8, 8), (32, 32)] {
+            let node = Node { x, y, log2: 4 };
+            for fit in fit_node(&plane, &node, &config) {
+                let kept = KeptFit::of(&fit);
+                assert_eq!(matches!(kept, KeptFit::Weighted(_)), fit.weighted());
+                weighted += usize::from(fit.weighted());
+                assert_eq!(kept.model(), fit.model);
+                assert_eq!(*kept.fit(&plane, &node), fit, "node ({x}, {y})");
+            }
+        }
+        assert!(weighted > 0, "some fits have weights");
     }
 
     /// The quadratic form of an exact fit ([`Fit::error_of`]) predicts the closed-loop error of

@@ -4,11 +4,13 @@
 //!
 //! Above [`super::quantise`] (a candidate is a quantised fit); below [`super::rate`].
 
-use super::fit::Fit;
-use super::ids::{ControlQuantiserId, WeightQuantiserId};
+use super::fit::{fit_default, Fit};
+use super::ids::{ControlQuantiserId, ModelId, WeightQuantiserId};
+use super::plane::Plane;
 use decoder_core::internal::syntax::control::WeightQuantiser;
 use decoder_core::internal::syntax::{ControlCoding, LeafSyntax};
 use decoder_core::Node;
+use std::borrow::Cow;
 
 /// One way of coding a node as a leaf.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,13 +59,52 @@ impl ChromaCost {
     }
 }
 
+/// What a node keeps of one of its fits between the analysis's passes.
+#[derive(Debug, Clone)]
+pub enum KeptFit {
+    /// A fit with the default weights, by its model: made again when a pass needs it
+    /// ([`fit_default`]), as that is cheap next to quantising it and its control values would
+    /// be a third of the analysis's memory.
+    Default(ModelId),
+    /// A fit with fitted weights, kept whole: fitting weights is dear.
+    Weighted(Box<Fit>),
+}
+
+impl KeptFit {
+    /// What a node keeps of `fit`.
+    pub fn of(fit: &Fit) -> KeptFit {
+        if fit.weighted() {
+            KeptFit::Weighted(Box::new(fit.clone()))
+        } else {
+            KeptFit::Default(fit.model)
+        }
+    }
+
+    /// The fit's model.
+    pub fn model(&self) -> ModelId {
+        match self {
+            KeptFit::Default(model) => *model,
+            KeptFit::Weighted(fit) => fit.model,
+        }
+    }
+
+    /// The fit, of the block of `node` in `plane` (made again if it has the default weights).
+    pub fn fit(&self, plane: &Plane, node: &Node) -> Cow<'_, Fit> {
+        match self {
+            KeptFit::Default(model) => Cow::Owned(fit_default(plane, node, *model)),
+            KeptFit::Weighted(fit) => Cow::Borrowed(fit),
+        }
+    }
+}
+
 /// Everything the analysis knows about one node.
 #[derive(Debug, Clone)]
 pub struct NodeAnalysis {
     /// The node.
     pub node: Node,
-    /// One fit per model the node supports.
-    pub fits: Vec<Fit>,
+    /// Its fits (per model the node supports, the default-weight fit and the fit with weights
+    /// where there is one), as kept between passes; a candidate's `fit` indexes them.
+    pub fits: Box<[KeptFit]>,
     /// Every (fit, quantiser) pair with its distortion.
     pub candidates: Vec<Candidate>,
     /// The candidates' indices, one after the other (one allocation per node).
@@ -75,7 +116,7 @@ pub struct NodeAnalysis {
 impl NodeAnalysis {
     /// The leaf syntax of candidate `c`.
     pub fn leaf(&self, c: &Candidate) -> LeafSyntax {
-        let model = self.fits[usize::from(c.fit)].model;
+        let model = self.fits[usize::from(c.fit)].model();
         let m = model.model();
         let (nc, nw) = (m.control_count(), m.weight_count());
         let mut leaf = super::ids::leaf_syntax(model, c.cq, c.wq, c.coding);
@@ -89,7 +130,7 @@ impl NodeAnalysis {
 
     /// How many indices candidate `c` holds in [`NodeAnalysis::indices`].
     fn index_count(&self, c: &Candidate) -> usize {
-        let m = self.fits[usize::from(c.fit)].model.model();
+        let m = self.fits[usize::from(c.fit)].model().model();
         match c.wq.kind() {
             WeightQuantiser::Default => m.control_count(),
             _ => m.control_count() + m.weight_count(),

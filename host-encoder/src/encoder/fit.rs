@@ -25,8 +25,9 @@ const MAX_PROJECTION_LOG2: u8 = 8;
 /// Levenberg-Marquardt iterations per fit.
 pub const MAX_ITERATIONS: usize = 5;
 
-/// Fitted real-valued parameters of one model on one block. Every node keeps its fits until
-/// the analysis ends, so they hold no more than they need (see docs/decisions.md).
+/// Fitted real-valued parameters of one model on one block. Every node's fits are alive at
+/// once between the fitting and the coarse pass, so they hold no more than they need (see
+/// docs/decisions.md).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
     /// Model type.
