@@ -308,6 +308,7 @@ impl Analysis {
                                 if let Some(colour) = colour {
                                     na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
                                 }
+                                na.fits = fits.iter().map(KeptFit::of).collect();
                                 let (bits, ends) =
                                     coarse_candidates(plane, header, na, &fits, start, first);
                                 (prune_node(na, &bits, &ALL_LAMBDAS), ends)
@@ -360,8 +361,8 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
 }
 
 /// Every level of the quadtree of `header`, from the smallest leaf to the root, and beside
-/// them the fits of every node of a leaf size, for the coarse pass (the nodes keep only what
-/// [`KeptFit`] says; the candidates come later). The levels are fitted from the
+/// them the fits of every node of a leaf size, for the coarse pass (where the nodes take what
+/// they keep of them, [`KeptFit`], and their candidates). The levels are fitted from the
 /// root down, and a node inside a settled one ([`settles`]) is not analysed: its parent is a
 /// leaf as good as any cut below it, so easy content (flat or smooth areas) costs only its
 /// largest nodes. `progress` is called with the number of nodes fitted (or skipped) so far.
@@ -383,7 +384,7 @@ fn fit_levels(
         let rows = (plane.height + (1 << log2) - 1) >> log2;
         let cols_above = (plane.width + (2 << log2) - 1) >> (log2 + 1);
         let analyse = log2 <= header.max_leaf_log2;
-        let ((nodes, fits), settled): ((Vec<_>, Vec<_>), Vec<bool>) = (0..cols * rows)
+        let fitted: Vec<_> = (0..cols * rows)
             .into_par_iter()
             .map(|i| {
                 let (cx, cy) = (i % cols, i / cols);
@@ -393,14 +394,14 @@ fn fit_levels(
                     log2,
                 };
                 if !analyse {
-                    return ((None, Vec::new()), false);
+                    return (None, Vec::new(), false);
                 }
                 let parent = ((cy / 2) * cols_above + cx / 2) as usize;
                 let inside_settled = settled_above.get(parent).copied().unwrap_or(false);
                 let n = done.fetch_add(1, Ordering::Relaxed);
                 if inside_settled {
                     progress(n + 1);
-                    return ((None, Vec::new()), true);
+                    return (None, Vec::new(), true);
                 }
                 let fits = fit_node(plane, &node, config);
                 progress(n + 1);
@@ -408,15 +409,24 @@ fn fit_levels(
                     && colour.is_none_or(|c| chroma::smooth_within(c, &node, SETTLED_MSE));
                 let na = NodeAnalysis {
                     node,
-                    fits: fits.iter().map(KeptFit::of).collect(),
+                    fits: Box::default(),
                     candidates: Vec::new(),
                     indices: Vec::new(),
                     chroma: ChromaCost::default(),
                 };
-                ((Some(na), fits), settled)
+                (Some(na), fits, settled)
             })
-            .unzip();
-        settled_above = settled;
+            .collect();
+        // Collected whole, then split: unzipping in parallel grew chunks while the fits' large
+        // temporaries came and went, and the allocator kept the holes (a third more memory).
+        let mut nodes = Vec::with_capacity(fitted.len());
+        let mut fits = Vec::with_capacity(fitted.len());
+        settled_above = Vec::with_capacity(fitted.len());
+        for (na, node_fits, settled) in fitted {
+            nodes.push(na);
+            fits.push(node_fits);
+            settled_above.push(settled);
+        }
         levels.push(Level { log2, cols, nodes });
         all_fits.push(fits);
     }
@@ -480,6 +490,8 @@ fn fit_node(plane: &Plane, node: &Node, config: &EncoderConfig) -> Vec<Fit> {
         fits.push(plain);
         fits.extend(weighted);
     }
+    // Every node's fits are alive until the coarse pass: no spare room.
+    fits.shrink_to_fit();
     fits
 }
 

@@ -103,7 +103,8 @@ pub struct NodeAnalysis {
     /// The node.
     pub node: Node,
     /// Its fits (per model the node supports, the default-weight fit and the fit with weights
-    /// where there is one), as kept between passes; a candidate's `fit` indexes them.
+    /// where there is one), as kept between passes from the coarse pass on; a candidate's
+    /// `fit` indexes them.
     pub fits: Box<[KeptFit]>,
     /// Every (fit, quantiser) pair with its distortion.
     pub candidates: Vec<Candidate>,
