@@ -133,7 +133,7 @@ impl Analysis {
         let started = Instant::now();
         let (levels, fits) = fit_levels(&plane, colour.as_ref(), &header, config, progress);
         let fit_time = started.elapsed();
-        header.codebooks = design_codebooks(&levels, config.codebook_levels);
+        header.codebooks = design_codebooks(&fits, config.codebook_levels);
         let mut analysis = Analysis {
             tree: CandidateTree::new(levels, header.min_leaf_log2),
             plane,
@@ -855,16 +855,13 @@ fn closed_loop_sse(plane: &Plane, header: &Header, node: &Node, leaf: &LeafSynta
 }
 
 /// Lloyd-Max codebooks for the line and cell weights, from every fitted weight.
-fn design_codebooks(levels: &[Level], size: usize) -> [Codebook; 2] {
+fn design_codebooks(fits: &PerNode<Vec<Fit>>, size: usize) -> [Codebook; 2] {
     if size < 2 {
         return [Codebook::EMPTY; 2];
     }
     let mut samples = [Vec::new(), Vec::new()];
-    for na in levels.iter().flat_map(|l| l.nodes.iter().flatten()) {
-        for kept in &na.fits {
-            let KeptFit::Weighted(fit) = kept else {
-                continue;
-            };
+    for node_fits in fits.iter().flatten() {
+        for fit in node_fits {
             if fit.weights.iter().all(|&w| w == 0.0) {
                 continue;
             }
@@ -1270,6 +1267,28 @@ mod tests {
             .expect("an encode");
         assert_decodes_to(&encoded.bytes, &encoded.reconstruction);
         assert!(encoded.psnr > 40.0, "PSNR {}", encoded.psnr);
+    }
+
+    /// With fitted weights, the codebooks are designed from them (the nodes keep no default
+    /// fit, but every weighted one reaches the design), and a stream may use them.
+    #[test]
+    fn fitted_weights_design_codebooks() {
+        let config = EncoderConfig {
+            fit_weights: true,
+            ..EncoderConfig::default()
+        };
+        let analysis =
+            Analysis::run(textured_plane(64, 64), None, &config, &|_| {}).expect("an analysis");
+        assert!(analysis.header.has_codebooks());
+        let weighted = analysis
+            .tree
+            .levels()
+            .iter()
+            .flat_map(|l| l.nodes.iter().flatten())
+            .flat_map(|na| na.fits.iter())
+            .filter(|f| matches!(f, KeptFit::Weighted(_)))
+            .count();
+        assert!(weighted > 0, "nodes keep their weighted fits");
     }
 
     /// The analysis, with the default settings, of the 64 x 64 colour image whose pixel
