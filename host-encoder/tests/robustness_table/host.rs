@@ -242,28 +242,31 @@ fn encode_refuses_a_flat_8000x8000_png_up_front() {
         &format!("pifs encode {} -o {}", s(&png), s(&out)),
         &format!("refused in < 1 s, peak < 50 MB, before decoding a pixel: {msg}; no output"),
     )];
-    // Past --max-pixels, the memory the analysis needs decides (here, more than any machine
-    // running the tests has).
+    // Past --max-pixels, the memory the analysis needs decides (for 256 megapixels, more than
+    // any machine running the tests has).
+    let huge = dir.join("flat-16000.png");
+    flat_png(&huge, 16000, 16000, 128);
     let run = measured(
         &[],
         &[
             "encode",
-            s(&png),
+            s(&huge),
             "-o",
             s(&out),
             "--max-pixels",
-            "100000000",
+            "300000000",
         ],
     );
     let msg = message(&dir, &run.out);
     assert!(msg.contains("--max-memory"), "{msg}");
     assert!(run.seconds < 1.0 && run.peak_mb < 50.0);
+    assert!(!out.exists());
     rows.push(row(
         &dir,
-        "the same with --max-pixels raised",
+        "a flat 16000x16000 PNG with --max-pixels raised",
         &format!(
-            "pifs encode {} -o {} --max-pixels 100000000",
-            s(&png),
+            "pifs encode {} -o {} --max-pixels 300000000",
+            s(&huge),
             s(&out)
         ),
         &format!("refused in < 1 s by the memory available: {msg}; no output"),
@@ -287,8 +290,9 @@ fn needs_mb(line: &str) -> f64 {
 #[test]
 fn encode_is_bounded_by_its_memory_budget() {
     let dir = scratch("budget");
-    let big = dir.join("noise-1000.png");
-    gray_png(&big, 1000, 1000, noise);
+    // More than the cap below holds by the estimate (an encode of 1000x1000 fits in it).
+    let big = dir.join("noise-1200.png");
+    gray_png(&big, 1200, 1200, noise);
     let small = dir.join("noise-250.png");
     gray_png(&small, 250, 250, noise);
     let mid = dir.join("noise-500.png");
@@ -304,7 +308,7 @@ fn encode_is_bounded_by_its_memory_budget() {
     assert!(!out.exists());
     rows.push(row(
         &dir,
-        "encode 1000x1000 under a 400 MB address-space cap",
+        "encode 1200x1200 under a 400 MB address-space cap",
         &format!(
             "prlimit --as=400000000 pifs encode {} -o {}",
             s(&big),

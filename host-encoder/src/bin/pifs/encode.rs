@@ -22,7 +22,7 @@ use std::time::Instant;
 
 /// Largest image `pifs encode` and `pifs rd` accept unless told otherwise: 2^24 pixels (16.8
 /// megapixels: a 12-megapixel phone photo, a 4K frame). The analysis of a photograph needs
-/// about 400 bytes per pixel ([`crate::memory`]), so this is about 7 GB; a machine with less
+/// about 300 bytes per pixel ([`crate::memory`]), so this is about 5 GB; a machine with less
 /// memory refuses smaller images by `--max-memory`.
 pub const DEFAULT_MAX_PIXELS: u64 = 1 << 24;
 

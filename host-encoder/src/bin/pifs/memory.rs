@@ -1,20 +1,20 @@
 //! How much memory an encode may use, and how much it needs.
 //!
-//! The analysis keeps every model's fit at every quadtree node it analyses (none inside a
-//! settled node: easy content needs much less), and the candidates on each node's
-//! rate/distortion hull: its memory grows with the pixels. Measured peaks
+//! The analysis keeps, at every quadtree node it analyses (none inside a settled node: easy
+//! content needs much less), the candidates on the node's rate/distortion hull, and all the
+//! nodes' fits until its coarse pass: its memory grows with the pixels. Measured peaks
 //! (`/usr/bin/time -f %M pifs encode IN.png --gray -o x.pifs --bpp 0.25`, the default
-//! settings): 500² of noise 67 MB, tilings of 512² Kodak crops of 1024² 170 MB and 1536²
-//! 385 MB, a 3072x2048 mosaic of Kodak images 985 MB: about 165 bytes per pixel beside a fixed
-//! part of about 10 MB, and 230 for noise; with `--min-leaf-log2 1` 135 MB and 373 MB for the
-//! first two (355 to 500 bytes), with 3 39 MB and 80 MB (76 to 115), with `--fit-weights`
-//! 68 MB and 194 MB (185 to 230). [`encode_bytes`] rounds these up.
+//! settings): 500² of noise 52 MB, tilings of 512² Kodak crops of 1024² 115 MB and 1536²
+//! 259 MB, mosaics of Kodak images of 3072x2048 632 MB and 6000x4000 2.29 GB: about 100 bytes
+//! per pixel beside a fixed part of about 10 MB, and 170 for noise; with `--min-leaf-log2 1`
+//! 105 MB and 258 MB for the first two (235 to 380 bytes), with 3 38 MB and 55 MB (43 to 113);
+//! with `--fit-weights` the fitting's temporaries make the peak vary from run to run (the 1024²
+//! tiling 250 to 440 MB over three runs, 240 to 420 bytes). [`encode_bytes`] rounds these up.
 //!
 //! A colour encode analyses the luma plane and keeps, at every node, what its chroma costs
-//! (the hull of its chroma options): RGB noise of 500² peaked at 78 MB against 67 MB in
-//! grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`), about 45 bytes
-//! per pixel more, the 1024² tiling 172 MB against 170 MB; [`image_bytes_per_pixel`] prices
-//! the larger.
+//! (the hull of its chroma options): RGB noise of 500² peaked at 56 MB against 52 MB in
+//! grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`), about 16 bytes
+//! per pixel more; [`image_bytes_per_pixel`] prices it.
 //!
 //! The test `encode_is_bounded_by_its_memory_budget` (host-encoder/tests/robustness_table/
 //! host.rs) checks the estimate against measured peaks of a grayscale and a colour encode, so
@@ -30,12 +30,12 @@
 /// weights are fitted.
 fn analysis_bytes_per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
     let base = match min_leaf_log2 {
-        0 | 1 => 800,
-        2 => 400,
+        0 | 1 => 600,
+        2 => 300,
         _ => 200,
     };
     if fit_weights {
-        base * 13 / 10
+        base * 2
     } else {
         base
     }
@@ -51,8 +51,8 @@ const FIXED_BYTES: u64 = 64 << 20;
 /// where grayscale's are 1 and within its analysis figure).
 fn image_bytes_per_pixel(channels: u8) -> u64 {
     if channels == 3 {
-        // 3 + 3 + 1 + 0.5 + 2 * (3 - 1), rounded up, and the nodes' chroma costs (48).
-        12 + 48
+        // 3 + 3 + 1 + 0.5 + 2 * (3 - 1), rounded up, and the nodes' chroma costs (24).
+        12 + 24
     } else {
         2
     }
