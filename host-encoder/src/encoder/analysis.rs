@@ -418,7 +418,7 @@ fn fit_levels(
             })
             .collect();
         // Collected whole, then split: unzipping in parallel grew chunks while the fits' large
-        // temporaries came and went, and the allocator kept the holes (a third more memory).
+        // temporaries came and went, and the allocator kept the holes (see docs/decisions.md).
         let mut nodes = Vec::with_capacity(fitted.len());
         let mut fits = Vec::with_capacity(fitted.len());
         settled_above = Vec::with_capacity(fitted.len());
