@@ -24,7 +24,9 @@ use super::quantise::{
     lloyd_max, quantise, weight_classes, ControlTargets, Quantised, ROUNDING_LAMBDA,
     ROUNDING_VARIANTS,
 };
-use super::rate::{candidate_bits, node_bits, node_hull, prune_node, Anchor, RateTable};
+use super::rate::{
+    candidate_bits, node_bits, node_hull, prune_node, Anchor, GrowingHull, RateTable,
+};
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
@@ -618,6 +620,7 @@ fn final_candidates(
     let known = na.candidates.len();
     add_rounding_variants(plane, header, na, &vary);
     let mut ctx = trial.snapshot.clone();
+    bits.reserve(na.candidates.len() - known);
     for c in &na.candidates[known..] {
         bits.push(candidate_bits(na, c, &trial.prediction, &mut ctx));
     }
@@ -630,6 +633,9 @@ fn final_candidates(
 fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, vary: &[u16]) {
     // Each fit is made again (with its targets) once, for all its candidates.
     let mut made: Vec<Option<(Fit, ControlTargets)>> = (0..na.fits.len()).map(|_| None).collect();
+    let most = vary.len() * ROUNDING_VARIANTS.len();
+    na.candidates.reserve(most);
+    na.indices.reserve(most * MAX_CONTROL);
     for &k in vary {
         let c = na.candidates[usize::from(k)];
         if c.wq != WeightQuantiserId::DEFAULT {
@@ -678,9 +684,13 @@ struct ChainEnd {
     sse: f64,
 }
 
-/// The coarse pass at node `na`: every chain of every fit at every control step from `first`
-/// up, rated from `start`. Replaces the node's candidates; returns their bits and where each
-/// chain ended.
+/// The coarse pass at node `na`: every chain of every fit at the control steps from `first`
+/// up, coarsest first, rated from `start`, until the node's candidates so far make a step
+/// pointless: once their hull covers a step's bits at the fit's own residual, every finer
+/// step of the chain (more bits, and never less error than the residual) is off the hull too.
+/// The richest fits go first, so that their candidates end the poorer fits' chains early.
+/// Replaces the node's candidates; returns their bits and where each chain that reached step
+/// `first` ended.
 fn coarse_candidates(
     plane: &Plane,
     header: &Header,
@@ -691,30 +701,59 @@ fn coarse_candidates(
 ) -> (Vec<f32>, Vec<ChainEnd>) {
     na.candidates.clear();
     na.indices.clear();
-    let mut finest = Vec::new();
-    for (fi, fit) in fits.iter().enumerate() {
+    // Room for every candidate the pass can make, so that pushing never moves them.
+    let steps = ControlQuantiserId::all()
+        .filter(|cq| cq.get() >= first)
+        .count();
+    for fit in fits {
+        let m = fit.model.model();
+        let n = chains_of(header, 0, fit).len() * steps;
+        na.candidates.reserve(n);
+        na.indices
+            .reserve(n * (m.control_count() + m.weight_count()));
+    }
+    let prediction = prediction_of(plane, header);
+    let mut ctx = start.clone();
+    let mut bits = Vec::with_capacity(na.candidates.capacity());
+    let mut hull = GrowingHull::default();
+    let mut ends = Vec::new();
+    for (fi, fit) in fits.iter().enumerate().rev() {
         let targets = targets_of(plane, header, &na.node, fit);
+        let residual = error_floor(&na.node, fit);
         for chain in chains_of(header, fi, fit) {
-            let mut first_of_chain = None;
-            for cq in ControlQuantiserId::all().filter(|cq| cq.get() >= first) {
-                if chain.tries(cq) {
-                    first_of_chain.get_or_insert(na.candidates.len());
-                    add_candidate(plane, header, na, (fit, &targets), chain, cq);
+            let mut end = None;
+            let steps =
+                ControlQuantiserId::all().filter(|cq| cq.get() >= first && chain.tries(*cq));
+            for cq in steps.rev() {
+                add_candidate(plane, header, na, (fit, &targets), chain, cq);
+                let c = na.candidates[na.candidates.len() - 1];
+                let b = candidate_bits(na, &c, &prediction, &mut ctx);
+                bits.push(b);
+                hull.add((f64::from(b), c.sse));
+                if hull.covers((f64::from(b), residual)) {
+                    end = None;
+                    break;
                 }
+                end = Some(ChainEnd {
+                    chain,
+                    bits: b,
+                    sse: c.sse,
+                });
             }
-            finest.extend(first_of_chain.map(|k| (chain, k)));
+            ends.extend(end);
         }
     }
-    let bits = node_bits(na, &prediction_of(plane, header), start);
-    let ends = finest
-        .into_iter()
-        .map(|(chain, k)| ChainEnd {
-            chain,
-            bits: bits[k],
-            sse: na.candidates[k].sse,
-        })
-        .collect();
     (bits, ends)
+}
+
+/// The least squared error any candidate of `fit` on `node` can have: the residual of an exact
+/// fit, unless errors that small are measured in the closed loop ([`quantised_sse`]), whose
+/// integer synthesis may clamp some error away; else zero.
+fn error_floor(node: &Node, fit: &Fit) -> f64 {
+    let pixels = f64::from(node.size()) * f64::from(node.size());
+    fit.residual
+        .filter(|&r| r > MIN_ESTIMATED_MSE * pixels)
+        .unwrap_or(0.0)
 }
 
 /// What the fine pass searches: steps finer than control quantiser `first`, rated from
@@ -739,11 +778,22 @@ fn fine_candidates(
 ) {
     let prediction = prediction_of(plane, header);
     let mut ctx = search.start.clone();
+    let mut hull = GrowingHull::default();
+    for (&b, c) in bits.iter().zip(&na.candidates) {
+        hull.add((f64::from(b), c.sse));
+    }
+    let steps = ControlQuantiserId::all()
+        .filter(|cq| cq.get() < search.first)
+        .count();
+    na.candidates.reserve(ends.len() * steps);
+    na.indices.reserve(ends.len() * steps * MAX_CONTROL);
+    bits.reserve(ends.len() * steps);
     // The chains of one fit are consecutive: its targets are made once.
     for same_fit in ends.chunk_by(|a, b| a.chain.fit == b.chain.fit) {
         let kept = na.fits[usize::from(same_fit[0].chain.fit)].clone();
         let fit = kept.fit(plane, &na.node);
         let targets = targets_of(plane, header, &na.node, &fit);
+        let residual = error_floor(&na.node, &fit);
         for end in same_fit {
             let chain = end.chain;
             let (mut last_bits, mut last_sse) = (end.bits, end.sse);
@@ -758,8 +808,10 @@ fn fine_candidates(
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
                 bits.push(b);
+                hull.add((f64::from(b), c.sse));
                 let added = f64::from(b) - f64::from(last_bits);
-                if added > 0.0 && last_sse - c.sse < search.floor * added {
+                let pays = !(added > 0.0 && last_sse - c.sse < search.floor * added);
+                if !pays || hull.covers((f64::from(b), residual)) {
                     break;
                 }
                 (last_bits, last_sse) = (b, c.sse);
@@ -804,7 +856,7 @@ fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Qua
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
             let n = fit.model.model().control_count();
             let mut control = [0.0f64; MAX_CONTROL];
-            for (c, &v) in control.iter_mut().zip(&q.values[..n]) {
+            for (c, &v) in control.iter_mut().zip(&q.control_values(node.log2)[..n]) {
                 *c = f64::from(v) / f64::from(SAMPLE_ONE);
             }
             fit.error_of(node.log2, &control[..n])
@@ -1209,7 +1261,7 @@ mod tests {
                         ROUNDING_LAMBDA,
                     );
                     let n = m.model().control_count();
-                    let control: Vec<f64> = q.values[..n]
+                    let control: Vec<f64> = q.control_values(log2)[..n]
                         .iter()
                         .map(|&v| f64::from(v) / f64::from(SAMPLE_ONE))
                         .collect();

@@ -20,8 +20,9 @@ use decoder_core::internal::syntax::control::{
     coefficient_step, expand_pixel_grid, grid_sizes, transform_order, WeightQuantiser,
 };
 use decoder_core::internal::syntax::{
-    control_class, dequantise_control, intra_prediction, transform_control_values, zero_context,
-    Codebook, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES, MAX_CODEBOOK, STEP_GROUPS,
+    control_class, control_step, control_value, dequantise_control, intra_prediction,
+    transform_control_values, zero_context, Codebook, Contexts, ControlCoding, LeafSyntax,
+    CONTROL_CLASSES, MAX_CODEBOOK, STEP_GROUPS,
 };
 use decoder_core::Node;
 use nalgebra::DMatrix;
@@ -284,11 +285,35 @@ impl ErrorFeedback {
 pub struct Quantised {
     /// The leaf's syntax elements.
     pub leaf: LeafSyntax,
-    /// The reconstructed control values, row-major over the model's whole control grid (a
-    /// pixel grid's values past the block repeating the last ones, as the decoder's).
-    pub values: [i16; MAX_CONTROL],
     /// The error quantisation adds to an exact fit's residual.
     pub added_error: Option<f64>,
+}
+
+impl Quantised {
+    /// The reconstructed control values on a block of side `2^log2`, row-major over the
+    /// model's whole control grid (a pixel grid's values past the block repeating the last
+    /// ones, as the decoder's). Made only when asked for: an exact fit's error needs none.
+    pub fn control_values(&self, log2: u8) -> [i16; MAX_CONTROL] {
+        let leaf = &self.leaf;
+        let model = ModelId::new(leaf.model).model();
+        let side = model.coded_side(log2);
+        let step = control_step(leaf.cquant);
+        let mut values = [0i16; MAX_CONTROL];
+        match leaf.coding {
+            ControlCoding::Dpcm => {
+                for (i, &index) in leaf.control.iter().enumerate().take(side * side) {
+                    values[i] = control_value(&values, side, i, step, i32::from(index));
+                }
+            }
+            ControlCoding::Transform => {
+                transform_control_values(side, step, &leaf.control, &mut values);
+            }
+        }
+        if side == usize::from(model.intervals) {
+            expand_pixel_grid(&mut values, side);
+        }
+        values
+    }
 }
 
 /// Quantises `fit` (whose control values `targets` holds) with control quantiser `cq`, control
@@ -307,33 +332,25 @@ pub fn quantise(
     let mut leaf = leaf_syntax(fit.model, cq, wq, coding);
     let step = cq.step();
     let side = targets.side;
-    let (mut values, form) = match coding {
-        ControlCoding::Dpcm => {
-            let rounding = IndexRounding::new(cq, false, side, rounding_lambda);
-            quantise_dpcm(targets, side, step, &rounding, &mut leaf.control)
-        }
+    let rounding = IndexRounding::new(
+        cq,
+        coding == ControlCoding::Transform,
+        side,
+        rounding_lambda,
+    );
+    let form = match coding {
+        ControlCoding::Dpcm => quantise_dpcm(targets, side, step, &rounding, &mut leaf.control),
         ControlCoding::Transform => {
-            let rounding = IndexRounding::new(cq, true, side, rounding_lambda);
-            let form = quantise_coefficients(targets, side, step, &rounding, &mut leaf.control);
-            let mut values = [0i16; MAX_CONTROL];
-            transform_control_values(side, step, &leaf.control, &mut values);
-            (values, form)
+            quantise_coefficients(targets, side, step, &rounding, &mut leaf.control)
         }
     };
-    if side == usize::from(model.intervals) {
-        expand_pixel_grid(&mut values, side);
-    }
     // The forms are over errors in sample units.
     let sample = f64::from(SAMPLE_ONE);
     let added_error = form.map(|f| f / (sample * sample));
     let kind = wq.kind();
     if kind == WeightQuantiser::Default {
         // The default weights: every index stays zero.
-        return Quantised {
-            leaf,
-            values,
-            added_error,
-        };
+        return Quantised { leaf, added_error };
     }
     let mut i = 0;
     for_each_free_tap(model, |slot| {
@@ -352,24 +369,20 @@ pub fn quantise(
         };
         i += 1;
     });
-    Quantised {
-        leaf,
-        values,
-        added_error,
-    }
+    Quantised { leaf, added_error }
 }
 
-/// DPCM within the leaf, against the values the decoder will reconstruct: writes the indices
-/// and returns those values. With error feedback, each value aims at what best makes up for the
-/// errors of the values before it, rounded by rate and its weight in the patch's error
-/// ([`IndexRounding`]); then the form of the errors made (sample units) comes with the values.
+/// DPCM within the leaf, against the values the decoder will reconstruct: writes the indices.
+/// With error feedback, each value aims at what best makes up for the errors of the values
+/// before it, rounded by rate and its weight in the patch's error ([`IndexRounding`]); then
+/// returns the form of the errors made (sample units).
 fn quantise_dpcm(
     targets: &ControlTargets,
     side: usize,
     step: i32,
     rounding: &IndexRounding,
     indices: &mut [i16; MAX_CONTROL],
-) -> ([i16; MAX_CONTROL], Option<f64>) {
+) -> Option<f64> {
     let n = side * side;
     let mut values = [0i16; MAX_CONTROL];
     let mut errors = [0.0f64; MAX_CONTROL];
@@ -427,7 +440,7 @@ fn quantise_dpcm(
             form += r * r;
         }
     }
-    (values, exact.map(|_| form))
+    exact.map(|_| form)
 }
 
 /// Grid-transform coefficients, each with its band's step, in coding order (with error feedback

@@ -577,6 +577,63 @@ pub fn prune_node(
     keep.iter().map(|&k| bits[usize::from(k)]).collect()
 }
 
+/// The lower convex hull of rate/error points `(bits, sse)` added one at a time: the vertices,
+/// by rising bits and falling error. Tells whether a point could still minimise `sse + lambda *
+/// bits` for some positive `lambda` among all points added so far.
+#[derive(Debug, Default)]
+pub struct GrowingHull {
+    vertices: Vec<(f64, f64)>,
+}
+
+impl GrowingHull {
+    /// Adds point `p` (a point the hull covers changes nothing).
+    pub fn add(&mut self, p: (f64, f64)) {
+        if !(p.0.is_finite() && p.1.is_finite()) || self.covers(p) {
+            return;
+        }
+        let at = self.vertices.partition_point(|v| v.0 < p.0);
+        self.vertices.insert(at, p);
+        // Vertices with as many bits and no less error are dominated.
+        let v = &mut self.vertices;
+        let mut end = at + 1;
+        while end < v.len() && v[end].1 >= p.1 {
+            end += 1;
+        }
+        v.drain(at + 1..end);
+        // Neighbours no longer convex: on or above the segment through their neighbours.
+        let above = |a: (f64, f64), b: (f64, f64), c: (f64, f64)| {
+            (b.1 - a.1) * (c.0 - a.0) >= (c.1 - a.1) * (b.0 - a.0)
+        };
+        let mut at = at;
+        while at >= 2 && above(v[at - 2], v[at - 1], v[at]) {
+            v.remove(at - 1);
+            at -= 1;
+        }
+        while at + 2 < v.len() && above(v[at], v[at + 1], v[at + 2]) {
+            v.remove(at + 1);
+        }
+    }
+
+    /// Whether point `p` lies on or above the hull: no positive multiplier prefers it to the
+    /// points added so far (nor to any added later, which only lower the hull).
+    pub fn covers(&self, p: (f64, f64)) -> bool {
+        let v = &self.vertices;
+        let at = v.partition_point(|q| q.0 <= p.0);
+        if at == 0 {
+            // Fewer bits than every vertex.
+            return false;
+        }
+        let a = v[at - 1];
+        if a.1 <= p.1 {
+            return true;
+        }
+        match v.get(at) {
+            Some(&b) => (p.1 - a.1) * (b.0 - a.0) >= (b.1 - a.1) * (p.0 - a.0),
+            None => false,
+        }
+    }
+}
+
 /// Indices of the points `(bits, sse)` on their lower convex hull: those that minimise
 /// `sse + lambda * bits` for some positive `lambda`, ascending.
 pub fn lower_hull(points: &[(f64, f64)]) -> Vec<u16> {
@@ -859,7 +916,41 @@ impl FalsePosition {
 
 #[cfg(test)]
 mod tests {
-    use super::lower_hull_in;
+    use super::{lower_hull, lower_hull_in, GrowingHull};
+
+    /// Added one at a time in any order, points leave the hull of them all, which covers them
+    /// all and nothing below its vertices.
+    #[test]
+    fn growing_hull_is_the_hull_of_its_points() {
+        let mut seed = 777u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            f64::from(seed >> 8) / f64::from(1u32 << 24)
+        };
+        for _ in 0..500 {
+            let points: Vec<(f64, f64)> = (0..15)
+                .map(|_| ((next() * 30.0).round(), (next() * 500.0).round()))
+                .collect();
+            let mut hull = GrowingHull::default();
+            points.iter().for_each(|&p| hull.add(p));
+            let mut expected: Vec<(f64, f64)> = lower_hull(&points)
+                .iter()
+                .map(|&k| points[usize::from(k)])
+                .collect();
+            expected.sort_by(|a, b| a.0.total_cmp(&b.0));
+            assert_eq!(hull.vertices, expected, "{points:?}");
+            // Every point added is on or above it; a little less error at a vertex is below.
+            for &p in &points {
+                assert!(hull.covers(p), "{p:?} of {points:?}");
+            }
+            for &(bits, sse) in &expected {
+                assert!(
+                    !hull.covers((bits, sse - 0.5)),
+                    "{bits} {sse} of {points:?}"
+                );
+            }
+        }
+    }
 
     /// The hull keeps exactly the points that are best for some multiplier in the range, as a
     /// dense sweep of multipliers finds them.
