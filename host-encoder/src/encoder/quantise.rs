@@ -543,7 +543,9 @@ struct CoefficientQuantiser<'a> {
 impl CoefficientQuantiser<'_> {
     /// Coordinate descent on the patch error: each coefficient in turn is quantised again
     /// towards the value that is best given all the others (the sequential pass only knew the
-    /// earlier ones), until a pass changes nothing. `errors` (coefficient errors in coding
+    /// earlier ones), until a pass changes nothing; a pass stops early once it is past the
+    /// last change of the pass before without a change of its own (what follows was quantised
+    /// again after every change, so it stays). `errors` (coefficient errors in coding
     /// order), their `gradient` `G e` and `indices` are updated together, at the cost of one
     /// column of `G` per change.
     fn refine(
@@ -554,9 +556,15 @@ impl CoefficientQuantiser<'_> {
     ) {
         let n = self.order.len();
         let g = self.form.as_slice();
+        // Where the last pass made its last change: the coefficients after it were quantised
+        // again after every change, so unless this pass changes one before, they stay.
+        let mut last_change = n;
         for _ in 0..MAX_REFINEMENT_PASSES {
-            let mut changed = false;
+            let mut changed = None;
             for (k, &i) in self.order.iter().enumerate() {
+                if changed.is_none() && k > last_change {
+                    return;
+                }
                 let i = usize::from(i);
                 let column = &g[k * n..(k + 1) * n];
                 let target = self.exact[i] + errors[k] - gradient[k] * self.inverse_diagonal[k];
@@ -570,7 +578,7 @@ impl CoefficientQuantiser<'_> {
                 let error = f64::from(index) * self.steps[k] - self.exact[i];
                 let delta = error - errors[k];
                 if delta != 0.0 {
-                    changed = true;
+                    changed = Some(k);
                     indices[i] = index as i16;
                     errors[k] = error;
                     for (d, &c) in gradient.iter_mut().zip(column) {
@@ -578,8 +586,9 @@ impl CoefficientQuantiser<'_> {
                     }
                 }
             }
-            if !changed {
-                break;
+            match changed {
+                Some(k) => last_change = k,
+                None => break,
             }
         }
     }
