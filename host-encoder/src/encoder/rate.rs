@@ -918,19 +918,33 @@ impl FalsePosition {
 mod tests {
     use super::{lower_hull, lower_hull_in, GrowingHull};
 
+    /// Numbers in [0, 1) from a linear congruential generator started at `seed`.
+    fn uniform(mut seed: u32) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            f64::from(seed >> 8) / f64::from(1u32 << 24)
+        }
+    }
+
+    /// `count` points `(bits, sse)` of whole numbers from 0 to `bits` and `sse`, from `next`.
+    fn random_points(
+        next: &mut impl FnMut() -> f64,
+        count: usize,
+        bits: f64,
+        sse: f64,
+    ) -> Vec<(f64, f64)> {
+        (0..count)
+            .map(|_| ((next() * bits).round(), (next() * sse).round()))
+            .collect()
+    }
+
     /// Added one at a time in any order, points leave the hull of them all, which covers them
     /// all and nothing below its vertices.
     #[test]
     fn growing_hull_is_the_hull_of_its_points() {
-        let mut seed = 777u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            f64::from(seed >> 8) / f64::from(1u32 << 24)
-        };
+        let mut next = uniform(777);
         for _ in 0..500 {
-            let points: Vec<(f64, f64)> = (0..15)
-                .map(|_| ((next() * 30.0).round(), (next() * 500.0).round()))
-                .collect();
+            let points = random_points(&mut next, 15, 30.0, 500.0);
             let mut hull = GrowingHull::default();
             points.iter().for_each(|&p| hull.add(p));
             let mut expected: Vec<(f64, f64)> = lower_hull(&points)
@@ -956,15 +970,9 @@ mod tests {
     /// dense sweep of multipliers finds them.
     #[test]
     fn hull_matches_a_sweep_of_multipliers() {
-        let mut seed = 12345u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            f64::from(seed >> 8) / f64::from(1u32 << 24)
-        };
+        let mut next = uniform(12345);
         for _ in 0..200 {
-            let points: Vec<(f64, f64)> = (0..12)
-                .map(|_| ((next() * 40.0).round(), (next() * 1000.0).round()))
-                .collect();
+            let points = random_points(&mut next, 12, 40.0, 1000.0);
             let range = 0.5..=200.0;
             let hull = lower_hull_in(&points, &range);
             let mut swept: Vec<u16> = (0..4000)
