@@ -1,6 +1,10 @@
 //! The `pifs` command line: a round trip through files. Malformed inputs are in
 //! `robustness_table.rs`.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+
+use scratch::Scratch;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -11,11 +15,8 @@ fn pifs(args: &[&str]) -> Output {
         .expect("pifs runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pifs-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("cli-{name}"))
 }
 
 /// A 40x24 test image with a gradient and an edge.
@@ -535,7 +536,6 @@ fn the_demo_runs_from_any_directory_and_writes_only_there() {
     // `pifs demo` is the same command.
     let help = ok(&pifs(&["demo", "--help"]));
     assert!(help.contains("pifs-demo"), "{help}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A 48x32 colour test image: a gradient in each channel.
@@ -848,7 +848,6 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
         .filter(|n| n != "partial.png")
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `pifs curve fit`, `render` and `info` through files: CSV and SVG in, JSON, SVG and CSV

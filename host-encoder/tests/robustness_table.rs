@@ -9,7 +9,10 @@
 mod doc;
 #[path = "robustness_table/host.rs"]
 mod host;
+#[path = "common/scratch.rs"]
+mod scratch;
 
+use scratch::Scratch;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -38,11 +41,8 @@ fn pifs() -> Command {
     Command::new(env!("CARGO_BIN_EXE_pifs"))
 }
 
-fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pifs-robustness-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch() -> Scratch {
+    Scratch::new("robustness")
 }
 
 fn gray_png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> u8) {
@@ -953,7 +953,6 @@ fn malformed_inputs_are_refused_cleanly_and_the_table_is_current() {
     let mut rows: Vec<String> = cases.iter().map(|c| run(c, &dir)).collect();
     rows.extend(interrupted_encode(&dir));
     doc::section(doc::Section::Inputs, &render(&rows, refused));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn render(rows: &[String], refused: usize) -> String {

@@ -2,7 +2,7 @@
 //! per behaviour, each asserting it and writing its rows of `docs/robustness.md`.
 
 use super::doc;
-use super::{gray_png, mask_encoder_figures, noise};
+use super::{gray_png, mask_encoder_figures, noise, Scratch};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -47,10 +47,8 @@ fn pifs() -> Command {
 
 /// A scratch directory for one test, readable by every user (the tests that drop privileges
 /// read their inputs there).
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pifs-host-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+fn scratch(name: &str) -> Scratch {
+    let dir = Scratch::new(&format!("host-{name}"));
     set_mode(&dir, 0o755);
     dir
 }
@@ -272,7 +270,6 @@ fn encode_refuses_a_flat_8000x8000_png_up_front() {
         &format!("refused in < 1 s by the memory available: {msg}; no output"),
     ));
     record("encode_refuses_a_flat_8000x8000_png_up_front", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The figure of "needs about 318 MiB" in a refusal, in MB.
@@ -394,7 +391,6 @@ fn encode_is_bounded_by_its_memory_budget() {
          estimate and the estimate",
     ));
     record("encode_is_bounded_by_its_memory_budget", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -453,7 +449,6 @@ fn decode_writes_large_images_in_bands() {
         "decoded: peak < 64 MB; the pixels equal the decoder's",
     ));
     record("decode_writes_large_images_in_bands", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -478,7 +473,6 @@ fn decode_and_info_refuse_dev_zero_at_once() {
         ));
     }
     record("decode_and_info_refuse_dev_zero_at_once", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -507,7 +501,6 @@ fn info_checks_limits_and_draws_no_pixels() {
         "described with peak < 10 MB: the syntax is entropy-decoded, no band of pixels drawn (only the edge pixels prediction needs)",
     ));
     record("info_checks_limits_and_draws_no_pixels", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn is_char_device(path: &Path) -> bool {
@@ -623,7 +616,6 @@ fn output_to_devices_fifos_and_links() {
     ));
     assert!(leftovers(&dir).is_empty());
     record("output_to_devices_fifos_and_links", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -667,7 +659,6 @@ fn output_modes_follow_the_umask_or_the_file() {
         ));
     }
     record("output_modes_follow_the_umask_or_the_file", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs `pifs args` as an unprivileged user: itself when it is not root, else user and group
@@ -742,7 +733,6 @@ fn output_is_checked_before_the_work() {
         &format!("refused with the real cause: {msg}"),
     ));
     record("output_is_checked_before_the_work", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Starts `pifs decode stream -o out` (with named temporary files when `named`).
@@ -819,7 +809,6 @@ fn no_litter_when_interrupted() {
         ));
     }
     record("no_litter_when_interrupted", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs `pifs args` with its standard input a pipe fed by `cat files...`.
@@ -928,7 +917,6 @@ fn pipes_carry_streams_and_images() {
         &format!("refused at once, reading no more than the stream and one byte: {msg}"),
     ));
     record("pipes_carry_streams_and_images", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A JPEG of `img` whose EXIF says `orientation`.
@@ -1013,7 +1001,6 @@ fn exif_orientation_is_applied() {
         ));
     }
     record("exif_orientation_is_applied", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -1053,7 +1040,6 @@ fn multi_page_tiff_notes_its_first_page() {
         ),
     )];
     record("multi_page_tiff_notes_its_first_page", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -1098,5 +1084,4 @@ fn target_messages_say_what_to_ask_for() {
         ));
     }
     record("target_messages_say_what_to_ask_for", &rows);
-    let _ = std::fs::remove_dir_all(&dir);
 }
