@@ -701,13 +701,16 @@ fn coarse_candidates(
 ) -> (Vec<f32>, Vec<ChainEnd>) {
     na.candidates.clear();
     na.indices.clear();
+    let chains: Vec<Vec<Chain>> = (fits.iter().enumerate())
+        .map(|(fi, fit)| chains_of(header, fi, fit))
+        .collect();
     // Room for every candidate the pass can make, so that pushing never moves them.
     let steps = ControlQuantiserId::all()
         .filter(|cq| cq.get() >= first)
         .count();
-    for fit in fits {
+    for (fit, chains) in fits.iter().zip(&chains) {
         let m = fit.model.model();
-        let n = chains_of(header, 0, fit).len() * steps;
+        let n = chains.len() * steps;
         na.candidates.reserve(n);
         na.indices
             .reserve(n * (m.control_count() + m.weight_count()));
@@ -717,14 +720,14 @@ fn coarse_candidates(
     let mut bits = Vec::with_capacity(na.candidates.capacity());
     let mut hull = GrowingHull::default();
     let mut ends = Vec::new();
-    for (fi, fit) in fits.iter().enumerate().rev() {
+    for (fit, chains) in fits.iter().zip(chains).rev() {
         let targets = targets_of(plane, header, &na.node, fit);
         let residual = error_floor(&na.node, fit);
-        for chain in chains_of(header, fi, fit) {
+        for chain in chains {
             let mut end = None;
-            let steps =
+            let tried =
                 ControlQuantiserId::all().filter(|cq| cq.get() >= first && chain.tries(*cq));
-            for cq in steps.rev() {
+            for cq in tried.rev() {
                 add_candidate(plane, header, na, (fit, &targets), chain, cq);
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
@@ -810,8 +813,8 @@ fn fine_candidates(
                 bits.push(b);
                 hull.add((f64::from(b), c.sse));
                 let added = f64::from(b) - f64::from(last_bits);
-                let pays = !(added > 0.0 && last_sse - c.sse < search.floor * added);
-                if !pays || hull.covers((f64::from(b), residual)) {
+                let stalls = added > 0.0 && last_sse - c.sse < search.floor * added;
+                if stalls || hull.covers((f64::from(b), residual)) {
                     break;
                 }
                 (last_bits, last_sse) = (b, c.sse);

@@ -601,15 +601,12 @@ impl GrowingHull {
         }
         v.drain(at + 1..end);
         // Neighbours no longer convex: on or above the segment through their neighbours.
-        let above = |a: (f64, f64), b: (f64, f64), c: (f64, f64)| {
-            (b.1 - a.1) * (c.0 - a.0) >= (c.1 - a.1) * (b.0 - a.0)
-        };
         let mut at = at;
-        while at >= 2 && above(v[at - 2], v[at - 1], v[at]) {
+        while at >= 2 && on_or_above(v[at - 2], v[at - 1], v[at]) {
             v.remove(at - 1);
             at -= 1;
         }
-        while at + 2 < v.len() && above(v[at], v[at + 1], v[at + 2]) {
+        while at + 2 < v.len() && on_or_above(v[at], v[at + 1], v[at + 2]) {
             v.remove(at + 1);
         }
     }
@@ -627,11 +624,13 @@ impl GrowingHull {
         if a.1 <= p.1 {
             return true;
         }
-        match v.get(at) {
-            Some(&b) => (p.1 - a.1) * (b.0 - a.0) >= (b.1 - a.1) * (p.0 - a.0),
-            None => false,
-        }
+        v.get(at).is_some_and(|&b| on_or_above(a, p, b))
     }
+}
+
+/// Whether point `b` lies on or above the segment from `a` to `c` (`a.0 <= b.0 <= c.0`).
+fn on_or_above(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> bool {
+    (b.1 - a.1) * (c.0 - a.0) >= (c.1 - a.1) * (b.0 - a.0)
 }
 
 /// Indices of the points `(bits, sse)` on their lower convex hull: those that minimise
@@ -663,8 +662,8 @@ fn lower_hull_in(points: &[(f64, f64)], lambdas: &std::ops::RangeInclusive<f64>)
         }
         while hull.len() >= 2 {
             let (a, b) = (points[hull[hull.len() - 2]], points[hull[hull.len() - 1]]);
-            // b is above the segment a-p: not a vertex.
-            if (b.1 - a.1) * (p.0 - a.0) >= (p.1 - a.1) * (b.0 - a.0) {
+            // b is on or above the segment a-p: not a vertex.
+            if on_or_above(a, b, p) {
                 hull.pop();
             } else {
                 break;
