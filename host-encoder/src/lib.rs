@@ -57,6 +57,7 @@ pub mod io;
 pub mod packets;
 
 pub use encoder::{
-    analyse, analyse_colour, psnr, Analysis, AnalysisTiming, ColourPlanes, EncodeError, Encoded,
-    EncoderConfig, Plane, Target, CHROMA_WEIGHTS, FINE_STEP_MARGIN, MIN_TRIAL_BPP,
+    analyse, analyse_colour, analysis_steps, psnr, Analysis, AnalysisStage, AnalysisSteps,
+    AnalysisTiming, ColourPlanes, EncodeError, Encoded, EncoderConfig, Plane, Target,
+    CHROMA_WEIGHTS, FINE_STEP_MARGIN, MIN_TRIAL_BPP,
 };

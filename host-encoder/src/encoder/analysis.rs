@@ -38,6 +38,7 @@ use decoder_core::internal::syntax::{
 use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
 use std::convert::Infallible;
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
@@ -128,16 +129,24 @@ impl Analysis {
         config: &EncoderConfig,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<Analysis, EncodeError> {
+        Analysis::run_in_bands(plane, colour, config, band_pixels(config), progress)
+    }
+
+    /// [`Analysis::run`], fitting and quantising bands of about `band_pixels` pixels one after
+    /// the other ([`band_height`]).
+    fn run_in_bands(
+        plane: Plane,
+        colour: Option<ColourPlanes>,
+        config: &EncoderConfig,
+        band_pixels: u32,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<Analysis, EncodeError> {
         let mut header = header_for(&plane, config)?;
         if colour.is_some() {
             header.channels = 3;
         }
-        let started = Instant::now();
-        let (levels, fits) = fit_levels(&plane, colour.as_ref(), &header, config, progress);
-        let fit_time = started.elapsed();
-        header.codebooks = design_codebooks(&fits, config.codebook_levels);
         let mut analysis = Analysis {
-            tree: CandidateTree::new(levels, header.min_leaf_log2),
+            tree: CandidateTree::new(empty_levels(&plane, &header), header.min_leaf_log2),
             plane,
             header,
             rates: RateTable::empty(),
@@ -152,17 +161,8 @@ impl Analysis {
             chroma_cache: ChromaCache::default(),
         };
         let started = Instant::now();
-        let fitted: u64 = analysis
-            .tree
-            .levels()
-            .iter()
-            .filter(|l| l.log2 <= analysis.header.max_leaf_log2)
-            .map(|l| l.nodes.len() as u64)
-            .sum();
-        let first = analysis.measure_candidates(fits, config.trial_bpp, config.fine_steps, &|n| {
-            progress(fitted + n)
-        });
-        let candidates = started.elapsed();
+        let (first, fit_time) = analysis.measure_candidates(config, band_pixels, progress);
+        let candidates = started.elapsed().saturating_sub(fit_time);
         let started = Instant::now();
         analysis.prune_candidates(config.trial_bpp, first);
         analysis.timing = AnalysisTiming {
@@ -212,39 +212,33 @@ impl Analysis {
         self.rates = RateTable::of_bits(&self.tree, bits, &snapshot);
     }
 
-    /// Quantises every fit with every quantiser (with `fine_steps`, the coarse steps, a plan at
-    /// `trial_bpp` from them, then the finer steps that pay: [`EncoderConfig::fine_steps`])
-    /// and measures each candidate's distortion; keeps at each node, as soon as it is done,
-    /// only the candidates on its hull under the rates every stream starts from (the trained
-    /// contexts change the rates only a little, so what is off the hull under the first rates
-    /// seldom reaches it under the trained ones; see docs/decisions.md): the rest is never
-    /// stored.
-    /// Returns the kept candidates' rates. `progress` is called with the number of nodes done
-    /// so far (those not analysed included), smallest nodes first.
+    /// Fits every model at every node and quantises every fit with every quantiser (with
+    /// [`EncoderConfig::fine_steps`], the coarse steps, a plan at the trial rate from them,
+    /// then the finer steps that pay) and measures each candidate's distortion; keeps at each
+    /// node, as soon as it is done, only the candidates on its hull under the rates every
+    /// stream starts from (the trained contexts change the rates only a little, so what is off
+    /// the hull under the first rates seldom reaches it under the trained ones; see
+    /// docs/decisions.md): the rest is never stored.
+    /// Returns the kept candidates' rates and the time the fitting took. `progress` is called
+    /// with the number of node steps done so far (in the order [`analysis_steps`] gives).
     fn measure_candidates(
         &mut self,
-        fits: PerNode<Vec<Fit>>,
-        trial_bpp: f64,
-        fine_steps: Option<f64>,
+        config: &EncoderConfig,
+        band_pixels: u32,
         progress: &(dyn Fn(u64) + Sync),
-    ) -> RateTable {
+    ) -> (RateTable, Duration) {
         let start = Contexts::default();
-        let first = if fine_steps.is_some() {
+        let first = if config.fine_steps.is_some() {
             FIRST_COARSE
         } else {
             0
         };
-        // A pass that is followed by another reports each node as half done.
-        let passes = if fine_steps.is_some() { 2 } else { 1 };
         let done = AtomicU64::new(0);
-        let report = |counted: bool| {
-            if counted {
-                progress((done.fetch_add(1, Ordering::Relaxed) + 1) / passes);
-            }
-        };
-        let (mut bits, ends) = self.coarse_pass(fits, &start, first, &report);
-        let Some(margin) = fine_steps else {
-            return RateTable::of_bits(&self.tree, bits, &start);
+        let report = || progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+        let (mut bits, ends, fit_time) =
+            self.fit_and_coarse(config, band_pixels, (&start, first), &report);
+        let Some(margin) = config.fine_steps else {
+            return (RateTable::of_bits(&self.tree, bits, &start), fit_time);
         };
         // The multiplier of a plan at the trial rate from the coarse steps alone: a plan
         // with finer steps too reaches that rate at about the same multiplier or above.
@@ -252,7 +246,8 @@ impl Analysis {
         let trial_lambda = {
             let coarse = RateTable::of_bits(&self.tree, bits.clone(), &start);
             let pixels = self.header.pixel_count() as f64;
-            let plan = coarse.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
+            let plan =
+                coarse.rough_plan_for_bits(&self.tree, &self.header, config.trial_bpp * pixels);
             plan.anchor().lambda
         };
         let search = FineSearch {
@@ -263,7 +258,9 @@ impl Analysis {
         let (plane, header) = (&self.plane, &self.header);
         // Each node's chain ends are dropped once its fine pass is done.
         for ((level, bits), ends) in self.tree.levels_mut().iter_mut().zip(&mut bits).zip(ends) {
-            let counted = level.log2 <= header.max_leaf_log2;
+            if level.log2 > header.max_leaf_log2 {
+                continue;
+            }
             level
                 .nodes
                 .par_iter_mut()
@@ -274,55 +271,183 @@ impl Analysis {
                         fine_candidates(plane, header, na, &ends, &search, bits);
                         *bits = prune_node(na, bits, &ALL_LAMBDAS);
                     }
-                    report(counted);
+                    report();
                 });
         }
-        RateTable::of_bits(&self.tree, bits, &start)
+        (RateTable::of_bits(&self.tree, bits, &start), fit_time)
     }
 
-    /// The coarse pass of [`Analysis::measure_candidates`] over every node: its candidates
-    /// from control step `first` up, pruned (a candidate off the hull stays off it when finer
-    /// steps join); returns the bits of what it keeps and the chains' ends, per
-    /// level and node.
-    fn coarse_pass(
+    /// The fitting and the coarse pass of [`Analysis::measure_candidates`], band by band
+    /// ([`band_height`]): a band's nodes are fitted, then get their candidates from control
+    /// step `first` up, rated from `start`, pruned (a candidate off the hull stays off it when finer steps join),
+    /// and the band's fits are dropped, so that the fits of the whole image never live at once.
+    /// Returns the bits of what the nodes keep and the chains' ends, per level and node, and
+    /// the time the fitting took.
+    fn fit_and_coarse(
         &mut self,
+        config: &EncoderConfig,
+        band_pixels: u32,
+        (start, first): (&Contexts, u8),
+        report: &(dyn Fn() + Sync),
+    ) -> (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>, Duration) {
+        let top = self.header.max_leaf_log2.min(self.header.root_log2());
+        prepare_projections(self.header.min_leaf_log2..=top);
+        let levels = self.tree.levels().len();
+        let (mut bits, mut ends): (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>) =
+            (vec![Vec::new(); levels], vec![Vec::new(); levels]);
+        let band = band_height(&self.header, top, band_pixels);
+        let mut fit_time = Duration::ZERO;
+        for y in (0..self.plane.height).step_by(band as usize) {
+            let started = Instant::now();
+            let fits = self.fit_band(y..y + band, config, report);
+            fit_time += started.elapsed();
+            if config.fit_weights {
+                // One band, the whole image (`band_pixels`): every weighted fit is here.
+                self.header.codebooks = design_codebooks(&fits, config.codebook_levels);
+            }
+            self.coarse_band(
+                y..y + band,
+                fits,
+                start,
+                first,
+                report,
+                (&mut bits, &mut ends),
+            );
+        }
+        // Levels above the largest leaf have no candidates, but a (empty) list per node.
+        for ((level, bits), ends) in self.tree.levels().iter().zip(&mut bits).zip(&mut ends) {
+            if level.log2 > top {
+                bits.resize(level.nodes.len(), Vec::new());
+                ends.resize(level.nodes.len(), Vec::new());
+            }
+        }
+        (bits, ends, fit_time)
+    }
+
+    /// Fits every node of a leaf size whose rows lie in `rows` (pixels; the band's), from the
+    /// largest down; a node inside a settled one ([`settles`]) is not analysed: its parent is a
+    /// leaf as good as any cut below it, so easy content (flat or smooth areas) costs only its
+    /// largest nodes. Returns the fits of the band's nodes, per level (smallest first) and
+    /// node, for the coarse pass (where the nodes take what they keep of them, [`KeptFit`]).
+    fn fit_band(
+        &mut self,
+        rows: Range<u32>,
+        config: &EncoderConfig,
+        report: &(dyn Fn() + Sync),
+    ) -> PerNode<Vec<Fit>> {
+        let (plane, colour) = (&self.plane, self.colour.as_ref());
+        let min = self.header.min_leaf_log2;
+        let top = self.header.max_leaf_log2.min(self.header.root_log2());
+        let mut all_fits = vec![Vec::new(); self.tree.levels().len()];
+        // Whether each node of the band in the level above (the last one fitted) is settled,
+        // from the node of index `above_first` on.
+        let (mut settled_above, mut above_first, mut cols_above) = (Vec::new(), 0, 0);
+        for log2 in (min..=top).rev() {
+            let level = &mut self.tree.levels_mut()[usize::from(log2 - min)];
+            let nodes = band_nodes(level, &rows);
+            let cols = level.cols;
+            let fitted: Vec<_> = nodes
+                .clone()
+                .into_par_iter()
+                .map(|i| {
+                    let (cx, cy) = (i as u32 % cols, i as u32 / cols);
+                    let node = Node {
+                        x: cx << log2,
+                        y: cy << log2,
+                        log2,
+                    };
+                    let parent = ((cy / 2) * cols_above + cx / 2) as usize;
+                    let inside_settled = parent
+                        .checked_sub(above_first)
+                        .and_then(|p| settled_above.get(p).copied())
+                        .unwrap_or(false);
+                    if inside_settled {
+                        report();
+                        return (None, Vec::new(), true);
+                    }
+                    let fits = fit_node(plane, &node, config);
+                    report();
+                    let settled = settles(plane, &node, &fits)
+                        && colour.is_none_or(|c| chroma::smooth_within(c, &node, SETTLED_MSE));
+                    let na = NodeAnalysis {
+                        node,
+                        fits: Box::default(),
+                        candidates: Vec::new(),
+                        indices: Vec::new(),
+                        chroma: ChromaCost::default(),
+                    };
+                    (Some(na), fits, settled)
+                })
+                .collect();
+            // Collected whole, then split: unzipping in parallel grew chunks while the fits'
+            // large temporaries came and went, and the allocator kept the holes (see
+            // docs/decisions.md).
+            let mut fits = Vec::with_capacity(fitted.len());
+            settled_above = Vec::with_capacity(fitted.len());
+            for ((na, node_fits, settled), slot) in
+                fitted.into_iter().zip(&mut level.nodes[nodes.clone()])
+            {
+                *slot = na;
+                fits.push(node_fits);
+                settled_above.push(settled);
+            }
+            (above_first, cols_above) = (nodes.start, cols);
+            all_fits[usize::from(log2 - min)] = fits;
+        }
+        all_fits
+    }
+
+    /// The coarse pass over the nodes whose rows lie in `rows` (pixels; the band's), with
+    /// their `fits`: each node keeps what it needs of its fits and its candidates from control
+    /// step `first` up, pruned; appends the bits of what it keeps and its chains' ends to
+    /// `out`.
+    fn coarse_band(
+        &mut self,
+        rows: Range<u32>,
         fits: PerNode<Vec<Fit>>,
         start: &Contexts,
         first: u8,
-        report: &(dyn Fn(bool) + Sync),
-    ) -> (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>) {
+        report: &(dyn Fn() + Sync),
+        out: (&mut PerNode<Vec<f32>>, &mut PerNode<Vec<ChainEnd>>),
+    ) {
         let (plane, header) = (&self.plane, &self.header);
         let colour = self.colour.as_ref();
         let stripe = header.stripe_width();
-        self.tree
+        let levels = self
+            .tree
             .levels_mut()
             .iter_mut()
             .zip(fits)
-            .map(|(level, fits)| {
-                let counted = level.log2 <= header.max_leaf_log2;
-                level
-                    .nodes
-                    .par_iter_mut()
-                    .zip(fits)
-                    .map(|(na, fits)| {
-                        let out = match na {
-                            Some(na) => {
-                                if let Some(colour) = colour {
-                                    na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
-                                }
-                                na.fits = fits.iter().map(KeptFit::of).collect();
-                                let (bits, ends) =
-                                    coarse_candidates(plane, header, na, &fits, start, first);
-                                (prune_node(na, &bits, &ALL_LAMBDAS), ends)
+            .zip(out.0)
+            .zip(out.1);
+        for (((level, fits), bits), ends) in levels {
+            if level.log2 > header.max_leaf_log2 {
+                continue;
+            }
+            let nodes = band_nodes(level, &rows);
+            let (band_bits, band_ends): (Vec<_>, Vec<_>) = level.nodes[nodes]
+                .par_iter_mut()
+                .zip(fits)
+                .map(|(na, fits)| {
+                    let out = match na {
+                        Some(na) => {
+                            if let Some(colour) = colour {
+                                na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
                             }
-                            None => (Vec::new(), Vec::new()),
-                        };
-                        report(counted);
-                        out
-                    })
-                    .unzip()
-            })
-            .unzip()
+                            na.fits = fits.iter().map(KeptFit::of).collect();
+                            let (bits, ends) =
+                                coarse_candidates(plane, header, na, &fits, start, first);
+                            (prune_node(na, &bits, &ALL_LAMBDAS), ends)
+                        }
+                        None => (Vec::new(), Vec::new()),
+                    };
+                    report();
+                    out
+                })
+                .unzip();
+            bits.extend(band_bits);
+            ends.extend(band_ends);
+        }
     }
 }
 
@@ -335,12 +460,14 @@ impl WithCandidates for Analysis {
 /// The header of the streams of `plane` under `config` (without codebooks, its payload yet
 /// unknown), or [`EncodeError::BadDimensions`] if the format cannot hold the image.
 fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeError> {
-    let bad = || EncodeError::BadDimensions {
-        width: plane.width,
-        height: plane.height,
-    };
-    let width = u16::try_from(plane.width).map_err(|_| bad())?;
-    let height = u16::try_from(plane.height).map_err(|_| bad())?;
+    header_of_size(plane.width, plane.height, config)
+}
+
+/// [`header_for`] an image of `width x height` pixels.
+fn header_of_size(width: u32, height: u32, config: &EncoderConfig) -> Result<Header, EncodeError> {
+    let bad = || EncodeError::BadDimensions { width, height };
+    let width = u16::try_from(width).map_err(|_| bad())?;
+    let height = u16::try_from(height).map_err(|_| bad())?;
     if width == 0 || height == 0 {
         return Err(bad());
     }
@@ -362,79 +489,127 @@ fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeErr
     })
 }
 
-/// Every level of the quadtree of `header`, from the smallest leaf to the root, and beside
-/// them the fits of every node of a leaf size, for the coarse pass (where the nodes take what
-/// they keep of them, [`KeptFit`], and their candidates). The levels are fitted from the
-/// root down, and a node inside a settled one ([`settles`]) is not analysed: its parent is a
-/// leaf as good as any cut below it, so easy content (flat or smooth areas) costs only its
-/// largest nodes. `progress` is called with the number of nodes fitted (or skipped) so far.
-fn fit_levels(
-    plane: &Plane,
-    colour: Option<&ColourPlanes>,
-    header: &Header,
-    config: &EncoderConfig,
-    progress: &(dyn Fn(u64) + Sync),
-) -> (Vec<Level>, PerNode<Vec<Fit>>) {
-    let root = header.root_log2();
-    prepare_projections(header.min_leaf_log2..=header.max_leaf_log2.min(root));
-    let done = AtomicU64::new(0);
-    let (mut levels, mut all_fits) = (Vec::new(), Vec::new());
-    // Whether each node of the level above (the last one fitted) is settled.
-    let mut settled_above: Vec<bool> = Vec::new();
-    for log2 in (header.min_leaf_log2..=root).rev() {
-        let cols = (plane.width + (1 << log2) - 1) >> log2;
-        let rows = (plane.height + (1 << log2) - 1) >> log2;
-        let cols_above = (plane.width + (2 << log2) - 1) >> (log2 + 1);
-        let analyse = log2 <= header.max_leaf_log2;
-        let fitted: Vec<_> = (0..cols * rows)
-            .into_par_iter()
-            .map(|i| {
-                let (cx, cy) = (i % cols, i / cols);
-                let node = Node {
-                    x: cx << log2,
-                    y: cy << log2,
-                    log2,
-                };
-                if !analyse {
-                    return (None, Vec::new(), false);
-                }
-                let parent = ((cy / 2) * cols_above + cx / 2) as usize;
-                let inside_settled = settled_above.get(parent).copied().unwrap_or(false);
-                let n = done.fetch_add(1, Ordering::Relaxed);
-                if inside_settled {
-                    progress(n + 1);
-                    return (None, Vec::new(), true);
-                }
-                let fits = fit_node(plane, &node, config);
-                progress(n + 1);
-                let settled = settles(plane, &node, &fits)
-                    && colour.is_none_or(|c| chroma::smooth_within(c, &node, SETTLED_MSE));
-                let na = NodeAnalysis {
-                    node,
-                    fits: Box::default(),
-                    candidates: Vec::new(),
-                    indices: Vec::new(),
-                    chroma: ChromaCost::default(),
-                };
-                (Some(na), fits, settled)
-            })
-            .collect();
-        // Collected whole, then split: unzipping in parallel grew chunks while the fits' large
-        // temporaries came and went, and the allocator kept the holes (see docs/decisions.md).
-        let mut nodes = Vec::with_capacity(fitted.len());
-        let mut fits = Vec::with_capacity(fitted.len());
-        settled_above = Vec::with_capacity(fitted.len());
-        for (na, node_fits, settled) in fitted {
-            nodes.push(na);
-            fits.push(node_fits);
-            settled_above.push(settled);
-        }
-        levels.push(Level { log2, cols, nodes });
-        all_fits.push(fits);
+/// Every level of the quadtree of `header`, from the smallest leaf to the root, with no node
+/// analysed yet.
+fn empty_levels(plane: &Plane, header: &Header) -> Vec<Level> {
+    (header.min_leaf_log2..=header.root_log2())
+        .map(|log2| {
+            let cols = plane.width.div_ceil(1 << log2);
+            let rows = plane.height.div_ceil(1 << log2);
+            Level {
+                log2,
+                cols,
+                nodes: vec![None; (cols * rows) as usize],
+            }
+        })
+        .collect()
+}
+
+/// Pixels a band of the analysis holds at least (unless the image is smaller): its fits live
+/// until its coarse pass, about 75 bytes a pixel, so an image of any size is analysed in a
+/// bounded memory, in bands large enough to keep both cores busy.
+const BAND_PIXELS: u32 = 1 << 20;
+
+/// Pixels a band of the analysis under `config` holds at least: [`BAND_PIXELS`], or the whole
+/// image when weights are fitted, as the codebooks are designed from every fit with weights
+/// before any is quantised.
+fn band_pixels(config: &EncoderConfig) -> u32 {
+    if config.fit_weights {
+        u32::MAX
+    } else {
+        BAND_PIXELS
     }
-    levels.reverse();
-    all_fits.reverse();
-    (levels, all_fits)
+}
+
+/// Height of the bands the analysis fits and quantises one after the other (pixels): whole
+/// rows of the largest nodes (of side `2^top`), `band_pixels` or more, at most the image.
+fn band_height(header: &Header, top: u8, band_pixels: u32) -> u32 {
+    let node_rows = u32::from(header.height).div_ceil(1 << top);
+    let row_pixels = u32::from(header.width) << top;
+    band_pixels.div_ceil(row_pixels).clamp(1, node_rows) << top
+}
+
+/// What an analysis does in one stretch of the node steps it reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum AnalysisStage {
+    /// Fitting every model to a node.
+    Fitting,
+    /// Quantising a node's fits at the coarse control steps (at every step when there is no
+    /// fine pass) and rating them.
+    Coarse,
+    /// Quantising a node's fits at the finer control steps that pay near the trial's
+    /// multiplier ([`EncoderConfig::fine_steps`]).
+    Fine,
+}
+
+/// A stretch of the node steps an analysis reports: `nodes` steps of one stage at nodes of
+/// side `2^log2`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AnalysisSteps {
+    /// What is done.
+    pub stage: AnalysisStage,
+    /// Side of the nodes, as a power of two.
+    pub log2: u8,
+    /// Node steps.
+    pub nodes: u64,
+}
+
+/// The node steps [`crate::analyse`] (or [`crate::analyse_colour`]) reports on a `width x
+/// height` image under `config`, in the order it does them (band by band, each band fitted
+/// from its largest nodes down, then quantised from its smallest up; the fine pass over the
+/// whole image at the end), so that a progress display can weigh each step by its work.
+/// Empty for an image the format cannot hold.
+pub fn analysis_steps(width: u32, height: u32, config: &EncoderConfig) -> Vec<AnalysisSteps> {
+    steps_in_bands(width, height, config, band_pixels(config))
+}
+
+/// [`analysis_steps`] of an analysis in bands of about `band_pixels` pixels.
+fn steps_in_bands(
+    width: u32,
+    height: u32,
+    config: &EncoderConfig,
+    band_pixels: u32,
+) -> Vec<AnalysisSteps> {
+    let Ok(header) = header_of_size(width, height, config) else {
+        return Vec::new();
+    };
+    let (min, top) = (
+        header.min_leaf_log2,
+        header.max_leaf_log2.min(header.root_log2()),
+    );
+    let band = band_height(&header, top, band_pixels);
+    let stretch = |stage, log2: u8, rows: Range<u32>| {
+        let nodes = |y: u32| u64::from(y.min(height).div_ceil(1 << log2));
+        AnalysisSteps {
+            stage,
+            log2,
+            nodes: u64::from(width.div_ceil(1 << log2)) * (nodes(rows.end) - nodes(rows.start)),
+        }
+    };
+    let mut steps = Vec::new();
+    for y in (0..height).step_by(band as usize) {
+        let rows = y..y + band;
+        steps.extend(
+            (min..=top)
+                .rev()
+                .map(|l| stretch(AnalysisStage::Fitting, l, rows.clone())),
+        );
+        steps.extend((min..=top).map(|l| stretch(AnalysisStage::Coarse, l, rows.clone())));
+    }
+    if config.fine_steps.is_some() {
+        steps.extend((min..=top).map(|l| stretch(AnalysisStage::Fine, l, 0..height)));
+    }
+    steps
+}
+
+/// The indices in `level`'s nodes of those whose rows lie in `rows` (pixels, from and up to
+/// multiples of the level's node side or the image's bottom).
+fn band_nodes(level: &Level, rows: &Range<u32>) -> Range<usize> {
+    let cols = level.cols as usize;
+    let last = level.nodes.len() / cols;
+    let row = |y: u32| ((y >> level.log2) as usize).min(last);
+    row(rows.start) * cols..row(rows.end) * cols
 }
 
 /// Mean squared error per pixel (grey levels squared) within which a node's best fit
@@ -1322,6 +1497,42 @@ mod tests {
             .expect("an encode");
         assert_decodes_to(&encoded.bytes, &encoded.reconstruction);
         assert!(encoded.psnr > 40.0, "PSNR {}", encoded.psnr);
+    }
+
+    /// An analysis in bands (here, one per row of its largest nodes) keeps what one band over
+    /// the whole image keeps, and reports the node steps [`analysis_steps`] lists.
+    #[test]
+    fn bands_change_nothing_but_the_memory() {
+        let config = EncoderConfig {
+            max_leaf_log2: 5,
+            fine_steps: Some(FINE_STEP_MARGIN),
+            ..EncoderConfig::default()
+        };
+        let plane = textured_plane(256, 200);
+        let reported = AtomicU64::new(0);
+        let progress = |n: u64| {
+            reported.fetch_max(n, Ordering::Relaxed);
+        };
+        let banded = Analysis::run_in_bands(plane.clone(), None, &config, 1, &progress)
+            .expect("an analysis");
+        let listed = steps_in_bands(256, 200, &config, 1);
+        assert_eq!(listed.iter().filter(|s| s.log2 == 5).count(), 7 * 2 + 1);
+        let steps: u64 = listed.iter().map(|s| s.nodes).sum();
+        assert_eq!(reported.load(Ordering::Relaxed), steps);
+        let whole =
+            Analysis::run_in_bands(plane, None, &config, u32::MAX, &|_| {}).expect("an analysis");
+        for (a, b) in banded.tree.levels().iter().zip(whole.tree.levels()) {
+            for (a, b) in a.nodes.iter().zip(&b.nodes) {
+                let (a, b) = (a.as_ref(), b.as_ref());
+                assert_eq!(a.map(|a| &a.candidates), b.map(|b| &b.candidates));
+                assert_eq!(a.map(|a| &a.indices), b.map(|b| &b.indices));
+            }
+        }
+        for bpp in [0.25, 1.0] {
+            let target = Target::Bpp(bpp);
+            let (a, b) = (banded.encode(target), whole.encode(target));
+            assert_eq!(a.expect("a stream").bytes, b.expect("a stream").bytes);
+        }
     }
 
     /// With fitted weights, the codebooks are designed from them (the nodes keep no default

@@ -29,7 +29,7 @@ mod writer;
 #[cfg(test)]
 mod layering;
 
-pub use analysis::{Analysis, AnalysisTiming};
+pub use analysis::{analysis_steps, Analysis, AnalysisStage, AnalysisSteps, AnalysisTiming};
 pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
 pub use config::{EncoderConfig, Target, FINE_STEP_MARGIN, MIN_TRIAL_BPP};
 pub use error::EncodeError;
@@ -456,8 +456,8 @@ impl Analysis {
 const DEBLOCK_STRENGTHS: [u8; 8] = [0, 1, 2, 3, 4, 6, 8, 12];
 
 /// Analyses an image with `config`; the result encodes any number of targets. `progress` is
-/// called with the number of node steps done so far (every node of a leaf size fitted, then
-/// its candidates made). Fails with
+/// called with the number of node steps done so far (every node of a leaf size fitted, its
+/// candidates made, and refined: [`analysis_steps`] lists them in order). Fails with
 /// [`EncodeError::BadDimensions`] on an image the format cannot hold (empty, or more than
 /// 65535 pixels on a side).
 pub fn analyse(

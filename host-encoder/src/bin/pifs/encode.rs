@@ -322,12 +322,11 @@ impl Analysed {
 pub fn analyse_plane(plane: Plane, args: &AnalysisArgs, targets: &[Target]) -> Result<Analysed> {
     let start = Instant::now();
     let config = args.config(plane.data.len(), targets);
-    let work = Work::new(
+    let work = Work::new(&host_encoder::analysis_steps(
         plane.width,
         plane.height,
-        config.min_leaf_log2,
-        config.max_leaf_log2,
-    );
+        &config,
+    ));
     let progress = Progress::on_terminal(work);
     let result = analyse(plane, &config, &|n| {
         if let Some(p) = &progress {
@@ -363,7 +362,7 @@ pub fn analyse_loaded(
     let start = Instant::now();
     let pixels = *width as usize * *height as usize;
     let config = args.config(pixels, targets);
-    let work = Work::new(*width, *height, config.min_leaf_log2, config.max_leaf_log2);
+    let work = Work::new(&host_encoder::analysis_steps(*width, *height, &config));
     let progress = Progress::on_terminal(work);
     let result = analyse_colour(*width, *height, data.clone(), &config, &|n| {
         if let Some(p) = &progress {

@@ -1,9 +1,10 @@
 //! The analysis's progress on a terminal: a spinner (time and nodes so far) until enough work is
 //! done for an estimate of the time left to mean something, then a bar whose estimate comes from
-//! the work done so far (fitting every node, then making every node's candidates), then a
-//! spinner again for the closing steps (the trial encode and the pruning), which report no
-//! progress and so get no estimate.
+//! the work done so far (fitting nodes, making their candidates, refining them, in the order
+//! the analysis reports them), then a spinner again for the closing steps (the trial encode and
+//! the pruning), which report no progress and so get no estimate.
 
+use host_encoder::{AnalysisStage, AnalysisSteps};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
@@ -37,32 +38,41 @@ const NODE_OVERHEAD: f64 = 96.0;
 /// of 4 px and 270 to 420 µs a larger one, where fitting takes about 0.02 µs a unit.
 const CANDIDATE_WORK: f64 = 235.0;
 
+/// Share of [`CANDIDATE_WORK`] in the fine pass when there is one: the profile of kodim13 at
+/// 0.25 bpp (docs/results.md) spent 0.30 s there against 1.30 s in the coarse pass.
+const FINE_SHARE: f64 = 0.2;
+
 /// Share of an analysis's time after the passes that report progress: the trial encode and the
 /// pruning, 24 to 34% on seven Kodak images (`examples/stage_times.rs`: 1.1 to 2.2 s of 4.7
 /// to 6.5 s). The bar stops short of it, and its estimate includes it.
 const CLOSING_SHARE: f64 = 0.28;
 
-/// The work of an analysis, level by level in the order it is done: fitting every node (largest
-/// nodes first), then making every node's candidates (smallest first). The analysis reports
-/// nodes, but a node's fitting grows with its pixels. Nodes inside a settled node are reported
-/// too, at once, so the share done jumps ahead on easy content.
+/// The work of an analysis, stretch by stretch in the order it is done
+/// ([`host_encoder::analysis_steps`]). The analysis reports node steps, but a node's fitting
+/// grows with its pixels and its candidates with its control values. Nodes inside a settled
+/// node are reported too, at once, so the share done jumps ahead on easy content.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Work {
-    /// Per level: nodes, and work per node.
+    /// Per stretch: nodes, and work per node.
     levels: Vec<(u64, f64)>,
 }
 
 impl Work {
-    /// The levels of nodes of side `2^min_log2` to `2^max_log2` on a `width x height` image.
-    pub fn new(width: u32, height: u32, min_log2: u8, max_log2: u8) -> Work {
-        let nodes = |l: u8| u64::from(width.div_ceil(1 << l)) * u64::from(height.div_ceil(1 << l));
-        let fitting = (min_log2..=max_log2)
-            .rev()
-            .map(|l| (nodes(l), NODE_OVERHEAD + 4f64.powi(i32::from(l))));
-        let candidates = (min_log2..=max_log2)
-            .map(|l| (nodes(l), CANDIDATE_WORK * 4f64.powi(i32::from(l)).min(64.0)));
+    /// The work of the analysis whose node steps are `steps`.
+    pub fn new(steps: &[AnalysisSteps]) -> Work {
+        let fine = steps.iter().any(|s| s.stage == AnalysisStage::Fine);
+        let per_node = |s: &AnalysisSteps| {
+            let pixels = 4f64.powi(i32::from(s.log2));
+            let candidates = CANDIDATE_WORK * pixels.min(64.0);
+            match s.stage {
+                AnalysisStage::Fitting => NODE_OVERHEAD + pixels,
+                AnalysisStage::Coarse if fine => candidates * (1.0 - FINE_SHARE),
+                AnalysisStage::Fine => candidates * FINE_SHARE,
+                _ => candidates,
+            }
+        };
         Work {
-            levels: fitting.chain(candidates).collect(),
+            levels: steps.iter().map(|s| (s.nodes, per_node(s))).collect(),
         }
     }
 
@@ -201,11 +211,23 @@ fn style(template: &str) -> ProgressStyle {
 mod tests {
     use super::*;
 
+    /// The work of an analysis of a `width x height` image for rate targets with leaves of
+    /// `2^min_log2` to `2^max_log2` pixels.
+    fn work(width: u32, height: u32, min_log2: u8, max_log2: u8) -> Work {
+        let config = host_encoder::EncoderConfig {
+            min_leaf_log2: min_log2,
+            max_leaf_log2: max_log2,
+            fine_steps: Some(host_encoder::FINE_STEP_MARGIN),
+            ..Default::default()
+        };
+        Work::new(&host_encoder::analysis_steps(width, height, &config))
+    }
+
     #[test]
     fn work_weighs_nodes_by_their_pixels() {
         // 64x64, nodes of 32 and 4 px: 4 large nodes of 96 + 1024 units first, then 256 small
         // ones of 96 + 16.
-        let work = Work::new(64, 64, 2, 5);
+        let work = work(64, 64, 2, 5);
         let work = Work {
             levels: vec![work.levels[0], work.levels[3]],
         };
@@ -221,16 +243,32 @@ mod tests {
     }
 
     #[test]
-    fn work_is_fitting_then_candidates() {
-        let work = Work::new(64, 64, 2, 5);
+    fn work_is_fitting_then_candidates_then_refining() {
+        let work = work(64, 64, 2, 5);
         let nodes = 256 + 64 + 16 + 4;
-        assert_eq!(work.nodes(), 2 * nodes);
-        // The fitting pass: largest nodes first; then the candidates, smallest first.
+        assert_eq!(work.nodes(), 3 * nodes);
+        // The fitting pass: largest nodes first; then the candidates, smallest first; then
+        // their refinement, smallest first, a fifth of the candidates' work.
         assert_eq!(work.levels[0].0, 4);
         assert_eq!(work.levels[4].0, 256);
+        assert_eq!(work.levels[8].0, 256);
         let fitting: f64 = work.levels[..4].iter().map(|&(n, w)| n as f64 * w).sum();
         let total: f64 = work.levels.iter().map(|&(n, w)| n as f64 * w).sum();
         assert!((work.share(nodes) - fitting / total).abs() < 1e-12);
+        assert!((work.levels[8].1 / work.levels[4].1 - 0.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn work_of_a_large_image_goes_band_by_band() {
+        // 6000x4000: bands of whole rows of 128 px nodes, each fitted then quantised.
+        let work = work(6000, 4000, 2, 7);
+        let fitting_of_128 = NODE_OVERHEAD + 16384.0;
+        let bands = work.levels.iter().filter(|l| l.1 == fitting_of_128).count();
+        assert!(bands > 10, "{bands} bands");
+        let whole =
+            |l: u8| u64::from(6000u32.div_ceil(1 << l)) * u64::from(4000u32.div_ceil(1 << l));
+        let all: u64 = (2..=7).map(whole).sum();
+        assert_eq!(work.nodes(), 3 * all);
     }
 
     #[test]
