@@ -42,19 +42,28 @@ pub struct RatePoint {
 
 /// What coding a node's chroma costs when the node is a leaf: for each chroma plane, the
 /// options on the lower convex hull of (bits, weighted error). The quadtree's cut sees it
-/// beside the luma candidates' cost; empty (free) for a grayscale analysis.
+/// beside the luma candidates' cost; empty (free) for a grayscale analysis, where it takes
+/// one word in every node.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ChromaCost {
     /// The hull of `Cb`'s options, then `Cr`'s.
-    pub planes: [Vec<RatePoint>; 2],
+    planes: Option<Box<[Vec<RatePoint>; 2]>>,
 }
 
 impl ChromaCost {
+    /// The cost whose planes' hulls are `planes`.
+    pub fn of(planes: [Vec<RatePoint>; 2]) -> ChromaCost {
+        ChromaCost {
+            planes: Some(Box::new(planes)),
+        }
+    }
+
     /// Each plane's option of least `sse + lambda * bits`.
     pub fn cheapest(&self, lambda: f64) -> impl Iterator<Item = &RatePoint> {
         let cost = move |p: &RatePoint| f64::from(p.sse) + lambda * f64::from(p.bits);
         self.planes
             .iter()
+            .flat_map(|planes| planes.iter())
             .filter_map(move |plane| plane.iter().min_by(|a, b| cost(a).total_cmp(&cost(b))))
     }
 }

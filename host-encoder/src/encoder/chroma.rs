@@ -496,8 +496,8 @@ pub fn choose<P: SamplePrediction>(
 pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost {
     let cnode = chroma_node(node);
     let contexts = ChromaContexts::default();
-    let mut cost = ChromaCost::default();
-    for (p, hull) in cost.planes.iter_mut().enumerate() {
+    let mut planes: [Vec<RatePoint>; 2] = Default::default();
+    for (p, hull) in planes.iter_mut().enumerate() {
         let plane = &colour.chroma[p];
         if cnode.x >= plane.width || cnode.y >= plane.height {
             continue;
@@ -531,7 +531,7 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost 
             })
             .collect();
     }
-    cost
+    ChromaCost::of(planes)
 }
 
 /// Whether both chroma planes of the luma node `node` are reproduced by a bilinear chroma
