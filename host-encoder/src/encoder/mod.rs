@@ -64,6 +64,14 @@ pub struct Encoded {
     pub chroma_bits: f64,
 }
 
+/// The stream [`Analysis::fit_budget`] found for a budget, with its plan and the aim (payload
+/// bits by the rate estimate) that planned it.
+struct BudgetFit {
+    plan: rate::Plan,
+    encoded: Encoded,
+    aim: f64,
+}
+
 /// Most passes that spend the bytes a budget's stream left unused.
 const SPEND_PASSES: usize = 6;
 
@@ -164,30 +172,35 @@ impl Analysis {
 
     /// Best stream of at most `budget` bytes: planned without edge smoothing, then, if a
     /// smoothing strength lowers that plan's error ([`Analysis::smoothing_for`]), planned again
-    /// with it (smoothing changes the stream's size a little), keeping the better.
+    /// with it from where the first planning ended (smoothing changes the stream's size a
+    /// little), keeping the better.
     fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
-        let (plan, unsmoothed) = self.fit_budget(header, budget)?;
-        let Some(deblock) = self.smoothing_for(header, &plan, &unsmoothed)? else {
-            return Ok(unsmoothed);
+        let unsmoothed = self.fit_budget(header, budget, None)?;
+        let Some(deblock) = self.smoothing_for(header, &unsmoothed.plan, &unsmoothed.encoded)?
+        else {
+            return Ok(unsmoothed.encoded);
         };
         let smoothed_header = Header { deblock, ..*header };
-        let (_, smoothed) = self.fit_budget(&smoothed_header, budget)?;
-        Ok(if smoothed.sse <= unsmoothed.sse {
-            smoothed
+        let smoothed = self.fit_budget(&smoothed_header, budget, Some(&unsmoothed))?;
+        Ok(if smoothed.encoded.sse <= unsmoothed.encoded.sse {
+            smoothed.encoded
         } else {
-            unsmoothed
+            unsmoothed.encoded
         })
     }
 
     /// Best stream of at most `budget` bytes with `header`'s edge smoothing, and its plan. The
     /// analysis's rates ([`Analysis::rates`], from
     /// a trial encode's contexts) plan it; the real coder's size then corrects the plan's aim:
-    /// down until the stream fits, then up to spend what it left unused.
+    /// down until the stream fits, then up to spend what it left unused. Starts from the aim
+    /// and plan `from` ended with, if given (a fit of the same budget under another header),
+    /// else from the budget and the trial's plan.
     fn fit_budget(
         &self,
         header: &Header,
         budget: usize,
-    ) -> Result<(rate::Plan, Encoded), EncodeError> {
+        from: Option<&BudgetFit>,
+    ) -> Result<BudgetFit, EncodeError> {
         // The header (its payload length at most as long as for a payload of `budget` bytes)
         // and the four bytes of the range coder's flush.
         let longest_header = Header {
@@ -195,10 +208,9 @@ impl Analysis {
             ..*header
         };
         let overhead = (longest_header.encoded_len() + 4) as f64 * 8.0;
-        let mut aim = budget as f64 * 8.0 - overhead;
-        let mut plan = self
-            .rates
-            .plan_for_bits(self, header, aim, Some(self.trial));
+        let mut aim = from.map_or(budget as f64 * 8.0 - overhead, |f| f.aim);
+        let hint = from.map_or(self.trial, |f| f.plan.anchor());
+        let mut plan = self.rates.plan_for_bits(self, header, aim, Some(hint));
         let mut written = self.write(header, &plan)?;
         // Tighten the aim until the real stream fits.
         let mut tries = 0;
@@ -255,7 +267,7 @@ impl Analysis {
             written = larger_written;
         }
         let encoded = self.finish(&plan, written)?;
-        Ok((plan, encoded))
+        Ok(BudgetFit { plan, encoded, aim })
     }
 
     /// Smallest stream whose PSNR reaches `db`. The plan's error is an estimate (exact fits'
@@ -408,7 +420,7 @@ impl Analysis {
             codebooks: [Codebook::EMPTY; 2],
             ..self.header
         };
-        let (plan, _) = self.fit_budget(&header, budget)?;
+        let plan = self.fit_budget(&header, budget, None)?.plan;
         writer::leaf_bits(
             &self.tree,
             &header,

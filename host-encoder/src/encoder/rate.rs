@@ -702,6 +702,10 @@ struct Search {
     tolerance: f64,
 }
 
+/// Half the width of the first bracket around a hint's guess, at most (in the logarithm of
+/// the multiplier).
+const FIRST_HALF_WIDTH: f64 = 0.1;
+
 /// The multipliers searched (squared error per bit).
 const LAMBDA_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
 
@@ -773,23 +777,25 @@ impl Search {
                     Constraint::Rate => (a.bits, -1.0),
                     Constraint::Distortion => (a.sse, 1.0),
                 };
-                let guess =
-                    a.lambda.ln() + (self.limit.max(1e-9).ln() - known.max(1e-9).ln()) / slope;
-                let c = guess.clamp(floor, ceiling);
-                ((c - 0.1).max(floor), (c + 0.1).min(ceiling))
+                let step = (self.limit.max(1e-9).ln() - known.max(1e-9).ln()) / slope;
+                let c = (a.lambda.ln() + step).clamp(floor, ceiling);
+                // A few times as wide as the step from the hint: a budget's later passes
+                // move the aim by a fraction of a percent.
+                let half = (4.0 * step.abs()).clamp(self.tolerance, FIRST_HALF_WIDTH);
+                ((c - half).max(floor), (c + half).min(ceiling))
             }
             _ => (floor, ceiling),
         }
     }
 
     /// A bracket of the answer: the first one ([`Search::first_bracket`]), moved and widened
-    /// (by twice as much each time) until it holds the answer or reaches an end of the range.
+    /// (by its width, then twice as much each time) until it holds the answer or reaches an end of the range.
     fn bracket(&self, planner: &Planner, hint: Option<Anchor>) -> Bracket {
         let (floor, ceiling) = Search::log_range();
         let (mut lo, mut hi) = self.first_bracket(hint);
         let mut plan_lo = planner.at(lo);
         let mut plan_hi = planner.at(hi);
-        let mut widen = 0.2;
+        let mut widen = hi - lo;
         loop {
             if self.above(&plan_lo) && lo > floor {
                 (hi, plan_hi) = (lo, plan_lo);
@@ -915,7 +921,7 @@ impl FalsePosition {
 
 #[cfg(test)]
 mod tests {
-    use super::{lower_hull, lower_hull_in, GrowingHull};
+    use super::{lower_hull, lower_hull_in, Anchor, Constraint, GrowingHull, Search};
 
     /// Numbers in [0, 1) from a linear congruential generator started at `seed`.
     fn uniform(mut seed: u32) -> impl FnMut() -> f64 {
@@ -997,5 +1003,29 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A search hinted by a plan near its answer starts from a bracket a few times as wide as
+    /// the step the hint implies, around the guess; a far hint from one of fixed width.
+    #[test]
+    fn a_near_hint_gives_a_narrow_first_bracket() {
+        let hint = Anchor {
+            lambda: 800.0,
+            bits: 100_000.0,
+            sse: 1e6,
+        };
+        let search = Search::new(Constraint::Rate, 99_900.0, 1e-3);
+        let (lo, hi) = search.first_bracket(Some(hint));
+        // ln(rate) falls as ln(lambda) rises: the guess is ln(800) + ln(100000 / 99900).
+        let guess = 800f64.ln() + (100_000f64 / 99_900.0).ln();
+        assert!(lo < guess && guess < hi);
+        assert!((hi - lo - 8.0 * (100_000f64 / 99_900.0).ln()).abs() < 1e-12);
+        // Nearly on the answer: no narrower than the tolerance either way.
+        let (lo, hi) = Search::new(Constraint::Rate, 100_000.0, 1e-3).first_bracket(Some(hint));
+        assert!((hi - lo - 2e-3).abs() < 1e-12);
+        // Far: at most 0.2 wide.
+        let (lo, hi) = Search::new(Constraint::Rate, 50_000.0, 1e-3).first_bracket(Some(hint));
+        assert!((hi - lo - 0.2).abs() < 1e-12);
+        assert!(((lo + hi) / 2.0 - (800f64.ln() + 2f64.ln())).abs() < 1e-12);
     }
 }
