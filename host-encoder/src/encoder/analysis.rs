@@ -279,8 +279,9 @@ impl Analysis {
 
     /// The fitting and the coarse pass of [`Analysis::measure_candidates`], band by band
     /// ([`band_height`]): a band's nodes are fitted, then get their candidates from control
-    /// step `first` up, rated from `start`, pruned (a candidate off the hull stays off it when finer steps join),
-    /// and the band's fits are dropped, so that the fits of the whole image never live at once.
+    /// step `first` up, rated from `start`, pruned (a candidate off the hull stays off it when
+    /// finer steps join), and the band's fits are dropped, so that the fits of the whole image
+    /// never live at once.
     /// Returns the bits of what the nodes keep and the chains' ends, per level and node, and
     /// the time the fitting took.
     fn fit_and_coarse(
@@ -314,7 +315,7 @@ impl Analysis {
                 (&mut bits, &mut ends),
             );
         }
-        // Levels above the largest leaf have no candidates, but a (empty) list per node.
+        // Levels above the largest leaf have no candidates, but an empty list per node.
         for ((level, bits), ends) in self.tree.levels().iter().zip(&mut bits).zip(&mut ends) {
             if level.log2 > top {
                 bits.resize(level.nodes.len(), Vec::new());

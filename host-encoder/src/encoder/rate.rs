@@ -789,7 +789,8 @@ impl Search {
     }
 
     /// A bracket of the answer: the first one ([`Search::first_bracket`]), moved and widened
-    /// (by its width, then twice as much each time) until it holds the answer or reaches an end of the range.
+    /// (by its width, then twice as much each time) until it holds the answer or reaches an
+    /// end of the range.
     fn bracket(&self, planner: &Planner, hint: Option<Anchor>) -> Bracket {
         let (floor, ceiling) = Search::log_range();
         let (mut lo, mut hi) = self.first_bracket(hint);
