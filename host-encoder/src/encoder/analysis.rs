@@ -291,7 +291,7 @@ impl Analysis {
         (start, first): (&Contexts, u8),
         report: &(dyn Fn() + Sync),
     ) -> (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>, Duration) {
-        let top = self.header.max_leaf_log2.min(self.header.root_log2());
+        let top = largest_leaf_log2(&self.header);
         prepare_projections(self.header.min_leaf_log2..=top);
         let levels = self.tree.levels().len();
         let (mut bits, mut ends): (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>) =
@@ -338,7 +338,7 @@ impl Analysis {
     ) -> PerNode<Vec<Fit>> {
         let (plane, colour) = (&self.plane, self.colour.as_ref());
         let min = self.header.min_leaf_log2;
-        let top = self.header.max_leaf_log2.min(self.header.root_log2());
+        let top = largest_leaf_log2(&self.header);
         let mut all_fits = vec![Vec::new(); self.tree.levels().len()];
         // Whether each node of the band in the level above (the last one fitted) is settled,
         // from the node of index `above_first` on.
@@ -506,6 +506,12 @@ fn empty_levels(plane: &Plane, header: &Header) -> Vec<Level> {
         .collect()
 }
 
+/// Side of the largest nodes analysed under `header`, as a power of two: the largest leaf, or
+/// the root when the image is smaller.
+fn largest_leaf_log2(header: &Header) -> u8 {
+    header.max_leaf_log2.min(header.root_log2())
+}
+
 /// Pixels a band of the analysis holds at least (unless the image is smaller): its fits live
 /// until its coarse pass, about 75 bytes a pixel, so an image of any size is analysed in a
 /// bounded memory, in bands large enough to keep both cores busy.
@@ -575,10 +581,7 @@ fn steps_in_bands(
     let Ok(header) = header_of_size(width, height, config) else {
         return Vec::new();
     };
-    let (min, top) = (
-        header.min_leaf_log2,
-        header.max_leaf_log2.min(header.root_log2()),
-    );
+    let (min, top) = (header.min_leaf_log2, largest_leaf_log2(&header));
     let band = band_height(&header, top, band_pixels);
     let stretch = |stage, log2: u8, rows: Range<u32>| {
         let nodes = |y: u32| u64::from(y.min(height).div_ceil(1 << log2));

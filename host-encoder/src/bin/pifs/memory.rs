@@ -7,8 +7,9 @@
 //! (`/usr/bin/time -f %M pifs encode IN.png --gray -o x.pifs --bpp 0.25`, the default
 //! settings): 500² of noise 52 MB, tilings of 512² Kodak crops of 1024² 115 MB and 1536²
 //! 259 MB, mosaics of Kodak images of 3072x2048 540 MB and 6000x4000 2.04 GB (in bands):
-//! about 100 bytes per pixel beside a fixed part of about 10 MB, and 170 for noise; with `--min-leaf-log2 1`
-//! 105 MB and 258 MB for the first two (235 to 380 bytes), with 3 38 MB and 55 MB (43 to 113);
+//! about 100 bytes per pixel beside a fixed part of about 10 MB, and 170 for noise; with
+//! `--min-leaf-log2 1` 105 MB and 258 MB for the first two (235 to 380 bytes), with 3 38 MB
+//! and 55 MB (43 to 113);
 //! with `--fit-weights` the fitting's temporaries make the peak vary from run to run (the 1024²
 //! tiling 250 to 440 MB over three runs, 240 to 420 bytes). [`encode_bytes`] rounds these up.
 //!
