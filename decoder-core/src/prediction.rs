@@ -315,10 +315,11 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
 /// it in the stripe. When a leaf is drawn, the waiting pixels above its first row and left of
 /// its first column are smoothed with it and drawn: with the stream's strength `d` and the
 /// leaf's control step `s` (1/16 grey level), for each such pair of 8-bit pixels, `q` in the
-/// leaf (as synthesised) and `p` beside it, with `D = q - p`: when `32 |D| <= d s`, `c =
-/// round(D / 3)` (half away from zero), `q -= c` and `p += c`, clamped to `0..=255`. Every
-/// pixel is drawn once; the frontier holds the smoothed values, which later leaves are
-/// predicted from.
+/// leaf (as synthesised) and `p` beside it, with `D = q - p` and `L = d s`: `c = round(|D| /
+/// 3)` when `32 |D| <= L`, `c = floor((4 L - 32 |D| + 144) / 288)` when `L < 32 |D| <= 4 L`
+/// (tapering from a third of the step to nothing), else none; with `c` given the sign of `D`,
+/// `q -= c` and `p += c`, clamped to `0..=255`. Every pixel is drawn once; the frontier holds
+/// the smoothed values, which later leaves are predicted from.
 pub struct Capture<'a> {
     columns: &'a mut [u8],
     rows: &'a mut [u8],
@@ -335,7 +336,8 @@ pub struct Capture<'a> {
     defer_column: bool,
     above_known: bool,
     left_known: bool,
-    /// `d * s`: a step `D` is smoothed when `32 |D|` is at most this (0: never).
+    /// `d * s`: a step `D` is smoothed by a third when `32 |D|` is at most this, by less up
+    /// to [`TAPER`] times it (0: never).
     limit: i32,
 }
 
@@ -351,15 +353,26 @@ impl core::fmt::Debug for Capture<'_> {
     }
 }
 
+/// How far past the limit edge smoothing reaches, in limits: a step between one and
+/// `TAPER` limits is smoothed less the larger it is ([`Capture`]).
+const TAPER: i32 = 4;
+
 /// The smoothing of one pixel pair across a leaf edge: `(q, p)` corrected, when `D = q - p`
 /// is small enough (see [`Capture`]).
 #[inline]
 fn smooth(q: u8, p: u8, limit: i32) -> Option<(u8, u8)> {
     let d = i32::from(q) - i32::from(p);
-    if 32 * d.abs() > limit {
+    let size = 32 * d.abs();
+    let c = if size <= limit {
+        (d.abs() + 1) / 3
+    } else if size <= TAPER * limit {
+        // From a third of the step at the limit down to nothing at TAPER limits.
+        let span = 96 * (TAPER - 1);
+        (TAPER * limit - size + span / 2) / span
+    } else {
         return None;
-    }
-    let c = if d >= 0 { (d + 1) / 3 } else { -((-d + 1) / 3) };
+    };
+    let c = if d >= 0 { c } else { -c };
     Some((
         (i32::from(q) - c).clamp(0, 255) as u8,
         (i32::from(p) + c).clamp(0, 255) as u8,
@@ -639,8 +652,8 @@ mod tests {
     }
 
     /// Edge smoothing: a step across a leaf's top edge within the limit moves both pixels a
-    /// third of the way; a larger one is left alone; the corrected pixel above is remembered
-    /// and drawn again.
+    /// third of the way; one up to four limits by less; a larger one is left alone; the
+    /// corrected pixel above is remembered and drawn again.
     #[test]
     fn small_steps_across_an_edge_are_smoothed() {
         struct Collect(std::vec::Vec<(Rect, std::vec::Vec<u8>)>);
@@ -664,13 +677,14 @@ mod tests {
                 .unwrap();
             out
         };
-        // Strength 4 with a step of 64 (4 grey levels): steps up to 4 * 64 / 32 = 8 grey.
+        // Strength 4 with a step of 64 (4 grey levels): steps up to 4 * 64 / 32 = 8 grey by a
+        // third, up to 32 grey by less.
         let mut frontier = Frontier::<128>::EMPTY;
         assert!(frontier.start(16, 16, 128, 4));
         frontier.record(&node(0, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
         frontier.record(&node(4, 0, 2), 64, &bilinear([100 * one; 4]), &mut Discard);
         // Below the first: 106 (a step of 6, smoothed by 2 each side); below the second: 120
-        // (a step of 20, left).
+        // (a step of 20: (4 * 256 - 640 + 144) / 288 = 1 each side).
         let out = draw(&mut frontier, node(0, 4, 2), 106);
         let above = out
             .0
@@ -690,6 +704,14 @@ mod tests {
             .iter()
             .find(|(a, _)| a.y == 4 && a.x == 4)
             .expect("the leaf");
-        assert_eq!(tile.1[..3], [120; 3], "a step of 20 is an edge, not a seam");
+        // Its corner also meets the 106 left of it (a step of 14: 2 each side).
+        assert_eq!(tile.1[..3], [117, 119, 119], "a step of 20 is softened");
+        // Past four limits (32 grey levels) a step is an edge, not a seam.
+        assert_eq!(smooth(140, 107, 256), None);
+        assert_eq!(smooth(139, 107, 256), Some((139, 107)));
+        assert_eq!(smooth(107, 140, 256), None);
+        // The taper starts where the third ends: a step of 9 moves by 3 either way.
+        assert_eq!(smooth(109, 100, 256), Some((106, 103)));
+        assert_eq!(smooth(100, 109, 256), Some((103, 106)));
     }
 }

@@ -93,8 +93,9 @@ pub struct Header {
     /// 0 for one stripe as wide as the image ([`Header::stripe_width`]).
     pub stripe: u8,
     /// Strength of the smoothing of leaf edges, 0 (none) to [`MAX_DEBLOCK`]: a step across a
-    /// leaf's top or left edge is smoothed when it is at most `deblock / 32` of the leaf's
-    /// control step (see the prediction frontier's `Capture`).
+    /// leaf's top or left edge is smoothed by a third when it is at most `deblock / 2` of the
+    /// leaf's control steps, by less up to four times that (see the prediction frontier's
+    /// `Capture`).
     pub deblock: u8,
     /// Lloyd-Max codebooks of the weight classes (line, cell); empty when absent.
     pub codebooks: [Codebook; 2],

@@ -142,7 +142,7 @@ fn specs() -> Vec<Spec> {
             name: "synthetic-64x64",
             image: Image::Gray(common::synthetic(64, 64, 7, 6)),
             config: config(2, 5, 8, true),
-            targets: bpp(&[0.05, 0.2, 0.5, 1.5]),
+            targets: bpp(&[0.05, 0.2, 0.5, 1.0, 1.5]),
         },
         Spec {
             name: "synthetic-100x60",

@@ -63,7 +63,8 @@ fn scaled_decodes_draw_every_pixel_once_in_legal_tiles() {
 
 /// Which pixels of the full decode lie on a leaf's first or last row or column (where edge
 /// smoothing may move them), and the most it may move one: a pixel is smoothed across at most
-/// four leaf edges, each time by at most `round(D / 3)` with `32 |D| <= d s`.
+/// four leaf edges, each time by at most `round(D / 3)` with `32 |D| <= d s` (a larger step,
+/// up to four times that, is moved less).
 fn leaf_edges(data: &[u8]) -> (Vec<bool>, i32) {
     let header = decoder_core::Header::read(data).unwrap();
     let (w, h) = (u32::from(header.width), u32::from(header.height));

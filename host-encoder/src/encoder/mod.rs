@@ -464,7 +464,8 @@ impl Analysis {
 }
 
 /// The edge-smoothing strengths an encode tries, weakest first ([`Header::deblock`]: a step
-/// is smoothed when it is at most `strength / 2` control steps).
+/// is smoothed by a third when it is at most `strength / 2` control steps, by less up to four
+/// times that).
 const DEBLOCK_STRENGTHS: [u8; 8] = [0, 1, 2, 3, 4, 6, 8, 12];
 
 /// Analyses an image with `config`; the result encodes any number of targets. `progress` is

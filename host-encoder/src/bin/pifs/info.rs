@@ -84,7 +84,11 @@ impl Stats {
             header.stripe_width(),
             match header.deblock {
                 0 => "off".to_string(),
-                d => format!("{d} (steps up to {} control steps)", f64::from(d) / 2.0),
+                d => format!(
+                    "{d} (steps up to {} control steps, tapering off to {})",
+                    f64::from(d) / 2.0,
+                    f64::from(d) * 2.0
+                ),
             }
         );
         let codebooks = if header.has_codebooks() {
