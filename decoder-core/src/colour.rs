@@ -499,17 +499,51 @@ impl<'a> SurfaceRow<'a> {
     }
 
     /// The values under consecutive luma columns `first, first + 1, ...` of the leaf (at
-    /// their centres, [`centre`]), one per entry of `out`.
+    /// their centres, [`centre`]), one per entry of `out`: [`SurfaceRow::at`] at each,
+    /// stepped by twice the cell's slope while the columns stay in one grid cell.
     #[inline(never)]
     fn fill(&mut self, first: u32, out: &mut [u8]) {
-        for (i, v) in (first..).zip(out.iter_mut()) {
-            *v = self.at(centre(i));
+        let shift = 2 * self.sh + SAMPLE_BITS;
+        let half = 1i32 << (shift - 1);
+        let mut rest = out;
+        let mut i = first;
+        if i == 0 {
+            // Column 0's centre is clamped to the leaf's edge, not a step of 2 before column 1.
+            let Some((v, tail)) = rest.split_first_mut() else {
+                return;
+            };
+            *v = self.at(0);
+            (rest, i) = (tail, 1);
+        }
+        while !rest.is_empty() {
+            let q = centre(i);
+            // The columns whose centres `q + 2 k` lie in the cell of `q`.
+            let cell_end = ((q >> self.sh) + 1) << self.sh;
+            let run = ((cell_end - q).div_ceil(2) as usize).min(rest.len());
+            let (now, tail) = rest.split_at_mut(run);
+            // Wrapping: the same integers as `line` at each column.
+            let mut v = self.line(q);
+            let step = self.slope.wrapping_mul(2);
+            for p in now {
+                *p = (v.wrapping_add(half) >> shift).clamp(0, 255) as u8;
+                v = v.wrapping_add(step);
+            }
+            (rest, i) = (tail, i + run as u32);
         }
     }
 
     /// The 8-bit value at position `q` along the row.
     #[inline]
     fn at(&mut self, q: u32) -> u8 {
+        let v = self.line(q);
+        let shift = 2 * self.sh + SAMPLE_BITS;
+        ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
+    }
+
+    /// The row's line at position `q` (`2 sh + SAMPLE_BITS` fraction bits), the cell's line
+    /// made first when `q` is in another cell than the last.
+    #[inline]
+    fn line(&mut self, q: u32) -> i32 {
         let a = (q >> self.sh).min(self.g - 1);
         let f = (q & ((1 << self.sh) - 1)) as i32;
         let one = 1i32 << self.sh;
@@ -525,9 +559,7 @@ impl<'a> SurfaceRow<'a> {
             self.base = one * c0;
             self.slope = c1 - c0;
         }
-        let v = self.base + f * self.slope;
-        let shift = 2 * self.sh + SAMPLE_BITS;
-        ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
+        self.base + f * self.slope
     }
 }
 
@@ -686,9 +718,26 @@ mod tests {
                 let side = 2 << log2;
                 for j in 0..side {
                     let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, centre(j));
+                    let mut expected = [0u8; 128];
                     for i in 0..side {
                         let v = patch.value_under(0, i, j);
                         assert_eq!(row.at(centre(i)), v, "g {g} log2 {log2}");
+                        expected[i as usize] = v;
+                    }
+                    // Filled a tile's width at a time from any column, as a decode does.
+                    let t = crate::synthesis::TILE as u32;
+                    for first in [0, 1, 2, 3, side / 2 - 1, side.saturating_sub(3)] {
+                        let first = first.min(side - 1);
+                        let len = (side - first).min(t) as usize;
+                        let mut out = [0u8; crate::synthesis::TILE];
+                        let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, centre(j));
+                        row.fill(first, &mut out[..len]);
+                        let at = first as usize;
+                        assert_eq!(
+                            out[..len],
+                            expected[at..at + len],
+                            "g {g} log2 {log2} {first}"
+                        );
                     }
                 }
                 for j in 0..side / 2 {
