@@ -194,6 +194,37 @@ fn sample_at(plane: &ChromaPlane, log2: u8, sub: u32, i: u32, j: u32) -> u8 {
     ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
 }
 
+/// [`sample`] along row `j` of a leaf of side `2^log2`, at its columns `0..out.len()`: the same
+/// values, stepped along each grid cell (an encoder measures a leaf's error with it).
+pub fn sample_row(plane: &ChromaPlane, log2: u8, j: u32, out: &mut [u8]) {
+    let mut row = SurfaceRow::new(plane, log2, 0, j);
+    let shift = 2 * row.sh + SAMPLE_BITS;
+    let half = 1i32 << (shift - 1);
+    if row.sh == 0 {
+        // A pixel grid: each pixel is its control value.
+        let side = row.g as usize + 1;
+        let values = plane.control.iter().skip(row.b * side);
+        for (p, &v) in out.iter_mut().zip(values) {
+            *p = ((i32::from(v) + half) >> shift).clamp(0, 255) as u8;
+        }
+        return;
+    }
+    let (mut rest, mut i) = (out, 0u32);
+    while !rest.is_empty() {
+        // The columns left in the grid cell of column `i`.
+        let cell_end = ((i >> row.sh) + 1) << row.sh;
+        let run = ((cell_end - i) as usize).min(rest.len());
+        let (now, tail) = rest.split_at_mut(run);
+        // Wrapping: the same integers as `line` at each column.
+        let mut v = row.line(i);
+        for p in now {
+            *p = (v.wrapping_add(half) >> shift).clamp(0, 255) as u8;
+            v = v.wrapping_add(row.slope);
+        }
+        (rest, i) = (tail, i + run as u32);
+    }
+}
+
 /// The chroma decoder's prediction memory, like the luma frontier's without deferred edges:
 /// for each chroma column of a stripe the last chroma pixel decoded in it, for each chroma row
 /// of a band the last one in that row, both planes interleaved (`Cb`, `Cr`). Holds stripes of
@@ -697,6 +728,38 @@ mod tests {
 
     /// The row-stepped surface of the drawing is [`ChromaPatch::value_under`], bit for bit, on
     /// every grid and leaf size, with control values over the whole sample range.
+    #[test]
+    fn a_sampled_row_is_the_surface() {
+        let mut seed = 5u32;
+        for log2 in 0..=6u8 {
+            for (g, _) in CHROMA_GRIDS {
+                if u32::from(g) > 1 << log2 {
+                    continue;
+                }
+                let mut plane = ChromaPlane {
+                    grid: g,
+                    control: [0; MAX_CONTROL],
+                };
+                for v in plane.control.iter_mut() {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    *v = (seed >> 20) as i16;
+                }
+                let side = 1u32 << log2;
+                let mut row = [0u8; 64];
+                for j in 0..side {
+                    sample_row(&plane, log2, j, &mut row[..side as usize]);
+                    for i in 0..side {
+                        assert_eq!(
+                            row[i as usize],
+                            sample(&plane, log2, i, j),
+                            "grid {g}, 2^{log2}, ({i}, {j})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_stepped_surface_is_the_surface() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;

@@ -519,8 +519,12 @@ impl TileOut for Capture<'_> {
             return Ok(());
         }
         if keep_w < wu {
+            // Rows move left (never onto a later row's unread pixels), one byte at a time: a
+            // `copy_within` would bring in a general memmove, over a kilobyte of flash.
             for j in 1..keep_h {
-                buf.copy_within(j * wu..j * wu + keep_w, j * keep_w);
+                for k in 0..keep_w {
+                    buf[j * keep_w + k] = buf[j * wu + k];
+                }
             }
         }
         self.out.put(Tile {

@@ -21,7 +21,8 @@ use super::quantise::forward_grid_transform;
 use super::rate::lower_hull;
 use crate::entropy::BitCounter;
 use decoder_core::internal::colour::{chroma_len, chroma_node, CHROMA_GRIDS};
-use decoder_core::internal::colour::{chroma_models, rgb_to_ycbcr, sample, ChromaPlane};
+use decoder_core::internal::colour::{chroma_models, rgb_to_ycbcr, sample_row, ChromaPlane};
+use decoder_core::internal::format::CODING_TILE;
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE};
 use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::control::{coefficient_step, CONTROL_QUANTISERS};
@@ -157,17 +158,15 @@ fn targets(pixels: &[f64], node: &Node, model: usize) -> Vec<f64> {
 }
 
 /// Indices of the control targets `t` (coded grid of side `side`) for step `step`: DPCM in
-/// closed loop, or the grid transform's coefficients, each rounded to the nearest.
-fn quantise(t: &[f64], side: usize, step: i32, transform: bool) -> [i16; MAX_CONTROL] {
+/// closed loop, or (`coefficients`: the targets' grid transform) the transform's
+/// coefficients, each rounded to the nearest.
+fn quantise(t: &[f64], coefficients: Option<&[f64]>, side: usize, step: i32) -> [i16; MAX_CONTROL] {
     let mut k = [0i16; MAX_CONTROL];
     let limit = 4095.0;
-    if transform {
-        let mut g = [0f64; MAX_CONTROL];
-        g[..t.len()].copy_from_slice(t);
-        forward_grid_transform(&mut g, side);
-        for i in 0..side * side {
+    if let Some(g) = coefficients {
+        for (i, (k, &c)) in k.iter_mut().zip(g).enumerate().take(side * side) {
             let q = f64::from(coefficient_step(side, i, step));
-            k[i] = (g[i] / q).round().clamp(-limit, limit) as i16;
+            *k = round_half_away(c / q).clamp(-limit, limit) as i16;
         }
     } else {
         let mut recon = [0i16; MAX_CONTROL];
@@ -178,8 +177,7 @@ fn quantise(t: &[f64], side: usize, step: i32, transform: bool) -> [i16; MAX_CON
             } else {
                 intra_prediction(&recon, side, r, c)
             };
-            let index = ((t[i] - f64::from(base)) / f64::from(step))
-                .round()
+            let index = round_half_away((t[i] - f64::from(base)) / f64::from(step))
                 .clamp(-limit, limit) as i32;
             k[i] = index as i16;
             recon[i] = dequantise_control(base, step, index);
@@ -188,11 +186,40 @@ fn quantise(t: &[f64], side: usize, step: i32, transform: bool) -> [i16; MAX_CON
     k
 }
 
-/// The syntax of chroma model `model` (whose targets are `t`) at `node` with control quantiser
-/// `cquant` and `coding`, and its reconstruction by decoder-core; `None` if it cannot be
-/// reconstructed.
+/// `x` rounded to the nearest integer, halves away from zero: [`f64::round`] for `|x| < 2^52`,
+/// without its library call (the chroma options' quantisation rounds millions of values).
+#[inline]
+fn round_half_away(x: f64) -> f64 {
+    if x.is_nan() || x.abs() >= 4_503_599_627_370_496.0 {
+        return x.round();
+    }
+    // Truncation and the fraction left are exact below 2^52.
+    let whole = x as i64 as f64;
+    let fraction = x - whole;
+    if fraction >= 0.5 {
+        whole + 1.0
+    } else if fraction <= -0.5 {
+        whole - 1.0
+    } else {
+        // A zero keeps the sign of `x`, as the library's.
+        whole.copysign(x)
+    }
+}
+
+/// The grid transform of control targets `t` over a coded grid of side `side`.
+fn transformed(t: &[f64], side: usize) -> [f64; MAX_CONTROL] {
+    let mut g = [0f64; MAX_CONTROL];
+    g[..t.len()].copy_from_slice(t);
+    forward_grid_transform(&mut g, side);
+    g
+}
+
+/// The syntax of chroma model `model` (whose targets are `t`, and their grid transform
+/// `coefficients` if known) at `node` with control quantiser `cquant` and `coding`, and its
+/// reconstruction by decoder-core; `None` if it cannot be reconstructed.
 fn quantised(
     t: &[f64],
+    coefficients: Option<&[f64; MAX_CONTROL]>,
     node: &Node,
     model: u8,
     cquant: u8,
@@ -205,24 +232,43 @@ fn quantised(
         control: [0; MAX_CONTROL],
     };
     let grid = chroma_grid(&syntax, node.log2);
-    syntax.control = quantise(t, grid.side, grid.step, grid.transform);
+    let made;
+    let coefficients = match (grid.transform, coefficients) {
+        (false, _) => None,
+        (true, Some(c)) => Some(&c[..]),
+        (true, None) => {
+            made = transformed(t, grid.side);
+            Some(&made[..])
+        }
+    };
+    syntax.control = quantise(t, coefficients, grid.side, grid.step);
     let mut rec = ChromaPlane::NEUTRAL;
     reconstruct_chroma(&syntax, node.log2, &mut rec).ok()?;
     Some((syntax, rec))
 }
 
-/// Squared error of a reconstructed chroma plane over the leaf's pixels inside the plane.
+/// Squared error of a reconstructed chroma plane over the leaf's pixels inside the plane, row
+/// by row ([`sample_row`]: exact integers, so the same sum as pixel by pixel).
 fn plane_sse(plane: &Plane, node: &Node, rec: &ChromaPlane) -> f64 {
     let s = node.size();
-    let mut sse = 0.0;
-    for j in 0..s.min(plane.height - node.y) {
-        for i in 0..s.min(plane.width - node.x) {
-            let d = f64::from(sample(rec, node.log2, i, j))
-                - f64::from(plane.get(node.x + i, node.y + j));
+    let (w, h) = (
+        s.min(plane.width - node.x) as usize,
+        s.min(plane.height - node.y),
+    );
+    let mut row = [0u8; CODING_TILE as usize];
+    let Some(row) = row.get_mut(..w) else {
+        return f64::INFINITY;
+    };
+    let mut sse = 0u64;
+    for j in 0..h {
+        sample_row(rec, node.log2, j, row);
+        let start = (node.y + j) as usize * plane.width as usize + node.x as usize;
+        for (&r, &p) in row.iter().zip(&plane.data[start..start + w]) {
+            let d = u64::from(r.abs_diff(p));
             sse += d * d;
         }
     }
-    sse
+    sse as f64
 }
 
 /// One way of coding a chroma leaf: its syntax, its weighted error
@@ -257,6 +303,8 @@ struct NodeOptions {
     series: Vec<Series>,
     /// The control targets of each model.
     targets: Vec<Vec<f64>>,
+    /// Their grid transform, for the models the transform codes.
+    coefficients: Vec<Option<[f64; MAX_CONTROL]>>,
 }
 
 impl NodeOptions {
@@ -282,10 +330,27 @@ impl NodeOptions {
             }
         }
         let pixels = leaf_pixels(plane, node);
-        let targets = (0..chroma_models(node.log2))
+        let targets: Vec<Vec<f64>> = (0..chroma_models(node.log2))
             .map(|model| targets(&pixels, node, model))
             .collect();
-        NodeOptions { series, targets }
+        let coefficients = targets
+            .iter()
+            .enumerate()
+            .map(|(model, t)| {
+                let syntax = ChromaSyntax {
+                    model: model as u8,
+                    coding: ControlCoding::Transform,
+                    ..ChromaSyntax::default()
+                };
+                let grid = chroma_grid(&syntax, node.log2);
+                (CHROMA_GRIDS[model].0 >= 2).then(|| transformed(t, grid.side))
+            })
+            .collect();
+        NodeOptions {
+            series,
+            targets,
+            coefficients,
+        }
     }
 
     /// Bytes this holds (roughly), for the cache's bound.
@@ -296,7 +361,13 @@ impl NodeOptions {
             .flat_map(|s| &s.steps)
             .map(|r| 40 + r.as_ref().map_or(0, |r| 2 * r.control.len()))
             .sum();
-        let targets: usize = self.targets.iter().map(|t| 8 * t.len()).sum();
+        let targets: usize = self.targets.iter().map(|t| 8 * t.len()).sum::<usize>()
+            + self
+                .coefficients
+                .iter()
+                .flatten()
+                .map(|c| 8 * c.len())
+                .sum::<usize>();
         64 + steps + targets
     }
 
@@ -313,7 +384,8 @@ impl NodeOptions {
             let (model, coding) = (self.series[s].model, self.series[s].coding);
             let cq = (CONTROL_QUANTISERS - 1 - self.series[s].steps.len()) as u8;
             let t = &self.targets[usize::from(model)];
-            let option = quantised(t, node, model, cq, coding).map(|(syntax, rec)| {
+            let c = self.coefficients[usize::from(model)].as_ref();
+            let option = quantised(t, c, node, model, cq, coding).map(|(syntax, rec)| {
                 let side = chroma_grid(&syntax, node.log2).side;
                 Reconstructed {
                     cquant: cq,
@@ -506,20 +578,29 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost 
             plane,
             stripe: stripe / 2,
         };
+        // Every option once, in the order a write visits them: nothing is kept for later.
         let mut options = Vec::new();
-        let mut reconstructed = NodeOptions::new(plane, &cnode);
-        for_each_option(
-            plane,
-            p,
-            &cnode,
-            &prediction,
-            &contexts,
-            &mut reconstructed,
-            &mut |o| {
-                options.push((o.bits, o.weighted_sse));
-                true
-            },
-        );
+        let node_options = NodeOptions::new(plane, &cnode);
+        let mut ctx = contexts.clone();
+        for series in &node_options.series {
+            let model = usize::from(series.model);
+            let t = &node_options.targets[model];
+            let c = node_options.coefficients[model].as_ref();
+            for k in 0..CONTROL_QUANTISERS {
+                let cq = (CONTROL_QUANTISERS - 1 - k) as u8;
+                let Some((syntax, rec)) = quantised(t, c, &cnode, series.model, cq, series.coding)
+                else {
+                    continue;
+                };
+                let mut counter = BitCounter::frozen();
+                let mut coded = syntax;
+                if code_chroma(&mut counter, &mut ctx, &cnode, &prediction, &mut coded).is_err() {
+                    continue;
+                }
+                let weighted_sse = 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, &cnode, &rec);
+                options.push((counter.bits(), weighted_sse));
+            }
+        }
         *hull = lower_hull(&options)
             .into_iter()
             .map(|k| {
@@ -544,7 +625,7 @@ pub fn smooth_within(colour: &ColourPlanes, node: &Node, mse: f64) -> bool {
             return true;
         }
         let t = targets(&leaf_pixels(plane, &cnode), &cnode, 0);
-        let Some((_, rec)) = quantised(&t, &cnode, 0, 0, ControlCoding::Dpcm) else {
+        let Some((_, rec)) = quantised(&t, None, &cnode, 0, 0, ControlCoding::Dpcm) else {
             return false;
         };
         let inside = |start: u32, len: u32| cnode.size().min(len - start);
@@ -556,6 +637,34 @@ pub fn smooth_within(colour: &ColourPlanes, node: &Node, mse: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The inlined rounding is the library's, halves and neighbours of halves included.
+    #[test]
+    fn rounding_halves_away_from_zero_as_the_library_does() {
+        let mut seed = 3u64;
+        let mut values = vec![
+            0.5,
+            -0.5,
+            1.5,
+            -2.5,
+            0.49999999999999994,
+            -0.49999999999999994,
+            4095.5,
+            -0.0,
+            1e300,
+            f64::MAX,
+        ];
+        for _ in 0..100_000 {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let x = ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 20_000.0;
+            values.extend([x, x.trunc() + 0.5, x.trunc() - 0.5, (x * 2.0).round() / 2.0]);
+        }
+        for x in values {
+            assert_eq!(round_half_away(x).to_bits(), x.round().to_bits(), "{x}");
+        }
+    }
 
     #[test]
     fn chroma_planes_are_the_means_of_2x2_blocks() {
