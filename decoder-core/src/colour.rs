@@ -25,7 +25,7 @@ use crate::format::{CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
 use crate::model::{MAX_CONTROL, SAMPLE_BITS, SAMPLE_ONE};
 use crate::prediction::{beside_known, SamplePrediction};
-use crate::synthesis::{Scale, Stop, Tile, TileOut, TILE};
+use crate::synthesis::{Scale, Stop, TileMut, TileOut, TILE};
 
 /// RGB of a YCbCr pixel (BT.601 full range, as JFIF), in 16-bit fixed point with rounding:
 /// `R = Y + (91881 Cr' + 32768) >> 16`, `G = Y + (-22554 Cb' - 46802 Cr' + 32768) >> 16`,
@@ -595,7 +595,7 @@ impl<'a> SurfaceRow<'a> {
 }
 
 impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let Rect { x, y, w, h } = tile.area;
         let n = (w * h) as usize;
         let mut rgb = [0u8; 3 * TILE * TILE];
@@ -606,9 +606,9 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
         let node = &self.patch.node;
         if k == 0 && x >= 2 * node.x && y >= 2 * node.y {
             self.convert_inside(tile.area, tile.pixels, &mut rgb);
-            return self.out.put(Tile {
+            return self.out.put(TileMut {
                 area: tile.area,
-                pixels: &rgb[..3 * n],
+                pixels: &mut rgb[..3 * n],
                 channels: 3,
             });
         }
@@ -637,9 +637,9 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
                 at += 1;
             }
         }
-        self.out.put(Tile {
+        self.out.put(TileMut {
             area: tile.area,
-            pixels: &rgb[..3 * n],
+            pixels: &mut rgb[..3 * n],
             channels: 3,
         })
     }

@@ -24,7 +24,9 @@ use crate::syntax::control_step;
 use crate::syntax::{
     stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
 };
-use crate::synthesis::{Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileOut, TILE};
+use crate::synthesis::{
+    Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE,
+};
 use crate::walk::{self, LeafInfo, Node, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -413,7 +415,8 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
         self,
         sink: &mut S,
     ) -> Result<Header, DrawError<S::Error>> {
-        let header = self.header;
+        // Borrowed, not copied: the header stays in the decoder's place on the stack.
+        let header = &self.header;
         let (width, height) = self.output_size();
         let image = Rect::of_size(width, height);
         let mut drawer = Drawer {
@@ -425,16 +428,16 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
         };
         let mut coder = match RangeDecoder::start(self.input) {
             Ok(coder) => coder,
-            Err((input, e)) => return Err(input.after_error(&header, e).into()),
+            Err((input, e)) => return Err(input.after_error(header, e).into()),
         };
-        match run_walk::<_, _, STRIPE>(&header, &mut coder, &mut drawer) {
-            Ok(()) => coder.into_source().finish(&header)?,
+        match run_walk::<_, _, STRIPE>(header, &mut coder, &mut drawer) {
+            Ok(()) => coder.into_source().finish(header)?,
             Err(DrawError::Decode(e)) => {
-                return Err(coder.into_source().after_error(&header, e).into())
+                return Err(coder.into_source().after_error(header, e).into())
             }
             Err(sink_error) => return Err(sink_error),
         }
-        Ok(header)
+        Ok(*header)
     }
 
     /// Decodes the stream into `out`: row-major, `width` bytes per row, at least
@@ -658,7 +661,7 @@ struct Subsample<'a> {
 }
 
 impl TileOut for Subsample<'_> {
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let unit = 1u32 << self.shift;
         let Rect { x, y, w, h } = tile.area;
         let first_x = x.next_multiple_of(unit);
@@ -675,14 +678,14 @@ impl TileOut for Subsample<'_> {
                     n += 1;
                 }
             }
-            self.out.put(Tile {
+            self.out.put(TileMut {
                 area: Rect {
                     x: first_x >> self.shift,
                     y: j >> self.shift,
                     w: n as u32,
                     h: 1,
                 },
-                pixels: &row[..n],
+                pixels: &mut row[..n],
                 channels: 1,
             })?;
         }
@@ -697,7 +700,7 @@ struct ClipOut<'a> {
 }
 
 impl TileOut for ClipOut<'_> {
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let area = tile.area.intersect(&self.clip);
         if area.is_empty() {
             return Ok(());
@@ -705,26 +708,31 @@ impl TileOut for ClipOut<'_> {
         if area == tile.area {
             return self.out.put(tile);
         }
-        let mut buf = [0u8; TILE * TILE];
+        let c = usize::from(tile.channels);
         let (dx, dy) = (
             (area.x - tile.area.x) as usize,
             (area.y - tile.area.y) as usize,
         );
-        let (w, tw) = (area.w as usize, tile.area.w as usize);
-        for j in 0..area.h as usize {
-            let from = (dy + j) * tw + dx;
-            let (Some(dst), Some(src)) = (
-                buf.get_mut(j * w..(j + 1) * w),
-                tile.pixels.get(from..from + w),
-            ) else {
-                return Ok(());
-            };
-            dst.copy_from_slice(src);
+        let (w, tw, h) = (
+            area.w as usize * c,
+            tile.area.w as usize * c,
+            area.h as usize,
+        );
+        if (dy + h) * tw > tile.pixels.len() {
+            return Ok(());
         }
-        self.out.put(Tile {
+        // The part inside moves to the front, row by row: never onto a pixel not yet moved.
+        let pixels = tile.pixels;
+        for j in 0..h {
+            let from = (dy + j) * tw + dx * c;
+            for k in 0..w {
+                pixels[j * w + k] = pixels[from + k];
+            }
+        }
+        self.out.put(TileMut {
             area,
-            pixels: &buf[..w * area.h as usize],
-            channels: 1,
+            pixels: &mut pixels[..w * h],
+            channels: tile.channels,
         })
     }
 }

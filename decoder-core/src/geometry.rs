@@ -63,17 +63,17 @@ impl Rect {
     pub fn intersect(&self, other: &Rect) -> Rect {
         let x0 = self.x.max(other.x);
         let y0 = self.y.max(other.y);
-        let x1 = self.right().min(other.right());
-        let y1 = self.bottom().min(other.bottom());
-        if x1 <= u64::from(x0) || y1 <= u64::from(y0) {
+        // Offsets of the corner into each rectangle: 32-bit throughout, no sum can overflow.
+        let (ax, bx) = (x0 - self.x, x0 - other.x);
+        let (ay, by) = (y0 - self.y, y0 - other.y);
+        if ax >= self.w || bx >= other.w || ay >= self.h || by >= other.h {
             return Rect::of_size(0, 0);
         }
-        // The sizes are at most the smaller input's size, so they fit in u32.
         Rect {
             x: x0,
             y: y0,
-            w: (x1 - u64::from(x0)) as u32,
-            h: (y1 - u64::from(y0)) as u32,
+            w: (self.w - ax).min(other.w - bx),
+            h: (self.h - ay).min(other.h - by),
         }
     }
 }

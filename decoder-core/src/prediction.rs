@@ -20,7 +20,7 @@ use crate::geometry::{Node, Rect};
 use crate::model::SAMPLE_ONE;
 #[cfg(test)]
 use crate::synthesis::Discard;
-use crate::synthesis::{Patch, Stop, Tile, TileOut, TILE};
+use crate::synthesis::{Patch, Stop, TileMut, TileOut, TILE};
 
 /// Where a leaf's predictions come from: the pixels earlier leaves drew next to it.
 pub trait SamplePrediction {
@@ -404,45 +404,46 @@ impl Capture<'_> {
         }
     }
 
-    /// The tile's part of the first row (`row`; `original` as synthesised) against the waiting
-    /// pixels above, which are smoothed, drawn and kept.
-    fn top_edge(&mut self, x: u32, y: u32, row: &mut [u8], original: &[u8]) -> Result<(), Stop> {
+    /// The tile's part of the first row (`row`, as synthesised) against the waiting pixels
+    /// above, which are smoothed, drawn and kept; `row` is smoothed in place.
+    fn top_edge(&mut self, x: u32, y: u32, row: &mut [u8]) -> Result<(), Stop> {
         let mut above = [0u8; TILE];
         // A tile lies inside one stripe (stripes are whole coding tiles).
         let first = self.stripe.column(x) as usize;
-        for (i, (q, &q_before)) in row.iter_mut().zip(original).enumerate() {
+        for (i, q) in row.iter_mut().enumerate() {
             let Some(slot) = self.columns.get_mut(first + i) else {
                 continue;
             };
-            if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
-                *q = moved(*q, q_before, q_new);
+            if let Some((q_new, p_new)) = smooth(*q, *slot, self.limit) {
+                *q = q_new;
                 *slot = p_new;
             }
             above[i] = *slot;
         }
-        let w = row.len();
-        self.out.put(Tile {
+        let w = row.len().min(TILE);
+        self.out.put(TileMut {
             area: Rect {
                 x,
                 y: y - 1,
                 w: w as u32,
                 h: 1,
             },
-            pixels: &above[..w],
+            pixels: &mut above[..w],
             channels: 1,
         })
     }
 
-    /// The tile's part of the first column (rows `y..y + h`, column 0 of `buf`, `w` wide;
-    /// `original` as synthesised) against the waiting pixels left of it, which are smoothed,
-    /// drawn and kept; a pixel that waits with its row instead is neither.
+    /// The tile's part of the first column (rows `y..y + h`, column 0 of `buf`, `w` wide, as
+    /// synthesised but for its first pixel, synthesised as `corner`) against the waiting
+    /// pixels left of it, which are smoothed, drawn and kept; a pixel that waits with its row
+    /// instead is neither. `buf` is smoothed in place.
     fn left_edge(
         &mut self,
         x: u32,
         y: u32,
         (w, h): (usize, usize),
         buf: &mut [u8],
-        original: &[u8],
+        corner: u8,
     ) -> Result<(), Stop> {
         let mut beside = [0u8; TILE];
         let mut run_start = None;
@@ -451,7 +452,7 @@ impl Capture<'_> {
             let waiting = j < h && !self.is_corner(r);
             if waiting {
                 let slot = &mut self.rows[(r % CODING_TILE) as usize];
-                let q_before = original[j * w];
+                let q_before = if j == 0 { corner } else { buf[j * w] };
                 if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
                     buf[j * w] = moved(buf[j * w], q_before, q_new);
                     *slot = p_new;
@@ -459,14 +460,14 @@ impl Capture<'_> {
                 beside[j] = *slot;
                 run_start.get_or_insert(j);
             } else if let Some(start) = run_start.take() {
-                self.out.put(Tile {
+                self.out.put(TileMut {
                     area: Rect {
                         x: x - 1,
                         y: y + start as u32,
                         w: 1,
                         h: (j - start) as u32,
                     },
-                    pixels: &beside[start..j],
+                    pixels: &mut beside[start..j],
                     channels: 1,
                 })?;
             }
@@ -476,26 +477,26 @@ impl Capture<'_> {
 }
 
 impl TileOut for Capture<'_> {
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let Rect { x, y, w, h } = tile.area;
         let (wu, hu) = (w as usize, h as usize);
         let n = wu * hu;
-        let mut buf = [0u8; TILE * TILE];
-        let (Some(pixels), true) = (tile.pixels.get(..n), n <= buf.len() && n > 0) else {
-            return Ok(());
-        };
         let on_right = x + w - 1 == self.right;
         let on_first = (self.above_known && y == self.top) || (self.left_known && x == self.left);
         // Most tiles hold none of the leaf's edges: drawn as they are.
         if !on_right && !on_first && !(y..y + h).contains(&self.bottom) {
             return self.out.put(tile);
         }
-        buf[..n].copy_from_slice(pixels);
+        let (Some(buf), true) = (tile.pixels.get_mut(..n), n > 0 && wu <= TILE && hu <= TILE)
+        else {
+            return Ok(());
+        };
+        let corner = buf[0];
         if self.above_known && y == self.top {
-            self.top_edge(x, y, &mut buf[..wu], &pixels[..wu])?;
+            self.top_edge(x, y, &mut buf[..wu])?;
         }
         if self.left_known && x == self.left {
-            self.left_edge(x, y, (wu, hu), &mut buf, pixels)?;
+            self.left_edge(x, y, (wu, hu), buf, corner)?;
         }
         // The leaf's bottom row and right column, as drawn, wait in the frontier.
         for j in 0..hu {
@@ -527,14 +528,14 @@ impl TileOut for Capture<'_> {
                 }
             }
         }
-        self.out.put(Tile {
+        self.out.put(TileMut {
             area: Rect {
                 x,
                 y,
                 w: keep_w as u32,
                 h: keep_h as u32,
             },
-            pixels: &buf[..keep_w * keep_h],
+            pixels: &mut buf[..keep_w * keep_h],
             channels: 1,
         })
     }
@@ -662,7 +663,7 @@ mod tests {
     fn small_steps_across_an_edge_are_smoothed() {
         struct Collect(std::vec::Vec<(Rect, std::vec::Vec<u8>)>);
         impl TileOut for Collect {
-            fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+            fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
                 self.0.push((tile.area, tile.pixels.to_vec()));
                 Ok(())
             }

@@ -178,7 +178,32 @@ pub struct Stop;
 /// flash than a call per tile does.
 pub trait TileOut {
     /// Takes one tile; [`Stop`] ends the synthesis.
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop>;
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop>;
+}
+
+/// A tile on its way through the decoder's own outputs ([`TileOut`]): a [`Tile`] whose pixels
+/// are scratch, so that an output that corrects or cuts them does it in place, without a
+/// buffer of its own.
+#[derive(Debug)]
+pub struct TileMut<'a> {
+    /// Where the pixels go, as [`Tile::area`].
+    pub area: Rect,
+    /// Row-major pixels, as [`Tile::pixels`].
+    pub pixels: &'a mut [u8],
+    /// Values per pixel: 1 (gray) or 3 (RGB).
+    pub channels: u8,
+}
+
+impl TileMut<'_> {
+    /// The tile as a [`PixelSink`] takes it.
+    #[inline]
+    pub fn tile(&self) -> Tile<'_> {
+        Tile {
+            area: self.area,
+            pixels: self.pixels,
+            channels: self.channels,
+        }
+    }
 }
 
 /// Takes every tile and keeps nothing.
@@ -186,7 +211,7 @@ pub trait TileOut {
 pub struct Discard;
 
 impl TileOut for Discard {
-    fn put(&mut self, _tile: Tile<'_>) -> Result<(), Stop> {
+    fn put(&mut self, _tile: TileMut<'_>) -> Result<(), Stop> {
         Ok(())
     }
 }
@@ -222,11 +247,11 @@ impl<S: PixelSink + ?Sized> core::fmt::Debug for Catch<'_, S> {
 
 impl<S: PixelSink + ?Sized> TileOut for Catch<'_, S> {
     #[inline]
-    fn put(&mut self, tile: Tile<'_>) -> Result<(), Stop> {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         if self.error.is_some() {
             return Err(Stop);
         }
-        self.sink.tile(tile).map_err(|e| {
+        self.sink.tile(tile.tile()).map_err(|e| {
             self.error = Some(e);
             Stop
         })
@@ -488,9 +513,24 @@ fn along<R: Rule>(
     }
 }
 
-/// Deepest subdivision below a leaf's control grid that the walk stores (a 128 px leaf of the
-/// bilinear model drawn four times larger), plus one for the control grid.
-const MAX_DEPTH: usize = 10;
+/// Deepest subdivision below a leaf's control grid that the walk stores (a leaf of the
+/// largest size drawn four times larger), plus one for the control grid.
+const MAX_DEPTH: usize = arena_len_levels(2) + 1;
+
+/// The most grids [`stored_values`] stores for any model at the largest leaf size enlarged
+/// `2^enlarge_log2` times.
+const fn arena_len_levels(enlarge_log2: u32) -> usize {
+    let (mut max, mut i) = (0, 0);
+    while i < MODELS.len() {
+        let levels = stored_values(MODELS[i], MAX_LEAF_LOG2 as u32 + enlarge_log2)
+            / MODELS[i].control_count();
+        if levels > max {
+            max = levels;
+        }
+        i += 1;
+    }
+    max
+}
 
 /// Side of the lattice of a tile's points: its pixels and the points on its far edges.
 const LATTICE: usize = TILE + 1;
@@ -535,10 +575,10 @@ struct Job<'a> {
 impl Job<'_> {
     /// Hands the first `len` pixels on as the tile `area`.
     fn put(&mut self, area: Rect, len: usize) -> Result<(), Stop> {
-        let pixels = self.pixels.get(..len).unwrap_or(&[]);
-        self.out.put(Tile {
+        let Job { out, pixels, .. } = self;
+        out.put(TileMut {
             area,
-            pixels,
+            pixels: pixels.get_mut(..len).unwrap_or(&mut []),
             channels: 1,
         })
     }
@@ -688,19 +728,21 @@ impl Patch {
         let n = u32::from(self.model.transforms);
         let shift = n.trailing_zeros();
         let n2 = self.model.control_count();
-        // Per depth: the grid's corner and the next of its children to visit (N^2: done); its
-        // points are `at.sp >> (depth log2 N)` pixels apart.
-        let mut corners = [(at.x, at.y); MAX_DEPTH];
+        // Per depth: the grid's corner (as an offset from the root's: a leaf drawn at most four
+        // times larger is at most 2^9 pixels a side) and the next of its children to visit (N^2:
+        // done); its points are `at.sp >> (depth log2 N)` pixels apart.
+        let root_at = at;
+        let mut corners = [(0u16, 0u16); MAX_DEPTH];
         let mut next = [0u8; MAX_DEPTH];
         let done = (n * n) as u8;
         let mut depth = 0;
         let mut entering = true;
         loop {
-            let (x, y) = corners[depth];
+            let (dx, dy) = corners[depth];
             let at = Square {
-                x,
-                y,
-                sp: at.sp >> (shift * depth as u32),
+                x: root_at.x + u32::from(dx),
+                y: root_at.y + u32::from(dy),
+                sp: root_at.sp >> (shift * depth as u32),
             };
             let ext = m * at.sp;
             if entering {
@@ -749,7 +791,10 @@ impl Patch {
             };
             self.child(parent, i as usize, j as usize, lattice, child);
             depth += 1;
-            corners[depth] = (child_at.x, child_at.y);
+            corners[depth] = (
+                (child_at.x - root_at.x) as u16,
+                (child_at.y - root_at.y) as u16,
+            );
             entering = true;
         }
     }
