@@ -726,8 +726,8 @@ mod tests {
         assert_eq!(patch.value_under(1, 3, 3), 128);
     }
 
-    /// The row-stepped surface of the drawing is [`ChromaPatch::value_under`], bit for bit, on
-    /// every grid and leaf size, with control values over the whole sample range.
+    /// A row made by [`sample_row`] is [`sample`] at each of its pixels, on every grid and leaf
+    /// size.
     #[test]
     fn a_sampled_row_is_the_surface() {
         let mut seed = 5u32;
@@ -760,6 +760,8 @@ mod tests {
         }
     }
 
+    /// The row-stepped surface of the drawing is [`ChromaPatch::value_under`], bit for bit, on
+    /// every grid and leaf size, with control values over the whole sample range.
     #[test]
     fn the_stepped_surface_is_the_surface() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;

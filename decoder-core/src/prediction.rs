@@ -420,7 +420,7 @@ impl Capture<'_> {
             }
             above[i] = *slot;
         }
-        let w = row.len().min(TILE);
+        let w = row.len();
         self.out.put(TileMut {
             area: Rect {
                 x,

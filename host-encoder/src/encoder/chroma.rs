@@ -336,15 +336,8 @@ impl NodeOptions {
         let coefficients = targets
             .iter()
             .enumerate()
-            .map(|(model, t)| {
-                let syntax = ChromaSyntax {
-                    model: model as u8,
-                    coding: ControlCoding::Transform,
-                    ..ChromaSyntax::default()
-                };
-                let grid = chroma_grid(&syntax, node.log2);
-                (CHROMA_GRIDS[model].0 >= 2).then(|| transformed(t, grid.side))
-            })
+            // Targets cover the coded grid: their count is its side squared.
+            .map(|(model, t)| (CHROMA_GRIDS[model].0 >= 2).then(|| transformed(t, t.len().isqrt())))
             .collect();
         NodeOptions {
             series,
@@ -461,6 +454,20 @@ impl std::fmt::Debug for ChromaCache {
     }
 }
 
+/// The bits of chroma syntax `syntax` at chroma node `node`, priced with the chroma contexts
+/// `contexts` (not adapted) and the chroma frontier `prediction`; `None` if it cannot be coded.
+fn option_bits<P: SamplePrediction>(
+    syntax: ChromaSyntax,
+    contexts: &mut ChromaContexts,
+    node: &Node,
+    prediction: &P,
+) -> Option<f64> {
+    let mut counter = BitCounter::frozen();
+    let mut coded = syntax;
+    code_chroma(&mut counter, contexts, node, prediction, &mut coded).ok()?;
+    Some(counter.bits())
+}
+
 /// Visits the ways of coding plane `p` (0: `Cb`, 1: `Cr`, `plane` its pixels) at chroma node
 /// `node`: every chroma model and control coding, each with its control steps from coarse to
 /// fine for as long as `visit` returns `true`. Each is reconstructed by decoder-core (or
@@ -489,15 +496,13 @@ fn for_each_option<P: SamplePrediction>(
                 control: [0; MAX_CONTROL],
             };
             syntax.control[..r.control.len()].copy_from_slice(&r.control);
-            let mut counter = BitCounter::frozen();
-            let mut coded = syntax;
-            if code_chroma(&mut counter, &mut ctx, node, prediction, &mut coded).is_err() {
+            let Some(bits) = option_bits(syntax, &mut ctx, node, prediction) else {
                 continue;
-            }
+            };
             let option = ChromaOption {
                 syntax,
                 weighted_sse: r.weighted_sse,
-                bits: counter.bits(),
+                bits,
             };
             if !visit(&option) {
                 break;
@@ -592,13 +597,11 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost 
                 else {
                     continue;
                 };
-                let mut counter = BitCounter::frozen();
-                let mut coded = syntax;
-                if code_chroma(&mut counter, &mut ctx, &cnode, &prediction, &mut coded).is_err() {
+                let Some(bits) = option_bits(syntax, &mut ctx, &cnode, &prediction) else {
                     continue;
-                }
+                };
                 let weighted_sse = 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, &cnode, &rec);
-                options.push((counter.bits(), weighted_sse));
+                options.push((bits, weighted_sse));
             }
         }
         *hull = lower_hull(&options)
