@@ -72,7 +72,7 @@ pub fn rgb_to_luma(r: u8, g: u8, b: u8) -> u8 {
 /// The chroma models: grid intervals `g` (the control grid has `g + 1` values a side) and the
 /// index in [`crate::model::MODELS`] of the luma model with that grid, whose control coding
 /// (grid side, transform tables) a chroma leaf shares.
-pub const CHROMA_GRIDS: [(u8, u8); 4] = [(1, 0), (2, 1), (4, 2), (8, 4)];
+pub const CHROMA_GRIDS: [(u8, u8); 4] = [(1, 0), (2, 1), (4, 2), (8, 3)];
 
 /// How many chroma models a chroma leaf of side `2^log2` may use: those with `g <= 2^log2`
 /// (the first ones of [`CHROMA_GRIDS`]).

@@ -69,10 +69,6 @@ pub enum HeaderField {
     PayloadLength,
     /// Bytes follow the payload the header declares.
     TrailingBytes,
-    /// A codebook has fewer than two or more than sixteen levels.
-    CodebookSize,
-    /// A codebook's levels are out of range or not increasing.
-    CodebookLevels,
     /// The edge-smoothing strength is above the format's largest.
     Deblock,
     /// A packet's region does not lie in its image.
@@ -89,8 +85,6 @@ impl HeaderField {
             HeaderField::LeafSizes => "leaf sizes",
             HeaderField::PayloadLength => "payload length",
             HeaderField::TrailingBytes => "payload length (bytes follow the payload)",
-            HeaderField::CodebookSize => "codebook size",
-            HeaderField::CodebookLevels => "codebook levels",
             HeaderField::Deblock => "edge-smoothing strength",
             HeaderField::Region => "packet region (outside the image)",
             HeaderField::PacketField => "packet index, count or size",
@@ -112,12 +106,8 @@ pub enum SyntaxElement {
     ModelType,
     /// A control quantiser index.
     ControlQuantiser,
-    /// A weight quantiser index.
-    WeightQuantiser,
     /// A control value index out of range.
     ControlValue,
-    /// A Lloyd-Max codebook index out of range, or a codebook the stream does not carry.
-    CodebookIndex,
     /// An integer whose magnitude prefix is longer than the format allows.
     IntegerMagnitude,
     /// The payload's length does not match what the quadtree used.
@@ -132,9 +122,7 @@ impl SyntaxElement {
             SyntaxElement::LeafSize => "leaf size",
             SyntaxElement::ModelType => "model type",
             SyntaxElement::ControlQuantiser => "control quantiser",
-            SyntaxElement::WeightQuantiser => "weight quantiser",
             SyntaxElement::ControlValue => "control value",
-            SyntaxElement::CodebookIndex => "codebook index",
             SyntaxElement::IntegerMagnitude => "integer magnitude",
             SyntaxElement::PayloadLength => "payload length",
         }

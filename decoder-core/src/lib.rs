@@ -52,8 +52,8 @@
 //! classic ways, in floating point from matrices it builds from the specification's rules: by
 //! the chaos game (random iteration from a control point, which lies on the attractor) and by
 //! the Hutchinson iteration (the union of the images under every map). Its tests
-//! (`host-encoder/tests/ifs.rs`) check, for every model with random control points and
-//! random non-default weights, that every point both draw is within one grey level of this
+//! (`host-encoder/tests/ifs.rs`) check, for every model with random control points, that every
+//! point both draw is within one grey level of this
 //! crate's pixel at that parameter (the tabulation rounds each level to 1/16 grey level), and
 //! that the chaos game draws the Sierpinski triangle and Barnsley's fern of the seed paper;
 //! `cargo run -p host-encoder --example ifs` draws them.

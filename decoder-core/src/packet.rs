@@ -13,7 +13,7 @@ use crate::decoder::Decoder;
 use crate::error::{DecodeError, DrawError, HeaderField};
 use crate::format::{read_leb128, write_leb128, Leb128Error, VERSION};
 use crate::geometry::Rect;
-use crate::syntax::{check_coding_fields, Codebook, Header};
+use crate::syntax::{check_coding_fields, Header};
 use crate::synthesis::{PixelSink, Tile};
 
 /// The byte that opens every packet (`p`).
@@ -139,7 +139,6 @@ impl<'a> Packet<'a> {
             max_leaf_log2,
             stripe,
             deblock,
-            codebooks: [Codebook::EMPTY; 2],
             payload_len: payload.len() as u32,
             checksum: stored,
         };

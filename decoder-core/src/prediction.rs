@@ -576,7 +576,7 @@ mod tests {
         }
         assert_eq!(StripeWidth::NONE.column(5), 5);
     }
-    use crate::model::{Weights, MODELS};
+    use crate::model::MODELS;
 
     /// A bilinear patch with corner values `v` (sample units).
     fn bilinear(v: [i16; 4]) -> Patch {
@@ -585,7 +585,6 @@ mod tests {
         Patch {
             model: MODELS[0],
             control,
-            weights: Weights::default_for(MODELS[0]),
         }
     }
 

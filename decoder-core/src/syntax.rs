@@ -15,16 +15,13 @@ use crate::error::{DecodeError, HeaderField, SyntaxElement};
 use crate::format::{div_round, med, read_leb128, write_leb128, Leb128Error, CODING_TILE};
 pub use crate::format::{MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
-use crate::model::{
-    for_each_free_tap, ModelType, Weights, MAX_CONTROL, MAX_GRID, MAX_WEIGHTS, MODELS, MODEL_COUNT,
-    SAMPLE_MAX, SAMPLE_MIN, WEIGHT_LIMIT,
-};
+use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN};
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
 use crate::synthesis::Patch;
 use control::{
     band_level, band_level_table, band_multiplier_table, coefficient_step, expand_pixel_grid,
-    grid_position, inverse_grid_transform, scaled_step, transform_order, WeightQuantiser,
-    CONTROL_QUANTISERS, CONTROL_STEPS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
+    grid_position, inverse_grid_transform, scaled_step, transform_order, CONTROL_QUANTISERS,
+    CONTROL_STEPS,
 };
 use initial_contexts::{CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES};
 
@@ -36,43 +33,9 @@ pub const CHECKSUM_BYTES: core::ops::Range<usize> = 15..19;
 pub const MAX_DEBLOCK: u8 = 16;
 /// Longest encoding of the payload length (LEB128 of a `u32`).
 pub const MAX_LENGTH_BYTES: usize = 5;
-/// Largest number of levels of a Lloyd-Max codebook.
-pub const MAX_CODEBOOK: usize = 16;
-/// Longest possible header: the fixed part, the longest payload length and two codebooks of
-/// [`MAX_CODEBOOK`] levels (`17 + 5 + 2 * (1 + 2 * 16) = 88` bytes). A decoder reading a
-/// sequential source never buffers more.
-pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES + 2 * (1 + 2 * MAX_CODEBOOK);
-/// Header flag: Lloyd-Max weight codebooks follow the fixed header.
-pub const FLAG_CODEBOOKS: u8 = 1;
-
-/// A Lloyd-Max codebook: sorted reconstruction levels (weight deviations, Q12).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Codebook {
-    /// Number of levels in use.
-    pub len: u8,
-    /// Levels, strictly increasing; entries past `len` are zero.
-    pub levels: [i16; MAX_CODEBOOK],
-}
-
-impl Codebook {
-    /// An empty codebook (no levels).
-    pub const EMPTY: Codebook = Codebook {
-        len: 0,
-        levels: [0; MAX_CODEBOOK],
-    };
-
-    /// Index of the level nearest to zero: the origin of the coded (signed) indices.
-    pub fn center(&self) -> i32 {
-        let used = &self.levels[..usize::from(self.len)];
-        let mut best = 0;
-        for (i, l) in used.iter().enumerate() {
-            if l.unsigned_abs() < used[best].unsigned_abs() {
-                best = i;
-            }
-        }
-        best as i32
-    }
-}
+/// Longest possible header: the fixed part and the longest payload length (24 bytes). A
+/// decoder reading a sequential source never buffers more.
+pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES;
 
 /// The stream header.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -97,8 +60,6 @@ pub struct Header {
     /// leaf's control steps, by less up to four times that (see the prediction frontier's
     /// `Capture`).
     pub deblock: u8,
-    /// Lloyd-Max codebooks of the weight classes (line, cell); empty when absent.
-    pub codebooks: [Codebook; 2],
     /// Length of the payload in bytes: the stream ends right after it.
     pub payload_len: u32,
     /// CRC-32 of every byte of the stream except the four that hold it
@@ -152,11 +113,6 @@ pub fn check_coding_fields(leaf_sizes: u8, deblock: u8) -> Result<(u8, u8), Deco
 }
 
 impl Header {
-    /// Whether the stream carries Lloyd-Max codebooks.
-    pub fn has_codebooks(&self) -> bool {
-        self.codebooks[0].len > 0
-    }
-
     /// Side of the quadtree's root, as a power of two: the smallest square that covers the
     /// image and is at least one smallest leaf.
     pub fn root_log2(&self) -> u8 {
@@ -186,15 +142,7 @@ impl Header {
 
     /// Length of the serialised header in bytes.
     pub fn encoded_len(&self) -> usize {
-        let books: usize = if self.has_codebooks() {
-            self.codebooks
-                .iter()
-                .map(|b| 1 + 2 * usize::from(b.len))
-                .sum()
-        } else {
-            0
-        };
-        FIXED_HEADER_LEN + leb128_len(self.payload_len) + books
+        FIXED_HEADER_LEN + leb128_len(self.payload_len)
     }
 
     /// Length of the whole stream: header and payload.
@@ -231,8 +179,7 @@ impl Header {
         if bit_depth != 8 {
             return Err(DecodeError::UnsupportedBitDepth(bit_depth));
         }
-        let flags = fixed[7];
-        if flags & !FLAG_CODEBOOKS != 0 {
+        if fixed[7] != 0 {
             return Err(DecodeError::InvalidHeader(HeaderField::ReservedFlags));
         }
         let width = u16::from_le_bytes([fixed[8], fixed[9]]);
@@ -250,7 +197,6 @@ impl Header {
             max_leaf_log2,
             stripe: fixed[13],
             deblock: fixed[14],
-            codebooks: [Codebook::EMPTY; 2],
             payload_len: 0,
             checksum: u32::from_le_bytes([fixed[15], fixed[16], fixed[17], fixed[18]]),
         };
@@ -262,38 +208,12 @@ impl Header {
         })?;
         header.payload_len = u32::try_from(len)
             .map_err(|_| DecodeError::InvalidHeader(HeaderField::PayloadLength))?;
-        if flags & FLAG_CODEBOOKS != 0 {
-            for book in header.codebooks.iter_mut() {
-                let len = *data.get(pos).ok_or(DecodeError::Truncated)?;
-                pos += 1;
-                if !(2..=MAX_CODEBOOK as u8).contains(&len) {
-                    return Err(DecodeError::InvalidHeader(HeaderField::CodebookSize));
-                }
-                book.len = len;
-                for i in 0..usize::from(len) {
-                    let b = data.get(pos..pos + 2).ok_or(DecodeError::Truncated)?;
-                    pos += 2;
-                    let level = i16::from_le_bytes([b[0], b[1]]);
-                    if i32::from(level).abs() > WEIGHT_LIMIT
-                        || (i > 0 && level <= book.levels[i - 1])
-                    {
-                        return Err(DecodeError::InvalidHeader(HeaderField::CodebookLevels));
-                    }
-                    book.levels[i] = level;
-                }
-            }
-        }
         Ok((header, pos))
     }
 
     /// Serialises the header into `out` (which must hold [`Header::encoded_len`] bytes);
     /// returns the number of bytes written.
     pub fn write(&self, out: &mut [u8]) -> usize {
-        let flags = if self.has_codebooks() {
-            FLAG_CODEBOOKS
-        } else {
-            0
-        };
         let w = self.width.to_le_bytes();
         let h = self.height.to_le_bytes();
         let fixed = [
@@ -304,7 +224,7 @@ impl Header {
             VERSION,
             self.channels,
             self.bit_depth,
-            flags,
+            0,
             w[0],
             w[1],
             h[0],
@@ -315,18 +235,7 @@ impl Header {
         ];
         out[..CHECKSUM_BYTES.start].copy_from_slice(&fixed);
         out[CHECKSUM_BYTES].copy_from_slice(&self.checksum.to_le_bytes());
-        let mut pos = write_leb128(out, FIXED_HEADER_LEN, self.payload_len);
-        if self.has_codebooks() {
-            for book in &self.codebooks {
-                out[pos] = book.len;
-                pos += 1;
-                for l in &book.levels[..usize::from(book.len)] {
-                    out[pos..pos + 2].copy_from_slice(&l.to_le_bytes());
-                    pos += 2;
-                }
-            }
-        }
-        pos
+        write_leb128(out, FIXED_HEADER_LEN, self.payload_len)
     }
 }
 
@@ -346,16 +255,12 @@ pub struct LeafSyntax {
     pub model: u8,
     /// Control quantiser index into [`CONTROL_STEPS`].
     pub cquant: u8,
-    /// Weight quantiser index into [`WEIGHT_QUANTISER_KINDS`] (0 when the model has no weights).
-    pub wquant: u8,
     /// How the control values are coded.
     pub coding: ControlCoding,
     /// Control values as quantiser indices, row-major over the coded grid
     /// ([`ModelType::coded_side`]): DPCM indices (see [`control_value`]) or grid-transform
     /// coefficient indices (see [`transform_control_values`]), by `coding`.
     pub control: [i16; MAX_CONTROL],
-    /// Free weights as signed quantiser indices, in [`for_each_free_tap`] order.
-    pub weights: [i16; MAX_WEIGHTS],
 }
 
 impl Default for LeafSyntax {
@@ -363,10 +268,8 @@ impl Default for LeafSyntax {
         LeafSyntax {
             model: 0,
             cquant: 0,
-            wquant: 0,
             coding: ControlCoding::Dpcm,
             control: [0; MAX_CONTROL],
-            weights: [0; MAX_WEIGHTS],
         }
     }
 }
@@ -430,10 +333,8 @@ pub struct Contexts {
     split: [Prob; MAX_LEAF_LOG2 as usize + 1],
     model: [[Prob; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
     cquant: [[Prob; 16]; MODEL_COUNT],
-    wquant: [[Prob; WEIGHT_QUANTISERS]; MODEL_COUNT],
     coding: [Prob; MODEL_COUNT],
     control: [[IntContexts; CONTROL_CLASSES]; STEP_GROUPS],
-    weights: [[IntContexts; 2]; 2],
 }
 
 impl Default for Contexts {
@@ -447,8 +348,8 @@ impl Default for Contexts {
 
 /// Number of adaptive contexts of a stream ([`Contexts::for_each_prob`]).
 pub const CONTEXT_COUNT: usize = (MAX_LEAF_LOG2 as usize + 1) * (1 + MODEL_COUNT)
-    + MODEL_COUNT * (16 + WEIGHT_QUANTISERS + 1)
-    + (STEP_GROUPS * CONTROL_CLASSES + 4) * IntContexts::COUNT;
+    + MODEL_COUNT * (16 + 1)
+    + STEP_GROUPS * CONTROL_CLASSES * IntContexts::COUNT;
 
 impl Contexts {
     /// Every context at probability one half with no bits coded: all zero bits, so that a
@@ -458,10 +359,8 @@ impl Contexts {
         split: [Prob::FRESH; MAX_LEAF_LOG2 as usize + 1],
         model: [[Prob::FRESH; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
         cquant: [[Prob::FRESH; 16]; MODEL_COUNT],
-        wquant: [[Prob::FRESH; WEIGHT_QUANTISERS]; MODEL_COUNT],
         coding: [Prob::FRESH; MODEL_COUNT],
         control: [[IntContexts::FRESH; CONTROL_CLASSES]; STEP_GROUPS],
-        weights: [[IntContexts::FRESH; 2]; 2],
     };
 
     /// The contexts of control residuals of class `class` (below [`CONTROL_CLASSES`]) in step
@@ -481,20 +380,15 @@ impl Contexts {
     }
 
     /// Calls `f` on every context, in the order of the specification's table of initial
-    /// probabilities: split flags by level, model by level (row-major), cquant by model, wquant
-    /// by model, coding by model, the control integer classes by step group then class, the
-    /// weight integer classes by `N == 4` then weight class (each integer class as
+    /// probabilities: split flags by level, model by level (row-major), cquant by model, coding
+    /// by model, the control integer classes by step group then class (each integer class as
     /// [`IntContexts::for_each_prob`]).
     pub fn for_each_prob(&mut self, mut f: impl FnMut(&mut Prob)) {
         self.split.iter_mut().for_each(&mut f);
         self.model.iter_mut().flatten().for_each(&mut f);
         self.cquant.iter_mut().flatten().for_each(&mut f);
-        self.wquant.iter_mut().flatten().for_each(&mut f);
         self.coding.iter_mut().for_each(&mut f);
         for class in self.control.iter_mut().flatten() {
-            class.for_each_prob(&mut f);
-        }
-        for class in self.weights.iter_mut().flatten() {
             class.for_each_prob(&mut f);
         }
     }
@@ -543,7 +437,7 @@ const fn block_models() -> [([u8; MODEL_COUNT], u8); MAX_LEAF_LOG2 as usize + 1]
     out
 }
 
-/// Codes a leaf: model type, quantisers, control values, weights (syntax only:
+/// Codes a leaf: model type, control quantiser, coding, control values (syntax only:
 /// [`reconstruct_into`] makes the patch). `prediction` supplies the values of earlier leaves.
 pub fn code_leaf<C: Coder, P: SamplePrediction>(
     c: &mut C,
@@ -578,13 +472,6 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     }
     leaf.cquant = cq as u8;
 
-    let mut wq = 0u32;
-    if model.weight_count() > 0 && model.subdivides(log2) {
-        wq = u32::from(leaf.wquant);
-        code_tree(c, &mut ctx.wquant[mi], 2, &mut wq)?;
-    }
-    leaf.wquant = wq as u8;
-
     let mut transform = leaf.coding == ControlCoding::Transform;
     if model.has_coding_choice() {
         c.bit(&mut ctx.coding[mi], &mut transform)?;
@@ -612,13 +499,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
         node,
         prediction,
         &mut leaf.control,
-    )?;
-    if WEIGHT_QUANTISER_KINDS[wq as usize] != WeightQuantiser::Default {
-        code_weights(c, ctx, model, leaf)?;
-    } else {
-        leaf.weights = [0; MAX_WEIGHTS];
-    }
-    Ok(())
+    )
 }
 
 /// Intra-leaf prediction of control value `(r, c)` (not the first) from the leaf's values
@@ -1111,36 +992,11 @@ pub fn zero_context(
     }
 }
 
-fn code_weights<C: Coder>(
-    c: &mut C,
-    ctx: &mut Contexts,
-    model: ModelType,
-    leaf: &mut LeafSyntax,
-) -> Result<(), DecodeError> {
-    let narrow = usize::from(model.transforms == 4);
-    let mut i = 0;
-    let mut prev_mag = [0usize; 2];
-    let mut result = Ok(());
-    for_each_free_tap(model, |slot| {
-        if result.is_err() {
-            return;
-        }
-        let class = slot.class() as usize;
-        let mut v = i32::from(leaf.weights[i]);
-        result = ctx.weights[narrow][class].code(c, prev_mag[class], &mut v);
-        // |v| < 2^MAX_PREFIX: always fits.
-        leaf.weights[i] = v as i16;
-        prev_mag[class] = v.unsigned_abs().min(2) as usize;
-        i += 1;
-    });
-    result
-}
-
-/// Reconstructs the patch a leaf of side `2^log2` describes. Fails if a codebook index is out
-/// of range or a codebook is used that the stream does not carry.
-pub fn reconstruct(header: &Header, leaf: &LeafSyntax, log2: u8) -> Result<Patch, DecodeError> {
+/// Reconstructs the patch a leaf of side `2^log2` describes. Fails on a model or control
+/// quantiser out of range.
+pub fn reconstruct(leaf: &LeafSyntax, log2: u8) -> Result<Patch, DecodeError> {
     let mut patch = Patch::EMPTY;
-    reconstruct_into(header, leaf, log2, &mut patch)?;
+    reconstruct_into(leaf, log2, &mut patch)?;
     Ok(patch)
 }
 
@@ -1153,12 +1009,7 @@ fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, DecodeError> {
 }
 
 /// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack).
-pub fn reconstruct_into(
-    header: &Header,
-    leaf: &LeafSyntax,
-    log2: u8,
-    patch: &mut Patch,
-) -> Result<(), DecodeError> {
+pub fn reconstruct_into(leaf: &LeafSyntax, log2: u8, patch: &mut Patch) -> Result<(), DecodeError> {
     let model = leaf_model(leaf)?;
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
@@ -1174,51 +1025,7 @@ pub fn reconstruct_into(
     if side == usize::from(model.intervals) {
         expand_pixel_grid(&mut patch.control, side);
     }
-    reconstruct_weights(header, leaf, model, patch)
-}
-
-/// Sets the model (`model`, the one the leaf names) and subdivision weights of `patch` from a
-/// leaf's syntax (its control values are left alone).
-fn reconstruct_weights(
-    header: &Header,
-    leaf: &LeafSyntax,
-    model: ModelType,
-    patch: &mut Patch,
-) -> Result<(), DecodeError> {
     patch.model = model;
-    let kind = *WEIGHT_QUANTISER_KINDS
-        .get(usize::from(leaf.wquant))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::WeightQuantiser))?;
-    patch.weights = Weights::default_for(model);
-    if kind == WeightQuantiser::Default {
-        // No deviation: the default taps, already balanced.
-        return Ok(());
-    }
-    let mut i = 0;
-    let mut result = Ok(());
-    for_each_free_tap(model, |slot| {
-        let index = i32::from(leaf.weights[i]);
-        let deviation = match kind {
-            WeightQuantiser::Default => 0,
-            WeightQuantiser::Uniform(step) => index
-                .saturating_mul(step)
-                .clamp(-2 * WEIGHT_LIMIT, 2 * WEIGHT_LIMIT),
-            WeightQuantiser::Codebook => {
-                let book = &header.codebooks[slot.class() as usize];
-                let at = book.center() + index;
-                if book.len == 0 || at < 0 || at >= i32::from(book.len) {
-                    result = Err(DecodeError::InvalidData(SyntaxElement::CodebookIndex));
-                    0
-                } else {
-                    i32::from(book.levels[at as usize])
-                }
-            }
-        };
-        patch.weights.deviate(slot, deviation);
-        i += 1;
-    });
-    result?;
-    patch.weights.balance();
     Ok(())
 }
 
@@ -1240,7 +1047,6 @@ mod tests {
             max_leaf_log2: 7,
             stripe: 4,
             deblock: 2,
-            codebooks: [Codebook::EMPTY; 2],
             payload_len: 10,
             checksum: 0,
         };

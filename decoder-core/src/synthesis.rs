@@ -3,9 +3,8 @@
 //!
 //! Values are samples in 1/16 grey level ([`SAMPLE_ONE`]); weights are in 1/4096
 //! ([`WEIGHT_ONE`]). Every new point is `(sum(tap * value) + 2048) >> 12` (arithmetic shift),
-//! clamped to `[SAMPLE_MIN, SAMPLE_MAX]`. With free taps bounded by [`WEIGHT_LIMIT`] the sum of
-//! tap magnitudes of a rule is at most `3 * 8192 + 28672 = 53248`, and `53248 * 8192 < 2^31`, so
-//! the accumulation never overflows an `i32`.
+//! clamped to `[SAMPLE_MIN, SAMPLE_MAX]`. The sum of tap magnitudes of a rule ([`Rules`]) is at
+//! most `6144`, and `6144 * 8192 < 2^31`, so the accumulation never overflows an `i32`.
 //!
 //! Evaluation is depth-first: a control grid is refined one child grid at a time and each child
 //! is refined recursively, so memory is one small grid per level (at most [`ARENA_LEN`] values),
@@ -22,9 +21,9 @@
 
 use crate::format::MAX_LEAF_LOG2;
 use crate::geometry::{Node, Rect};
-use crate::model::{ModelType, Weights, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
+use crate::model::{ModelType, Rules, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
 #[cfg(doc)]
-use crate::model::{SAMPLE_ONE, WEIGHT_LIMIT, WEIGHT_ONE};
+use crate::model::{SAMPLE_ONE, WEIGHT_ONE};
 
 /// Side of the tiles handed to a [`PixelSink`].
 pub const TILE: usize = 8;
@@ -258,15 +257,14 @@ impl<S: PixelSink + ?Sized> TileOut for Catch<'_, S> {
     }
 }
 
-/// A reconstructed patch: a model type, its control values and its subdivision weights.
+/// A reconstructed patch: a model type (its subdivision rules are the model's, [`Rules`]) and
+/// its control values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Patch {
     /// The model type.
     pub model: ModelType,
     /// Control values, row-major, `model.grid()` per row, in sample units.
     pub control: [i16; MAX_CONTROL],
-    /// The subdivision rules.
-    pub weights: Weights,
 }
 
 /// Converts a sample value to an 8-bit pixel (round to nearest, saturate).
@@ -589,10 +587,6 @@ impl Patch {
     pub const EMPTY: Patch = Patch {
         model: crate::model::MODELS[0],
         control: [0; MAX_CONTROL],
-        weights: Weights {
-            line: [[[0; 4]; 3]; 2],
-            cell: [[[0; 4]; 3]; 3],
-        },
     };
 
     /// Renders the pixels of the leaf `node` that fall inside `clip`, tile by tile, into
@@ -877,6 +871,7 @@ impl Patch {
         cols: (usize, usize),
     ) {
         let m = usize::from(self.model.intervals);
+        let rules = Rules::of(self.model);
         let (shift_n, shift_d) = (self.model.transforms.trailing_zeros(), d.trailing_zeros());
         let phase = |offset: usize| ((offset << shift_n) >> shift_d).wrapping_sub(1).min(2);
         let intervals = (ext >> shift_d).min(TILE);
@@ -897,7 +892,7 @@ impl Patch {
         let end = (((r_hi >> shift_d) + 2) << shift_d).min(ext);
         let mut offset = nd;
         while offset < d {
-            with_rule!(&self.weights.line[0][phase(offset)], |rule| {
+            with_rule!(&rules.taps[phase(offset)], |rule| {
                 for k in 0..intervals {
                     let x = k * d + offset;
                     if (c_lo..=c_hi).contains(&x) {
@@ -907,43 +902,18 @@ impl Patch {
             });
             offset += nd;
         }
-        // The new rows, across the old ones: the column rule on old columns, the cell rule
-        // between them. With the default weights (or any whose column and cell rules agree)
-        // one rule makes a whole row; otherwise one column phase at a time.
+        // The new rows, across the old ones: the column rule on old columns and the cell rule
+        // between them are one rule (a tensor product), which makes a whole row.
         let mut offset = nd;
         while offset < d {
-            let r1 = phase(offset);
-            let column_rule = &self.weights.line[1][r1];
-            let cells = &self.weights.cell[r1];
-            let mut uniform = true;
-            let mut column = nd;
-            while column < d {
-                uniform &= cells[phase(column)] == *column_rule;
-                column += nd;
-            }
+            let rule = &rules.taps[phase(offset)];
             for k in 0..intervals {
                 let y = k * d + offset;
                 if !(r_lo..=r_hi).contains(&y) {
                     continue;
                 }
-                let Some((new, from)) = split_rows(lattice, y, taps_of(k)) else {
-                    continue;
-                };
-                if uniform {
-                    with_rule!(column_rule, |rule| across(rule, new, from, c_lo, c_hi, nd));
-                    continue;
-                }
-                let mut column = 0;
-                while column < d {
-                    let taps = if column == 0 {
-                        column_rule
-                    } else {
-                        &cells[phase(column)]
-                    };
-                    // The first column of this phase at or after c_lo.
-                    let x = c_lo + ((column + d - (c_lo & (d - 1))) & (d - 1));
-                    column += nd;
-                    with_rule!(taps, |rule| across(rule, new, from, x, c_hi, d));
+                if let Some((new, from)) = split_rows(lattice, y, taps_of(k)) {
+                    with_rule!(rule, |rule| across(rule, new, from, c_lo, c_hi, nd));
                 }
             }
             offset += nd;
@@ -1008,7 +978,7 @@ impl Patch {
                     else {
                         continue;
                     };
-                    self.new_row(Row::Pixels(out), [v0, v1, v2, v3], r1, q2, stride);
+                    self.new_row(Row::Pixels(out), [v0, v1, v2, v3], r1);
                 }
                 let area = Rect {
                     x: tx,
@@ -1039,7 +1009,7 @@ impl Patch {
             let run = (c, period, step);
             match q & mask {
                 0 => pad_points(Keep, out, pad, a, run),
-                r => with_rule!(&self.weights.line[0][(r - 1).min(2)], |rule| {
+                r => with_rule!(&Rules::of(self.model).taps[(r - 1).min(2)], |rule| {
                     pad_points(rule, out, pad, a, run)
                 }),
             }
@@ -1047,57 +1017,14 @@ impl Patch {
     }
 
     /// A new row at row phase `r1` (1 or more) from the old rows `from` (each holding the
-    /// columns `q2, q2 + stride, ...`), as pixels or samples: the column rule at old columns,
-    /// the cell rule between them; one rule for the whole row when they agree (the default
-    /// weights).
+    /// columns `q2, q2 + stride, ...`), as pixels or samples: one rule for the whole row (the
+    /// column rule and the cell rules are the line rule of phase `r1`).
     #[inline(never)]
-    fn new_row(
-        &self,
-        out: Row<'_>,
-        from: [&[i16; LATTICE]; 4],
-        r1: usize,
-        q2: usize,
-        stride: usize,
-    ) {
-        let mask = usize::from(self.model.transforms) - 1;
-        let r1 = (r1 - 1).min(2);
-        let column_rule = &self.weights.line[1][r1];
-        let cells = &self.weights.cell[r1];
-        let rule_of = |q: usize| match q & mask {
-            0 => column_rule,
-            r => &cells[(r - 1).min(2)],
-        };
-        let first = rule_of(q2);
-        let len = match &out {
-            Row::Pixels(p) => p.len(),
-            Row::Samples(v) => v.len(),
-        };
-        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, len.max(1));
-        if (1..period).all(|c| rule_of(q2 + c * stride) == first) {
-            match out {
-                Row::Pixels(p) => with_rule!(first, |rule| across_pixels(rule, p, from)),
-                Row::Samples(v) => with_rule!(first, |rule| across_samples(rule, v, from)),
-            }
-            return;
-        }
-        // Column phases one at a time (weights whose cell rules differ).
-        let point = |i: usize| {
-            let [a, b, c, d] = from.map(|row| row.get(i).copied().unwrap_or(0));
-            (Taps::of(rule_of(q2 + i * stride)), [a, b, c, d])
-        };
+    fn new_row(&self, out: Row<'_>, from: [&[i16; LATTICE]; 4], r1: usize) {
+        let rule = &Rules::of(self.model).taps[(r1 - 1).min(2)];
         match out {
-            Row::Pixels(p) => {
-                for (i, p) in p.iter_mut().enumerate() {
-                    let (t, [a, b, c, d]) = point(i);
-                    *p = t.pixel(a, b, c, d);
-                }
-            }
-            Row::Samples(v) => {
-                for (i, v) in v.iter_mut().enumerate() {
-                    let (t, [a, b, c, d]) = point(i);
-                    *v = t.apply(a, b, c, d);
-                }
-            }
+            Row::Pixels(p) => with_rule!(rule, |rule| across_pixels(rule, p, from)),
+            Row::Samples(v) => with_rule!(rule, |rule| across_samples(rule, v, from)),
         }
     }
 
@@ -1138,7 +1065,7 @@ impl Patch {
             let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
                 continue;
             };
-            self.new_row(Row::Samples(dst), [v0, v1, v2, v3], r1, q2, 1);
+            self.new_row(Row::Samples(dst), [v0, v1, v2, v3], r1);
         }
     }
 
@@ -1184,7 +1111,7 @@ mod tests {
 
     use super::*;
     use crate::format::MIN_LEAF_LOG2;
-    use crate::model::{tap_point, SAMPLE_ONE};
+    use crate::model::{default_line_taps, tap_point, SAMPLE_ONE};
     use core::convert::Infallible;
     use std::vec;
     use std::vec::Vec;
@@ -1284,25 +1211,18 @@ mod tests {
         }
     }
 
-    /// A patch of `model` with random control values over the sample range and random
-    /// weights: moderate deviations when `wild` is false, up to the clamp when it is true.
+    /// A patch of `model` with random control values: over grey levels -256..512 when `wild`
+    /// is false, over the whole sample range (so that rules saturate) when it is true.
     fn random_patch(rng: &mut Rng, model: ModelType, wild: bool) -> Patch {
         let mut control = [0i16; MAX_CONTROL];
         for v in control.iter_mut().take(model.control_count()) {
-            *v = (rng.below(12288) as i32 - 4096) as i16;
-        }
-        let deviations: [i32; crate::model::MAX_WEIGHTS] = core::array::from_fn(|_| {
-            if wild {
-                rng.below(32769) as i32 - 16384
+            *v = if wild {
+                (rng.below((SAMPLE_MAX - SAMPLE_MIN + 1) as u32) as i32 + SAMPLE_MIN) as i16
             } else {
-                rng.below(2049) as i32 - 1024
-            }
-        });
-        Patch {
-            model,
-            control,
-            weights: Weights::from_deviations(model, &deviations),
+                (rng.below(12288) as i32 - 4096) as i16
+            };
         }
+        Patch { model, control }
     }
 
     /// The refined value at refined coordinates `(q1, q2)` (row, column; `0..=N*m`) of the
@@ -1319,11 +1239,11 @@ mod tests {
             (_, 0) => line(patch, g, 1, a2, a1, r1),
             _ => {
                 // The tensor product: the line rule across the new points of the nearest rows.
-                let taps = &patch.weights.cell[r1 - 1][r2 - 1];
+                let taps = default_line_taps(patch.model.transforms, r1);
                 let m = patch.model.grid() - 1;
                 let mut acc = 0i32;
                 for (t, &tap) in taps.iter().enumerate() {
-                    acc += i32::from(tap) * line(patch, g, 0, tap_point(a1, t, m), a2, r2);
+                    acc += tap * line(patch, g, 0, tap_point(a1, t, m), a2, r2);
                 }
                 ((acc + 2048) >> 12).clamp(SAMPLE_MIN, SAMPLE_MAX)
             }
@@ -1335,7 +1255,7 @@ mod tests {
     fn line(patch: &Patch, g: &[i16], dir: usize, fixed: usize, a: usize, r: usize) -> i32 {
         let side = patch.model.grid();
         let m = side - 1;
-        let taps = &patch.weights.line[dir][r - 1];
+        let taps = default_line_taps(patch.model.transforms, r);
         let mut acc = 0i32;
         for (t, &tap) in taps.iter().enumerate() {
             let idx = tap_point(a, t, m);
@@ -1344,7 +1264,7 @@ mod tests {
             } else {
                 g[idx * side + fixed]
             };
-            acc += i32::from(tap) * i32::from(v);
+            acc += tap * i32::from(v);
         }
         ((acc + 2048) >> 12).clamp(SAMPLE_MIN, SAMPLE_MAX)
     }
@@ -1392,7 +1312,7 @@ mod tests {
     }
 
     /// Every model at every leaf size it may code, drawn at every scale with random control
-    /// values and random (also extreme) weights, gives the specification's values: each pixel
+    /// values (also extreme ones), gives the specification's values: each pixel
     /// once, each the point the subdivision defines (a pixel of a decode at `s` is the patch's
     /// point at the pixel's position divided by `s`).
     #[test]
@@ -1559,11 +1479,7 @@ mod tests {
                     control[r * side + c] = (SAMPLE_ONE * (40 + f(c) + f(r))) as i16;
                 }
             }
-            let patch = Patch {
-                model,
-                control,
-                weights: Weights::default_for(model),
-            };
+            let patch = Patch { model, control };
             let mut block = Block {
                 size: 8,
                 pixels: [0; 64],
@@ -1580,8 +1496,7 @@ mod tests {
     }
 
     /// On a pixel grid (control points one pixel apart) the patch draws its control values:
-    /// pixel `(x, y)` is value `(y, x)`, whatever the weights, and the values past the block
-    /// draw nothing.
+    /// pixel `(x, y)` is value `(y, x)`, and the values past the block draw nothing.
     #[test]
     fn pixel_grids_draw_their_control_values() {
         let mut pixel_grids = 0;
@@ -1590,11 +1505,7 @@ mod tests {
             if log2 < MIN_LEAF_LOG2 {
                 continue;
             }
-            if !model.fits_block(log2) {
-                // The 5x5/4x4 model: the 5x5/2x2 model draws the same pixel grid.
-                assert_eq!(model, MODELS[3]);
-                continue;
-            }
+            assert!(model.fits_block(log2), "{model:?}");
             assert!(!model.subdivides(log2), "{model:?}");
             pixel_grids += 1;
             let side = model.grid();
@@ -1602,18 +1513,7 @@ mod tests {
             for (i, v) in control.iter_mut().take(side * side).enumerate() {
                 *v = (SAMPLE_ONE * ((i * 37) % 256) as i32) as i16;
             }
-            let mut weights = Weights::default_for(model);
-            weights
-                .line
-                .iter_mut()
-                .flatten()
-                .flatten()
-                .for_each(|t| *t += 500);
-            let patch = Patch {
-                model,
-                control,
-                weights,
-            };
+            let patch = Patch { model, control };
             let size = side - 1;
             let mut block = Block {
                 size,
@@ -1647,7 +1547,6 @@ mod tests {
                 let patch = Patch {
                     model,
                     control: [100; MAX_CONTROL],
-                    weights: Weights::default_for(model),
                 };
                 let size = 1u32 << log2;
                 let mut sink = Count { size, pixels: 0 };

@@ -133,8 +133,6 @@ pub struct LeafInfo {
     pub model: u8,
     /// Control quantiser index.
     pub cquant: u8,
-    /// Weight quantiser index.
-    pub wquant: u8,
     /// How the control values were coded.
     pub coding: ControlCoding,
 }
@@ -279,7 +277,7 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
         let own_chroma = subtree.is_none();
         if !split && kind != NodeKind::Outside {
             let chroma = chroma.as_deref_mut();
-            walk_leaf(header, coder, visitor, state, chroma, own_chroma, node)?;
+            walk_leaf(coder, visitor, state, chroma, own_chroma, node)?;
         } else if kind == NodeKind::Flagged && own_chroma {
             if let Some(c) = chroma.as_deref_mut() {
                 let mut here = visitor.chroma_subtree(&node);
@@ -331,7 +329,6 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 /// subtree whose chroma is coded).
 #[inline(never)]
 fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
-    header: &Header,
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
@@ -340,7 +337,7 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     node: Node,
 ) -> Result<(), V::Error> {
     let mut patch = Patch::EMPTY;
-    let info = code_leaf_patch(header, coder, visitor, state, node, &mut patch)?;
+    let info = code_leaf_patch(coder, visitor, state, node, &mut patch)?;
     match chroma {
         None => visitor.leaf(&info, &patch, &mut state.frontier),
         Some(chroma) => colour_leaf(
@@ -409,7 +406,6 @@ fn code_chroma_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
 /// elements are gone from the stack while the patch is drawn.
 #[inline(never)]
 fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
-    header: &Header,
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
@@ -425,12 +421,11 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
         &state.frontier,
         &mut leaf,
     )?;
-    reconstruct_into(header, &leaf, node.log2, patch)?;
+    reconstruct_into(&leaf, node.log2, patch)?;
     Ok(LeafInfo {
         node,
         model: leaf.model,
         cquant: leaf.cquant,
-        wquant: leaf.wquant,
         coding: leaf.coding,
     })
 }

@@ -1,6 +1,6 @@
 //! The analysis through the public API, on a textured synthetic image: the fitting stage alone
-//! (every model fitted at every node, as [`host_encoder::AnalysisTiming::fits`] times it), with
-//! the default-weight fits and with the weights fitted too, and the whole analysis.
+//! (every model fitted at every node, as [`host_encoder::AnalysisTiming::fits`] times it), and
+//! the whole analysis.
 //! `cargo bench -p host-encoder --bench fit`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
@@ -26,25 +26,17 @@ fn analysis_of(plane: &Plane, config: &EncoderConfig) -> Analysis {
 
 fn bench_fits(c: &mut Criterion) {
     let mut group = c.benchmark_group("fit");
-    let default_weights = EncoderConfig::default();
-    let fitted_weights = EncoderConfig {
-        fit_weights: true,
-        ..EncoderConfig::default()
-    };
-    for (name, config, size) in [
-        ("default", &default_weights, 256),
-        ("weighted", &fitted_weights, 64),
-    ] {
-        let plane = textured(size);
-        // The fitting stage's own time, from each analysis's timing.
-        group.bench_function(BenchmarkId::new(name, format!("{size}px")), |b| {
-            b.iter_custom(|iters| {
-                (0..iters)
-                    .map(|_| analysis_of(&plane, config).timing().fits)
-                    .sum::<Duration>()
-            })
-        });
-    }
+    let config = EncoderConfig::default();
+    let size = 256;
+    let plane = textured(size);
+    // The fitting stage's own time, from each analysis's timing.
+    group.bench_function(BenchmarkId::new("default", format!("{size}px")), |b| {
+        b.iter_custom(|iters| {
+            (0..iters)
+                .map(|_| analysis_of(&plane, &config).timing().fits)
+                .sum::<Duration>()
+        })
+    });
     group.finish();
 }
 

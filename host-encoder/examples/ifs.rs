@@ -11,7 +11,7 @@
 //! - `fern-chaos.png`: Barnsley's fern by the chaos game (the seed paper's four maps and
 //!   probabilities);
 //! - `patch-decoder.png`, `patch-chaos.png`, `patch-hutchinson.png`: one 3x3/2x2 patch with
-//!   random control values and random (non-default) weights, as decoder-core's integer
+//!   random control values, as decoder-core's integer
 //!   tabulation draws it, and as the chaos game and the Hutchinson iteration of its projected
 //!   IFS draw it (grey levels from the surface values; pixels the chaos game did not reach
 //!   are white); `patch-difference.png` the difference between the Hutchinson and decoder
@@ -20,7 +20,7 @@
 //! Prints how far the IFS drawings are from the decoder's.
 
 use decoder_core::internal::geometry::Node;
-use decoder_core::internal::model::{Weights, MAX_CONTROL, MAX_WEIGHTS, MODELS};
+use decoder_core::internal::model::{MAX_CONTROL, MODELS};
 use decoder_core::internal::synthesis::Patch;
 use decoder_core::{PixelSink, Rect, Tile};
 use host_encoder::ifs::{rasterize, Ifs2, PatchIfs, Rng, SurfacePoint};
@@ -106,20 +106,14 @@ fn main() {
         fern.probabilities
     );
 
-    // A 3x3/2x2 patch with random control values and random weights, on a 64 px leaf: five
-    // subdivisions down to the pixel grid.
+    // A 3x3/2x2 patch with random control values, on a 64 px leaf: five subdivisions down to
+    // the pixel grid.
     let model = MODELS[1];
     let mut control = [0i16; MAX_CONTROL];
     for v in control.iter_mut().take(model.control_count()) {
         *v = (800.0 + rng.unit() * 2400.0) as i16;
     }
-    let deviations: [i32; MAX_WEIGHTS] =
-        core::array::from_fn(|_| (rng.unit() * 1600.0 - 800.0) as i32);
-    let patch = Patch {
-        model,
-        control,
-        weights: Weights::from_deviations(model, &deviations),
-    };
+    let patch = Patch { model, control };
     let size = 64;
     let mut leaf = Leaf {
         size,

@@ -26,7 +26,7 @@
 //! `1 / (m N^n)`: a point of the grid the decoder tabulates after `n` subdivisions, where the
 //! integer tabulation must agree with it up to its roundings.
 
-use decoder_core::internal::model::{tap_point, ModelType};
+use decoder_core::internal::model::{default_line_taps, tap_point, ModelType};
 use decoder_core::internal::synthesis::Patch;
 
 /// A small deterministic random generator (xorshift64*), so that drawings and tests repeat.
@@ -335,10 +335,10 @@ fn refined(patch: &Patch, g: &[f64], q1: usize, q2: usize) -> f64 {
     let m = usize::from(patch.model.intervals);
     let (a1, r1) = (q1 / n, q1 % n);
     let (a2, r2) = (q2 / n, q2 % n);
-    let weight = |t: i16| f64::from(t) / 4096.0;
+    let weight = |t: i32| f64::from(t) / 4096.0;
     // New point at phase r between points a and a + 1 of row `fixed` (dir 0) or column.
     let line = |dir: usize, fixed: usize, a: usize, r: usize| -> f64 {
-        let taps = &patch.weights.line[dir][r - 1];
+        let taps = default_line_taps(patch.model.transforms, r);
         (0..4)
             .map(|t| {
                 let i = tap_point(a, t, m);
@@ -356,7 +356,8 @@ fn refined(patch: &Patch, g: &[f64], q1: usize, q2: usize) -> f64 {
         (0, _) => line(0, a1, a2, r2),
         (_, 0) => line(1, a2, a1, r1),
         _ => {
-            let taps = &patch.weights.cell[r1 - 1][r2 - 1];
+            // The cell rule of row phase r1 is that phase's line rule (a tensor product).
+            let taps = default_line_taps(patch.model.transforms, r1);
             (0..4)
                 .map(|t| weight(taps[t]) * line(0, tap_point(a1, t, m), a2, r2))
                 .sum()

@@ -11,7 +11,7 @@ pub use crate::entropy::RangeEncoder;
 use decoder_core::internal::format::{CODING_TILE, DEFAULT_STRIPE};
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
-use decoder_core::internal::syntax::{control_step, seal, Codebook, Header, LeafSyntax};
+use decoder_core::internal::syntax::{control_step, seal, Header, LeafSyntax};
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk, LeafInfo, TreeVisitor};
 use decoder_core::{DecodeError, Node};
@@ -70,7 +70,6 @@ pub fn synthetic_stream(
         max_leaf_log2: leaf_log2,
         stripe: (DEFAULT_STRIPE as u32 / CODING_TILE) as u8,
         deblock: SYNTHETIC_DEBLOCK,
-        codebooks: [Codebook::EMPTY; 2],
         payload_len: 0,
         checksum: 0,
     };

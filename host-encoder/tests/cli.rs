@@ -219,15 +219,16 @@ fn the_best_psnr_reported_is_reached() {
         let stdout = ok(&run(&["--psnr", &format!("{target:.2}")]));
         assert!(psnr_of(&stdout) >= target, "--psnr {target}: {stdout}");
     }
-    // No other target writes a better stream: the largest budget reaches the same.
+    // No other target writes a better stream: the largest budget reaches the same (shown
+    // rounded to nearest, where the refusal rounds down: at most 0.01 dB apart).
     let stdout = ok(&run(&["--bytes", "10000000"]));
     let top = psnr_of(&stdout);
     assert!(
-        top < best + 0.01,
+        top <= best + 0.01 + 1e-9,
         "--bytes reaches {top} dB, above the best reported {best}"
     );
     let stdout = ok(&run(&["--bpp", "100"]));
-    assert!(psnr_of(&stdout) < best + 0.01, "{stdout}");
+    assert!(psnr_of(&stdout) <= best + 0.01 + 1e-9, "{stdout}");
 }
 
 #[test]
@@ -358,7 +359,7 @@ fn info_draws_every_leaf_over_the_decoded_image() {
     assert_eq!(svg.matches("class=\"leaf\"").count(), leaves);
     assert!(leaves > 1, "a quadtree worth drawing");
     // Each model in the legend, and the leaves' colours are the legend's.
-    for name in ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"] {
+    for name in ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "9x9/4x4"] {
         assert!(svg.contains(name), "{name}");
     }
     let marker = "data:image/png;base64,";

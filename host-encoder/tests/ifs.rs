@@ -1,10 +1,10 @@
 //! The IFS renderers of `host_encoder::ifs` on the classic attractors, and the independent
 //! check that decoder-core's patches are the attractors of their projected IFS: the chaos game
 //! and the Hutchinson iteration, in floating point from the subdivision matrices, land on
-//! decoder-core's integer tabulation up to its roundings, for random control points and random
-//! (non-default) weights, every model.
+//! decoder-core's integer tabulation up to its roundings, for random control points, every
+//! model.
 
-use decoder_core::internal::model::{ModelType, Weights, MAX_CONTROL, MAX_WEIGHTS, MODELS};
+use decoder_core::internal::model::{ModelType, Rules, MAX_CONTROL, MODELS};
 use decoder_core::internal::synthesis::Patch;
 use decoder_core::{PixelSink, Rect, Tile};
 use host_encoder::ifs::{rasterize, Ifs2, PatchIfs, Rng, SurfacePoint};
@@ -141,27 +141,17 @@ fn gain<'a>(rules: impl Iterator<Item = &'a [i16; 4]>) -> f64 {
 }
 
 /// A patch of `model` with random control values (mid-grey, so that no rounding of the
-/// decoder meets its clamps) and random weights, none of them the default.
+/// decoder meets its clamps).
 fn random_patch(rng: &mut Rng, model: ModelType) -> Patch {
     let mut control = [0i16; MAX_CONTROL];
     for v in control.iter_mut().take(model.control_count()) {
         *v = (1200.0 + rng.unit() * 1600.0) as i16;
     }
-    let deviations: [i32; MAX_WEIGHTS] =
-        core::array::from_fn(|_| (rng.unit() * 1200.0 - 600.0) as i32);
-    let weights = Weights::from_deviations(model, &deviations);
-    if model.weight_count() > 0 {
-        assert_ne!(weights, Weights::default_for(model));
-    }
-    Patch {
-        model,
-        control,
-        weights,
-    }
+    Patch { model, control }
 }
 
 /// The chaos game and the Hutchinson iteration of every model's projected IFS, with random
-/// control points and random weights, land on decoder-core's rendering of the patch: the
+/// control points, land on decoder-core's rendering of the patch: the
 /// pixel at the point's parameter times the leaf's side, up to the tabulation's roundings
 /// (each subdivision rounds to 1/16 grey level, and carries the earlier roundings times the
 /// rules' gain; then the pixel is rounded).
@@ -182,25 +172,9 @@ fn patches_are_the_attractors_of_their_projected_ifs() {
             };
             let node = decoder_core::internal::geometry::Node { x: 0, y: 0, log2 };
             let Ok(()) = patch.render(&node, Rect::of_size(size as u32, size as u32), &mut leaf);
-            let g_line = gain(
-                patch
-                    .weights
-                    .line
-                    .iter()
-                    .flatten()
-                    .take(if n == 2 { 1 } else { 3 }),
-            );
-            let g_line = g_line.max(gain(patch.weights.line[1].iter().take(n - 1)));
-            let g_cell = gain(
-                patch
-                    .weights
-                    .cell
-                    .iter()
-                    .take(n - 1)
-                    .flatten()
-                    .take((n - 1) * (n - 1)),
-            );
-            let g_cell = g_cell.max(g_line);
+            // The line, column and cell rules are one rule per phase: one gain.
+            let g_line = gain(Rules::of(model).taps.iter().take(n - 1));
+            let g_cell = g_line;
             let mut error = 0.0;
             for _ in 0..depth {
                 error = g_cell * (g_line * error + 0.5) + 0.5;

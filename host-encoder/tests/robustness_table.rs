@@ -1042,8 +1042,8 @@ fn the_fuzz_campaign_is_reported() {
          `tests/src/fuzz.rs`; `cargo test` replays them on every seed and regression input and\n\
          on a few thousand mutations (`tests/tests/fuzz_replay.rs`). The seeds in `fuzz/seeds/`\n\
          are made by the encoder (`tests/tests/fuzz_seeds.rs`, which also checks that they are\n\
-         of the current format and use every model, both control codings, every control and\n\
-         weight quantiser, every leaf size, and colour at several sizes, odd ones among them):\n\
+         of the current format and use every model, both control codings, every control\n\
+         quantiser, every leaf size, and colour at several sizes, odd ones among them):\n\
          {} streams, {} images, {} round-trip and {} large-dimension inputs, {} packet sets;\n\
          {} regression inputs.\n\
          \n",

@@ -315,7 +315,7 @@ pub fn large_leaf_byte(header: &decoder_core::Header) -> Option<u8> {
 /// channels (bit 0: 1, grayscale, or 3, colour; the other bits unused), the rest the payload;
 /// header written and sealed.
 pub fn large_stream(data: &[u8]) -> Option<Vec<u8>> {
-    use decoder_core::internal::syntax::{Codebook, Header};
+    use decoder_core::internal::syntax::Header;
     if data.len() < LARGE_PREFIX {
         return None;
     }
@@ -333,7 +333,6 @@ pub fn large_stream(data: &[u8]) -> Option<Vec<u8>> {
         max_leaf_log2,
         stripe: [0, 1, 2, 4][usize::from(data[4] >> 4) % 4],
         deblock: [0, 2, 8, 16][usize::from(data[4] >> 6)],
-        codebooks: [Codebook::EMPTY; 2],
         payload_len: payload.len() as u32,
         checksum: 0,
     };

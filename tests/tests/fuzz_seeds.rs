@@ -1,7 +1,7 @@
 //! The fuzz targets' seeds (`fuzz/seeds/<kind>/`), made by the encoder from the deterministic
 //! images of `common` and committed, so that every fuzz run (and `fuzz_replay`) starts from
-//! streams that use every model, both control codings, every control and weight quantiser, every
-//! leaf size, both header forms, many image sizes and colour (at odd sizes too, where the
+//! streams that use every model, both control codings, every control quantiser, every leaf size,
+//! many image sizes and colour (at odd sizes too, where the
 //! chroma planes end half outside the image):
 //!
 //! ```text
@@ -22,7 +22,7 @@
 mod common;
 
 use decoder_core::internal::model::MODELS;
-use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, WEIGHT_QUANTISERS};
+use decoder_core::internal::syntax::control::CONTROL_QUANTISERS;
 use decoder_core::internal::syntax::ControlCoding;
 use decoder_core::{Header, LeafInfo, VERSION};
 use host_encoder::{EncoderConfig, Plane, Target};
@@ -83,17 +83,10 @@ impl Image {
     }
 }
 
-fn config(
-    min_leaf_log2: u8,
-    max_leaf_log2: u8,
-    codebook_levels: usize,
-    fit: bool,
-) -> EncoderConfig {
+fn config(min_leaf_log2: u8, max_leaf_log2: u8) -> EncoderConfig {
     EncoderConfig {
         min_leaf_log2,
         max_leaf_log2,
-        codebook_levels,
-        fit_weights: fit,
         ..EncoderConfig::default()
     }
 }
@@ -111,61 +104,61 @@ fn specs() -> Vec<Spec> {
         Spec {
             name: "one-pixel",
             image: Image::Gray(Plane::new(1, 1, vec![77])),
-            config: config(1, 7, 0, false),
+            config: config(1, 7),
             targets: vec![Target::Bytes(64)],
         },
         Spec {
             name: "strip-37x3",
             image: Image::Gray(common::synthetic(37, 3, 3, 8)),
-            config: config(1, 3, 0, false),
+            config: config(1, 3),
             targets: bpp(&[3.0, 8.0]),
         },
         Spec {
             name: "gradient-16x16",
             image: Image::Gray(common::gradient(16, 16)),
-            config: config(2, 4, 0, false),
+            config: config(2, 4),
             targets: bpp(&[0.5, 2.0]),
         },
         Spec {
             name: "textured-33x17",
             image: Image::Gray(common::synthetic(33, 17, 5, 12)),
-            config: config(1, 4, 8, true),
+            config: config(1, 4),
             targets: vec![Target::Bytes(160), Target::Bpp(3.0)],
         },
         Spec {
             name: "noise-24x24",
             image: Image::Gray(noise(24, 24, 9)),
-            config: config(1, 3, 0, false),
+            config: config(1, 3),
             targets: bpp(&[2.0, 8.0]),
         },
         Spec {
             name: "synthetic-64x64",
             image: Image::Gray(common::synthetic(64, 64, 7, 6)),
-            config: config(2, 5, 8, true),
+            config: config(2, 5),
             targets: bpp(&[0.05, 0.2, 0.5, 1.0, 1.5]),
         },
         Spec {
             name: "synthetic-100x60",
             image: Image::Gray(common::synthetic(100, 60, 11, 20)),
-            config: config(2, 6, 8, false),
+            config: config(2, 6),
             targets: vec![Target::Bpp(0.1), Target::Psnr(30.0), Target::Bpp(2.5)],
         },
         Spec {
-            name: "codebooks-128x128",
+            name: "textured-128x128",
             image: Image::Gray(common::synthetic(128, 128, 1, 4)),
-            config: config(4, 5, 16, true),
+            config: config(4, 5),
             targets: bpp(&[1.0, 2.0, 3.0]),
         },
         Spec {
             name: "flat-200x150",
             image: Image::Gray(Plane::new(200, 150, vec![131; 200 * 150])),
-            config: config(2, 7, 8, false),
+            config: config(2, 7),
             targets: vec![Target::Bytes(64)],
         },
         Spec {
             name: "synthetic-256x192",
             image: Image::Gray(common::synthetic(256, 192, 13, 10)),
-            config: config(3, 7, 8, false),
+            config: config(3, 7),
             targets: bpp(&[0.02, 0.25, 1.0]),
         },
         // Colour (YCbCr 4:2:0): chroma planes of half the size rounded up, so odd sizes leave
@@ -177,25 +170,25 @@ fn specs() -> Vec<Spec> {
                 height: 1,
                 rgb: vec![200, 30, 90],
             },
-            config: config(1, 7, 0, false),
+            config: config(1, 7),
             targets: vec![Target::Bytes(64)],
         },
         Spec {
             name: "colour-33x2",
             image: Image::rgb(33, 2, 4),
-            config: config(1, 3, 0, false),
+            config: config(1, 3),
             targets: bpp(&[4.0]),
         },
         Spec {
             name: "colour-45x31",
             image: Image::rgb(45, 31, 17),
-            config: config(1, 4, 0, false),
+            config: config(1, 4),
             targets: bpp(&[0.75, 3.0]),
         },
         Spec {
             name: "colour-64x48",
             image: Image::rgb(64, 48, 23),
-            config: config(2, 5, 8, true),
+            config: config(2, 5),
             targets: bpp(&[0.25, 1.5]),
         },
         Spec {
@@ -205,7 +198,7 @@ fn specs() -> Vec<Spec> {
             image: Image::rgb(301, 45, 29),
             config: EncoderConfig {
                 stripe: 1,
-                ..config(2, 5, 8, false)
+                ..config(2, 5)
             },
             targets: bpp(&[0.1, 0.5]),
         },
@@ -219,11 +212,8 @@ struct Usage {
     /// (model, coding) for the models that have a choice.
     codings: BTreeSet<(u8, u8)>,
     cquants: BTreeSet<u8>,
-    wquants: BTreeSet<u8>,
     leaf_sizes: BTreeSet<u8>,
     sizes: BTreeSet<(u16, u16)>,
-    with_codebooks: bool,
-    without_codebooks: bool,
     /// Channels of the streams (1: grayscale, 3: colour).
     channels: BTreeSet<u8>,
     /// Sizes of the colour streams.
@@ -240,7 +230,6 @@ impl Usage {
             ));
         }
         self.cquants.insert(info.cquant);
-        self.wquants.insert(info.wquant);
         self.leaf_sizes.insert(info.node.log2);
     }
 
@@ -250,11 +239,6 @@ impl Usage {
         self.channels.insert(header.channels);
         if header.channels == 3 {
             self.colour_sizes.insert((header.width, header.height));
-        }
-        if header.has_codebooks() {
-            self.with_codebooks = true;
-        } else {
-            self.without_codebooks = true;
         }
         decoder_core::Decoder::new(bytes)
             .unwrap_or_else(|e| panic!("{name}: {e}"))
@@ -284,13 +268,6 @@ impl Usage {
                 self.cquants
             ));
         }
-        let wquants: BTreeSet<u8> = (0..WEIGHT_QUANTISERS as u8).collect();
-        if self.wquants != wquants {
-            out.push(format!(
-                "weight quantisers {:?} of {wquants:?}",
-                self.wquants
-            ));
-        }
         let leaf_sizes: BTreeSet<u8> = (1..=7).collect();
         if self.leaf_sizes != leaf_sizes {
             out.push(format!(
@@ -300,9 +277,6 @@ impl Usage {
         }
         if self.sizes.len() < 8 {
             out.push(format!("only {} image sizes", self.sizes.len()));
-        }
-        if !(self.with_codebooks && self.without_codebooks) {
-            out.push("headers with and without codebooks".into());
         }
         if self.channels != BTreeSet::from([1, 3]) {
             out.push(format!("channels {:?} of [1, 3]", self.channels));
@@ -566,10 +540,6 @@ fn large_dimension_seeds(streams: &[(String, Vec<u8>)]) -> Vec<(String, Vec<u8>)
             out.push(seed(name, bytes, size, leaves));
             continue;
         }
-        assert!(
-            !header.has_codebooks(),
-            "{name}: codebooks, which the seed's header cannot carry"
-        );
         let leaves = pifs_tests::fuzz::large_leaf_byte(&header)
             .unwrap_or_else(|| panic!("{name}: leaf sizes or stripe not expressible: {header:?}"));
         let made = seed(name, bytes, size, leaves);
@@ -618,10 +588,7 @@ struct PacketSeed {
 /// missing.
 fn packet_seeds() -> Files {
     use host_encoder::packets::{frame, packetise, PacketOptions};
-    let config = EncoderConfig {
-        codebook_levels: 0,
-        ..EncoderConfig::default()
-    };
+    let config = EncoderConfig::default();
     let mut out = Files::new();
     let seed = |name, w, h, colour, size, count, preview, parity| PacketSeed {
         name,

@@ -17,42 +17,26 @@ mod common;
 use common::{analyse_with, decode_all, golden_dir, golden_list, sha256_hex, CoverageSink};
 use decoder_core::internal::format::{MAGIC, VERSION};
 use decoder_core::internal::model::MODELS;
-use decoder_core::internal::syntax::control::{
-    WeightQuantiser, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
-};
-use decoder_core::internal::syntax::{ControlCoding, FLAG_CODEBOOKS};
+use decoder_core::internal::syntax::ControlCoding;
 use decoder_core::LeafInfo;
 use host_encoder::{EncoderConfig, Plane, Target};
 use std::collections::BTreeSet;
 
-/// The 'wquant' value of Lloyd-Max codebook weights.
-fn codebook_wquant() -> u8 {
-    WEIGHT_QUANTISER_KINDS
-        .iter()
-        .position(|&k| k == WeightQuantiser::Codebook)
-        .expect("a codebook weight quantiser") as u8
-}
-
-/// One golden stream: file name, image, encoder settings, and the targets to try in order (the
-/// first that gives a stream with the required property is kept).
+/// One golden stream: file name, image, encoder settings and target.
 struct Spec {
     file: &'static str,
     plane: Plane,
     config: EncoderConfig,
-    targets: Vec<Target>,
-    /// The stream must carry Lloyd-Max codebooks and code leaves with them.
-    needs_codebooks: bool,
+    target: Target,
     /// A colour image (RGB, `plane`'s size): the stream is a colour stream.
     rgb: Option<Vec<u8>>,
 }
 
 /// The golden set.
 fn specs() -> Vec<Spec> {
-    let config = |min_leaf_log2, max_leaf_log2, codebook_levels| EncoderConfig {
+    let config = |min_leaf_log2, max_leaf_log2| EncoderConfig {
         min_leaf_log2,
         max_leaf_log2,
-        codebook_levels,
-        fit_weights: true,
         ..EncoderConfig::default()
     };
     let image64 = common::synthetic(64, 64, 7, 6);
@@ -60,63 +44,43 @@ fn specs() -> Vec<Spec> {
         file,
         plane,
         config,
-        targets: vec![target],
-        needs_codebooks: false,
+        target,
         rgb: None,
     };
     vec![
         plain(
             "gradient_16x16.pifs",
             common::gradient(16, 16),
-            config(2, 4, 0),
+            config(2, 4),
             Target::Bpp(2.0),
         ),
         plain(
             "textured_33x17.pifs",
             common::synthetic(33, 17, 5, 12),
-            config(1, 4, 8),
+            config(1, 4),
             Target::Bytes(160),
         ),
         plain(
             "low_64x64.pifs",
             image64.clone(),
-            config(2, 5, 8),
+            config(2, 5),
             Target::Bpp(0.2),
         ),
+        plain("high_64x64.pifs", image64, config(2, 5), Target::Bpp(1.5)),
         plain(
-            "high_64x64.pifs",
-            image64,
-            config(2, 5, 8),
-            Target::Bpp(1.5),
+            // Leaves from 16 px: every model subdivides, the 9x9 model too.
+            "large_leaves_128x128.pifs",
+            common::synthetic(128, 128, 1, 4),
+            config(4, 5),
+            Target::Bpp(1.0),
         ),
-        Spec {
-            // The encoder picks codebooks only where they pay for their header bytes: near the
-            // best quality of a larger image. Which rate that is depends on the encoder's
-            // tuning, so several are tried. Leaves from 16 px: at 8 px the 9x9 model is a
-            // pixel grid, which has no weights and wins where the weighted leaves would.
-            file: "codebooks_128x128.pifs",
-            plane: common::synthetic(128, 128, 1, 4),
-            config: config(4, 5, 16),
-            targets: vec![
-                Target::Bpp(1.0),
-                Target::Bpp(2.0),
-                Target::Bpp(1.5),
-                Target::Bpp(3.0),
-                Target::Psnr(38.0),
-                Target::Bpp(0.75),
-                Target::Bpp(4.0),
-            ],
-            needs_codebooks: true,
-            rgb: None,
-        },
         Spec {
             // Odd sizes (chroma planes of 19 x 15), leaves from 2 px (chroma leaves of 1 px)
             // to 32 px.
             file: "colour_37x29.pifs",
             plane: common::synthetic(37, 29, 3, 6),
-            config: config(1, 5, 0),
-            targets: vec![Target::Bpp(1.5)],
-            needs_codebooks: false,
+            config: config(1, 5),
+            target: Target::Bpp(1.5),
             rgb: Some(common::synthetic_rgb(37, 29, 11)),
         },
     ]
@@ -135,13 +99,10 @@ fn usage_of(name: &str, bytes: &[u8], mut usage: Usage) -> Usage {
 }
 
 /// Checks that the golden set reaches every reconstruction path of decoder-core: all model
-/// types, all weight quantisers (default, both uniform steps, Lloyd-Max codebook), and pixel
-/// grids with both control codings.
+/// types, and pixel grids with both control codings.
 fn assert_full_usage(usage: &Usage) {
     let all_models: BTreeSet<u8> = (0..MODELS.len() as u8).collect();
-    let all_wquants: BTreeSet<u8> = (0..WEIGHT_QUANTISERS as u8).collect();
     assert_eq!(usage.models, all_models, "model types used");
-    assert_eq!(usage.wquants, all_wquants, "weight quantisers used");
     // Pixel grids code only their block's values, with both codings.
     assert!(!usage.pixel_grids.is_empty(), "no pixel grid");
     assert_eq!(
@@ -179,26 +140,10 @@ fn regenerate() {
             .expect("colour analysis"),
             None => analyse_with(spec.plane.clone(), &spec.config),
         };
-        let mut chosen = None;
-        for &target in &spec.targets {
-            let e = match analysis.encode(target) {
-                Ok(e) => e,
-                Err(err) if spec.targets.len() > 1 => {
-                    println!("{file}: {target:?}: {err}");
-                    continue;
-                }
-                Err(err) => panic!("{file}: {target:?}: {err}"),
-            };
-            let usage = usage_of(file, &e.bytes, Usage::default());
-            if !spec.needs_codebooks || usage.wquants.contains(&codebook_wquant()) {
-                chosen = Some((target, e));
-                break;
-            }
-            println!("{file}: {target:?} codes no leaf with a codebook");
-        }
-        let (target, e) = chosen.unwrap_or_else(|| {
-            panic!("{file}: no target gives a stream with codebook-coded leaves; adjust its spec")
-        });
+        let target = spec.target;
+        let e = analysis
+            .encode(target)
+            .unwrap_or_else(|err| panic!("{file}: {target:?}: {err}"));
         let (header, pixels) = decode_all(&e.bytes).unwrap();
         assert!(
             pixels == e.reconstruction,
@@ -213,12 +158,11 @@ fn regenerate() {
         ));
         total = usage_of(file, &e.bytes, total);
         println!(
-            "{file}: {target:?}: {}x{}, {} bytes, {:.2} dB, codebooks {}, leaves {}",
+            "{file}: {target:?}: {}x{}, {} bytes, {:.2} dB, leaves {}",
             header.width,
             header.height,
             e.bytes.len(),
             e.psnr,
-            header.has_codebooks(),
             e.leaves
         );
     }
@@ -267,10 +211,7 @@ fn regenerate_packets(dir: &std::path::Path) {
          # Generated by: cargo test -p pifs-tests --test golden -- --ignored regenerate\n",
     );
     for spec in packet_specs() {
-        let config = EncoderConfig {
-            codebook_levels: 0,
-            ..EncoderConfig::default()
-        };
+        let config = EncoderConfig::default();
         let analysis = match &spec.rgb {
             Some(rgb) => host_encoder::analyse_colour(
                 spec.plane.width,
@@ -433,14 +374,11 @@ fn every_golden_file_is_listed_and_the_set_is_varied() {
         .filter(|n| n.ends_with(".pifs"))
         .collect();
     assert_eq!(listed, on_disk, "golden.txt and tests/golden/*.pifs differ");
-    // The set exercises both header forms (with and without Lloyd-Max codebooks) and more than
-    // one smallest leaf size.
+    // The set exercises both channel counts and more than one smallest leaf size.
     let headers: Vec<_> = common::golden_streams()
         .iter()
         .map(|(_, b)| decoder_core::Header::read(b).unwrap())
         .collect();
-    assert!(headers.iter().any(|h| h.has_codebooks()));
-    assert!(headers.iter().any(|h| !h.has_codebooks()));
     assert!(headers.iter().any(|h| h.channels == 3), "a colour stream");
     assert!(
         headers.iter().any(|h| h.channels == 1),
@@ -448,16 +386,11 @@ fn every_golden_file_is_listed_and_the_set_is_varied() {
     );
     let min_leaves: BTreeSet<u8> = headers.iter().map(|h| h.min_leaf_log2).collect();
     assert!(min_leaves.len() > 1, "{min_leaves:?}");
-    for (name, b) in common::golden_streams() {
-        let h = decoder_core::Header::read(&b).unwrap();
-        assert_eq!(h.has_codebooks(), b[7] & FLAG_CODEBOOKS != 0, "{name}");
-    }
 }
 
 #[derive(Default)]
 struct Usage {
     models: BTreeSet<u8>,
-    wquants: BTreeSet<u8>,
     leaf_sizes: BTreeSet<u8>,
     /// The models used as pixel grids (control points one pixel apart).
     pixel_grids: BTreeSet<u8>,
@@ -468,7 +401,6 @@ struct Usage {
 impl Usage {
     fn leaf(&mut self, info: &LeafInfo) {
         self.models.insert(info.model);
-        self.wquants.insert(info.wquant);
         self.leaf_sizes.insert(info.node.log2);
         if !MODELS[usize::from(info.model)].subdivides(info.node.log2) {
             self.pixel_grids.insert(info.model);

@@ -16,7 +16,6 @@ const SIZE: usize = 48;
 
 fn config() -> EncoderConfig {
     EncoderConfig {
-        codebook_levels: 0,
         ..EncoderConfig::default()
     }
 }

@@ -7,9 +7,7 @@ mod common;
 
 use common::{golden_streams, sealed_stream, CoverageSink};
 use decoder_core::internal::format::{MAGIC, VERSION};
-use decoder_core::internal::syntax::{
-    seal, Codebook, Header, CHECKSUM_BYTES, FIXED_HEADER_LEN, FLAG_CODEBOOKS,
-};
+use decoder_core::internal::syntax::{seal, Header, CHECKSUM_BYTES, FIXED_HEADER_LEN};
 use decoder_core::{DecodeError, Limits};
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -77,7 +75,7 @@ fn decode_checked(data: &[u8]) -> Result<(), DecodeError> {
     result.map(|_| ())
 }
 
-/// A header (no codebooks) for a `width x height` image.
+/// A header for a `width x height` image.
 fn header(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Header {
     Header {
         width,
@@ -88,7 +86,6 @@ fn header(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Header {
         max_leaf_log2: max_leaf,
         stripe: 0,
         deblock: 0,
-        codebooks: [Codebook::EMPTY; 2],
         payload_len: 0,
         checksum: 0,
     }
@@ -260,72 +257,9 @@ fn header_errors_are_typed() {
             DecodeError::InvalidHeader(decoder_core::HeaderField::LeafSizes),
         ),
         (
-            "codebook flag without codebooks",
-            {
-                let mut h = good.clone();
-                h[7] = FLAG_CODEBOOKS;
-                h
-            },
-            DecodeError::Truncated,
-        ),
-        (
-            "codebook of one level",
-            {
-                let mut h = good.clone();
-                h[7] = FLAG_CODEBOOKS;
-                h.extend_from_slice(&[1, 0, 0]);
-                h
-            },
-            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookSize),
-        ),
-        (
-            "codebook of 17 levels",
-            {
-                let mut h = good.clone();
-                h[7] = FLAG_CODEBOOKS;
-                h.push(17);
-                h.extend_from_slice(&[0; 40]);
-                h
-            },
-            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookSize),
-        ),
-        (
-            "codebook levels not increasing",
-            {
-                let mut h = good.clone();
-                h[7] = FLAG_CODEBOOKS;
-                h.push(2);
-                h.extend_from_slice(&5i16.to_le_bytes());
-                h.extend_from_slice(&5i16.to_le_bytes());
-                h
-            },
-            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookLevels),
-        ),
-        (
-            "codebook level beyond the weight limit",
-            {
-                let mut h = good.clone();
-                h[7] = FLAG_CODEBOOKS;
-                h.push(2);
-                h.extend_from_slice(&0i16.to_le_bytes());
-                h.extend_from_slice(&i16::MAX.to_le_bytes());
-                h
-            },
-            DecodeError::InvalidHeader(decoder_core::HeaderField::CodebookLevels),
-        ),
-        (
-            "second codebook cut short",
-            {
-                let mut h = good.clone();
-                h[7] = FLAG_CODEBOOKS;
-                h.push(2);
-                h.extend_from_slice(&(-8i16).to_le_bytes());
-                h.extend_from_slice(&8i16.to_le_bytes());
-                h.push(3);
-                h.extend_from_slice(&0i16.to_le_bytes());
-                h
-            },
-            DecodeError::Truncated,
+            "flag bit 0 (codebooks until format 17)",
+            with(7, 1),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::ReservedFlags),
         ),
         (
             "payload shorter than the coder's first four bytes",

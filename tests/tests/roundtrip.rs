@@ -6,7 +6,6 @@ mod common;
 
 use common::{analyse_with, decode_all, gradient, psnr_u8, small_config, sse, synthetic};
 use decoder_core::internal::model::MODELS;
-use decoder_core::internal::syntax::FLAG_CODEBOOKS;
 use decoder_core::LeafInfo;
 use host_encoder::{Encoded, EncoderConfig, Plane, Target};
 use std::sync::OnceLock;
@@ -29,18 +28,10 @@ fn cases() -> &'static [Case] {
             max_leaf_log2: 4,
             ..small_config()
         };
-        let no_books = EncoderConfig {
-            codebook_levels: 0,
-            ..config.clone()
-        };
         let images = [
             ("gradient 48x40", gradient(48, 40), config.clone()),
             ("textured 64x64", synthetic(64, 64, 7, 6), config.clone()),
-            (
-                "noisy 40x56 no codebooks",
-                synthetic(40, 56, 3, 20),
-                no_books,
-            ),
+            ("noisy 40x56", synthetic(40, 56, 3, 20), config.clone()),
         ];
         let mut out = Vec::new();
         for (name, plane, config) in images {
@@ -129,12 +120,6 @@ fn reported_payload_bits_match_the_stream() {
         let header = decoder_core::Header::read(&e.bytes).expect(&case.name);
         let payload_bits = (e.bytes.len() - header.encoded_len()) as f64 * 8.0;
         assert_eq!(e.actual_payload_bits, payload_bits, "{}", case.name);
-        assert_eq!(
-            header.has_codebooks(),
-            e.bytes[7] & FLAG_CODEBOOKS != 0,
-            "{}: codebook flag",
-            case.name
-        );
     }
 }
 
@@ -233,9 +218,6 @@ fn observed_leaves_form_a_valid_quadtree_cut() {
                 .get(usize::from(leaf.model))
                 .unwrap_or_else(|| panic!("{}: model {}", case.name, leaf.model));
             assert!(model.fits_block(n.log2), "{}: {leaf:?}", case.name);
-            if model.weight_count() == 0 {
-                assert_eq!(leaf.wquant, 0, "{}: {leaf:?}", case.name);
-            }
             for y in n.y..(n.y + n.size()).min(h) {
                 for x in n.x..(n.x + n.size()).min(w) {
                     owner[(y * w + x) as usize] += 1;

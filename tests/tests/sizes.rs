@@ -13,8 +13,6 @@ fn large_config() -> EncoderConfig {
     EncoderConfig {
         min_leaf_log2: 3,
         max_leaf_log2: 3,
-        codebook_levels: 8,
-        fit_weights: true,
         ..EncoderConfig::default()
     }
 }
@@ -79,8 +77,6 @@ fn one_pixel_smallest_leaves() {
     let config = EncoderConfig {
         min_leaf_log2: 1,
         max_leaf_log2: 1,
-        codebook_levels: 0,
-        fit_weights: false,
         ..EncoderConfig::default()
     };
     check_size(1, 1, &config, Target::Bytes(64));
@@ -128,8 +124,6 @@ fn widest_strip_65535x2() {
     let config = EncoderConfig {
         min_leaf_log2: 2,
         max_leaf_log2: 2,
-        codebook_levels: 0,
-        fit_weights: false,
         ..EncoderConfig::default()
     };
     check_size(65535, 2, &config, Target::Psnr(25.0));

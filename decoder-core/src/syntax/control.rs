@@ -1,12 +1,12 @@
 //! Control-value coding: the control quantisers' steps, the reversible 5/3 wavelet of a
 //! control grid ("grid transform") with its coding order and per-band steps, the pixel-grid
-//! layout, and the weight quantisers. What the syntax reads is turned into control values here.
+//! layout. What the syntax reads is turned into control values here.
 
 #[cfg(doc)]
 use crate::model::ModelType;
 #[cfg(doc)]
 use crate::model::MODELS;
-use crate::model::{MAX_CONTROL, MAX_GRID, WEIGHT_ONE};
+use crate::model::{MAX_CONTROL, MAX_GRID};
 
 /// Largest number of transform levels of a control grid (a side of 9: 9, 5, 3, 2, 1).
 pub const MAX_GRID_LEVELS: usize = 4;
@@ -379,28 +379,6 @@ pub const CONTROL_QUANTISERS: usize = 14;
 /// Control step of each control quantiser, in sample units (1/16 grey level).
 pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] = [
     24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048,
-];
-
-/// Number of weight quantisers (the 'wquant' element, 2 bits).
-pub const WEIGHT_QUANTISERS: usize = 4;
-
-/// How the free weights of a leaf are quantised.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum WeightQuantiser {
-    /// No weights coded: the smooth default scheme.
-    Default,
-    /// Uniform: deviation from the default is `index * step` (weight units).
-    Uniform(i32),
-    /// Lloyd-Max: deviation from the default is a level of the stream's codebook.
-    Codebook,
-}
-
-/// The weight quantiser of each 'wquant' value.
-pub const WEIGHT_QUANTISER_KINDS: [WeightQuantiser; WEIGHT_QUANTISERS] = [
-    WeightQuantiser::Default,
-    WeightQuantiser::Uniform(WEIGHT_ONE / 32),
-    WeightQuantiser::Uniform(WEIGHT_ONE / 8),
-    WeightQuantiser::Codebook,
 ];
 
 #[cfg(test)]

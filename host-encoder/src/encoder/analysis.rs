@@ -12,29 +12,23 @@
 //! Above every stage; below the public API (`super`), which encodes targets from its result.
 
 use super::candidates::{
-    Candidate, CandidateTree, ChromaCost, KeptFit, Level, NodeAnalysis, WithCandidates,
+    Candidate, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
 };
 use super::chroma::{self, ChromaCache, ColourPlanes};
 use super::config::EncoderConfig;
 use super::error::EncodeError;
-use super::fit::{fit_default, fit_weighted, prepare_projections, Fit};
-use super::ids::{ControlQuantiserId, ModelId, WeightQuantiserId};
+use super::fit::{fit_default, prepare_projections, Fit};
+use super::ids::{ControlQuantiserId, ModelId};
 use super::plane::{ImagePrediction, Plane};
-use super::quantise::{
-    lloyd_max, quantise, weight_classes, ControlTargets, Quantised, ROUNDING_LAMBDA,
-    ROUNDING_VARIANTS,
-};
+use super::quantise::{quantise, ControlTargets, Quantised, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
 use super::rate::{
     candidate_bits, node_bits, node_hull, prune_node, Anchor, GrowingHull, RateTable,
 };
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
-use decoder_core::internal::model::{WeightClass, MAX_CONTROL, SAMPLE_ONE};
-use decoder_core::internal::syntax::control::WeightQuantiser;
+use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::LeafSyntax;
-use decoder_core::internal::syntax::{
-    reconstruct, Codebook, Contexts, ControlCoding, Header, MAX_DEBLOCK,
-};
+use decoder_core::internal::syntax::{reconstruct, Contexts, ControlCoding, Header, MAX_DEBLOCK};
 use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
 use std::convert::Infallible;
@@ -48,7 +42,7 @@ use std::time::{Duration, Instant};
 pub struct Analysis {
     /// The image.
     pub(super) plane: Plane,
-    /// Header of the streams written from this analysis (with the Lloyd-Max codebooks).
+    /// Header of the streams written from this analysis.
     pub(super) header: Header,
     /// Every node's candidates, pruned to those rate control can choose.
     pub(super) tree: CandidateTree,
@@ -129,7 +123,7 @@ impl Analysis {
         config: &EncoderConfig,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<Analysis, EncodeError> {
-        Analysis::run_in_bands(plane, colour, config, band_pixels(config), progress)
+        Analysis::run_in_bands(plane, colour, config, BAND_PIXELS, progress)
     }
 
     /// [`Analysis::run`], fitting and quantising bands of about `band_pixels` pixels one after
@@ -235,8 +229,7 @@ impl Analysis {
         };
         let done = AtomicU64::new(0);
         let report = || progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-        let (mut bits, ends, fit_time) =
-            self.fit_and_coarse(config, band_pixels, (&start, first), &report);
+        let (mut bits, ends, fit_time) = self.fit_and_coarse(band_pixels, (&start, first), &report);
         let Some(margin) = config.fine_steps else {
             return (RateTable::of_bits(&self.tree, bits, &start), fit_time);
         };
@@ -286,7 +279,6 @@ impl Analysis {
     /// the time the fitting took.
     fn fit_and_coarse(
         &mut self,
-        config: &EncoderConfig,
         band_pixels: u32,
         (start, first): (&Contexts, u8),
         report: &(dyn Fn() + Sync),
@@ -300,12 +292,8 @@ impl Analysis {
         let mut fit_time = Duration::ZERO;
         for y in (0..self.plane.height).step_by(band as usize) {
             let started = Instant::now();
-            let fits = self.fit_band(y..y + band, config, report);
+            let fits = self.fit_band(y..y + band, report);
             fit_time += started.elapsed();
-            if config.fit_weights {
-                // One band, the whole image (`band_pixels`): every weighted fit is here.
-                self.header.codebooks = design_codebooks(&fits, config.codebook_levels);
-            }
             self.coarse_band(
                 y..y + band,
                 fits,
@@ -329,13 +317,8 @@ impl Analysis {
     /// largest down; a node inside a settled one ([`settles`]) is not analysed: its parent is a
     /// leaf as good as any cut below it, so easy content (flat or smooth areas) costs only its
     /// largest nodes. Returns the fits of the band's nodes, per level (smallest first) and
-    /// node, for the coarse pass (where the nodes take what they keep of them, [`KeptFit`]).
-    fn fit_band(
-        &mut self,
-        rows: Range<u32>,
-        config: &EncoderConfig,
-        report: &(dyn Fn() + Sync),
-    ) -> PerNode<Vec<Fit>> {
+    /// node, for the coarse pass (where the nodes keep only their models).
+    fn fit_band(&mut self, rows: Range<u32>, report: &(dyn Fn() + Sync)) -> PerNode<Vec<Fit>> {
         let (plane, colour) = (&self.plane, self.colour.as_ref());
         let min = self.header.min_leaf_log2;
         let top = largest_leaf_log2(&self.header);
@@ -366,7 +349,7 @@ impl Analysis {
                         report();
                         return (None, Vec::new(), true);
                     }
-                    let fits = fit_node(plane, &node, config);
+                    let fits = fit_node(plane, &node);
                     report();
                     let settled = settles(plane, &node, &fits)
                         && colour.is_none_or(|c| chroma::smooth_within(c, &node, SETTLED_MSE));
@@ -435,7 +418,7 @@ impl Analysis {
                             if let Some(colour) = colour {
                                 na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
                             }
-                            na.fits = fits.iter().map(KeptFit::of).collect();
+                            na.fits = fits.iter().map(|f| f.model).collect();
                             let (bits, ends) =
                                 coarse_candidates(plane, header, na, &fits, start, first);
                             (prune_node(na, &bits, &ALL_LAMBDAS), ends)
@@ -458,8 +441,7 @@ impl WithCandidates for Analysis {
     }
 }
 
-/// The header of the streams of `plane` under `config` (without codebooks, its payload yet
-/// unknown), or [`EncodeError::BadDimensions`] if the format cannot hold the image.
+/// The header of the streams of `plane` under `config` (its payload yet unknown), or [`EncodeError::BadDimensions`] if the format cannot hold the image.
 fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeError> {
     header_of_size(plane.width, plane.height, config)
 }
@@ -483,7 +465,6 @@ fn header_of_size(width: u32, height: u32, config: &EncoderConfig) -> Result<Hea
         max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
         stripe: config.stripe,
         deblock: 0,
-        codebooks: [Codebook::EMPTY; 2],
         // Set by the writer.
         payload_len: 0,
         checksum: 0,
@@ -516,17 +497,6 @@ fn largest_leaf_log2(header: &Header) -> u8 {
 /// until its coarse pass, about 75 bytes a pixel, so an image of any size is analysed in a
 /// bounded memory, in bands large enough to keep both cores busy.
 const BAND_PIXELS: u32 = 1 << 20;
-
-/// Pixels a band of the analysis under `config` holds at least: [`BAND_PIXELS`], or the whole
-/// image when weights are fitted, as the codebooks are designed from every fit with weights
-/// before any is quantised.
-fn band_pixels(config: &EncoderConfig) -> u32 {
-    if config.fit_weights {
-        u32::MAX
-    } else {
-        BAND_PIXELS
-    }
-}
 
 /// Height of the bands the analysis fits and quantises one after the other (pixels): whole
 /// rows of the largest nodes (of side `2^top`), `band_pixels` or more, at most the image.
@@ -568,7 +538,7 @@ pub struct AnalysisSteps {
 /// whole image at the end), so that a progress display can weigh each step by its work.
 /// Empty for an image the format cannot hold.
 pub fn analysis_steps(width: u32, height: u32, config: &EncoderConfig) -> Vec<AnalysisSteps> {
-    steps_in_bands(width, height, config, band_pixels(config))
+    steps_in_bands(width, height, config, BAND_PIXELS)
 }
 
 /// [`analysis_steps`] of an analysis in bands of about `band_pixels` pixels.
@@ -654,73 +624,36 @@ fn settles(plane: &Plane, node: &Node, fits: &[Fit]) -> bool {
     sse <= SETTLED_MSE * pixels
 }
 
-/// The fits of `node`: per model, the default-weight fit, and the joint fit with weights where
-/// there is one (its control values suit its weights, not the default ones, so both are kept).
-fn fit_node(plane: &Plane, node: &Node, config: &EncoderConfig) -> Vec<Fit> {
-    let mut fits = Vec::with_capacity(2 * ModelId::for_block(node.log2).count());
-    for m in ModelId::for_block(node.log2) {
-        if !config.fit_weights && !searched_with_default_weights(m) {
-            continue;
-        }
-        let plain = fit_default(plane, node, m);
-        let weighted = if config.fit_weights {
-            fit_weighted(plane, node, &plain)
-        } else {
-            None
-        };
-        fits.push(plain);
-        fits.extend(weighted);
-    }
-    // Every node's fits are alive until the coarse pass: no spare room.
-    fits.shrink_to_fit();
-    fits
+/// The fits of `node`: one per model it supports (the least-squares control values).
+fn fit_node(plane: &Plane, node: &Node) -> Vec<Fit> {
+    ModelId::for_block(node.log2)
+        .map(|m| fit_default(plane, node, m))
+        .collect()
 }
 
 /// One way of quantising a fit at successive control steps: the fit (an index into the node's
-/// fits), its weight quantiser and its control coding.
+/// fits) and its control coding.
 #[derive(Debug, Clone, Copy)]
 struct Chain {
     fit: u8,
-    wq: WeightQuantiserId,
     coding: ControlCoding,
 }
 
-impl Chain {
-    /// Whether the chain quantises with control quantiser `cq`: weighted variants are tried on
-    /// every other control step (a step ratio of 2), as they are rarely chosen.
-    fn tries(&self, cq: ControlQuantiserId) -> bool {
-        self.wq == WeightQuantiserId::DEFAULT || cq.get().is_multiple_of(2)
-    }
-}
-
-/// The chains of fit `fit` (the node's fit number `fi`): the default weights unless the
-/// weights were fitted, then each weight quantiser that suits them; both control codings
-/// where the syntax allows a choice, for the default weights, DPCM only for weighted ones.
-fn chains_of(header: &Header, fi: usize, fit: &Fit) -> Vec<Chain> {
-    let model = fit.model.model();
-    let mut chains = Vec::new();
-    for wq in WeightQuantiserId::all() {
-        let usable = match wq.kind() {
-            WeightQuantiser::Default => !fit.weighted(),
-            WeightQuantiser::Uniform(_) => fit.weighted(),
-            WeightQuantiser::Codebook => fit.weighted() && header.has_codebooks(),
-        };
-        let weighted = wq != WeightQuantiserId::DEFAULT;
-        if !usable || (weighted && model.weight_count() == 0) {
-            continue;
-        }
-        let codings: &[ControlCoding] = if !weighted && model.has_coding_choice() {
-            &[ControlCoding::Dpcm, ControlCoding::Transform]
-        } else {
-            &[ControlCoding::Dpcm]
-        };
-        chains.extend(codings.iter().map(|&coding| Chain {
+/// The chains of fit `fit` (the node's fit number `fi`): both control codings where the
+/// syntax allows a choice.
+fn chains_of(fi: usize, fit: &Fit) -> Vec<Chain> {
+    let codings: &[ControlCoding] = if fit.model.model().has_coding_choice() {
+        &[ControlCoding::Dpcm, ControlCoding::Transform]
+    } else {
+        &[ControlCoding::Dpcm]
+    };
+    codings
+        .iter()
+        .map(|&coding| Chain {
             fit: fi as u8,
-            wq,
             coding,
-        }));
-    }
-    chains
+        })
+        .collect()
 }
 
 /// The quantisation targets of fit `fit` of the node `node`.
@@ -740,33 +673,19 @@ fn prediction_of<'a>(plane: &'a Plane, header: &Header) -> ImagePrediction<'a> {
 /// quantiser `cq`, measures its error and adds it to `na`'s candidates.
 fn add_candidate(
     plane: &Plane,
-    header: &Header,
     na: &mut NodeAnalysis,
     (fit, targets): (&Fit, &ControlTargets),
     chain: Chain,
     cq: ControlQuantiserId,
 ) {
-    let q = quantise(
-        fit,
-        targets,
-        cq,
-        chain.wq,
-        chain.coding,
-        &header.codebooks,
-        ROUNDING_LAMBDA,
-    );
-    let sse = quantised_sse(plane, header, &na.node, fit, &q);
-    let model = fit.model.model();
-    let (nc, nw) = (model.control_count(), model.weight_count());
+    let q = quantise(fit, targets, cq, chain.coding, ROUNDING_LAMBDA);
+    let sse = quantised_sse(plane, &na.node, fit, &q);
+    let nc = fit.model.model().control_count();
     let at = na.indices.len() as u32;
     na.indices.extend_from_slice(&q.leaf.control[..nc]);
-    if chain.wq.kind() != WeightQuantiser::Default {
-        na.indices.extend_from_slice(&q.leaf.weights[..nw]);
-    }
     na.candidates.push(Candidate {
         fit: chain.fit,
         cq,
-        wq: chain.wq,
         coding: chain.coding,
         sse,
         at,
@@ -806,8 +725,7 @@ fn final_candidates(
     prune_node(na, &bits, &ALL_LAMBDAS)
 }
 
-/// Adds to node `na`, for each of its candidates `vary` lists that has the default weights,
-/// the same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
+/// Adds to node `na`, for each of its candidates `vary` lists, the same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
 /// that changes an index): points between those of its control steps.
 fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, vary: &[u16]) {
     // Each fit is made again (with its targets) once, for all its candidates.
@@ -817,34 +735,21 @@ fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, 
     na.indices.reserve(most * MAX_CONTROL);
     for &k in vary {
         let c = na.candidates[usize::from(k)];
-        if c.wq != WeightQuantiserId::DEFAULT {
-            continue;
-        }
         let (fit, targets) = made[usize::from(c.fit)].get_or_insert_with(|| {
-            let fit = na.fits[usize::from(c.fit)]
-                .fit(plane, &na.node)
-                .into_owned();
+            let fit = fit_default(plane, &na.node, na.fits[usize::from(c.fit)]);
             let targets = targets_of(plane, header, &na.node, &fit);
             (fit, targets)
         });
         let n = fit.model.model().control_count();
         for lambda in ROUNDING_VARIANTS {
-            let q = quantise(
-                fit,
-                targets,
-                c.cq,
-                c.wq,
-                c.coding,
-                &header.codebooks,
-                lambda,
-            );
+            let q = quantise(fit, targets, c.cq, c.coding, lambda);
             let at = na.indices.len();
             if na.indices[c.at as usize..][..n] == q.leaf.control[..n] {
                 continue;
             }
             na.indices.extend_from_slice(&q.leaf.control[..n]);
             na.candidates.push(Candidate {
-                sse: quantised_sse(plane, header, &na.node, fit, &q),
+                sse: quantised_sse(plane, &na.node, fit, &q),
                 at: at as u32,
                 ..c
             });
@@ -881,18 +786,16 @@ fn coarse_candidates(
     na.candidates.clear();
     na.indices.clear();
     let chains: Vec<Vec<Chain>> = (fits.iter().enumerate())
-        .map(|(fi, fit)| chains_of(header, fi, fit))
+        .map(|(fi, fit)| chains_of(fi, fit))
         .collect();
     // Room for every candidate the pass can make, so that pushing never moves them.
     let steps = ControlQuantiserId::all()
         .filter(|cq| cq.get() >= first)
         .count();
     for (fit, chains) in fits.iter().zip(&chains) {
-        let m = fit.model.model();
         let n = chains.len() * steps;
         na.candidates.reserve(n);
-        na.indices
-            .reserve(n * (m.control_count() + m.weight_count()));
+        na.indices.reserve(n * fit.model.model().control_count());
     }
     let prediction = prediction_of(plane, header);
     let mut ctx = start.clone();
@@ -904,10 +807,9 @@ fn coarse_candidates(
         let residual = error_floor(&na.node, fit);
         for chain in chains {
             let mut end = None;
-            let tried =
-                ControlQuantiserId::all().filter(|cq| cq.get() >= first && chain.tries(*cq));
+            let tried = ControlQuantiserId::all().filter(|cq| cq.get() >= first);
             for cq in tried.rev() {
-                add_candidate(plane, header, na, (fit, &targets), chain, cq);
+                add_candidate(plane, na, (fit, &targets), chain, cq);
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
                 bits.push(b);
@@ -972,8 +874,7 @@ fn fine_candidates(
     bits.reserve(ends.len() * steps);
     // The chains of one fit are consecutive: its targets are made once.
     for same_fit in ends.chunk_by(|a, b| a.chain.fit == b.chain.fit) {
-        let kept = na.fits[usize::from(same_fit[0].chain.fit)].clone();
-        let fit = kept.fit(plane, &na.node);
+        let fit = fit_default(plane, &na.node, na.fits[usize::from(same_fit[0].chain.fit)]);
         let targets = targets_of(plane, header, &na.node, &fit);
         let residual = error_floor(&na.node, &fit);
         for end in same_fit {
@@ -983,10 +884,7 @@ fn fine_candidates(
                 .filter(|cq| cq.get() < search.first)
                 .rev()
             {
-                if !chain.tries(cq) {
-                    continue;
-                }
-                add_candidate(plane, header, na, (&fit, &targets), chain, cq);
+                add_candidate(plane, na, (&fit, &targets), chain, cq);
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
                 bits.push(b);
@@ -1000,16 +898,6 @@ fn fine_candidates(
             }
         }
     }
-}
-
-/// The 5x5/4x4 model (5x5 control values, 4x4 transforms).
-const MODEL_5X5_4X4: ModelId = ModelId::new(3);
-
-/// Whether the analysis fits model `m` when weights are not fitted. The 5x5/4x4 model's default
-/// scheme makes nearly the same surface as the 5x5/2x2 model's, so searching it too costs
-/// analysis time for hardly any gain (see docs/decisions.md).
-fn searched_with_default_weights(m: ModelId) -> bool {
-    m != MODEL_5X5_4X4
 }
 
 /// With [`EncoderConfig::fine_steps`], control quantisers from this one up (steps of 128 and
@@ -1033,7 +921,7 @@ const MIN_ESTIMATED_MSE: f64 = 2.0;
 /// reconstructed control values, or coefficients, exactly and the synthesis in real arithmetic,
 /// so it differs from the closed loop only by the integer synthesis's rounding and clamping),
 /// else by [`closed_loop_sse`].
-fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
+fn quantised_sse(plane: &Plane, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
     if let Some(residual) = fit.residual {
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
             let n = fit.model.model().control_count();
@@ -1053,12 +941,12 @@ fn quantised_sse(plane: &Plane, header: &Header, node: &Node, fit: &Fit, q: &Qua
             }
         }
     }
-    closed_loop_sse(plane, header, node, &q.leaf)
+    closed_loop_sse(plane, node, &q.leaf)
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
-fn closed_loop_sse(plane: &Plane, header: &Header, node: &Node, leaf: &LeafSyntax) -> f64 {
-    let Ok(patch) = reconstruct(header, leaf, node.log2) else {
+fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
+    let Ok(patch) = reconstruct(leaf, node.log2) else {
         return f64::INFINITY;
     };
     /// Adds up the squared errors of the tiles it is given.
@@ -1088,31 +976,6 @@ fn closed_loop_sse(plane: &Plane, header: &Header, node: &Node, leaf: &LeafSynta
     sink.total as f64
 }
 
-/// Lloyd-Max codebooks for the line and cell weights, from every fitted weight.
-fn design_codebooks(fits: &PerNode<Vec<Fit>>, size: usize) -> [Codebook; 2] {
-    if size < 2 {
-        return [Codebook::EMPTY; 2];
-    }
-    let mut samples = [Vec::new(), Vec::new()];
-    for node_fits in fits.iter().flatten() {
-        for fit in node_fits {
-            if fit.weights.iter().all(|&w| w == 0.0) {
-                continue;
-            }
-            for (w, class) in fit.weights.iter().zip(weight_classes(fit.model)) {
-                samples[usize::from(class == WeightClass::Cell)].push(*w);
-            }
-        }
-    }
-    let line = lloyd_max(&mut samples[0], size);
-    let cell = lloyd_max(&mut samples[1], size);
-    if line.len == 0 || cell.len == 0 {
-        [Codebook::EMPTY; 2]
-    } else {
-        [line, cell]
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::config::{Target, FINE_STEP_MARGIN};
@@ -1138,7 +1001,6 @@ mod tests {
     #[test]
     fn rounding_variants_trade_bits_for_error() {
         let plane = textured_plane(64, 64);
-        let codebooks = [Codebook::EMPTY; 2];
         let multipliers = [ROUNDING_VARIANTS[0], ROUNDING_LAMBDA, ROUNDING_VARIANTS[3]];
         // Per multiplier: nonzero indices and added error, summed.
         let mut totals = [(0usize, 0.0f64); 3];
@@ -1152,9 +1014,7 @@ mod tests {
                     for cq in [4, 7, 10].map(ControlQuantiserId::new) {
                         for coding in [ControlCoding::Dpcm, ControlCoding::Transform] {
                             for (t, &lambda) in totals.iter_mut().zip(&multipliers) {
-                                let wq = WeightQuantiserId::DEFAULT;
-                                let q =
-                                    quantise(&fit, &targets, cq, wq, coding, &codebooks, lambda);
+                                let q = quantise(&fit, &targets, cq, coding, lambda);
                                 let Some(added) = q.added_error else { continue };
                                 t.0 += q.leaf.control[..n].iter().filter(|&&i| i != 0).count();
                                 t.1 += added;
@@ -1184,7 +1044,7 @@ mod tests {
                 na.candidates.iter().enumerate().any(|(i, a)| {
                     na.candidates[..i]
                         .iter()
-                        .any(|b| (a.fit, a.cq, a.wq, a.coding) == (b.fit, b.cq, b.wq, b.coding))
+                        .any(|b| (a.fit, a.cq, a.coding) == (b.fit, b.cq, b.coding))
                 })
             })
             .count();
@@ -1205,15 +1065,15 @@ mod tests {
             y: 16,
             log2: 4,
         };
-        let fits = fit_node(&plane, &node, &EncoderConfig::default());
+        let fits = fit_node(&plane, &node);
         let fresh = || NodeAnalysis {
             node,
-            fits: fits.iter().map(KeptFit::of).collect(),
+            fits: fits.iter().map(|f| f.model).collect(),
             candidates: Vec::new(),
             indices: Vec::new(),
             chroma: ChromaCost::default(),
         };
-        let key = |c: &Candidate| (c.fit, c.wq.get(), c.coding == ControlCoding::Transform);
+        let key = |c: &Candidate| (c.fit, c.coding == ControlCoding::Transform);
         let steps = |na: &NodeAnalysis| {
             let mut s: Vec<_> = na.candidates.iter().map(|c| (key(c), c.cq)).collect();
             s.sort_unstable();
@@ -1241,7 +1101,7 @@ mod tests {
             // bits to the one before; the last adds some, or is the finest step.
             for end in &ends {
                 let c = end.chain;
-                let of_chain = (c.fit, c.wq.get(), c.coding == ControlCoding::Transform);
+                let of_chain = (c.fit, c.coding == ControlCoding::Transform);
                 let chain: Vec<usize> = (coarse..na.candidates.len())
                     .filter(|&k| key(&na.candidates[k]) == of_chain)
                     .collect();
@@ -1349,10 +1209,10 @@ mod tests {
             y: 16,
             log2: 4,
         };
-        let fits = fit_node(&plane, &node, &EncoderConfig::default());
+        let fits = fit_node(&plane, &node);
         let mut na = NodeAnalysis {
             node,
-            fits: fits.iter().map(KeptFit::of).collect(),
+            fits: fits.iter().map(|f| f.model).collect(),
             candidates: Vec::new(),
             indices: Vec::new(),
             chroma: ChromaCost::default(),
@@ -1370,34 +1230,27 @@ mod tests {
         let held: usize = na
             .candidates
             .iter()
-            .map(|c| na.fits[usize::from(c.fit)].model().model().control_count())
+            .map(|c| na.fits[usize::from(c.fit)].model().control_count())
             .sum();
         assert_eq!(na.indices.len(), held);
         assert!(held < all / 2, "{held} of {all} indices kept");
     }
 
-    /// A node keeps a default-weight fit by its model only: made again, it is the same fit,
-    /// inside the image and at its edge (where it is fitted iteratively); a fit with weights is
-    /// kept whole.
+    /// A node keeps a fit by its model only: made again, it is the same fit, inside the image
+    /// and at its edge (where it is fitted iteratively).
     #[test]
     fn kept_fits_are_made_again_unchanged() {
         let plane = textured_plane(40, 40);
-        let config = EncoderConfig {
-            fit_weights: true,
-            ..EncoderConfig::default()
-        };
-        let mut weighted = 0;
         for (x, y) in [(8, 8), (32, 32)] {
             let node = Node { x, y, log2: 4 };
-            for fit in fit_node(&plane, &node, &config) {
-                let kept = KeptFit::of(&fit);
-                assert_eq!(matches!(kept, KeptFit::Weighted(_)), fit.weighted());
-                weighted += usize::from(fit.weighted());
-                assert_eq!(kept.model(), fit.model);
-                assert_eq!(*kept.fit(&plane, &node), fit, "node ({x}, {y})");
+            for fit in fit_node(&plane, &node) {
+                assert_eq!(
+                    fit_default(&plane, &node, fit.model),
+                    fit,
+                    "node ({x}, {y})"
+                );
             }
         }
-        assert!(weighted > 0, "some fits have weights");
     }
 
     /// The quadratic form of an exact fit ([`Fit::error_of`]) predicts the closed-loop error of
@@ -1408,19 +1261,6 @@ mod tests {
     fn estimated_error_follows_the_closed_loop() {
         let (w, h) = (64u32, 64u32);
         let plane = textured_plane(w, h);
-        let header = Header {
-            width: w as u16,
-            height: h as u16,
-            channels: 1,
-            bit_depth: 8,
-            min_leaf_log2: 2,
-            max_leaf_log2: 6,
-            stripe: 0,
-            deblock: 0,
-            codebooks: [Codebook::EMPTY; 2],
-            payload_len: 0,
-            checksum: 0,
-        };
         let mut checked = 0;
         for log2 in 2..=5u8 {
             let node = Node { x: 16, y: 0, log2 };
@@ -1433,15 +1273,7 @@ mod tests {
                     .into_iter()
                     .flat_map(|c| codings.map(|d| (c, d)))
                 {
-                    let q = quantise(
-                        &fit,
-                        &targets,
-                        cq,
-                        WeightQuantiserId::DEFAULT,
-                        coding,
-                        &header.codebooks,
-                        ROUNDING_LAMBDA,
-                    );
+                    let q = quantise(&fit, &targets, cq, coding, ROUNDING_LAMBDA);
                     let n = m.model().control_count();
                     let control: Vec<f64> = q.control_values(log2)[..n]
                         .iter()
@@ -1455,7 +1287,7 @@ mod tests {
                         (fed_back - estimate).abs() <= 0.02 * estimate + 1.0,
                         "model {m} at {log2}, cq {cq}, {coding:?}: feedback {fed_back}, form {estimate}"
                     );
-                    let closed = closed_loop_sse(&plane, &header, &node, &q.leaf);
+                    let closed = closed_loop_sse(&plane, &node, &q.leaf);
                     let pixels = f64::from(node.size() * node.size());
                     let bound = (pixels * estimate).sqrt() + 0.25 * pixels;
                     assert!(
@@ -1537,28 +1369,6 @@ mod tests {
             let (a, b) = (banded.encode(target), whole.encode(target));
             assert_eq!(a.expect("a stream").bytes, b.expect("a stream").bytes);
         }
-    }
-
-    /// With fitted weights, the codebooks are designed from them (the nodes keep no default
-    /// fit, but every weighted one reaches the design), and a stream may use them.
-    #[test]
-    fn fitted_weights_design_codebooks() {
-        let config = EncoderConfig {
-            fit_weights: true,
-            ..EncoderConfig::default()
-        };
-        let analysis =
-            Analysis::run(textured_plane(64, 64), None, &config, &|_| {}).expect("an analysis");
-        assert!(analysis.header.has_codebooks());
-        let weighted = analysis
-            .tree
-            .levels()
-            .iter()
-            .flat_map(|l| l.nodes.iter().flatten())
-            .flat_map(|na| na.fits.iter())
-            .filter(|f| matches!(f, KeptFit::Weighted(_)))
-            .count();
-        assert!(weighted > 0, "nodes keep their weighted fits");
     }
 
     /// The analysis, with the default settings, of the 64 x 64 colour image whose pixel

@@ -4,30 +4,23 @@
 //!
 //! Above [`super::quantise`] (a candidate is a quantised fit); below [`super::rate`].
 
-use super::fit::{fit_default, Fit};
-use super::ids::{ControlQuantiserId, ModelId, WeightQuantiserId};
-use super::plane::Plane;
-use decoder_core::internal::syntax::control::WeightQuantiser;
+use super::ids::{ControlQuantiserId, ModelId};
 use decoder_core::internal::syntax::{ControlCoding, LeafSyntax};
 use decoder_core::Node;
-use std::borrow::Cow;
 
 /// One way of coding a node as a leaf.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Candidate {
-    /// Index into the node's fits.
+    /// Index into the node's fits ([`NodeAnalysis::fits`]).
     pub fit: u8,
     /// Control quantiser.
     pub cq: ControlQuantiserId,
-    /// Weight quantiser.
-    pub wq: WeightQuantiserId,
     /// Control coding.
     pub coding: ControlCoding,
     /// Squared error over the node's in-image pixels.
     pub sse: f64,
-    /// Where its quantised control indices, then weight indices (when `wq` is not the
-    /// default), start in [`NodeAnalysis::indices`]: kept, as every rate table and the writer
-    /// need them again.
+    /// Where its quantised control indices start in [`NodeAnalysis::indices`]: kept, as every
+    /// rate table and the writer need them again.
     pub at: u32,
 }
 
@@ -68,53 +61,16 @@ impl ChromaCost {
     }
 }
 
-/// What a node keeps of one of its fits between the analysis's passes.
-#[derive(Debug, Clone)]
-pub enum KeptFit {
-    /// A fit with the default weights, by its model: made again when a pass needs it
-    /// ([`fit_default`]), as that is cheap next to quantising it and its control values would
-    /// be a third of the analysis's memory.
-    Default(ModelId),
-    /// A fit with fitted weights, kept whole: fitting weights is dear.
-    Weighted(Box<Fit>),
-}
-
-impl KeptFit {
-    /// What a node keeps of `fit`.
-    pub fn of(fit: &Fit) -> KeptFit {
-        if fit.weighted() {
-            KeptFit::Weighted(Box::new(fit.clone()))
-        } else {
-            KeptFit::Default(fit.model)
-        }
-    }
-
-    /// The fit's model.
-    pub fn model(&self) -> ModelId {
-        match self {
-            KeptFit::Default(model) => *model,
-            KeptFit::Weighted(fit) => fit.model,
-        }
-    }
-
-    /// The fit, of the block of `node` in `plane` (made again if it has the default weights).
-    pub fn fit(&self, plane: &Plane, node: &Node) -> Cow<'_, Fit> {
-        match self {
-            KeptFit::Default(model) => Cow::Owned(fit_default(plane, node, *model)),
-            KeptFit::Weighted(fit) => Cow::Borrowed(fit),
-        }
-    }
-}
-
 /// Everything the analysis knows about one node.
 #[derive(Debug, Clone)]
 pub struct NodeAnalysis {
     /// The node.
     pub node: Node,
-    /// Its fits (per model the node supports, the default-weight fit and the fit with weights
-    /// where there is one), as kept between passes from the coarse pass on; a candidate's
-    /// `fit` indexes them.
-    pub fits: Box<[KeptFit]>,
+    /// Its fits, by their models (those the node supports and the analysis searches): a fit
+    /// is made again when a pass needs it ([`super::fit::fit_default`]), as that is cheap next
+    /// to quantising it and its control values would be a third of the analysis's memory. A
+    /// candidate's `fit` indexes them.
+    pub fits: Box<[ModelId]>,
     /// Every (fit, quantiser) pair with its distortion.
     pub candidates: Vec<Candidate>,
     /// The candidates' indices, one after the other (one allocation per node).
@@ -126,25 +82,17 @@ pub struct NodeAnalysis {
 impl NodeAnalysis {
     /// The leaf syntax of candidate `c`.
     pub fn leaf(&self, c: &Candidate) -> LeafSyntax {
-        let model = self.fits[usize::from(c.fit)].model();
-        let m = model.model();
-        let (nc, nw) = (m.control_count(), m.weight_count());
-        let mut leaf = super::ids::leaf_syntax(model, c.cq, c.wq, c.coding);
+        let model = self.fits[usize::from(c.fit)];
+        let nc = model.model().control_count();
+        let mut leaf = super::ids::leaf_syntax(model, c.cq, c.coding);
         let at = c.at as usize;
         leaf.control[..nc].copy_from_slice(&self.indices[at..at + nc]);
-        if c.wq.kind() != WeightQuantiser::Default {
-            leaf.weights[..nw].copy_from_slice(&self.indices[at + nc..at + nc + nw]);
-        }
         leaf
     }
 
     /// How many indices candidate `c` holds in [`NodeAnalysis::indices`].
     fn index_count(&self, c: &Candidate) -> usize {
-        let m = self.fits[usize::from(c.fit)].model().model();
-        match c.wq.kind() {
-            WeightQuantiser::Default => m.control_count(),
-            _ => m.control_count() + m.weight_count(),
-        }
+        self.fits[usize::from(c.fit)].model().control_count()
     }
 
     /// Keeps the candidates `keep` lists (indices into the candidate list, ascending) and only

@@ -16,13 +16,6 @@ pub struct EncoderConfig {
     /// leaves were not chosen in practice and their projections are costly (see
     /// docs/decisions.md).
     pub max_leaf_log2: u8,
-    /// Levels of the Lloyd-Max weight codebooks (0: none).
-    pub codebook_levels: usize,
-    /// Whether to fit the free subdivision weights as well as the control values (the
-    /// thesis's full inverse problem). Off by default: it makes the analysis much longer for
-    /// a negligible gain, since the default scheme fitted exactly (a linear least-squares
-    /// problem) is nearly always the better buy (see docs/decisions.md).
-    pub fit_weights: bool,
     /// Bit rate of the trial encode whose final contexts train the rate estimates: the closer
     /// to the targets to come, the closer the estimates (see docs/decisions.md).
     pub trial_bpp: f64,
@@ -67,8 +60,6 @@ impl Default for EncoderConfig {
         EncoderConfig {
             min_leaf_log2: 2,
             max_leaf_log2: 7,
-            codebook_levels: 8,
-            fit_weights: false,
             trial_bpp: MIN_TRIAL_BPP,
             stripe: DEFAULT_STRIPE_TILES,
             deblock: None,

@@ -1,18 +1,15 @@
-//! The fractal inverse problem for one block: Levenberg-Marquardt on the control values and the
-//! free subdivision weights of a model (thesis II.3), with exact derivatives from
-//! [`Tabulator`]. The analysis fits every model a node supports here; the fits are then
-//! quantised ([`super::quantise`]).
+//! The fractal inverse problem for one block: the least-squares control values of a model
+//! (thesis II.3, with the subdivision rules fixed: free weights never paid for their bits, see
+//! docs/decisions.md). Inside the image a precomputed projection of the block's pixels; at its
+//! edges the normal equations from [`Tabulator`]'s exact derivatives. The analysis fits every
+//! model a node supports here; the fits are then quantised ([`super::quantise`]).
 //!
 //! Above [`super::synthesis`]; below [`super::quantise`].
-//!
-//! Own LM on `nalgebra` rather than the `levenberg-marquardt` crate: the normal equations are
-//! accumulated directly from the tabulated samples (`J^T J` is at most 126 x 126, while `J` would
-//! be thousands of rows), and the weights are box-bounded by the format.
 
 use super::ids::ModelId;
 use super::plane::Plane;
 use super::synthesis::Tabulator;
-use decoder_core::internal::model::{ModelType, WEIGHT_LIMIT, WEIGHT_ONE};
+use decoder_core::internal::model::ModelType;
 use decoder_core::Node;
 use nalgebra::{DMatrix, DVector};
 
@@ -22,7 +19,7 @@ pub const MAX_FIT_SAMPLES: u32 = 32 * 32;
 /// Largest block fitted by a [`Projection`] (its build tabulates the patch at every pixel: 42 MB
 /// for the 9x9 model at 256 x 256); larger blocks are fitted on a lattice.
 const MAX_PROJECTION_LOG2: u8 = 8;
-/// Levenberg-Marquardt iterations per fit.
+/// Damped Gauss-Newton steps tried per fit at the image's edges ([`least_squares`]).
 pub const MAX_ITERATIONS: usize = 5;
 
 /// Fitted real-valued parameters of one model on one block. Every node's fits are alive at
@@ -37,9 +34,6 @@ pub struct Fit {
     /// For a projection fit whose least-squares control values clamping changed: those
     /// unclamped values ([`Fit::exact`]).
     unclamped: Option<Box<[f64]>>,
-    /// Deviations of the fitted weights from the default scheme (1.0 = one); empty for the
-    /// default scheme itself.
-    pub weights: Box<[f64]>,
     /// For an exact least-squares fit over every pixel of an interior block (a projection,
     /// see [`gram`]): its squared error (before clamping the control values). Then the error
     /// of any other control values `c` is this plus `(c - exact)^T G (c - exact)`, with `G`
@@ -48,11 +42,6 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// Whether the weights were fitted (else the fit has the default scheme).
-    pub fn weighted(&self) -> bool {
-        !self.weights.is_empty()
-    }
-
     /// For a projection fit ([`Fit::residual`] is known): the unclamped least-squares control
     /// values, the centre of [`Fit::error_of`]'s quadratic form.
     pub fn exact(&self) -> &[f64] {
@@ -60,8 +49,8 @@ impl Fit {
     }
 
     /// Squared error over the block's pixels of the patch with control values `control` (grey
-    /// levels) and the default weights, by the quadratic form of an exact fit; `None` when this
-    /// fit is not one (weights fitted, or a block at the image's edge).
+    /// levels), by the quadratic form of an exact fit; `None` when this fit is not one (a block
+    /// at the image's edge).
     pub fn error_of(&self, log2: u8, control: &[f64]) -> Option<f64> {
         let residual = self.residual?;
         let projection = Projection::of(self.model, log2);
@@ -107,17 +96,6 @@ impl Lattice {
         }
     }
 
-    /// Number of lattice samples of the block.
-    fn sample_count(&self) -> usize {
-        let mut count = 0;
-        for dy in 0..self.size {
-            for dx in 0..self.size {
-                count += usize::from(self.wants(dx, dy));
-            }
-        }
-        count
-    }
-
     /// Whether every lattice sample of the block is in the image.
     fn is_interior(&self) -> bool {
         u64::from(self.x0) + u64::from(self.size) <= u64::from(self.width)
@@ -144,18 +122,9 @@ impl Lattice {
     }
 }
 
-/// Fits model `model` to the block `node` of `plane`: its weights too where the block has
-/// enough samples for them ([`fit_weighted`]), else its control values alone.
-#[cfg(test)]
-pub fn fit_block(plane: &Plane, node: &Node, model: ModelId) -> Fit {
-    let plain = fit_default(plane, node, model);
-    fit_weighted(plane, node, &plain).unwrap_or(plain)
-}
-
-/// The least-squares control values of model `model_id` on `node`, with the default
-/// subdivision weights. The patch is linear in its control values, so this is exact: inside
-/// the image one precomputed projection of the block's samples (see [`gram`]), at the image's edges one
-/// Gauss-Newton step.
+/// The least-squares control values of model `model_id` on `node`. The patch is linear in its
+/// control values, so this is exact: inside the image one precomputed projection of the
+/// block's samples (see [`gram`]), at the image's edges one Gauss-Newton step.
 pub fn fit_default(plane: &Plane, node: &Node, model_id: ModelId) -> Fit {
     let model = model_id.model();
     let lattice = Lattice::new(plane, node);
@@ -164,52 +133,22 @@ pub fn fit_default(plane: &Plane, node: &Node, model_id: ModelId) -> Fit {
         (c, Some(residual))
     } else {
         let mut c = initial_control(plane, node, model);
-        let nc = c.len();
-        levenberg_marquardt(plane, node, model, &lattice, &mut c, nc);
+        least_squares(plane, node, model, &lattice, &mut c);
         (c, None)
     };
     let mut control = exact.clone();
-    let nc = control.len();
-    clamp_params(&mut control, nc);
+    clamp_params(&mut control);
     let unclamped = (residual.is_some() && control != exact).then(|| exact.into());
     Fit {
         model: model_id,
         control: control.into(),
         unclamped,
-        weights: Box::default(),
         residual,
     }
 }
 
-/// Control values and free weights fitted together by Levenberg-Marquardt, starting from the
-/// default-weight fit `plain`; `None` when the model has no free weights, does not subdivide
-/// at this block size (a pixel grid, [`ModelType::subdivides`]), or the block has too
-/// few samples for them (fewer than three per parameter: thesis III.2.3, otherwise the problem
-/// is singular).
-pub fn fit_weighted(plane: &Plane, node: &Node, plain: &Fit) -> Option<Fit> {
-    let model = plain.model.model();
-    let lattice = Lattice::new(plane, node);
-    let nc = plain.control.len();
-    let nw = model.weight_count();
-    let count = lattice.sample_count();
-    if nw == 0 || !model.subdivides(node.log2) || count < 3 * (nc + nw) {
-        return None;
-    }
-    let mut theta = plain.control.to_vec();
-    theta.resize(nc + nw, 0.0);
-    levenberg_marquardt(plane, node, model, &lattice, &mut theta, nc);
-    let weights = theta.split_off(nc);
-    Some(Fit {
-        model: plain.model,
-        control: theta.into(),
-        unclamped: None,
-        weights: weights.into(),
-        residual: None,
-    })
-}
-
 /// The least-squares projection of an interior block's pixels onto the control values of a
-/// model with its default weights. With `B` the matrix whose row `k` is the patch's derivative
+/// model. With `B` the matrix whose row `k` is the patch's derivative
 /// with respect to the control values at pixel `offsets[k]` (the patch is linear in them, so
 /// that is also its value for unit control values), `gram = B^T B` and
 /// `pinv = (B^T B)^-1 B^T`. Every pixel of the block counts, whatever its size. One per model
@@ -230,7 +169,7 @@ fn derivatives(model: ModelId, log2: u8) -> (Vec<(u32, u32)>, DMatrix<f64>) {
     let size = 1u32 << log2;
     let mut offsets = Vec::with_capacity((size * size) as usize);
     let mut rows: Vec<f64> = Vec::with_capacity((size * size) as usize * nc);
-    let mut tab = Tabulator::new(model, &[], true);
+    let mut tab = Tabulator::new(model, true);
     tab.run(
         &vec![0.0; nc],
         log2,
@@ -503,22 +442,20 @@ fn initial_control(plane: &Plane, node: &Node, model: ModelType) -> Vec<f64> {
     c
 }
 
-/// Tabulates `theta` on the lattice and calls `f(residual, sample)` for every lattice sample
-/// (`sample` carries derivatives when `derivatives` is set).
-#[allow(clippy::too_many_arguments)]
+/// Tabulates control values `control` on the lattice and calls `f(residual, sample)` for every
+/// lattice sample (`sample` carries derivatives when `derivatives` is set).
 fn for_each_residual(
     plane: &Plane,
     node: &Node,
     model: ModelType,
     lattice: &Lattice,
-    theta: &[f64],
-    nc: usize,
+    control: &[f64],
     derivatives: bool,
     f: &mut dyn FnMut(f64, &[f64]),
 ) {
-    let mut tab = Tabulator::new(model, &theta[nc..], derivatives);
+    let mut tab = Tabulator::new(model, derivatives);
     tab.run(
-        &theta[..nc],
+        control,
         node.log2,
         &|dx, dy| lattice.wants(dx, dy),
         &|dx, dy, e| lattice.any_in(dx, dy, e),
@@ -526,45 +463,29 @@ fn for_each_residual(
     );
 }
 
-/// Sum of squared errors of `theta` on the lattice.
-fn sse(
-    plane: &Plane,
-    node: &Node,
-    model: ModelType,
-    lattice: &Lattice,
-    theta: &[f64],
-    nc: usize,
-) -> f64 {
+/// Sum of squared errors of `control` on the lattice.
+fn sse(plane: &Plane, node: &Node, model: ModelType, lattice: &Lattice, control: &[f64]) -> f64 {
     let mut total = 0.0;
-    for_each_residual(
-        plane,
-        node,
-        model,
-        lattice,
-        theta,
-        nc,
-        false,
-        &mut |e, _| total += e * e,
-    );
+    for_each_residual(plane, node, model, lattice, control, false, &mut |e, _| {
+        total += e * e
+    });
     total
 }
 
-/// Normal equations `J^T J`, `J^T r` and the SSE at `theta`.
+/// Normal equations `J^T J`, `J^T r` and the SSE at `control`.
 fn normal_equations(
     plane: &Plane,
     node: &Node,
     model: ModelType,
     lattice: &Lattice,
-    theta: &[f64],
-    nc: usize,
+    control: &[f64],
 ) -> (DMatrix<f64>, DVector<f64>, f64) {
-    let n = theta.len();
+    let n = control.len();
     let mut jtj = DMatrix::<f64>::zeros(n, n);
     let mut jtr = DVector::<f64>::zeros(n);
     let mut total = 0.0;
     // Jacobian rows are gathered as the columns of a block (contiguous: a sample's derivative
-    // vector, ordered like theta, is copied whole) and folded in with one matrix product,
-    // J^T J += B B^T.
+    // vector is copied whole) and folded in with one matrix product, J^T J += B B^T.
     const BLOCK: usize = 128;
     let mut block = DMatrix::<f64>::zeros(n, BLOCK);
     let mut errors = DVector::<f64>::zeros(BLOCK);
@@ -582,7 +503,7 @@ fn normal_equations(
         jtr.gemv(1.0, &used, &errors.rows(0, *cols), 1.0);
         *cols = 0;
     };
-    for_each_residual(plane, node, model, lattice, theta, nc, true, &mut |e, s| {
+    for_each_residual(plane, node, model, lattice, control, true, &mut |e, s| {
         total += e * e;
         errors[cols] = e;
         block.column_mut(cols).copy_from_slice(&s[1..1 + n]);
@@ -595,27 +516,24 @@ fn normal_equations(
     (jtj, jtr, total)
 }
 
-fn clamp_params(theta: &mut [f64], nc: usize) {
-    for c in &mut theta[..nc] {
+fn clamp_params(control: &mut [f64]) {
+    for c in control {
         *c = c.clamp(-200.0, 450.0);
-    }
-    // Deviations are bounded loosely here; the tabulator clamps the taps themselves.
-    let lim = 2.0 * f64::from(WEIGHT_LIMIT) / f64::from(WEIGHT_ONE);
-    for w in &mut theta[nc..] {
-        *w = w.clamp(-lim, lim);
     }
 }
 
-fn levenberg_marquardt(
+/// Least-squares control values on the lattice, from `control`: the patch is linear in them,
+/// so one damped Gauss-Newton step that lowers the error is the optimum (up to clamping); the
+/// damping grows while a step fails.
+fn least_squares(
     plane: &Plane,
     node: &Node,
     model: ModelType,
     lattice: &Lattice,
-    theta: &mut Vec<f64>,
-    nc: usize,
+    control: &mut Vec<f64>,
 ) {
-    let n = theta.len();
-    let (mut jtj, mut jtr, mut current) = normal_equations(plane, node, model, lattice, theta, nc);
+    let n = control.len();
+    let (jtj, jtr, current) = normal_equations(plane, node, model, lattice, control);
     let mut mu = 1e-6;
     for _ in 0..MAX_ITERATIONS {
         if current <= 1e-9 {
@@ -634,29 +552,19 @@ fn levenberg_marquardt(
             mu = (mu * 10.0).max(1e-3);
             continue;
         }
-        let mut trial = theta.clone();
+        let mut trial = control.clone();
         for (t, d) in trial.iter_mut().zip(delta.iter()) {
             *t += d;
         }
-        clamp_params(&mut trial, nc);
-        let trial_sse = sse(plane, node, model, lattice, &trial, nc);
+        clamp_params(&mut trial);
+        let trial_sse = sse(plane, node, model, lattice, &trial);
         if trial_sse.is_finite() && trial_sse < current {
-            let gain = (current - trial_sse) / current;
-            *theta = trial;
-            mu = (mu / 4.0).max(1e-9);
-            if gain < 1e-3 || n == nc {
-                // Linear in the control values: one exact step is the optimum.
-                break;
-            }
-            (jtj, jtr, current) = normal_equations(plane, node, model, lattice, theta, nc);
-        } else {
-            mu = (mu * 8.0).max(1e-4);
+            *control = trial;
+            break;
         }
+        mu = (mu * 8.0).max(1e-4);
     }
 }
-
-#[cfg(test)]
-mod inverse_problem;
 
 #[cfg(test)]
 mod tests {

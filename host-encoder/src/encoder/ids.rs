@@ -1,14 +1,11 @@
-//! Typed indices into the format's tables: a model type, a control quantiser, a weight
-//! quantiser. The syntax ([`LeafSyntax`]) carries them as raw bytes; the encoder keeps them
+//! Typed indices into the format's tables: a model type, a control quantiser. The syntax ([`LeafSyntax`]) carries them as raw bytes; the encoder keeps them
 //! apart by type and converts at that boundary. Each is one byte (`#[repr(transparent)]`), as
 //! they sit in per-candidate vectors.
 //!
 //! Bottom layer of the encoder: uses nothing else of it.
 
 use decoder_core::internal::model::{ModelType, MODELS, MODEL_COUNT};
-use decoder_core::internal::syntax::control::{
-    WeightQuantiser, CONTROL_QUANTISERS, CONTROL_STEPS, WEIGHT_QUANTISERS, WEIGHT_QUANTISER_KINDS,
-};
+use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, CONTROL_STEPS};
 use decoder_core::internal::syntax::{models_for_block, step_group, LeafSyntax};
 
 /// A model type: an index into [`MODELS`] (the 'model' syntax element).
@@ -82,43 +79,16 @@ impl ControlQuantiserId {
     }
 }
 
-/// A weight quantiser: an index into [`WEIGHT_QUANTISER_KINDS`] (the 'wquant' syntax element).
-#[repr(transparent)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct WeightQuantiserId(u8);
-
-impl WeightQuantiserId {
-    /// The default weights (no weight coded): index 0.
-    pub const DEFAULT: WeightQuantiserId = WeightQuantiserId(0);
-
-    /// Every weight quantiser, [`WeightQuantiserId::DEFAULT`] first.
-    pub fn all() -> impl Iterator<Item = WeightQuantiserId> {
-        (0..WEIGHT_QUANTISERS as u8).map(WeightQuantiserId)
-    }
-
-    /// The syntax element's value.
-    pub const fn get(self) -> u8 {
-        self.0
-    }
-
-    /// What kind of quantiser it is.
-    pub const fn kind(self) -> WeightQuantiser {
-        WEIGHT_QUANTISER_KINDS[self.0 as usize]
-    }
-}
-
-/// The leaf syntax of `model` with quantisers `cq` and `wq`, every index zero: where the
-/// typed indices become the syntax's bytes.
+/// The leaf syntax of `model` with control quantiser `cq`, every index zero: where the typed
+/// indices become the syntax's bytes.
 pub fn leaf_syntax(
     model: ModelId,
     cq: ControlQuantiserId,
-    wq: WeightQuantiserId,
     coding: decoder_core::ControlCoding,
 ) -> LeafSyntax {
     LeafSyntax {
         model: model.get(),
         cquant: cq.get(),
-        wquant: wq.get(),
         coding,
         ..LeafSyntax::default()
     }
@@ -135,7 +105,7 @@ macro_rules! display_as_number {
 }
 
 // As the syntax element's value.
-display_as_number!(ModelId, ControlQuantiserId, WeightQuantiserId);
+display_as_number!(ModelId, ControlQuantiserId);
 
 #[cfg(test)]
 mod tests {
@@ -146,8 +116,6 @@ mod tests {
     fn ids_are_one_byte() {
         assert_eq!(std::mem::size_of::<ModelId>(), 1);
         assert_eq!(std::mem::size_of::<ControlQuantiserId>(), 1);
-        assert_eq!(std::mem::size_of::<WeightQuantiserId>(), 1);
-        assert_eq!(WeightQuantiserId::DEFAULT.kind(), WeightQuantiser::Default);
         assert_eq!(ControlQuantiserId::all().count(), CONTROL_QUANTISERS);
     }
 }

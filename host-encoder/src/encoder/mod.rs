@@ -36,7 +36,7 @@ pub use error::EncodeError;
 pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;
 
-use decoder_core::internal::syntax::{Codebook, Header};
+use decoder_core::internal::syntax::Header;
 use rayon::prelude::*;
 
 /// An encoded stream with its figures.
@@ -98,36 +98,11 @@ impl Analysis {
             deblock: self.deblock.unwrap_or(0),
             ..self.header
         };
-        let mut variants = vec![Header {
-            codebooks: [Codebook::EMPTY; 2],
-            ..header
-        }];
-        if header.has_codebooks() {
-            variants.push(header);
+        match (budget, target) {
+            (Some(n), _) => self.encode_budget(&header, n),
+            (None, Target::Psnr(p)) => self.encode_quality(&header, p),
+            _ => unreachable!("targets are validated above"),
         }
-        let mut best: Option<Encoded> = None;
-        let mut last_err = None;
-        for header in variants {
-            let result = match (budget, target) {
-                (Some(n), _) => self.encode_budget(&header, n),
-                (None, Target::Psnr(p)) => self.encode_quality(&header, p),
-                _ => unreachable!("targets are validated above"),
-            };
-            match result {
-                Ok(e) => {
-                    let better = match (&best, budget) {
-                        (None, _) => true,
-                        (Some(b), Some(_)) => e.sse < b.sse,
-                        (Some(b), None) => e.bytes.len() < b.bytes.len(),
-                    };
-                    if better {
-                        best = Some(e);
-                    }
-                }
-                Err(e) => last_err = Some(e),
-            }
-        }
-        best.ok_or_else(|| last_err.unwrap_or(EncodeError::Internal("no header variant")))
     }
 
     /// The encoded stream `written` of `plan`, with its reconstruction and figures.
@@ -305,32 +280,17 @@ impl Analysis {
         })
     }
 
-    /// The stream of least error this analysis writes, with or without the codebooks: the
-    /// plan of the smallest multiplier, which spends all the rate it wants (what a budget of
-    /// unlimited bytes writes). The same whichever header variant asks.
+    /// The stream of least error this analysis writes: the plan of the smallest multiplier,
+    /// which spends all the rate it wants (what a budget of unlimited bytes writes).
     fn best_stream(&self) -> Result<Encoded, EncodeError> {
         let header = Header {
             deblock: self.deblock.unwrap_or(0),
             ..self.header
         };
-        let mut variants = vec![Header {
-            codebooks: [Codebook::EMPTY; 2],
-            ..header
-        }];
-        if header.has_codebooks() {
-            variants.push(header);
-        }
-        let mut best: Option<Encoded> = None;
-        for header in &variants {
-            let plan = self.rates.plan_for_bits(self, header, f64::INFINITY, None);
-            let written = self.write(header, &plan)?;
-            let encoded = self.finish(&plan, written)?;
-            let encoded = self.smoothed(header, &plan, encoded)?;
-            if best.as_ref().is_none_or(|b| encoded.sse < b.sse) {
-                best = Some(encoded);
-            }
-        }
-        best.ok_or(EncodeError::Internal("no header variant"))
+        let plan = self.rates.plan_for_bits(self, &header, f64::INFINITY, None);
+        let written = self.write(&header, &plan)?;
+        let encoded = self.finish(&plan, written)?;
+        self.smoothed(&header, &plan, encoded)
     }
 
     /// The stream of `plan` with the smoothing strength [`Analysis::smoothing_for`] chooses,
@@ -391,8 +351,8 @@ impl Analysis {
     }
 }
 
-/// What packets (`crate::packets`) need of an analysis: streams without codebooks (a packet
-/// has no room for them), where a stream's bits go, and the analysis of a part of the image.
+/// What packets (`crate::packets`) need of an analysis: streams of a budget, where a stream's
+/// bits go, and the analysis of a part of the image.
 impl Analysis {
     /// The image's own pixels, as streams' reconstructions hold them (gray, or RGB triples).
     pub(crate) fn source(&self) -> &[u8] {
@@ -402,11 +362,10 @@ impl Analysis {
         }
     }
 
-    /// The best stream of at most `budget` bytes without the Lloyd-Max codebooks.
+    /// The best stream of at most `budget` bytes.
     pub(crate) fn encode_plain(&self, budget: usize) -> Result<Encoded, EncodeError> {
         let header = Header {
             deblock: self.deblock.unwrap_or(0),
-            codebooks: [Codebook::EMPTY; 2],
             ..self.header
         };
         self.encode_budget(&header, budget)
@@ -417,7 +376,6 @@ impl Analysis {
     pub(crate) fn leaf_bits(&self, budget: usize) -> Result<Vec<LeafBits>, EncodeError> {
         let header = Header {
             deblock: self.deblock.unwrap_or(0),
-            codebooks: [Codebook::EMPTY; 2],
             ..self.header
         };
         let plan = self.fit_budget(&header, budget, None)?.plan;

@@ -1,28 +1,24 @@
-//! Quantisation of fitted parameters into syntax elements: uniform quantisers for control values
-//! (one step per 'cquant'), uniform and Lloyd-Max quantisers for weights (thesis III.3.4). The
-//! analysis quantises every fit with every quantiser; each result is a candidate leaf
+//! Quantisation of fitted control values into syntax elements: uniform quantisers, one step per
+//! 'cquant' (thesis III.3.4). The analysis quantises every fit with every quantiser; each result is a candidate leaf
 //! ([`super::candidates`]).
 //!
 //! Above [`super::fit`]; below [`super::candidates`].
 
 use super::fit::{gram, Fit};
-use super::ids::{leaf_syntax, ControlQuantiserId, ModelId, WeightQuantiserId};
+use super::ids::{leaf_syntax, ControlQuantiserId, ModelId};
 use crate::entropy::BitCounter;
 use decoder_core::internal::entropy::ZERO_CONTEXTS;
-use decoder_core::internal::model::{
-    for_each_free_tap, WeightClass, MAX_CONTROL, MAX_GRID, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE,
-    WEIGHT_LIMIT, WEIGHT_ONE,
-};
+use decoder_core::internal::model::{MAX_CONTROL, MAX_GRID, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE};
 use decoder_core::internal::prediction::{
     edge_context, edge_offset, edge_pixels, SamplePrediction,
 };
 use decoder_core::internal::syntax::control::{
-    coefficient_step, expand_pixel_grid, grid_sizes, transform_order, WeightQuantiser,
+    coefficient_step, expand_pixel_grid, grid_sizes, transform_order,
 };
 use decoder_core::internal::syntax::{
     control_class, control_step, control_value, dequantise_control, intra_prediction,
-    transform_control_values, zero_context, Codebook, Contexts, ControlCoding, LeafSyntax,
-    CONTROL_CLASSES, MAX_CODEBOOK, STEP_GROUPS,
+    transform_control_values, zero_context, Contexts, ControlCoding, LeafSyntax, CONTROL_CLASSES,
+    STEP_GROUPS,
 };
 use decoder_core::Node;
 use nalgebra::DMatrix;
@@ -316,20 +312,17 @@ impl Quantised {
     }
 }
 
-/// Quantises `fit` (whose control values `targets` holds) with control quantiser `cq`, control
-/// coding `coding` and weight quantiser `wq`, rounding control indices with the Lagrange
-/// multiplier `rounding_lambda` ([`ROUNDING_LAMBDA`] and [`ROUNDING_VARIANTS`]).
+/// Quantises `fit` (whose control values `targets` holds) with control quantiser `cq` and
+/// control coding `coding`, rounding control indices with the Lagrange multiplier
+/// `rounding_lambda` ([`ROUNDING_LAMBDA`] and [`ROUNDING_VARIANTS`]).
 pub fn quantise(
     fit: &Fit,
     targets: &ControlTargets,
     cq: ControlQuantiserId,
-    wq: WeightQuantiserId,
     coding: ControlCoding,
-    codebooks: &[Codebook; 2],
     rounding_lambda: f64,
 ) -> Quantised {
-    let model = fit.model.model();
-    let mut leaf = leaf_syntax(fit.model, cq, wq, coding);
+    let mut leaf = leaf_syntax(fit.model, cq, coding);
     let step = cq.step();
     let side = targets.side;
     let rounding = IndexRounding::new(
@@ -347,28 +340,6 @@ pub fn quantise(
     // The forms are over errors in sample units.
     let sample = f64::from(SAMPLE_ONE);
     let added_error = form.map(|f| f / (sample * sample));
-    let kind = wq.kind();
-    if kind == WeightQuantiser::Default {
-        // The default weights: every index stays zero.
-        return Quantised { leaf, added_error };
-    }
-    let mut i = 0;
-    for_each_free_tap(model, |slot| {
-        let dev = fit.weights.get(i).copied().unwrap_or(0.0) * f64::from(WEIGHT_ONE);
-        // Both kinds give small indices (at most 2 * WEIGHT_LIMIT / step, or a codebook size).
-        leaf.weights[i] = match kind {
-            WeightQuantiser::Default => 0,
-            WeightQuantiser::Uniform(step) => {
-                let lim = 2 * WEIGHT_LIMIT / step;
-                ((dev / f64::from(step)).round() as i32).clamp(-lim, lim) as i16
-            }
-            WeightQuantiser::Codebook => {
-                let book = &codebooks[slot.class() as usize];
-                (nearest_level(book, dev) - book.center()) as i16
-            }
-        };
-        i += 1;
-    });
     Quantised { leaf, added_error }
 }
 
@@ -882,71 +853,6 @@ impl ResidualCosts {
     }
 }
 
-fn nearest_level(book: &Codebook, v: f64) -> i32 {
-    let mut best = 0;
-    for i in 0..usize::from(book.len) {
-        if (f64::from(book.levels[i]) - v).abs() < (f64::from(book.levels[best]) - v).abs() {
-            best = i;
-        }
-    }
-    best as i32
-}
-
-/// Designs a Lloyd-Max codebook of `levels` levels (at most [`MAX_CODEBOOK`]) for the weight
-/// deviations `samples` (weight units, 1.0 = one). Returns an empty codebook when there is too
-/// little data.
-pub fn lloyd_max(samples: &mut [f64], levels: usize) -> Codebook {
-    let levels = levels.clamp(2, MAX_CODEBOOK);
-    if samples.len() < levels * 4 {
-        return Codebook::EMPTY;
-    }
-    samples.sort_by(f64::total_cmp);
-    let scale = f64::from(WEIGHT_ONE);
-    // Start at the quantiles, then alternate centroids and midpoints (Lloyd's method I).
-    let mut q: Vec<f64> = (0..levels)
-        .map(|i| samples[(2 * i + 1) * samples.len() / (2 * levels)] * scale)
-        .collect();
-    for _ in 0..50 {
-        let mut sum = vec![0.0; levels];
-        let mut count = vec![0usize; levels];
-        let mut j = 0;
-        for &s in samples.iter() {
-            let v = s * scale;
-            while j + 1 < levels && v > 0.5 * (q[j] + q[j + 1]) {
-                j += 1;
-            }
-            sum[j] += v;
-            count[j] += 1;
-        }
-        for i in 0..levels {
-            if count[i] > 0 {
-                q[i] = sum[i] / count[i] as f64;
-            }
-        }
-    }
-    let mut book = Codebook::EMPTY;
-    let mut last = i32::MIN;
-    for v in q {
-        let l = (v.round() as i32).clamp(-WEIGHT_LIMIT, WEIGHT_LIMIT);
-        if l > last {
-            book.levels[usize::from(book.len)] = l as i16;
-            book.len += 1;
-            last = l;
-        }
-    }
-    if book.len < 2 {
-        return Codebook::EMPTY;
-    }
-    book
-}
-
-/// The weight class of every free weight of model `model`, in coding order.
-pub fn weight_classes(model: ModelId) -> Vec<WeightClass> {
-    let mut v = Vec::new();
-    for_each_free_tap(model.model(), |slot| v.push(slot.class()));
-    v
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1050,7 +956,7 @@ mod tests {
         use decoder_core::Node;
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
         let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
-        let (model, log2) = (ModelId::new(4), 4u8);
+        let (model, log2) = (ModelId::new(3), 4u8);
         let side = model.model().grid();
         let n = side * side;
         let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
@@ -1121,15 +1027,7 @@ mod tests {
         ) {
             let (model, cq) = (fit.model, ControlQuantiserId::new(4));
             let targets = ControlTargets::of(fit, node.log2).with_edges(prediction, node, model);
-            let q = quantise(
-                fit,
-                &targets,
-                cq,
-                WeightQuantiserId::DEFAULT,
-                ControlCoding::Dpcm,
-                &[Codebook::EMPTY; 2],
-                ROUNDING_LAMBDA,
-            );
+            let q = quantise(fit, &targets, cq, ControlCoding::Dpcm, ROUNDING_LAMBDA);
             let mut counter = BitCounter::frozen();
             let mut leaf = q.leaf;
             code_leaf(
@@ -1149,7 +1047,7 @@ mod tests {
             plane: &plane,
             stripe: 128,
         };
-        let (model, log2) = (ModelId::new(4), 3u8);
+        let (model, log2) = (ModelId::new(3), 3u8);
         let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
         for by in 1..plane.height >> log2 {
             for bx in 1..plane.width >> log2 {

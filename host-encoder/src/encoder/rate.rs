@@ -11,7 +11,6 @@
 use super::candidates::{Candidate, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates};
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
-use decoder_core::internal::syntax::control::WeightQuantiser;
 use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header};
 use decoder_core::internal::walk::{node_kind, NodeKind};
 use decoder_core::Node;
@@ -32,8 +31,6 @@ struct LevelRates {
     first: Vec<u32>,
     bits: Vec<f32>,
     sse: Vec<f64>,
-    /// Whether the candidate needs the Lloyd-Max codebooks.
-    codebook: Vec<bool>,
 }
 
 impl LevelRates {
@@ -42,15 +39,12 @@ impl LevelRates {
     }
 
     /// The candidate of node `node` with the least cost `sse + lambda * bits` (the first of
-    /// equals), leaving out those that need codebooks unless `codebooks`.
-    fn best_leaf(&self, node: usize, lambda: f64, codebooks: bool) -> Option<LeafChoice> {
+    /// equals).
+    fn best_leaf(&self, node: usize, lambda: f64) -> Option<LeafChoice> {
         let range = self.range(node);
         let start = range.start;
         let mut best: Option<LeafChoice> = None;
         for k in range {
-            if self.codebook[k] && !codebooks {
-                continue;
-            }
             let bits = f64::from(self.bits[k]);
             let j = self.sse[k] + lambda * bits;
             if best.is_none_or(|b| j < b.cost.j) {
@@ -303,12 +297,7 @@ impl RateTable {
                 for (na, bits) in level.nodes.iter().zip(per_node) {
                     if let Some(na) = na {
                         rates.bits.extend_from_slice(&bits);
-                        for c in &na.candidates {
-                            rates.sse.push(c.sse);
-                            rates
-                                .codebook
-                                .push(c.wq.kind() == WeightQuantiser::Codebook);
-                        }
+                        rates.sse.extend(na.candidates.iter().map(|c| c.sse));
                     }
                     rates.first.push(rates.bits.len() as u32);
                 }
@@ -331,11 +320,9 @@ impl RateTable {
     }
 
     /// The best cut of `tree` (whose candidates this table rates) for multiplier `lambda`
-    /// (squared error per bit). Candidates using the Lloyd-Max codebooks are allowed only when
-    /// `header` carries them.
+    /// (squared error per bit).
     fn optimise(&self, tree: &CandidateTree, header: &Header, lambda: f64) -> Plan {
         let min = tree.min_leaf_log2();
-        let codebooks = header.has_codebooks();
         let colour = header.channels == 3;
         let mut decisions: Vec<Vec<Decision>> = Vec::with_capacity(tree.levels().len());
         let mut subtree_decisions: Vec<Vec<Decision>> = Vec::new();
@@ -364,7 +351,7 @@ impl RateTable {
                         log2: level.log2,
                     };
                     let kind = node_kind(header, &node);
-                    let luma = rates.best_leaf(i as usize, lambda, codebooks);
+                    let luma = rates.best_leaf(i as usize, lambda);
                     let na = level.nodes[i as usize].as_ref();
                     let leaf = luma.map(|l| match na {
                         Some(na) => l.with_chroma(&na.chroma, lambda),

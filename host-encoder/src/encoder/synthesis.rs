@@ -5,117 +5,41 @@
 //!
 //! It follows decoder-core's integer synthesis rule for rule (same subdivision, same taps, same
 //! mirroring of indices at a line's ends), without rounding. Each sample carries a vector: its value, then its
-//! derivatives with respect to every control value and every free weight. The derivatives follow
-//! the subdivision recursion (thesis II.3.4: the tabulation is polynomial in the parameters), so
-//! the Jacobian is exact: no finite differences.
+//! derivatives with respect to every control value (the patch is linear in them: they are also
+//! its values for unit control values).
 
-use decoder_core::internal::model::{
-    for_each_free_tap, tap_point, ModelType, TapSlot, Weights, CELL_DEPENDENT_TAP,
-    LINE_DEPENDENT_TAP, WEIGHT_ONE,
-};
-
-/// Parameter index of every free tap of a model, by rule (`usize::MAX` for the dependent tap).
-#[derive(Debug, Clone)]
-struct TapIndex {
-    line: [[[usize; 4]; 3]; 2],
-    cell: [[[usize; 4]; 3]; 3],
-}
-
-impl TapIndex {
-    fn new(model: ModelType) -> Self {
-        let mut t = TapIndex {
-            line: [[[usize::MAX; 4]; 3]; 2],
-            cell: [[[usize::MAX; 4]; 3]; 3],
-        };
-        let mut k = 0;
-        for_each_free_tap(model, |slot| {
-            match slot {
-                TapSlot::Line { dir, phase, tap } => t.line[dir][phase - 1][tap] = k,
-                TapSlot::Cell { r1, r2, tap } => t.cell[r1 - 1][r2 - 1][tap] = k,
-            }
-            k += 1;
-        });
-        t
-    }
-}
-
-/// Real-valued subdivision weights.
-#[derive(Debug, Clone)]
-struct RealWeights {
-    line: [[[f64; 4]; 3]; 2],
-    cell: [[[f64; 4]; 3]; 3],
-}
+use decoder_core::internal::model::{tap_point, ModelType, Rules, WEIGHT_ONE};
 
 /// A patch model ready to be tabulated in floating point.
 #[derive(Debug, Clone)]
 pub struct Tabulator {
     model: ModelType,
-    index: TapIndex,
-    weights: RealWeights,
-    /// Floats per sample: 1 (value only) or `1 + control + weights`.
+    /// The line rule of each phase (also the column and cell rules), real-valued.
+    taps: [[f64; 4]; 3],
+    /// Floats per sample: 1 (value only) or `1 + control`.
     k: usize,
-    nc: usize,
     block: u32,
     scratch: Vec<Vec<f64>>,
 }
 
 impl Tabulator {
-    /// Prepares `model` with free-weight deviations `dev` (weight units, 1.0 = one) and, when
-    /// `derivatives` is set, derivative tracking.
-    pub fn new(model: ModelType, dev: &[f64], derivatives: bool) -> Self {
-        let base = Weights::default_for(model);
-        let index = TapIndex::new(model);
-        // One rule: free taps are default + deviation (bounded like decoder-core's), the
-        // dependent tap makes the rule sum to one.
-        let real_rule = |base: &[i16; 4], params: &[usize; 4], dependent: usize| -> [f64; 4] {
-            let mut rule = [0.0; 4];
-            for t in (0..4).filter(|&t| t != dependent) {
-                let d = match params[t] {
-                    usize::MAX => 0.0,
-                    k => dev.get(k).copied().unwrap_or(0.0),
-                };
-                rule[t] = (f64::from(base[t]) / f64::from(WEIGHT_ONE) + d).clamp(-2.0, 2.0);
-            }
-            rule[dependent] = 1.0 - rule.iter().sum::<f64>();
-            rule
-        };
-        let mut w = RealWeights {
-            line: [[[0.0; 4]; 3]; 2],
-            cell: [[[0.0; 4]; 3]; 3],
-        };
-        for dir in 0..2 {
-            for p in 0..3 {
-                w.line[dir][p] =
-                    real_rule(&base.line[dir][p], &index.line[dir][p], LINE_DEPENDENT_TAP);
-            }
-        }
-        for r1 in 0..3 {
-            for r2 in 0..3 {
-                w.cell[r1][r2] =
-                    real_rule(&base.cell[r1][r2], &index.cell[r1][r2], CELL_DEPENDENT_TAP);
-            }
-        }
-        let nc = model.control_count();
+    /// Prepares `model` and, when `derivatives` is set, derivative tracking.
+    pub fn new(model: ModelType, derivatives: bool) -> Self {
+        let taps = Rules::of(model)
+            .taps
+            .map(|rule| rule.map(|t| f64::from(t) / f64::from(WEIGHT_ONE)));
         let k = if derivatives {
-            1 + nc + model.weight_count()
+            1 + model.control_count()
         } else {
             1
         };
         Tabulator {
             model,
-            index,
-            weights: w,
+            taps,
             k,
-            nc,
             block: 0,
             scratch: Vec::new(),
         }
-    }
-
-    /// Floats per emitted sample.
-    #[cfg(test)]
-    pub fn sample_len(&self) -> usize {
-        self.k
     }
 
     /// Tabulates the block of side `2^log2` with control values `control` (grey levels,
@@ -216,7 +140,6 @@ impl Tabulator {
         let side = m + 1;
         let rs = n * m + 1;
         let k = self.k;
-        let wbase = 1 + self.nc;
         for u in 0..side {
             for v in 0..side {
                 let (d, s) = (((u * n) * rs + v * n) * k, (u * side + v) * k);
@@ -228,8 +151,7 @@ impl Tabulator {
             for line in 0..side {
                 for a in 0..m {
                     for ph in 1..n {
-                        let taps = &self.weights.line[dir][ph - 1];
-                        let pidx = &self.index.line[dir][ph - 1];
+                        let taps = &self.taps[ph - 1];
                         let src = |t: usize| -> usize {
                             let idx = tap_point(a, t, m);
                             if dir == 0 {
@@ -250,15 +172,6 @@ impl Tabulator {
                                 + taps[2] * g[s2 + e]
                                 + taps[3] * g[s3 + e];
                         }
-                        if k > 1 {
-                            let srcs = [s0, s1, s2, s3];
-                            let dep = g[srcs[LINE_DEPENDENT_TAP]];
-                            for t in 0..4 {
-                                if pidx[t] != usize::MAX {
-                                    r[dst + wbase + pidx[t]] += g[srcs[t]] - dep;
-                                }
-                            }
-                        }
                     }
                 }
             }
@@ -268,8 +181,8 @@ impl Tabulator {
             for a2 in 0..m {
                 for r1 in 1..n {
                     for r2 in 1..n {
-                        let taps = &self.weights.cell[r1 - 1][r2 - 1];
-                        let pidx = &self.index.cell[r1 - 1][r2 - 1];
+                        // The cell rule of row phase r1 is that phase's line rule.
+                        let taps = &self.taps[r1 - 1];
                         let at = |q1: usize, q2: usize| (q1 * rs + q2) * k;
                         let srcs: [usize; 4] =
                             std::array::from_fn(|t| at(tap_point(a1, t, m) * n, a2 * n + r2));
@@ -279,14 +192,6 @@ impl Tabulator {
                                 + taps[1] * r[srcs[1] + e]
                                 + taps[2] * r[srcs[2] + e]
                                 + taps[3] * r[srcs[3] + e];
-                        }
-                        if k > 1 {
-                            let dep = r[srcs[CELL_DEPENDENT_TAP]];
-                            for t in 0..4 {
-                                if pidx[t] != usize::MAX {
-                                    r[dst + wbase + pidx[t]] += r[srcs[t]] - dep;
-                                }
-                            }
                         }
                     }
                 }

@@ -166,7 +166,7 @@ impl From<EncodeError> for PacketError {
 
 /// Cuts the image of `analysis` into packets of at most `options.size` bytes whose total is
 /// at most `target` (a rate or a size, whole packets counted). Regions are analysed with
-/// `config` (without codebooks, which packets cannot carry).
+/// `config`.
 pub fn packetise(
     analysis: &Analysis,
     config: &EncoderConfig,
@@ -305,10 +305,7 @@ fn data_packets(
     let leaves = analysis.leaf_bits(share.max(64))?;
     let mass = BitMass::of(analysis.width(), analysis.height(), &leaves);
     let areas = spread(mass.cut(layout.regions()));
-    let region_config = EncoderConfig {
-        codebook_levels: 0,
-        ..config.clone()
-    };
+    let region_config = EncoderConfig { ..config.clone() };
     let mut packets = Vec::with_capacity(usize::from(layout.count));
     if layout.previews == 1 {
         packets.push(fill_packet(base, size, |capacity| {
@@ -356,17 +353,16 @@ fn fill_packet(
 ) -> Result<Vec<u8>, PacketError> {
     let mut head = [0u8; MAX_PACKET_HEADER_LEN];
     let capacity = size - header.write(&mut head) - CRC_LEN;
-    // The stream's own header (no codebooks) is counted by its budget, not by the packet:
+    // The stream's own header is counted by its budget, not by the packet:
     // its payload-length field takes one byte more from 128 bytes on.
     let stream_header = FIXED_HEADER_LEN + 1 + usize::from(capacity >= 128);
     for extra in [FLUSH_SAVING, 0] {
         let encoded = encode(capacity + extra + stream_header)?;
         let (stream, offset) = Header::parse(&encoded.bytes).map_err(EncodeError::Syntax)?;
-        if stream.has_codebooks()
-            || [
-                stream.max_leaf_log2 << 4 | stream.min_leaf_log2,
-                stream.stripe,
-            ] != header.coding
+        if [
+            stream.max_leaf_log2 << 4 | stream.min_leaf_log2,
+            stream.stripe,
+        ] != header.coding
         {
             return Err(EncodeError::Internal("a region's stream has other coding fields").into());
         }

@@ -76,13 +76,11 @@ pub fn synthetic(width: u32, height: u32, seed: u32, noise: u32) -> Plane {
     Plane::new(width, height, data)
 }
 
-/// Leaf settings small enough for fast tests: leaves from 4x4 to 32x32, 8-level codebooks.
+/// Leaf settings small enough for fast tests: leaves from 4x4 to 32x32.
 pub fn small_config() -> EncoderConfig {
     EncoderConfig {
         min_leaf_log2: 2,
         max_leaf_log2: 5,
-        codebook_levels: 8,
-        fit_weights: true,
         ..EncoderConfig::default()
     }
 }

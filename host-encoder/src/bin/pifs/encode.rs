@@ -144,13 +144,12 @@ pub fn check_image(
     // Priced in colour on the header's word: a colour type whose pixels are all gray is
     // encoded in grayscale, for less.
     let channels = if probe.colour && !gray { 3 } else { 1 };
-    let per_pixel = memory::per_pixel(channels, analysis.min_leaf_log2, analysis.fit_weights);
+    let per_pixel = memory::per_pixel(channels, analysis.min_leaf_log2);
     let need = memory::encode_bytes(
         pixels,
         probe.decoded_bytes,
         channels,
         analysis.min_leaf_log2,
-        analysis.fit_weights,
     );
     if pixels > limits.max_pixels() {
         return Err(CliError::Refused(format!(
@@ -220,10 +219,6 @@ pub struct AnalysisArgs {
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub max_leaf_log2: u8,
-    /// Also fit the subdivision weights (the thesis's full inverse problem): a much longer
-    /// analysis for very little gain.
-    #[arg(long)]
-    pub fit_weights: bool,
     /// Width of the stripes the image is coded in, in pixels (a multiple of 128), or `full` for
     /// one stripe as wide as the image. A decoder holds one byte per column of a stripe:
     /// decoder-core holds 512 unless told otherwise, so wider stripes are for decoders that
@@ -274,7 +269,6 @@ impl Default for AnalysisArgs {
         AnalysisArgs {
             min_leaf_log2: d.min_leaf_log2,
             max_leaf_log2: d.max_leaf_log2,
-            fit_weights: d.fit_weights,
             stripe_width: d.stripe,
             deblock: Deblock(d.deblock),
         }
@@ -288,7 +282,6 @@ impl AnalysisArgs {
         EncoderConfig {
             min_leaf_log2: self.min_leaf_log2,
             max_leaf_log2: self.max_leaf_log2.max(self.min_leaf_log2),
-            fit_weights: self.fit_weights,
             stripe: self.stripe_width,
             deblock: self.deblock.0,
             ..chosen
@@ -525,6 +518,8 @@ fn explain(e: CliError, job: Job, size: (u32, u32)) -> CliError {
             ))
         }
         CliError::Encode(EncodeError::QualityUnreachable { requested, best }) => {
+            // Rounded down: a target of the figure shown is reachable.
+            let best = (best * 100.0).floor() / 100.0;
             CliError::Refused(format!(
                 "{} dB is unreachable for this {w}x{h} image (ask for less): the best this encoder reaches is {best:.2} dB",
                 option(Target::Psnr(requested)),

@@ -13,8 +13,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// The models' names, by model index.
-pub const MODEL_NAMES: [&str; MODEL_COUNT] =
-    ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "5x5/4x4", "9x9/4x4"];
+pub const MODEL_NAMES: [&str; MODEL_COUNT] = ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "9x9/4x4"];
 
 /// What the leaves of a stream use.
 #[derive(Debug, Default)]
@@ -27,8 +26,6 @@ struct Stats {
     codings: [[usize; MODEL_COUNT]; 2],
     /// Leaves per control quantiser.
     cquant: [usize; CONTROL_QUANTISERS],
-    /// Leaves per weight quantiser.
-    wquant: [usize; 4],
     /// Leaves per model whose control points are one pixel apart.
     pixel_grids: [usize; MODEL_COUNT],
 }
@@ -44,7 +41,6 @@ impl Stats {
         let coding = usize::from(info.coding == ControlCoding::Transform);
         self.codings[coding][model] += 1;
         self.cquant[usize::from(info.cquant)] += 1;
-        self.wquant[usize::from(info.wquant)] += 1;
     }
 
     fn print(&self, input: &Path, header: &Header, stream_len: usize) {
@@ -91,12 +87,6 @@ impl Stats {
                 ),
             }
         );
-        let codebooks = if header.has_codebooks() {
-            "Lloyd-Max (line, cell)"
-        } else {
-            "none"
-        };
-        say!("  codebooks        {codebooks}");
         let total: usize = self.per_depth.values().sum();
         say!("  leaves           {total}");
         for (log2, n) in self.per_depth.iter().rev() {
@@ -111,10 +101,6 @@ impl Stats {
         say!(
             "  control quantiser use (steps {CONTROL_STEPS:?} /16 grey): {:?}",
             self.cquant
-        );
-        say!(
-            "  weight quantiser use (default, fine, coarse, Lloyd-Max): {:?}",
-            self.wquant
         );
     }
 }

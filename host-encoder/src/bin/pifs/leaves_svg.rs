@@ -11,8 +11,7 @@ use std::fmt::Write;
 use std::path::Path;
 
 /// Outline colour per model: saturated hues that stand out on grey.
-pub const MODEL_COLOURS: [&str; MODEL_COUNT] =
-    ["#ff3030", "#ffd700", "#30d030", "#00c8ff", "#ff40ff"];
+pub const MODEL_COLOURS: [&str; MODEL_COUNT] = ["#ff3030", "#ffd700", "#30d030", "#ff40ff"];
 
 /// Images are drawn at least this large (the larger side, screen pixels), magnified by a
 /// whole factor, so that the outlines of small leaves stay apart.

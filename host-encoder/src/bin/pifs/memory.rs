@@ -9,9 +9,7 @@
 //! 259 MB, mosaics of Kodak images of 3072x2048 540 MB and 6000x4000 2.04 GB (in bands):
 //! about 100 bytes per pixel beside a fixed part of about 10 MB, and 170 for noise; with
 //! `--min-leaf-log2 1` 105 MB and 258 MB for the first two (235 to 380 bytes), with 3 38 MB
-//! and 55 MB (43 to 113);
-//! with `--fit-weights` the fitting's temporaries make the peak vary from run to run (the 1024²
-//! tiling 250 to 440 MB over three runs, 240 to 420 bytes). [`encode_bytes`] rounds these up.
+//! and 55 MB (43 to 113). [`encode_bytes`] rounds these up.
 //!
 //! A colour encode analyses the luma plane and keeps, at every node, what its chroma costs
 //! (the hull of its chroma options): RGB noise of 500² peaked at 56 MB against 52 MB in
@@ -28,18 +26,12 @@
 //! `ulimit -d`, `prlimit`) leave. Linux only; elsewhere nothing is known and only
 //! `--max-pixels` bounds an encode.
 
-/// Bytes of the analysis per pixel, and a fixed part, by the smallest leaf (log2) and whether
-/// weights are fitted.
-fn analysis_bytes_per_pixel(min_leaf_log2: u8, fit_weights: bool) -> u64 {
-    let base = match min_leaf_log2 {
+/// Bytes of the analysis per pixel, by the smallest leaf (log2).
+fn analysis_bytes_per_pixel(min_leaf_log2: u8) -> u64 {
+    match min_leaf_log2 {
         0 | 1 => 600,
         2 => 300,
         _ => 200,
-    };
-    if fit_weights {
-        base * 2
-    } else {
-        base
     }
 }
 
@@ -65,24 +57,18 @@ fn image_bytes_per_pixel(channels: u8) -> u64 {
 /// rotation is applied) with the 8-bit plane and RGB (which a colour type gets even for a
 /// grayscale stream), then the analysis and the pixels beside it ([`image_bytes_per_pixel`];
 /// a quality target that analyses again frees the first analysis before).
-pub fn encode_bytes(
-    pixels: u64,
-    decoded_bytes: u64,
-    channels: u8,
-    min_leaf_log2: u8,
-    fit_weights: bool,
-) -> u64 {
+pub fn encode_bytes(pixels: u64, decoded_bytes: u64, channels: u8, min_leaf_log2: u8) -> u64 {
     let decoding = decoded_bytes
         .saturating_mul(2)
         .saturating_add(pixels.saturating_mul(4));
-    let analysing = pixels.saturating_mul(per_pixel(channels, min_leaf_log2, fit_weights));
+    let analysing = pixels.saturating_mul(per_pixel(channels, min_leaf_log2));
     decoding.max(analysing).saturating_add(FIXED_BYTES)
 }
 
 /// Bytes per pixel of an encode into `channels` channels with these settings, the analysis
 /// and the pixels beside it (for messages).
-pub fn per_pixel(channels: u8, min_leaf_log2: u8, fit_weights: bool) -> u64 {
-    analysis_bytes_per_pixel(min_leaf_log2, fit_weights) + image_bytes_per_pixel(channels)
+pub fn per_pixel(channels: u8, min_leaf_log2: u8) -> u64 {
+    analysis_bytes_per_pixel(min_leaf_log2) + image_bytes_per_pixel(channels)
 }
 
 /// The memory this process may still use, as far as the system says (Linux), bytes.
@@ -209,17 +195,16 @@ mod tests {
 
     #[test]
     fn the_estimate_grows_with_the_pixels_and_the_settings() {
-        let small = encode_bytes(1_000_000, 3_000_000, 1, 2, false);
+        let small = encode_bytes(1_000_000, 3_000_000, 1, 2);
         // 300 bytes a pixel for the analysis, 2 for the pixels, 64 MiB beside them.
         assert_eq!(small, 302_000_000 + (64 << 20));
-        assert!(encode_bytes(1_000_000, 3_000_000, 1, 1, false) > small);
-        assert!(encode_bytes(1_000_000, 3_000_000, 1, 3, false) < small);
-        assert!(encode_bytes(1_000_000, 3_000_000, 1, 2, true) > small);
+        assert!(encode_bytes(1_000_000, 3_000_000, 1, 1) > small);
+        assert!(encode_bytes(1_000_000, 3_000_000, 1, 3) < small);
         // Colour: the RGB pixels and the nodes' chroma costs beside the luma analysis.
-        let colour = encode_bytes(1_000_000, 3_000_000, 3, 2, false);
+        let colour = encode_bytes(1_000_000, 3_000_000, 3, 2);
         assert_eq!(colour - small, 34_000_000);
-        assert_eq!(per_pixel(3, 2, false) - per_pixel(1, 2, false), 34);
-        assert_eq!(encode_bytes(u64::MAX, u64::MAX, 3, 2, true), u64::MAX);
+        assert_eq!(per_pixel(3, 2) - per_pixel(1, 2), 34);
+        assert_eq!(encode_bytes(u64::MAX, u64::MAX, 3, 2), u64::MAX);
     }
 
     #[cfg(target_os = "linux")]
