@@ -148,20 +148,23 @@ impl Analysis {
     /// Best stream of at most `budget` bytes: planned without edge smoothing, then, if a
     /// smoothing strength lowers that plan's error ([`Analysis::smoothing_for`]), planned again
     /// with it from where the first planning ended (smoothing changes the stream's size a
-    /// little), keeping the better.
+    /// little). If that stream's error is larger than the unsmoothed one's, the next weaker
+    /// strength that passes is planned, and so on: the picture goes unsmoothed only when no
+    /// strength keeps the error (see docs/decisions.md).
     fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
         let unsmoothed = self.fit_budget(header, budget, None)?;
-        let Some(deblock) = self.smoothing_for(header, &unsmoothed.plan, &unsmoothed.encoded)?
-        else {
-            return Ok(unsmoothed.encoded);
-        };
-        let smoothed_header = Header { deblock, ..*header };
-        let smoothed = self.fit_budget(&smoothed_header, budget, Some(&unsmoothed))?;
-        Ok(if smoothed.encoded.sse <= unsmoothed.encoded.sse {
-            smoothed.encoded
-        } else {
-            unsmoothed.encoded
-        })
+        let mut below = u8::MAX;
+        while let Some(deblock) =
+            self.smoothing_for(header, &unsmoothed.plan, &unsmoothed.encoded, below)?
+        {
+            let smoothed_header = Header { deblock, ..*header };
+            let smoothed = self.fit_budget(&smoothed_header, budget, Some(&unsmoothed))?;
+            if smoothed.encoded.sse <= unsmoothed.encoded.sse {
+                return Ok(smoothed.encoded);
+            }
+            below = deblock;
+        }
+        Ok(unsmoothed.encoded)
     }
 
     /// Best stream of at most `budget` bytes with `header`'s edge smoothing, and its plan. The
@@ -301,7 +304,7 @@ impl Analysis {
         plan: &rate::Plan,
         unsmoothed: Encoded,
     ) -> Result<Encoded, EncodeError> {
-        let Some(deblock) = self.smoothing_for(header, plan, &unsmoothed)? else {
+        let Some(deblock) = self.smoothing_for(header, plan, &unsmoothed, u8::MAX)? else {
             return Ok(unsmoothed);
         };
         let header = Header { deblock, ..*header };
@@ -310,8 +313,8 @@ impl Analysis {
     }
 
     /// The smoothing of leaf edges ([`Header::deblock`]) for the streams of `plan` when the
-    /// analysis has no fixed strength: the strongest that leaves the error no larger than
-    /// `unsmoothed`'s (the plan's stream without smoothing); `None` for none. Smoothing steps
+    /// analysis has no fixed strength: the strongest below `below` that leaves the error no
+    /// larger than `unsmoothed`'s (the plan's stream without smoothing); `None` for none. Smoothing steps
     /// across leaf edges makes the picture continuous where the leaves' errors differ; among
     /// the strengths that do not cost fidelity, the strongest leaves the fewest visible edges
     /// (see docs/decisions.md).
@@ -320,6 +323,7 @@ impl Analysis {
         header: &Header,
         plan: &rate::Plan,
         unsmoothed: &Encoded,
+        below: u8,
     ) -> Result<Option<u8>, EncodeError> {
         if self.deblock.is_some() {
             // Fixed: already in the header.
@@ -330,7 +334,7 @@ impl Analysis {
             .iter()
             .rev()
             .copied()
-            .filter(|&d| d != 0)
+            .filter(|&d| d != 0 && d < below)
             .collect();
         for batch in strengths.chunks(rayon::current_num_threads().max(1)) {
             let errors: Vec<Result<f64, EncodeError>> = batch
