@@ -468,10 +468,11 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
 /// Reads exactly the header's bytes from `source` and parses them; returns the header and the
 /// CRC-32 state after its checksummed bytes.
 ///
-/// The fixed part is read first; further bytes (the payload length) are pulled one at a time only while [`Header::parse`] reports the header as truncated, so the
-/// source is left at the first payload byte. Errors are those of [`Header::parse`] on the same
-/// bytes; a source that ends early gives [`DecodeError::Truncated`] (or
-/// [`DecodeError::BadMagic`], like a short slice would).
+/// The fixed part is read first; further bytes (the payload length) are pulled one at a time
+/// only while [`Header::parse`] reports the header as truncated, so the source is left at the
+/// first payload byte. Errors are those of [`Header::parse`] on the same bytes; a source that
+/// ends early gives [`DecodeError::Truncated`] (or [`DecodeError::BadMagic`], like a short
+/// slice would).
 fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeError> {
     let mut buf = [0u8; MAX_HEADER_LEN];
     let mut len = 0;

@@ -441,7 +441,8 @@ impl WithCandidates for Analysis {
     }
 }
 
-/// The header of the streams of `plane` under `config` (its payload yet unknown), or [`EncodeError::BadDimensions`] if the format cannot hold the image.
+/// The header of the streams of `plane` under `config` (its payload yet unknown), or
+/// [`EncodeError::BadDimensions`] if the format cannot hold the image.
 fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeError> {
     header_of_size(plane.width, plane.height, config)
 }
@@ -725,8 +726,9 @@ fn final_candidates(
     prune_node(na, &bits, &ALL_LAMBDAS)
 }
 
-/// Adds to node `na`, for each of its candidates `vary` lists, the same quantisers rounding its control indices with each of [`ROUNDING_VARIANTS`] (where
-/// that changes an index): points between those of its control steps.
+/// Adds to node `na`, for each of its candidates `vary` lists, the same quantisers rounding
+/// its control indices with each of [`ROUNDING_VARIANTS`] (where that changes an index):
+/// points between those of its control steps.
 fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, vary: &[u16]) {
     // Each fit is made again (with its targets) once, for all its candidates.
     let mut made: Vec<Option<(Fit, ControlTargets)>> = (0..na.fits.len()).map(|_| None).collect();

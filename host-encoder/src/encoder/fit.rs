@@ -137,7 +137,7 @@ pub fn fit_default(plane: &Plane, node: &Node, model_id: ModelId) -> Fit {
         (c, None)
     };
     let mut control = exact.clone();
-    clamp_params(&mut control);
+    clamp_control(&mut control);
     let unclamped = (residual.is_some() && control != exact).then(|| exact.into());
     Fit {
         model: model_id,
@@ -516,7 +516,7 @@ fn normal_equations(
     (jtj, jtr, total)
 }
 
-fn clamp_params(control: &mut [f64]) {
+fn clamp_control(control: &mut [f64]) {
     for c in control {
         *c = c.clamp(-200.0, 450.0);
     }
@@ -556,7 +556,7 @@ fn least_squares(
         for (t, d) in trial.iter_mut().zip(delta.iter()) {
             *t += d;
         }
-        clamp_params(&mut trial);
+        clamp_control(&mut trial);
         let trial_sse = sse(plane, node, model, lattice, &trial);
         if trial_sse.is_finite() && trial_sse < current {
             *control = trial;
