@@ -58,6 +58,6 @@ pub mod packets;
 
 pub use encoder::{
     analyse, analyse_colour, analysis_steps, psnr, Analysis, AnalysisStage, AnalysisSteps,
-    AnalysisTiming, ColourPlanes, EncodeError, Encoded, EncoderConfig, Plane, Target,
+    AnalysisTiming, ColourPlanes, EncodeError, Encoded, EncoderConfig, Plane, Target, Tune,
     CHROMA_WEIGHTS, FINE_STEP_MARGIN, MIN_TRIAL_BPP,
 };

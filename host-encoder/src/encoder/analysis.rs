@@ -19,6 +19,7 @@ use super::config::EncoderConfig;
 use super::error::EncodeError;
 use super::fit::{fit_default, prepare_projections, Fit};
 use super::ids::{ControlQuantiserId, ModelId};
+use super::masking::Masking;
 use super::plane::{ImagePrediction, Plane};
 use super::quantise::{quantise, ControlTargets, Quantised, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
 use super::rate::{
@@ -140,7 +141,11 @@ impl Analysis {
             header.channels = 3;
         }
         let mut analysis = Analysis {
-            tree: CandidateTree::new(empty_levels(&plane, &header), header.min_leaf_log2),
+            tree: CandidateTree::new(
+                empty_levels(&plane, &header),
+                header.min_leaf_log2,
+                Masking::of(&plane, config.tune),
+            ),
             plane,
             header,
             rates: RateTable::empty(),
@@ -188,16 +193,18 @@ impl Analysis {
             window: (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW),
         };
         let (plane, header) = (&self.plane, &self.header);
-        let bits = self
-            .tree
-            .levels_mut()
+        let (levels, masking) = self.tree.levels_and_masking_mut();
+        let bits = levels
             .iter_mut()
             .map(|level| {
                 level
                     .nodes
                     .par_iter_mut()
                     .map(|na| match na {
-                        Some(na) => final_candidates(plane, header, na, &trial),
+                        Some(na) => {
+                            let weight = masking.weight(&na.node);
+                            final_candidates(plane, header, (na, weight), &trial)
+                        }
                         None => Vec::new(),
                     })
                     .collect()
@@ -249,8 +256,9 @@ impl Analysis {
             floor: trial_lambda / margin,
         };
         let (plane, header) = (&self.plane, &self.header);
+        let (levels, masking) = self.tree.levels_and_masking_mut();
         // Each node's chain ends are dropped once its fine pass is done.
-        for ((level, bits), ends) in self.tree.levels_mut().iter_mut().zip(&mut bits).zip(ends) {
+        for ((level, bits), ends) in levels.iter_mut().zip(&mut bits).zip(ends) {
             if level.log2 > header.max_leaf_log2 {
                 continue;
             }
@@ -261,7 +269,8 @@ impl Analysis {
                 .zip(ends)
                 .for_each(|((na, bits), ends)| {
                     if let Some(na) = na {
-                        fine_candidates(plane, header, na, &ends, &search, bits);
+                        let weight = masking.weight(&na.node);
+                        fine_candidates(plane, header, (na, weight), &ends, &search, bits);
                         *bits = prune_node(na, bits, &ALL_LAMBDAS);
                     }
                     report();
@@ -397,13 +406,8 @@ impl Analysis {
         let (plane, header) = (&self.plane, &self.header);
         let colour = self.colour.as_ref();
         let stripe = header.stripe_width();
-        let levels = self
-            .tree
-            .levels_mut()
-            .iter_mut()
-            .zip(fits)
-            .zip(out.0)
-            .zip(out.1);
+        let (levels, masking) = self.tree.levels_and_masking_mut();
+        let levels = levels.iter_mut().zip(fits).zip(out.0).zip(out.1);
         for (((level, fits), bits), ends) in levels {
             if level.log2 > header.max_leaf_log2 {
                 continue;
@@ -415,12 +419,13 @@ impl Analysis {
                 .map(|(na, fits)| {
                     let out = match na {
                         Some(na) => {
+                            let weight = masking.weight(&na.node);
                             if let Some(colour) = colour {
-                                na.chroma = chroma::leaf_cost(colour, &na.node, stripe);
+                                na.chroma = chroma::leaf_cost(colour, &na.node, stripe, weight);
                             }
                             na.fits = fits.iter().map(|f| f.model).collect();
                             let (bits, ends) =
-                                coarse_candidates(plane, header, na, &fits, start, first);
+                                coarse_candidates(plane, header, (na, weight), &fits, start, first);
                             (prune_node(na, &bits, &ALL_LAMBDAS), ends)
                         }
                         None => (Vec::new(), Vec::new()),
@@ -671,16 +676,17 @@ fn prediction_of<'a>(plane: &'a Plane, header: &Header) -> ImagePrediction<'a> {
 }
 
 /// Quantises `fit` (the node's fit of chain `chain`, whose targets are `targets`) with control
-/// quantiser `cq`, measures its error and adds it to `na`'s candidates.
+/// quantiser `cq`, measures its error (times the node's `weight`, [`Masking`]) and adds it to
+/// `na`'s candidates.
 fn add_candidate(
     plane: &Plane,
-    na: &mut NodeAnalysis,
+    (na, weight): (&mut NodeAnalysis, f64),
     (fit, targets): (&Fit, &ControlTargets),
     chain: Chain,
     cq: ControlQuantiserId,
 ) {
     let q = quantise(fit, targets, cq, chain.coding, ROUNDING_LAMBDA);
-    let sse = quantised_sse(plane, &na.node, fit, &q);
+    let sse = quantised_sse(plane, &na.node, fit, &q) * weight;
     let nc = fit.model.model().control_count();
     let at = na.indices.len() as u32;
     na.indices.extend_from_slice(&q.leaf.control[..nc]);
@@ -707,17 +713,18 @@ struct Trial<'a> {
 /// that are its best leaf for some multiplier, adds the rounding variants of those best near
 /// the trial's multiplier ([`add_rounding_variants`]), and keeps again what pays. Returns the
 /// kept candidates' bits. Node by node, so that no node's variants wait for the others'.
+/// `weight`: the node's error weight ([`Masking`]).
 fn final_candidates(
     plane: &Plane,
     header: &Header,
-    na: &mut NodeAnalysis,
+    (na, weight): (&mut NodeAnalysis, f64),
     trial: &Trial,
 ) -> Vec<f32> {
     let bits = node_bits(na, &trial.prediction, trial.snapshot);
     let mut bits = prune_node(na, &bits, &ALL_LAMBDAS);
     let vary = node_hull(na, &bits, &trial.window);
     let known = na.candidates.len();
-    add_rounding_variants(plane, header, na, &vary);
+    add_rounding_variants(plane, header, (na, weight), &vary);
     let mut ctx = trial.snapshot.clone();
     bits.reserve(na.candidates.len() - known);
     for c in &na.candidates[known..] {
@@ -728,8 +735,14 @@ fn final_candidates(
 
 /// Adds to node `na`, for each of its candidates `vary` lists, the same quantisers rounding
 /// its control indices with each of [`ROUNDING_VARIANTS`] (where that changes an index):
-/// points between those of its control steps.
-fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, vary: &[u16]) {
+/// points between those of its control steps. Their errors are weighted by `weight`, as the
+/// node's others are.
+fn add_rounding_variants(
+    plane: &Plane,
+    header: &Header,
+    (na, weight): (&mut NodeAnalysis, f64),
+    vary: &[u16],
+) {
     // Each fit is made again (with its targets) once, for all its candidates.
     let mut made: Vec<Option<(Fit, ControlTargets)>> = (0..na.fits.len()).map(|_| None).collect();
     let most = vary.len() * ROUNDING_VARIANTS.len();
@@ -751,7 +764,7 @@ fn add_rounding_variants(plane: &Plane, header: &Header, na: &mut NodeAnalysis, 
             }
             na.indices.extend_from_slice(&q.leaf.control[..n]);
             na.candidates.push(Candidate {
-                sse: quantised_sse(plane, &na.node, fit, &q),
+                sse: quantised_sse(plane, &na.node, fit, &q) * weight,
                 at: at as u32,
                 ..c
             });
@@ -780,7 +793,7 @@ struct ChainEnd {
 fn coarse_candidates(
     plane: &Plane,
     header: &Header,
-    na: &mut NodeAnalysis,
+    (na, weight): (&mut NodeAnalysis, f64),
     fits: &[Fit],
     start: &Contexts,
     first: u8,
@@ -806,12 +819,12 @@ fn coarse_candidates(
     let mut ends = Vec::new();
     for (fit, chains) in fits.iter().zip(chains).rev() {
         let targets = targets_of(plane, header, &na.node, fit);
-        let residual = error_floor(&na.node, fit);
+        let residual = error_floor(&na.node, fit) * weight;
         for chain in chains {
             let mut end = None;
             let tried = ControlQuantiserId::all().filter(|cq| cq.get() >= first);
             for cq in tried.rev() {
-                add_candidate(plane, na, (fit, &targets), chain, cq);
+                add_candidate(plane, (na, weight), (fit, &targets), chain, cq);
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
                 bits.push(b);
@@ -857,7 +870,7 @@ struct FineSearch<'a> {
 fn fine_candidates(
     plane: &Plane,
     header: &Header,
-    na: &mut NodeAnalysis,
+    (na, weight): (&mut NodeAnalysis, f64),
     ends: &[ChainEnd],
     search: &FineSearch,
     bits: &mut Vec<f32>,
@@ -878,7 +891,7 @@ fn fine_candidates(
     for same_fit in ends.chunk_by(|a, b| a.chain.fit == b.chain.fit) {
         let fit = fit_default(plane, &na.node, na.fits[usize::from(same_fit[0].chain.fit)]);
         let targets = targets_of(plane, header, &na.node, &fit);
-        let residual = error_floor(&na.node, &fit);
+        let residual = error_floor(&na.node, &fit) * weight;
         for end in same_fit {
             let chain = end.chain;
             let (mut last_bits, mut last_sse) = (end.bits, end.sse);
@@ -886,7 +899,7 @@ fn fine_candidates(
                 .filter(|cq| cq.get() < search.first)
                 .rev()
             {
-                add_candidate(plane, na, (&fit, &targets), chain, cq);
+                add_candidate(plane, (na, weight), (&fit, &targets), chain, cq);
                 let c = na.candidates[na.candidates.len() - 1];
                 let b = candidate_bits(na, &c, &prediction, &mut ctx);
                 bits.push(b);
@@ -980,7 +993,7 @@ fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::config::{Target, FINE_STEP_MARGIN};
+    use super::super::config::{Target, Tune, FINE_STEP_MARGIN};
     use super::*;
 
     /// A textured test image: a smooth pattern plus noise.
@@ -1082,10 +1095,11 @@ mod tests {
             s
         };
         let mut all = fresh();
-        coarse_candidates(&plane, &header, &mut all, &fits, &start, 0);
+        coarse_candidates(&plane, &header, (&mut all, 1.0), &fits, &start, 0);
         for floor in [f64::INFINITY, f64::NEG_INFINITY] {
             let mut na = fresh();
-            let (mut bits, ends) = coarse_candidates(&plane, &header, &mut na, &fits, &start, 5);
+            let (mut bits, ends) =
+                coarse_candidates(&plane, &header, (&mut na, 1.0), &fits, &start, 5);
             assert!(na.candidates.iter().all(|c| c.cq.get() >= 5));
             let coarse = na.candidates.len();
             let search = FineSearch {
@@ -1093,7 +1107,7 @@ mod tests {
                 first: 5,
                 floor,
             };
-            fine_candidates(&plane, &header, &mut na, &ends, &search, &mut bits);
+            fine_candidates(&plane, &header, (&mut na, 1.0), &ends, &search, &mut bits);
             assert_eq!(bits.len(), na.candidates.len());
             if floor == f64::NEG_INFINITY {
                 assert_eq!(steps(&na), steps(&all));
@@ -1152,6 +1166,52 @@ mod tests {
         };
         let (fine, all) = (psnr_of(&config), psnr_of(&exhaustive));
         assert!(fine > all - 0.05, "{fine} dB against {all} dB");
+    }
+
+    /// Contrast masking moves error from smooth areas to texture: at the same budget, the
+    /// smooth half of an image (a gentle wave) comes out closer to the original with
+    /// [`Tune::Ssim`] than with [`Tune::Psnr`], the noisy half less close, and the plain
+    /// squared error over the whole image is no lower than the PSNR tuning's.
+    #[test]
+    fn ssim_tuning_moves_error_to_texture() {
+        let (w, h) = (128u32, 64u32);
+        let noisy = textured_plane(w, h);
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = (f64::from(i % w), f64::from(i / w));
+                if x < 64.0 {
+                    (100.0 + 40.0 * (x / 6.0).sin() * (y / 8.0).cos()).round() as u8
+                } else {
+                    noisy.data[i as usize]
+                }
+            })
+            .collect();
+        let plane = Plane::new(w, h, data);
+        let target = Target::Bpp(0.5);
+        let halves = |tune: Tune| {
+            let config = EncoderConfig {
+                tune,
+                ..EncoderConfig::for_targets(&[target], (w * h) as usize)
+            };
+            let analysis = Analysis::run(plane.clone(), None, &config, &|_| {}).expect("analysis");
+            let encoded = analysis.encode(target).expect("an encode");
+            let mut sse = [0.0f64; 2];
+            for (i, (&a, &b)) in plane.data.iter().zip(&encoded.reconstruction).enumerate() {
+                let d = f64::from(a) - f64::from(b);
+                sse[usize::from(i as u32 % w >= 64)] += d * d;
+            }
+            (sse, encoded.sse)
+        };
+        let ((psnr_halves, psnr_total), (ssim_halves, ssim_total)) =
+            (halves(Tune::Psnr), halves(Tune::Ssim));
+        assert!(
+            ssim_halves[0] < psnr_halves[0] && ssim_halves[1] > psnr_halves[1],
+            "smooth, textured: {ssim_halves:?} (ssim) against {psnr_halves:?} (psnr)"
+        );
+        assert!(
+            ssim_total >= psnr_total,
+            "{ssim_total} against {psnr_total}"
+        );
     }
 
     /// A node that a bilinear patch reproduces ends the analysis below it: the flat half of an
@@ -1219,7 +1279,14 @@ mod tests {
             indices: Vec::new(),
             chroma: ChromaCost::default(),
         };
-        coarse_candidates(&plane, &header, &mut na, &fits, &Contexts::default(), 0);
+        coarse_candidates(
+            &plane,
+            &header,
+            (&mut na, 1.0),
+            &fits,
+            &Contexts::default(),
+            0,
+        );
         let keep: Vec<u16> = (0..na.candidates.len() as u16).step_by(3).collect();
         let before: Vec<LeafSyntax> = keep
             .iter()

@@ -5,6 +5,7 @@
 //! Above [`super::quantise`] (a candidate is a quantised fit); below [`super::rate`].
 
 use super::ids::{ControlQuantiserId, ModelId};
+use super::masking::Masking;
 use decoder_core::internal::syntax::{ControlCoding, LeafSyntax};
 use decoder_core::Node;
 
@@ -17,7 +18,8 @@ pub struct Candidate {
     pub cq: ControlQuantiserId,
     /// Control coding.
     pub coding: ControlCoding,
-    /// Squared error over the node's in-image pixels.
+    /// Squared error over the node's in-image pixels, times the node's weight
+    /// ([`CandidateTree::masking`]).
     pub sse: f64,
     /// Where its quantised control indices start in [`NodeAnalysis::indices`]: kept, as every
     /// rate table and the writer need them again.
@@ -147,12 +149,14 @@ impl Level {
 pub struct CandidateTree {
     levels: Vec<Level>,
     min_leaf_log2: u8,
+    /// The weights of the candidates' errors.
+    masking: Masking,
 }
 
 impl CandidateTree {
     /// The tree of `levels`, whose first is of side `2^min_leaf_log2`, the next twice that, and
-    /// so on.
-    pub fn new(levels: Vec<Level>, min_leaf_log2: u8) -> CandidateTree {
+    /// so on, whose candidates' errors are weighted by `masking`.
+    pub fn new(levels: Vec<Level>, min_leaf_log2: u8, masking: Masking) -> CandidateTree {
         debug_assert!(levels
             .iter()
             .zip(min_leaf_log2..)
@@ -160,7 +164,19 @@ impl CandidateTree {
         CandidateTree {
             levels,
             min_leaf_log2,
+            masking,
         }
+    }
+
+    /// The weights of the candidates' errors: a candidate's `sse` is its squared error times
+    /// its node's weight.
+    pub fn masking(&self) -> &Masking {
+        &self.masking
+    }
+
+    /// The levels, to add or drop candidates, with the weights their errors get.
+    pub fn levels_and_masking_mut(&mut self) -> (&mut [Level], &Masking) {
+        (&mut self.levels, &self.masking)
     }
 
     /// The levels, from the smallest leaf (index 0) to the root.

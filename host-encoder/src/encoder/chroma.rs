@@ -569,8 +569,9 @@ pub fn choose<P: SamplePrediction>(
 
 /// What coding the chroma of the luma node `node` as a leaf costs, estimated from the image's
 /// own chroma (its frontier) and the contexts every stream starts from: for each plane, its
-/// options on the lower convex hull of (bits, weighted error).
-pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost {
+/// options on the lower convex hull of (bits, weighted error), the error also times the node's
+/// `weight` (as its luma's, [`super::masking::Masking`]).
+pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32, weight: f64) -> ChromaCost {
     let cnode = chroma_node(node);
     let contexts = ChromaContexts::default();
     let mut planes: [Vec<RatePoint>; 2] = Default::default();
@@ -600,8 +601,8 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32) -> ChromaCost 
                 let Some(bits) = option_bits(syntax, &mut ctx, &cnode, &prediction) else {
                     continue;
                 };
-                let weighted_sse = 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, &cnode, &rec);
-                options.push((bits, weighted_sse));
+                let rgb_sse = 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, &cnode, &rec);
+                options.push((bits, weight * rgb_sse));
             }
         }
         *hull = lower_hull(&options)

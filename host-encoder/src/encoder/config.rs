@@ -34,6 +34,21 @@ pub struct EncoderConfig {
     /// above the trial's are not searched). `None`: every step at every node, for an
     /// analysis that must serve any target.
     pub fine_steps: Option<f64>,
+    /// What the analysis minimises besides the bits: the plain squared error, or the error
+    /// weighted by local contrast ([`Tune`]).
+    pub tune: Tune,
+}
+
+/// What an encode's distortion is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Tune {
+    /// The squared error, every pixel alike: the most PSNR for the bytes.
+    Psnr,
+    /// The squared error weighted by local contrast, as SSIM and the eye weigh it: an error
+    /// on a smooth surface counts more than the same error in texture. Higher SSIM for a few
+    /// hundredths of a dB of PSNR (see docs/decisions.md).
+    #[default]
+    Ssim,
 }
 
 /// The default stripe width, in coding tiles: decoder-core's default stripe capacity.
@@ -64,6 +79,7 @@ impl Default for EncoderConfig {
             stripe: DEFAULT_STRIPE_TILES,
             deblock: None,
             fine_steps: None,
+            tune: Tune::default(),
         }
     }
 }

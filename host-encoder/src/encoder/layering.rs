@@ -7,6 +7,7 @@
 const LAYERS: &[&[&str]] = &[
     &["ids", "plane", "config"],
     &["error"],
+    &["masking"],
     &["synthesis"],
     &["fit"],
     &["quantise"],

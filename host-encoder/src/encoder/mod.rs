@@ -20,6 +20,7 @@ mod config;
 mod error;
 mod fit;
 mod ids;
+mod masking;
 mod plane;
 mod quantise;
 mod rate;
@@ -31,7 +32,7 @@ mod layering;
 
 pub use analysis::{analysis_steps, Analysis, AnalysisStage, AnalysisSteps, AnalysisTiming};
 pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
-pub use config::{EncoderConfig, Target, FINE_STEP_MARGIN, MIN_TRIAL_BPP};
+pub use config::{EncoderConfig, Target, Tune, FINE_STEP_MARGIN, MIN_TRIAL_BPP};
 pub use error::EncodeError;
 pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;
@@ -70,6 +71,25 @@ struct BudgetFit {
     plan: rate::Plan,
     encoded: Encoded,
     aim: f64,
+}
+
+/// Which error a smoothing strength must not add to.
+#[derive(Debug, Clone, Copy)]
+enum Fidelity {
+    /// The error the analysis minimises ([`Analysis::distortion`]): for budgets.
+    Weighted,
+    /// The plain squared error: for PSNR targets, which smoothing must not make miss.
+    Plain,
+}
+
+impl Fidelity {
+    /// This error of `encoded`, a stream of `analysis`.
+    fn error(self, analysis: &Analysis, encoded: &Encoded) -> f64 {
+        match self {
+            Fidelity::Weighted => analysis.distortion(encoded),
+            Fidelity::Plain => encoded.sse,
+        }
+    }
 }
 
 /// Most passes that spend the bytes a budget's stream left unused.
@@ -135,6 +155,25 @@ impl Analysis {
         })
     }
 
+    /// What the analysis minimises, of a written stream: its squared error, weighted as the
+    /// candidates' ([`masking::Masking`]).
+    fn distortion(&self, encoded: &Encoded) -> f64 {
+        let reference = match &self.colour {
+            Some(colour) => &colour.rgb,
+            None => &self.plane.data,
+        };
+        let channels = usize::from(encoded.channels);
+        self.tree
+            .masking()
+            .weighted_sse(
+                self.plane.width,
+                channels,
+                reference,
+                &encoded.reconstruction,
+            )
+            .unwrap_or(encoded.sse)
+    }
+
     fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
         writer::write(
             &self.tree,
@@ -146,20 +185,25 @@ impl Analysis {
     }
 
     /// Best stream of at most `budget` bytes: planned without edge smoothing, then, if a
-    /// smoothing strength lowers that plan's error ([`Analysis::smoothing_for`]), planned again
-    /// with it from where the first planning ended (smoothing changes the stream's size a
-    /// little). If that stream's error is larger than the unsmoothed one's, the next weaker
-    /// strength that passes is planned, and so on: the picture goes unsmoothed only when no
-    /// strength keeps the error (see docs/decisions.md).
+    /// smoothing strength lowers that plan's error ([`Analysis::smoothing_for`], the error as
+    /// the analysis weighs it: [`Analysis::distortion`]), planned again with it from where the
+    /// first planning ended (smoothing changes the stream's size a little). If that stream's
+    /// error is larger than the unsmoothed one's, the next weaker strength that passes is
+    /// planned, and so on: the picture goes unsmoothed only when no strength keeps the error
+    /// (see docs/decisions.md).
     fn encode_budget(&self, header: &Header, budget: usize) -> Result<Encoded, EncodeError> {
         let unsmoothed = self.fit_budget(header, budget, None)?;
         let mut below = u8::MAX;
-        while let Some(deblock) =
-            self.smoothing_for(header, &unsmoothed.plan, &unsmoothed.encoded, below)?
-        {
+        while let Some(deblock) = self.smoothing_for(
+            header,
+            &unsmoothed.plan,
+            &unsmoothed.encoded,
+            below,
+            Fidelity::Weighted,
+        )? {
             let smoothed_header = Header { deblock, ..*header };
             let smoothed = self.fit_budget(&smoothed_header, budget, Some(&unsmoothed))?;
-            if smoothed.encoded.sse <= unsmoothed.encoded.sse {
+            if self.distortion(&smoothed.encoded) <= self.distortion(&unsmoothed.encoded) {
                 return Ok(smoothed.encoded);
             }
             below = deblock;
@@ -304,7 +348,9 @@ impl Analysis {
         plan: &rate::Plan,
         unsmoothed: Encoded,
     ) -> Result<Encoded, EncodeError> {
-        let Some(deblock) = self.smoothing_for(header, plan, &unsmoothed, u8::MAX)? else {
+        let Some(deblock) =
+            self.smoothing_for(header, plan, &unsmoothed, u8::MAX, Fidelity::Plain)?
+        else {
             return Ok(unsmoothed);
         };
         let header = Header { deblock, ..*header };
@@ -313,17 +359,18 @@ impl Analysis {
     }
 
     /// The smoothing of leaf edges ([`Header::deblock`]) for the streams of `plan` when the
-    /// analysis has no fixed strength: the strongest below `below` that leaves the error no
-    /// larger than `unsmoothed`'s (the plan's stream without smoothing); `None` for none. Smoothing steps
-    /// across leaf edges makes the picture continuous where the leaves' errors differ; among
-    /// the strengths that do not cost fidelity, the strongest leaves the fewest visible edges
-    /// (see docs/decisions.md).
+    /// analysis has no fixed strength: the strongest below `below` that leaves the error
+    /// (`fidelity`'s) no larger than `unsmoothed`'s (the plan's stream without smoothing);
+    /// `None` for none. Smoothing steps across leaf edges makes the picture continuous where
+    /// the leaves' errors differ; among the strengths that do not cost fidelity, the strongest
+    /// leaves the fewest visible edges (see docs/decisions.md).
     fn smoothing_for(
         &self,
         header: &Header,
         plan: &rate::Plan,
         unsmoothed: &Encoded,
         below: u8,
+        fidelity: Fidelity,
     ) -> Result<Option<u8>, EncodeError> {
         if self.deblock.is_some() {
             // Fixed: already in the header.
@@ -342,11 +389,12 @@ impl Analysis {
                 .map(|&deblock| {
                     let header = Header { deblock, ..*header };
                     let written = self.write(&header, plan)?;
-                    Ok(self.finish(plan, written)?.sse)
+                    Ok(fidelity.error(self, &self.finish(plan, written)?))
                 })
                 .collect();
-            for (&deblock, sse) in batch.iter().zip(errors) {
-                if sse? <= unsmoothed.sse {
+            let limit = fidelity.error(self, unsmoothed);
+            for (&deblock, error) in batch.iter().zip(errors) {
+                if error? <= limit {
                     return Ok(Some(deblock));
                 }
             }

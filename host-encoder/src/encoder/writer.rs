@@ -203,13 +203,16 @@ impl TreeVisitor for PlanVisitor<'_> {
                 // The tape ran out (it should not): choose from here on, recording nothing.
                 self.replay = Some(usize::MAX);
             }
+            // The node's errors count `weight` times, as in the analysis: the same choice as
+            // its bits counting `1 / weight` times.
+            let weight = self.tree.masking().chroma_weight(node);
             let choice = choose(
                 &colour.chroma[plane & 1],
                 plane,
                 node,
                 prediction,
                 contexts,
-                self.plan.lambda,
+                self.plan.lambda / weight,
                 self.cache,
             );
             *leaf = choice.syntax;

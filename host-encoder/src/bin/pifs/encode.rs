@@ -14,7 +14,7 @@ use crate::say;
 use clap::Args;
 use host_encoder::io::{self, Content, ImageLimits, ImageProbe, Output};
 use host_encoder::{
-    analyse, analyse_colour, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target,
+    analyse, analyse_colour, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target, Tune,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -229,6 +229,20 @@ pub struct AnalysisArgs {
     /// the error), or 0 (none) to 16.
     #[arg(long, default_value = "auto", value_parser = parse_deblock)]
     pub deblock: Deblock,
+    /// What the encoder minimises with the bytes: `ssim`, the error weighted by local contrast
+    /// as the eye sees it (an error on a smooth surface counts more than in texture), or
+    /// `psnr`, the plain squared error (a few hundredths of a dB more PSNR, less SSIM).
+    #[arg(long, default_value = "ssim", value_parser = parse_tune)]
+    pub tune: Tune,
+}
+
+/// `--tune`: `ssim` or `psnr`.
+fn parse_tune(s: &str) -> std::result::Result<Tune, String> {
+    match s {
+        "ssim" => Ok(Tune::Ssim),
+        "psnr" => Ok(Tune::Psnr),
+        _ => Err(format!("'{s}' is not 'ssim' or 'psnr'")),
+    }
 }
 
 /// `--deblock`: a fixed edge-smoothing strength, or `None` for the encoder's choice.
@@ -271,6 +285,7 @@ impl Default for AnalysisArgs {
             max_leaf_log2: d.max_leaf_log2,
             stripe_width: d.stripe,
             deblock: Deblock(d.deblock),
+            tune: d.tune,
         }
     }
 }
@@ -284,6 +299,7 @@ impl AnalysisArgs {
             max_leaf_log2: self.max_leaf_log2.max(self.min_leaf_log2),
             stripe: self.stripe_width,
             deblock: self.deblock.0,
+            tune: self.tune,
             ..chosen
         }
     }
