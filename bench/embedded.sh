@@ -4,7 +4,8 @@
 #           (stack painting), on Cortex-M3 (lm3s6965evb, 64 KiB RAM) and Cortex-M0 (microbit,
 #           16 KiB RAM);
 #   flash = code + read-only data the decoder adds: firmware with the decoder call minus the
-#           same firmware without it (`baseline` feature), size-optimised release build;
+#           same firmware with a stand-in for the decoder call (`baseline` feature: the same
+#           harness, scaled decodes included), size-optimised release build;
 #   speed = instructions per output pixel on Cortex-M3 and Cortex-M0 (SysTick under
 #           `-icount shift=0`, from decode entry to return), and the instructions of decodes at
 #           1/2, 1/4 and 1/8 of the size as a share of the full decode's.
