@@ -2,10 +2,14 @@
 //! coding the node as a leaf, with its distortion), level by level. Rate control and the writer
 //! read these through [`WithCandidates`], without knowing the analysis that made them.
 //!
-//! Above [`super::quantise`] (a candidate is a quantised fit); below [`super::rate`].
+//! Above [`super::quantise`] (a candidate is a quantised fit, made again when its syntax is
+//! needed); below [`super::rate`].
 
-use super::ids::{ControlQuantiserId, ModelId};
+use super::fit::{fit_default, Fit};
+use super::ids::{ControlQuantiserId, Models};
 use super::masking::Masking;
+use super::plane::ImagePrediction;
+use super::quantise::{quantise, ControlTargets, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
 use decoder_core::internal::syntax::{ControlCoding, LeafSyntax};
 use decoder_core::Node;
 
@@ -18,12 +22,29 @@ pub struct Candidate {
     pub cq: ControlQuantiserId,
     /// Control coding.
     pub coding: ControlCoding,
+    /// How its control indices were rounded: 0 for [`ROUNDING_LAMBDA`], `k + 1` for
+    /// [`ROUNDING_VARIANTS`]`[k]`.
+    pub rounding: u8,
     /// Squared error over the node's in-image pixels, times the node's weight
     /// ([`CandidateTree::masking`]).
     pub sse: f64,
-    /// Where its quantised control indices start in [`NodeAnalysis::indices`]: kept, as every
-    /// rate table and the writer need them again.
+    /// Where its control indices start in [`NodeAnalysis::indices`], if the node holds them.
     pub at: u32,
+}
+
+impl Candidate {
+    /// The multiplier its control indices were rounded with.
+    pub fn rounding_lambda(&self) -> f64 {
+        match self.rounding.checked_sub(1) {
+            None => ROUNDING_LAMBDA,
+            Some(k) => ROUNDING_VARIANTS[usize::from(k)],
+        }
+    }
+}
+
+/// The quantisation targets of `fit`, the fit of `node` in the image `image` predicts from.
+pub fn targets_of(image: &ImagePrediction, node: &Node, fit: &Fit) -> ControlTargets {
+    ControlTargets::of(fit, node.log2).with_edges(image, node, fit.model)
 }
 
 /// The rate and error of one way of coding something.
@@ -72,52 +93,122 @@ pub struct NodeAnalysis {
     /// is made again when a pass needs it ([`super::fit::fit_default`]), as that is cheap next
     /// to quantising it and its control values would be a third of the analysis's memory. A
     /// candidate's `fit` indexes them.
-    pub fits: Box<[ModelId]>,
+    pub fits: Models,
     /// Every (fit, quantiser) pair with its distortion.
     pub candidates: Vec<Candidate>,
-    /// The candidates' indices, one after the other (one allocation per node).
-    pub indices: Vec<i16>,
+    /// The candidates' control indices, one after the other, if the node holds them; if not,
+    /// [`NodeAnalysis::leaf`] makes them again (quantising again costs time, holding them
+    /// every node of a large image costs a third of the analysis's memory). Boxed: a node that
+    /// does not hold them pays one word.
+    #[allow(clippy::box_collection)] // one word, not three, in the many nodes that hold none
+    pub indices: Option<Box<Vec<i16>>>,
     /// What its chroma costs as a leaf (colour analyses only).
     pub chroma: ChromaCost,
 }
 
 impl NodeAnalysis {
-    /// The leaf syntax of candidate `c`.
-    pub fn leaf(&self, c: &Candidate) -> LeafSyntax {
+    /// A node with no candidates yet, holding their indices if `holds`.
+    pub fn new(node: Node, holds: bool) -> NodeAnalysis {
+        NodeAnalysis {
+            node,
+            fits: Models::none(),
+            candidates: Vec::new(),
+            indices: holds.then(Box::default),
+            chroma: ChromaCost::default(),
+        }
+    }
+
+    /// Room for `candidates` more candidates holding `indices` more indices in all.
+    pub fn reserve(&mut self, candidates: usize, indices: usize) {
+        self.candidates.reserve(candidates);
+        if let Some(held) = &mut self.indices {
+            held.reserve(indices);
+        }
+    }
+
+    /// Drops every candidate.
+    pub fn clear(&mut self) {
+        self.candidates.clear();
+        if let Some(held) = &mut self.indices {
+            held.clear();
+        }
+    }
+
+    /// Adds candidate `c` whose syntax is `leaf`.
+    pub fn push(&mut self, mut c: Candidate, leaf: &LeafSyntax) {
+        if let Some(indices) = &mut self.indices {
+            c.at = indices.len() as u32;
+            let n = self.fits[usize::from(c.fit)].model().control_count();
+            indices.extend_from_slice(&leaf.control[..n]);
+        }
+        self.candidates.push(c);
+    }
+
+    /// The leaf syntax of candidate `c`: the indices the node holds, or else made again from
+    /// the image `image` predicts from (the fit, by its model, its targets, then the
+    /// candidate's quantiser and rounding).
+    pub fn leaf(&self, c: &Candidate, image: &ImagePrediction) -> LeafSyntax {
         let model = self.fits[usize::from(c.fit)];
-        let nc = model.model().control_count();
-        let mut leaf = super::ids::leaf_syntax(model, c.cq, c.coding);
-        let at = c.at as usize;
-        leaf.control[..nc].copy_from_slice(&self.indices[at..at + nc]);
-        leaf
+        match &self.indices {
+            Some(indices) => {
+                let nc = model.model().control_count();
+                let mut leaf = super::ids::leaf_syntax(model, c.cq, c.coding);
+                leaf.control[..nc].copy_from_slice(&indices[c.at as usize..][..nc]);
+                leaf
+            }
+            None => {
+                let fit = fit_default(image.plane, &self.node, model);
+                let targets = targets_of(image, &self.node, &fit);
+                quantise(&fit, &targets, c.cq, c.coding, c.rounding_lambda()).leaf
+            }
+        }
     }
 
-    /// How many indices candidate `c` holds in [`NodeAnalysis::indices`].
-    fn index_count(&self, c: &Candidate) -> usize {
-        self.fits[usize::from(c.fit)].model().control_count()
-    }
-
-    /// Keeps the candidates `keep` lists (indices into the candidate list, ascending) and only
-    /// their indices.
-    pub fn retain(&mut self, keep: &[u16]) {
-        let mut indices = Vec::with_capacity(
-            keep.iter()
-                .map(|&k| self.index_count(&self.candidates[usize::from(k)]))
-                .sum(),
-        );
-        let candidates = keep
+    /// The leaf syntax of every candidate, in order ([`NodeAnalysis::leaf`], each fit made
+    /// once).
+    pub fn leaves(&self, image: &ImagePrediction) -> Vec<LeafSyntax> {
+        if self.indices.is_some() {
+            return self
+                .candidates
+                .iter()
+                .map(|c| self.leaf(c, image))
+                .collect();
+        }
+        let mut made: Vec<Option<(Fit, ControlTargets)>> =
+            (0..self.fits.len()).map(|_| None).collect();
+        self.candidates
             .iter()
-            .map(|&k| {
-                let mut c = self.candidates[usize::from(k)];
-                let at = c.at as usize;
-                let n = self.index_count(&c);
+            .map(|c| {
+                let (fit, targets) = made[usize::from(c.fit)].get_or_insert_with(|| {
+                    let fit = fit_default(image.plane, &self.node, self.fits[usize::from(c.fit)]);
+                    let targets = targets_of(image, &self.node, &fit);
+                    (fit, targets)
+                });
+                quantise(fit, targets, c.cq, c.coding, c.rounding_lambda()).leaf
+            })
+            .collect()
+    }
+
+    /// Keeps the candidates `keep` lists (indices into the candidate list, ascending), and
+    /// only their indices.
+    pub fn retain(&mut self, keep: &[u16]) {
+        let kept = keep.iter().map(|&k| self.candidates[usize::from(k)]);
+        let Some(held) = &self.indices else {
+            self.candidates = kept.collect();
+            return;
+        };
+        let count = |c: &Candidate| self.fits[usize::from(c.fit)].model().control_count();
+        let mut indices = Vec::with_capacity(kept.clone().map(|c| count(&c)).sum());
+        let candidates = kept
+            .map(|mut c| {
+                let from = c.at as usize;
                 c.at = indices.len() as u32;
-                indices.extend_from_slice(&self.indices[at..at + n]);
+                indices.extend_from_slice(&held[from..][..count(&c)]);
                 c
             })
             .collect();
         self.candidates = candidates;
-        self.indices = indices;
+        self.indices = Some(Box::new(indices));
     }
 }
 

@@ -42,6 +42,54 @@ impl ModelId {
     }
 }
 
+/// A short list of distinct models (a node's fits, by their models), held inline: a boxed list
+/// cost every analysed node a heap allocation of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Models {
+    ids: [ModelId; MODEL_COUNT],
+    len: u8,
+}
+
+impl Models {
+    /// No model.
+    pub const fn none() -> Models {
+        Models {
+            ids: [ModelId(0); MODEL_COUNT],
+            len: 0,
+        }
+    }
+
+    /// How many models.
+    pub fn len(&self) -> usize {
+        usize::from(self.len)
+    }
+
+    /// The models, in order.
+    pub fn as_slice(&self) -> &[ModelId] {
+        &self.ids[..self.len()]
+    }
+}
+
+impl core::ops::Index<usize> for Models {
+    type Output = ModelId;
+
+    fn index(&self, i: usize) -> &ModelId {
+        &self.as_slice()[i]
+    }
+}
+
+impl FromIterator<ModelId> for Models {
+    /// Panics past [`MODEL_COUNT`] models (a node has one fit per model at most).
+    fn from_iter<I: IntoIterator<Item = ModelId>>(iter: I) -> Models {
+        let mut models = Models::none();
+        for id in iter {
+            models.ids[models.len()] = id;
+            models.len += 1;
+        }
+        models
+    }
+}
+
 /// A control quantiser: an index into [`CONTROL_STEPS`] (the 'cquant' syntax element).
 #[repr(transparent)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]

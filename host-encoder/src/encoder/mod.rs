@@ -174,9 +174,14 @@ impl Analysis {
             .unwrap_or(encoded.sse)
     }
 
+    /// The image as the analysis predicts from it: what its candidates' syntax is made from.
+    fn image(&self) -> plane::ImagePrediction<'_> {
+        analysis::prediction_of(&self.plane, &self.header)
+    }
+
     fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {
         writer::write(
-            &self.tree,
+            (&self.tree, &self.image()),
             header,
             plan,
             self.colour.as_ref(),
@@ -432,7 +437,7 @@ impl Analysis {
         };
         let plan = self.fit_budget(&header, budget, None)?.plan;
         writer::leaf_bits(
-            &self.tree,
+            (&self.tree, &self.image()),
             &header,
             &plan,
             self.colour.as_ref(),

@@ -11,7 +11,7 @@
 use super::candidates::{Candidate, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates};
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
-use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header};
+use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header, LeafSyntax};
 use decoder_core::internal::walk::{node_kind, NodeKind};
 use decoder_core::Node;
 use rayon::prelude::*;
@@ -24,13 +24,13 @@ pub struct RateTable {
     split_bits: Vec<[f64; 2]>,
 }
 
-/// The candidates of one level's nodes: node `i`'s are `first[i]..first[i + 1]`, in the order
-/// of its candidate list.
+/// The bits of one level's nodes' candidates: node `i`'s are `first[i]..first[i + 1]`, in the
+/// order of its candidate list (their errors are read from the candidates themselves, not
+/// copied: a copy was 8 bytes a candidate in every table).
 #[derive(Debug, Clone, Default)]
 struct LevelRates {
     first: Vec<u32>,
     bits: Vec<f32>,
-    sse: Vec<f64>,
 }
 
 impl LevelRates {
@@ -38,23 +38,22 @@ impl LevelRates {
         self.first[node] as usize..self.first[node + 1] as usize
     }
 
-    /// The candidate of node `node` with the least cost `sse + lambda * bits` (the first of
-    /// equals).
-    fn best_leaf(&self, node: usize, lambda: f64) -> Option<LeafChoice> {
-        let range = self.range(node);
-        let start = range.start;
+    /// The candidate of node `node`, whose candidates are `candidates`, with the least cost
+    /// `sse + lambda * bits` (the first of equals).
+    fn best_leaf(&self, node: usize, candidates: &[Candidate], lambda: f64) -> Option<LeafChoice> {
+        let bits = &self.bits[self.range(node)];
         let mut best: Option<LeafChoice> = None;
-        for k in range {
-            let bits = f64::from(self.bits[k]);
-            let j = self.sse[k] + lambda * bits;
+        for (k, (&b, c)) in bits.iter().zip(candidates).enumerate() {
+            let bits = f64::from(b);
+            let j = c.sse + lambda * bits;
             if best.is_none_or(|b| j < b.cost.j) {
                 best = Some(LeafChoice {
                     cost: Cost {
                         j,
-                        sse: self.sse[k],
+                        sse: c.sse,
                         bits,
                     },
-                    candidate: (k - start) as u16,
+                    candidate: k as u16,
                 });
             }
         }
@@ -280,11 +279,16 @@ fn decide(
 impl RateTable {
     /// The rate table of `tree` from the bits of its candidates (per level, per node, in the
     /// order of its candidate list) coded from the context state `snapshot`.
-    pub fn of_bits(
+    /// Owned bits are dropped level by level as the table grows; borrowed ones stay.
+    pub fn of_bits<PerLevel, PerNode>(
         tree: &CandidateTree,
-        bits: Vec<Vec<Vec<f32>>>,
+        bits: impl IntoIterator<Item = PerLevel>,
         snapshot: &Contexts,
-    ) -> RateTable {
+    ) -> RateTable
+    where
+        PerLevel: IntoIterator<Item = PerNode>,
+        PerNode: AsRef<[f32]>,
+    {
         let levels = tree
             .levels()
             .iter()
@@ -296,8 +300,8 @@ impl RateTable {
                 };
                 for (na, bits) in level.nodes.iter().zip(per_node) {
                     if let Some(na) = na {
-                        rates.bits.extend_from_slice(&bits);
-                        rates.sse.extend(na.candidates.iter().map(|c| c.sse));
+                        debug_assert_eq!(bits.as_ref().len(), na.candidates.len());
+                        rates.bits.extend_from_slice(bits.as_ref());
                     }
                     rates.first.push(rates.bits.len() as u32);
                 }
@@ -339,83 +343,105 @@ impl RateTable {
             let flag = &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
             // Nodes of a level are independent given the level below.
             let (below_ref, below_luma_ref) = (&below, &below_luma);
-            let per_node: Vec<NodeCut> = (0..level.cols * rows)
-                .into_par_iter()
-                // A node is a few nanoseconds of work: hand them out in chunks.
-                .with_min_len(1024)
-                .map(|i| {
-                    let (cx, cy) = (i % level.cols, i / level.cols);
-                    let node = Node {
-                        x: cx << level.log2,
-                        y: cy << level.log2,
-                        log2: level.log2,
-                    };
-                    let kind = node_kind(header, &node);
-                    let luma = rates.best_leaf(i as usize, lambda);
-                    let na = level.nodes[i as usize].as_ref();
-                    let leaf = luma.map(|l| match na {
-                        Some(na) => l.with_chroma(&na.chroma, lambda),
-                        None => l,
-                    });
-                    if !colour {
-                        let split = (level.log2 > min).then(|| below_ref.split(cx, cy));
-                        let (cost, decision) = decide(kind, leaf, split, lambda, flag);
-                        return NodeCut {
-                            cost,
-                            decision,
-                            luma_cost: cost,
-                            luma_decision: decision,
-                        };
-                    }
-                    let split_luma = (level.log2 > min).then(|| below_luma_ref.split(cx, cy));
-                    let (luma_cost, luma_decision) = decide(kind, luma, split_luma, lambda, flag);
-                    // A flagged split node outside such subtrees says whether it codes its
-                    // subtree's chroma: the cheaper of its children's own cuts and its chroma
-                    // over their cuts without chroma.
-                    let mut with_chroma = false;
-                    let split = (level.log2 > min).then(|| {
-                        let own = below_ref.split(cx, cy);
-                        let (NodeKind::Flagged, Some(na)) = (kind, na) else {
-                            return own;
-                        };
-                        let own = own.with_flag(lambda, SUBTREE_FLAG_BITS[0]);
-                        let covered = below_luma_ref
-                            .split(cx, cy)
-                            .with_chroma(&na.chroma, lambda)
-                            .with_flag(lambda, SUBTREE_FLAG_BITS[1]);
-                        with_chroma = covered.j < own.j;
-                        if with_chroma {
-                            covered
-                        } else {
-                            own
-                        }
-                    });
-                    let (cost, mut decision) = decide(kind, leaf, split, lambda, flag);
-                    if decision == Decision::Split && with_chroma {
-                        decision = Decision::SplitWithChroma;
-                    }
-                    NodeCut {
+            let cut = |i: usize| {
+                let i = i as u32;
+                let (cx, cy) = (i % level.cols, i / level.cols);
+                let node = Node {
+                    x: cx << level.log2,
+                    y: cy << level.log2,
+                    log2: level.log2,
+                };
+                let kind = node_kind(header, &node);
+                let na = level.nodes[i as usize].as_ref();
+                let candidates = na.map_or(&[][..], |na| &na.candidates[..]);
+                let luma = rates.best_leaf(i as usize, candidates, lambda);
+                let leaf = luma.map(|l| match na {
+                    Some(na) => l.with_chroma(&na.chroma, lambda),
+                    None => l,
+                });
+                if !colour {
+                    let split = (level.log2 > min).then(|| below_ref.split(cx, cy));
+                    let (cost, decision) = decide(kind, leaf, split, lambda, flag);
+                    return NodeCut {
                         cost,
                         decision,
-                        luma_cost,
-                        luma_decision,
+                        luma_cost: cost,
+                        luma_decision: decision,
+                    };
+                }
+                let split_luma = (level.log2 > min).then(|| below_luma_ref.split(cx, cy));
+                let (luma_cost, luma_decision) = decide(kind, luma, split_luma, lambda, flag);
+                // A flagged split node outside such subtrees says whether it codes its
+                // subtree's chroma: the cheaper of its children's own cuts and its chroma
+                // over their cuts without chroma.
+                let mut with_chroma = false;
+                let split = (level.log2 > min).then(|| {
+                    let own = below_ref.split(cx, cy);
+                    let (NodeKind::Flagged, Some(na)) = (kind, na) else {
+                        return own;
+                    };
+                    let own = own.with_flag(lambda, SUBTREE_FLAG_BITS[0]);
+                    let covered = below_luma_ref
+                        .split(cx, cy)
+                        .with_chroma(&na.chroma, lambda)
+                        .with_flag(lambda, SUBTREE_FLAG_BITS[1]);
+                    with_chroma = covered.j < own.j;
+                    if with_chroma {
+                        covered
+                    } else {
+                        own
                     }
-                })
-                .collect();
-            below = LevelCosts {
-                costs: per_node.iter().map(|n| n.cost).collect(),
-                cols: level.cols,
-                rows,
+                });
+                let (cost, mut decision) = decide(kind, leaf, split, lambda, flag);
+                if decision == Decision::Split && with_chroma {
+                    decision = Decision::SplitWithChroma;
+                }
+                NodeCut {
+                    cost,
+                    decision,
+                    luma_cost,
+                    luma_decision,
+                }
             };
-            decisions.push(per_node.iter().map(|n| n.decision).collect());
+            // Written in place, level by level: each node's cut goes straight to the arrays
+            // the plan and the next level keep. A node is a few nanoseconds of work: they are
+            // handed out in chunks.
+            let n = (level.cols * rows) as usize;
+            let mut costs = vec![Cost::ZERO; n];
+            let mut level_decisions = vec![Decision::Split; n];
             if colour {
+                let mut luma_costs = vec![Cost::ZERO; n];
+                let mut luma_decisions = vec![Decision::Split; n];
+                (costs.par_iter_mut().zip(&mut level_decisions))
+                    .zip(luma_costs.par_iter_mut().zip(&mut luma_decisions))
+                    .enumerate()
+                    .with_min_len(1024)
+                    .for_each(|(i, ((cost, decision), (luma_cost, luma_decision)))| {
+                        let cut = cut(i);
+                        (*cost, *decision) = (cut.cost, cut.decision);
+                        (*luma_cost, *luma_decision) = (cut.luma_cost, cut.luma_decision);
+                    });
                 below_luma = LevelCosts {
-                    costs: per_node.iter().map(|n| n.luma_cost).collect(),
+                    costs: luma_costs,
                     cols: level.cols,
                     rows,
                 };
-                subtree_decisions.push(per_node.iter().map(|n| n.luma_decision).collect());
+                subtree_decisions.push(luma_decisions);
+            } else {
+                (costs.par_iter_mut().zip(&mut level_decisions))
+                    .enumerate()
+                    .with_min_len(1024)
+                    .for_each(|(i, (cost, decision))| {
+                        let cut = cut(i);
+                        (*cost, *decision) = (cut.cost, cut.decision);
+                    });
             }
+            below = LevelCosts {
+                costs,
+                cols: level.cols,
+                rows,
+            };
+            decisions.push(level_decisions);
         }
         let root = below.costs.first().copied().unwrap_or(Cost::ZERO);
         Plan {
@@ -510,28 +536,29 @@ impl Planner<'_> {
     }
 }
 
-/// The bits of every candidate of `na`, coded from the context state `snapshot` (frozen: every
-/// candidate is priced from the same state), in the order of its candidate list; infinite for
-/// a candidate the syntax cannot code.
+/// The bits of every candidate of `na` (whose syntax is made again from the image `prediction`
+/// predicts from), coded from the context state `snapshot` (frozen: every candidate is priced
+/// from the same state), in the order of its candidate list; infinite for a candidate the
+/// syntax cannot code.
 pub fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
     let mut ctx = snapshot.clone();
-    na.candidates
+    na.leaves(prediction)
         .iter()
-        .map(|c| candidate_bits(na, c, prediction, &mut ctx))
+        .map(|leaf| leaf_bits(&na.node, leaf, prediction, &mut ctx))
         .collect()
 }
 
-/// The bits of candidate `c` of `na`, coded from the context state `ctx` (left as it is);
-/// infinite if the syntax cannot code it.
-pub fn candidate_bits(
-    na: &NodeAnalysis,
-    c: &Candidate,
+/// The bits of `leaf` at `node`, coded from the context state `ctx` (left as it is); infinite
+/// if the syntax cannot code it.
+pub fn leaf_bits(
+    node: &Node,
+    leaf: &LeafSyntax,
     prediction: &ImagePrediction,
     ctx: &mut Contexts,
 ) -> f32 {
-    let mut leaf = na.leaf(c);
+    let mut leaf = *leaf;
     let mut counter = BitCounter::frozen();
-    match code_leaf(&mut counter, ctx, &na.node, prediction, &mut leaf) {
+    match code_leaf(&mut counter, ctx, node, prediction, &mut leaf) {
         Ok(()) => counter.bits() as f32,
         Err(_) => f32::INFINITY,
     }

@@ -7,6 +7,7 @@
 use super::candidates::CandidateTree;
 use super::chroma::{choose, ChromaCache, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
+use super::plane::ImagePrediction;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
 use decoder_core::internal::entropy::{Coder, Prob, PROB_ONE};
@@ -18,7 +19,9 @@ use decoder_core::internal::syntax::{
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
 use decoder_core::{DecodeError, Node};
+use rayon::prelude::*;
 use std::cell::{Cell, RefCell};
+use std::collections::HashMap;
 
 /// The widest stripe the writer holds prediction memory for: any the format allows.
 const MAX_STRIPE: usize = 1 << 16;
@@ -39,10 +42,73 @@ pub struct Written {
     pub chroma_bits: f64,
 }
 
+/// The syntax of a plan's leaves, made again from the image before the walk (in parallel),
+/// by level, node index in the level and candidate.
+type PlanLeaves = HashMap<(usize, usize, u16), LeafSyntax>;
+
+/// The syntax of every leaf `plan` (of `tree`'s candidates) codes, made from the image `image`
+/// predicts from.
+fn plan_leaves(tree: &CandidateTree, plan: &Plan, image: &ImagePrediction) -> PlanLeaves {
+    let mut wanted = Vec::new();
+    if let Some(top) = tree.levels().last() {
+        for na in top.nodes.iter().flatten() {
+            cut_leaves(tree, plan, (na.node, false), &mut wanted);
+        }
+    }
+    let min = tree.min_leaf_log2();
+    wanted
+        .into_par_iter()
+        .filter_map(|(node, c)| {
+            let na = tree.node(&node)?;
+            let key = (
+                usize::from(node.log2 - min),
+                tree.level(node.log2)?.index(node.x, node.y),
+                c,
+            );
+            Some((key, na.leaf(na.candidates.get(usize::from(c))?, image)))
+        })
+        .collect()
+}
+
+/// Adds to `leaves` the leaves of `plan`'s cut at and below `node` (`in_subtree`: inside a
+/// subtree whose chroma a node above codes), with their candidates.
+fn cut_leaves(
+    tree: &CandidateTree,
+    plan: &Plan,
+    (node, in_subtree): (Node, bool),
+    leaves: &mut Vec<(Node, u16)>,
+) {
+    let decision = plan.decision(tree, &node, in_subtree);
+    let below = match decision {
+        None => return,
+        Some(Decision::Leaf(c)) => return leaves.push((node, c)),
+        Some(Decision::Split) => in_subtree,
+        Some(Decision::SplitWithChroma) => true,
+    };
+    if node.log2 <= tree.min_leaf_log2() {
+        return;
+    }
+    let half = node.size() / 2;
+    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let child = Node {
+            x: node.x + dx * half,
+            y: node.y + dy * half,
+            log2: node.log2 - 1,
+        };
+        if tree.node(&child).is_some() {
+            cut_leaves(tree, plan, (child, below), leaves);
+        }
+    }
+}
+
 /// The walk's visitor: splits and codes the leaves as the plan says.
 struct PlanVisitor<'a> {
     tree: &'a CandidateTree,
     plan: &'a Plan,
+    /// The syntax of the plan's leaves.
+    plan_leaves: PlanLeaves,
+    /// The image the syntax is made from.
+    image: ImagePrediction<'a>,
     leaves: usize,
     /// The chroma of a colour stream.
     colour: Option<&'a ColourPlanes>,
@@ -64,7 +130,7 @@ impl<'a> PlanVisitor<'a> {
     /// A visitor of `plan` that chooses every chroma leaf (recording the choices), counting
     /// leaves' bits into `meter` if given.
     fn new(
-        tree: &'a CandidateTree,
+        (tree, image): (&'a CandidateTree, &ImagePrediction<'a>),
         plan: &'a Plan,
         colour: Option<&'a ColourPlanes>,
         cache: &'a ChromaCache,
@@ -73,6 +139,8 @@ impl<'a> PlanVisitor<'a> {
         PlanVisitor {
             tree,
             plan,
+            plan_leaves: plan_leaves(tree, plan, image),
+            image: *image,
             leaves: 0,
             colour,
             cache,
@@ -177,10 +245,14 @@ impl TreeVisitor for PlanVisitor<'_> {
         _prediction: &P,
         leaf: &mut LeafSyntax,
     ) {
-        let na = self.tree.node(node);
-        if let (Some(na), Some(Decision::Leaf(ci))) = (na, self.decision(node)) {
-            let c = &na.candidates[usize::from(ci)];
-            *leaf = na.leaf(c);
+        if let Some(Decision::Leaf(c)) = self.decision(node) {
+            let l = usize::from(node.log2 - self.tree.min_leaf_log2());
+            let i = self.tree.levels()[l].index(node.x, node.y);
+            if let Some(made) = self.plan_leaves.get(&(l, i, c)) {
+                *leaf = *made;
+            } else if let Some(na) = self.tree.node(node) {
+                *leaf = na.leaf(&na.candidates[usize::from(c)], &self.image);
+            }
         }
     }
 
@@ -243,11 +315,12 @@ impl TreeVisitor for PlanVisitor<'_> {
     }
 }
 
-/// Writes the stream for `plan` (of `tree`'s candidates) with `header`; a colour stream's
-/// chroma (`header.channels == 3`) is chosen leaf by leaf from `colour`, with the options
-/// `cache` holds (and keeps) for them.
+/// Writes the stream for `plan` (of `tree`'s candidates, whose syntax is made again from the
+/// image `prediction` predicts from) with `header`; a colour stream's chroma (`header.channels ==
+/// 3`) is chosen leaf by leaf from `colour`, with the options `cache` holds (and keeps) for
+/// them.
 pub fn write(
-    tree: &CandidateTree,
+    (tree, prediction): (&CandidateTree, &ImagePrediction),
     header: &Header,
     plan: &Plan,
     colour: Option<&ColourPlanes>,
@@ -273,7 +346,7 @@ pub fn write(
         })
     });
     let replay = tape.as_ref().map(|_| 0);
-    let mut visitor = PlanVisitor::new(tree, plan, colour, cache, None);
+    let mut visitor = PlanVisitor::new((tree, prediction), plan, colour, cache, None);
     visitor.tape = tape.unwrap_or_default();
     visitor.replay = replay;
     let mut coder = RangeEncoder::new();
@@ -312,7 +385,7 @@ pub fn write(
 /// The bits each leaf of `plan`'s stream costs, in coding order: where in the image a
 /// stream's bits go (packets cut the image by them).
 pub fn leaf_bits(
-    tree: &CandidateTree,
+    (tree, image): (&CandidateTree, &ImagePrediction),
     header: &Header,
     plan: &Plan,
     colour: Option<&ColourPlanes>,
@@ -325,7 +398,7 @@ pub fn leaf_bits(
         last: 0.0,
         leaves: Vec::new(),
     };
-    let mut visitor = PlanVisitor::new(tree, plan, colour, cache, Some(meter));
+    let mut visitor = PlanVisitor::new((tree, image), plan, colour, cache, Some(meter));
     let mut coder = MeteredEncoder {
         inner: RangeEncoder::new(),
         total: &total,

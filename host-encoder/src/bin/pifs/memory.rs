@@ -11,7 +11,11 @@
 //! `--min-leaf-log2 1` 105 MB and 258 MB for the first two (235 to 380 bytes), with 3 38 MB
 //! and 55 MB (43 to 113). Format 18 (no weights to fit or keep) brought 500² of noise to 47 MB
 //! (150 bytes per pixel beside the fixed part) and RGB noise to 55 MB (`/usr/bin/time -f %M`,
-//! same commands). [`encode_bytes`] rounds these up: 250 bytes a pixel with 4 px leaves.
+//! same commands). Since the nodes past an analysis's first band (about a megapixel) make
+//! their candidates' indices again instead of holding them, the mosaics peak at 309 MB and
+//! 992 MB (about 41 bytes a pixel): large photographs need far less than the estimate, which
+//! stays set by the smaller images and noise. [`encode_bytes`] rounds these up: 250 bytes a
+//! pixel with 4 px leaves.
 //!
 //! A colour encode analyses the luma plane and keeps, at every node, what its chroma costs
 //! (the hull of its chroma options): RGB noise of 500² peaked at 56 MB against 52 MB in
