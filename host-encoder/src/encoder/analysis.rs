@@ -22,7 +22,7 @@ use super::ids::{ControlQuantiserId, ModelId};
 use super::masking::Masking;
 use super::plane::{ImagePrediction, Plane};
 use super::quantise::{quantise, ControlTargets, Quantised, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
-use super::rate::{leaf_bits, node_bits, node_hull, prune_node, Anchor, GrowingHull, RateTable};
+use super::rate::{leaf_bits, node_hull, prune_node, rate_node, Anchor, GrowingHull, RateTable};
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_ONE};
@@ -197,23 +197,13 @@ impl Analysis {
         };
         let (plane, header) = (&self.plane, &self.header);
         let (levels, masking) = self.tree.levels_and_masking_mut();
-        let bits: PerNode<Vec<f32>> = levels
-            .iter_mut()
-            .map(|level| {
-                level
-                    .nodes
-                    .par_iter_mut()
-                    .map(|na| match na {
-                        Some(na) => {
-                            let weight = masking.weight(&na.node);
-                            final_candidates(plane, header, (na, weight), &trial)
-                        }
-                        None => Vec::new(),
-                    })
-                    .collect()
-            })
-            .collect();
-        self.rates = RateTable::of_bits(&self.tree, bits, &snapshot);
+        for level in levels {
+            level.nodes.par_iter_mut().flatten().for_each(|na| {
+                let weight = masking.weight(&na.node);
+                final_candidates(plane, header, (na, weight), &trial);
+            });
+        }
+        self.rates = RateTable::of_contexts(&snapshot);
     }
 
     /// Fits every model at every node and quantises every fit with every quantiser (with
@@ -223,7 +213,7 @@ impl Analysis {
     /// stream starts from (the trained contexts change the rates only a little, so what is off
     /// the hull under the first rates seldom reaches it under the trained ones; see
     /// docs/decisions.md): the rest is never stored.
-    /// Returns the kept candidates' rates and the time the fitting took. `progress` is called
+    /// Returns the rates of the kept candidates and the time the fitting took. `progress` is called
     /// with the number of node steps done so far (in the order [`analysis_steps`] gives).
     fn measure_candidates(
         &mut self,
@@ -239,18 +229,18 @@ impl Analysis {
         };
         let done = AtomicU64::new(0);
         let report = || progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-        let (mut bits, ends, fit_time) = self.fit_and_coarse(band_pixels, (&start, first), &report);
+        let (ends, fit_time) = self.fit_and_coarse(band_pixels, (&start, first), &report);
+        let rates = RateTable::of_contexts(&start);
         let Some(margin) = config.fine_steps else {
-            return (RateTable::of_bits(&self.tree, bits, &start), fit_time);
+            return (rates, fit_time);
         };
         // The multiplier of a plan at the trial rate from the coarse steps alone: a plan
         // with finer steps too reaches that rate at about the same multiplier or above.
-        // The table and the plan are dropped before the fine pass adds its candidates.
+        // The plan is dropped before the fine pass adds its candidates.
         let trial_lambda = {
-            let coarse = RateTable::of_bits(&self.tree, &bits, &start);
             let pixels = self.header.pixel_count() as f64;
             let plan =
-                coarse.rough_plan_for_bits(&self.tree, &self.header, config.trial_bpp * pixels);
+                rates.rough_plan_for_bits(&self.tree, &self.header, config.trial_bpp * pixels);
             plan.anchor().lambda
         };
         let search = FineSearch {
@@ -261,25 +251,20 @@ impl Analysis {
         let (plane, header) = (&self.plane, &self.header);
         let (levels, masking) = self.tree.levels_and_masking_mut();
         // Each node's chain ends are dropped once its fine pass is done.
-        for ((level, bits), ends) in levels.iter_mut().zip(&mut bits).zip(ends) {
+        for (level, ends) in levels.iter_mut().zip(ends) {
             if level.log2 > header.max_leaf_log2 {
                 continue;
             }
-            level
-                .nodes
-                .par_iter_mut()
-                .zip(bits)
-                .zip(ends)
-                .for_each(|((na, bits), ends)| {
-                    if let Some(na) = na {
-                        let weight = masking.weight(&na.node);
-                        fine_candidates(plane, header, (na, weight), &ends, &search, bits);
-                        *bits = prune_node(na, bits, &ALL_LAMBDAS);
-                    }
-                    report();
-                });
+            level.nodes.par_iter_mut().zip(ends).for_each(|(na, ends)| {
+                if let Some(na) = na {
+                    let weight = masking.weight(&na.node);
+                    fine_candidates(plane, header, (na, weight), &ends, &search);
+                    prune_node(na, &ALL_LAMBDAS);
+                }
+                report();
+            });
         }
-        (RateTable::of_bits(&self.tree, bits, &start), fit_time)
+        (rates, fit_time)
     }
 
     /// The fitting and the coarse pass of [`Analysis::measure_candidates`], band by band
@@ -287,42 +272,31 @@ impl Analysis {
     /// step `first` up, rated from `start`, pruned (a candidate off the hull stays off it when
     /// finer steps join), and the band's fits are dropped, so that the fits of the whole image
     /// never live at once.
-    /// Returns the bits of what the nodes keep and the chains' ends, per level and node, and
-    /// the time the fitting took.
+    /// Returns the chains' ends, per level and node, and the time the fitting took.
     fn fit_and_coarse(
         &mut self,
         band_pixels: u32,
         (start, first): (&Contexts, u8),
         report: &(dyn Fn() + Sync),
-    ) -> (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>, Duration) {
+    ) -> (PerNode<Vec<ChainEnd>>, Duration) {
         let top = largest_leaf_log2(&self.header);
         prepare_projections(self.header.min_leaf_log2..=top);
-        let levels = self.tree.levels().len();
-        let (mut bits, mut ends): (PerNode<Vec<f32>>, PerNode<Vec<ChainEnd>>) =
-            (vec![Vec::new(); levels], vec![Vec::new(); levels]);
+        let mut ends: PerNode<Vec<ChainEnd>> = vec![Vec::new(); self.tree.levels().len()];
         let band = band_height(&self.header, top, band_pixels);
         let mut fit_time = Duration::ZERO;
         for y in (0..self.plane.height).step_by(band as usize) {
             let started = Instant::now();
             let fits = self.fit_band(y..y + band, report);
             fit_time += started.elapsed();
-            self.coarse_band(
-                y..y + band,
-                fits,
-                start,
-                first,
-                report,
-                (&mut bits, &mut ends),
-            );
+            self.coarse_band(y..y + band, fits, start, first, report, &mut ends);
         }
         // Levels above the largest leaf have no candidates, but an empty list per node.
-        for ((level, bits), ends) in self.tree.levels().iter().zip(&mut bits).zip(&mut ends) {
+        for (level, ends) in self.tree.levels().iter().zip(&mut ends) {
             if level.log2 > top {
-                bits.resize(level.nodes.len(), Vec::new());
                 ends.resize(level.nodes.len(), Vec::new());
             }
         }
-        (bits, ends, fit_time)
+        (ends, fit_time)
     }
 
     /// Fits every node of a leaf size whose rows lie in `rows` (pixels; the band's), from the
@@ -391,8 +365,7 @@ impl Analysis {
 
     /// The coarse pass over the nodes whose rows lie in `rows` (pixels; the band's), with
     /// their `fits`: each node keeps what it needs of its fits and its candidates from control
-    /// step `first` up, pruned; appends the bits of what it keeps and its chains' ends to
-    /// `out`.
+    /// step `first` up, pruned; appends its chains' ends to `out`.
     fn coarse_band(
         &mut self,
         rows: Range<u32>,
@@ -400,19 +373,18 @@ impl Analysis {
         start: &Contexts,
         first: u8,
         report: &(dyn Fn() + Sync),
-        out: (&mut PerNode<Vec<f32>>, &mut PerNode<Vec<ChainEnd>>),
+        out: &mut PerNode<Vec<ChainEnd>>,
     ) {
         let (plane, header) = (&self.plane, &self.header);
         let colour = self.colour.as_ref();
         let stripe = header.stripe_width();
         let (levels, masking) = self.tree.levels_and_masking_mut();
-        let levels = levels.iter_mut().zip(fits).zip(out.0).zip(out.1);
-        for (((level, fits), bits), ends) in levels {
+        for ((level, fits), ends) in levels.iter_mut().zip(fits).zip(out) {
             if level.log2 > header.max_leaf_log2 {
                 continue;
             }
             let nodes = band_nodes(level, &rows);
-            let (band_bits, band_ends): (Vec<_>, Vec<_>) = level.nodes[nodes]
+            let band_ends: Vec<Vec<ChainEnd>> = level.nodes[nodes]
                 .par_iter_mut()
                 .zip(fits)
                 .map(|(na, fits)| {
@@ -423,17 +395,17 @@ impl Analysis {
                                 na.chroma = chroma::leaf_cost(colour, &na.node, stripe, weight);
                             }
                             na.fits = fits.iter().map(|f| f.model).collect();
-                            let (bits, ends) =
+                            let ends =
                                 coarse_candidates(plane, header, (na, weight), &fits, start, first);
-                            (prune_node(na, &bits, &ALL_LAMBDAS), ends)
+                            prune_node(na, &ALL_LAMBDAS);
+                            ends
                         }
-                        None => (Vec::new(), Vec::new()),
+                        None => Vec::new(),
                     };
                     report();
                     out
                 })
-                .unzip();
-            bits.extend(band_bits);
+                .collect();
             ends.extend(band_ends);
         }
     }
@@ -670,27 +642,26 @@ pub(super) fn prediction_of<'a>(plane: &'a Plane, header: &Header) -> ImagePredi
 }
 
 /// Quantises `fit` (the node's fit of chain `chain`, whose targets are `targets`) with control
-/// quantiser `cq`, measures its error (times the node's `weight`, [`Masking`]) and adds it to
-/// `na`'s candidates. Returns its syntax.
+/// quantiser `cq`, measures its error (times the node's `weight`, [`Masking`]) and its bits
+/// (coded from `ctx`, left as it is) and adds it to `na`'s candidates. Returns it.
 fn add_candidate(
     plane: &Plane,
     (na, weight): (&mut NodeAnalysis, f64),
     (fit, targets): (&Fit, &ControlTargets),
-    chain: Chain,
-    cq: ControlQuantiserId,
-) -> LeafSyntax {
+    (chain, cq): (Chain, ControlQuantiserId),
+    (prediction, ctx): (&ImagePrediction, &mut Contexts),
+) -> Candidate {
     let q = quantise(fit, targets, cq, chain.coding, ROUNDING_LAMBDA);
-    let sse = quantised_sse(plane, &na.node, fit, &q) * weight;
     let c = Candidate {
         fit: chain.fit,
         cq,
         coding: chain.coding,
         rounding: 0,
-        sse,
-        at: 0,
+        sse: quantised_sse(plane, &na.node, fit, &q) * weight,
+        bits: leaf_bits(&na.node, &q.leaf, prediction, ctx),
     };
     na.push(c, &q.leaf);
-    q.leaf
+    c
 }
 
 /// What the final pruning of every node needs from the trial encode.
@@ -703,28 +674,28 @@ struct Trial<'a> {
     window: std::ops::RangeInclusive<f64>,
 }
 
-/// The final pruning of node `na`, under the trial encode's contexts: keeps the candidates
-/// that are its best leaf for some multiplier, adds the rounding variants of those best near
-/// the trial's multiplier ([`add_rounding_variants`]), and keeps again what pays. Returns the
-/// kept candidates' bits. Node by node, so that no node's variants wait for the others'.
+/// The final pruning of node `na`, under the trial encode's contexts: rates its candidates
+/// from them, keeps those that are its best leaf for some multiplier, adds the rounding
+/// variants of those best near the trial's multiplier ([`add_rounding_variants`]), and keeps
+/// again what pays. Node by node, so that no node's variants wait for the others'.
 /// `weight`: the node's error weight ([`Masking`]).
 fn final_candidates(
     plane: &Plane,
     header: &Header,
     (na, weight): (&mut NodeAnalysis, f64),
     trial: &Trial,
-) -> Vec<f32> {
-    let bits = node_bits(na, &trial.prediction, trial.snapshot);
-    let mut bits = prune_node(na, &bits, &ALL_LAMBDAS);
-    let vary = node_hull(na, &bits, &trial.window);
+) {
+    rate_node(na, &trial.prediction, trial.snapshot);
+    prune_node(na, &ALL_LAMBDAS);
+    let vary = node_hull(na, &trial.window);
+    let known = na.candidates.len();
     let varied = add_rounding_variants(plane, header, (na, weight), &vary);
+    let node = na.node;
     let mut ctx = trial.snapshot.clone();
-    bits.extend(
-        varied
-            .iter()
-            .map(|leaf| leaf_bits(&na.node, leaf, &trial.prediction, &mut ctx)),
-    );
-    prune_node(na, &bits, &ALL_LAMBDAS)
+    for (c, leaf) in na.candidates[known..].iter_mut().zip(&varied) {
+        c.bits = leaf_bits(&node, leaf, &trial.prediction, &mut ctx);
+    }
+    prune_node(na, &ALL_LAMBDAS);
 }
 
 /// Adds to node `na`, for each of its candidates `vary` lists, the same quantisers rounding
@@ -751,7 +722,7 @@ fn add_rounding_variants(
         });
         let n = fit.model.model().control_count();
         let own = match na.indices {
-            Some(_) => na.leaf(&c, &image),
+            Some(_) => na.leaf(usize::from(k), &image),
             None => quantise(fit, targets, c.cq, c.coding, c.rounding_lambda()).leaf,
         };
         for (variant, lambda) in (1..).zip(ROUNDING_VARIANTS) {
@@ -787,8 +758,7 @@ struct ChainEnd {
 /// pointless: once their hull covers a step's bits at the fit's own residual, every finer
 /// step of the chain (more bits, and never less error than the residual) is off the hull too.
 /// The richest fits go first, so that their candidates end the poorer fits' chains early.
-/// Replaces the node's candidates; returns their bits and where each chain that reached step
-/// `first` ended.
+/// Replaces the node's candidates; returns where each chain that reached step `first` ended.
 fn coarse_candidates(
     plane: &Plane,
     header: &Header,
@@ -796,7 +766,7 @@ fn coarse_candidates(
     fits: &[Fit],
     start: &Contexts,
     first: u8,
-) -> (Vec<f32>, Vec<ChainEnd>) {
+) -> Vec<ChainEnd> {
     na.clear();
     let chains: Vec<Vec<Chain>> = (fits.iter().enumerate())
         .map(|(fi, fit)| chains_of(fi, fit))
@@ -811,7 +781,6 @@ fn coarse_candidates(
     }
     let prediction = prediction_of(plane, header);
     let mut ctx = start.clone();
-    let mut bits = Vec::with_capacity(na.candidates.capacity());
     let mut hull = GrowingHull::default();
     let mut ends = Vec::new();
     for (fit, chains) in fits.iter().zip(chains).rev() {
@@ -821,25 +790,23 @@ fn coarse_candidates(
             let mut end = None;
             let tried = ControlQuantiserId::all().filter(|cq| cq.get() >= first);
             for cq in tried.rev() {
-                let leaf = add_candidate(plane, (na, weight), (fit, &targets), chain, cq);
-                let c = na.candidates[na.candidates.len() - 1];
-                let b = leaf_bits(&na.node, &leaf, &prediction, &mut ctx);
-                bits.push(b);
-                hull.add((f64::from(b), c.sse));
-                if hull.covers((f64::from(b), residual)) {
+                let rating = (&prediction, &mut ctx);
+                let c = add_candidate(plane, (na, weight), (fit, &targets), (chain, cq), rating);
+                hull.add((f64::from(c.bits), c.sse));
+                if hull.covers((f64::from(c.bits), residual)) {
                     end = None;
                     break;
                 }
                 end = Some(ChainEnd {
                     chain,
-                    bits: b,
+                    bits: c.bits,
                     sse: c.sse,
                 });
             }
             ends.extend(end);
         }
     }
-    (bits, ends)
+    ends
 }
 
 /// The least squared error any candidate of `fit` on `node` can have: the residual of an exact
@@ -870,19 +837,17 @@ fn fine_candidates(
     (na, weight): (&mut NodeAnalysis, f64),
     ends: &[ChainEnd],
     search: &FineSearch,
-    bits: &mut Vec<f32>,
 ) {
     let prediction = prediction_of(plane, header);
     let mut ctx = search.start.clone();
     let mut hull = GrowingHull::default();
-    for (&b, c) in bits.iter().zip(&na.candidates) {
-        hull.add((f64::from(b), c.sse));
+    for c in &na.candidates {
+        hull.add((f64::from(c.bits), c.sse));
     }
     let steps = ControlQuantiserId::all()
         .filter(|cq| cq.get() < search.first)
         .count();
     na.reserve(ends.len() * steps, ends.len() * steps * MAX_CONTROL);
-    bits.reserve(ends.len() * steps);
     // The chains of one fit are consecutive: its targets are made once.
     for same_fit in ends.chunk_by(|a, b| a.chain.fit == b.chain.fit) {
         let fit = fit_default(plane, &na.node, na.fits[usize::from(same_fit[0].chain.fit)]);
@@ -895,10 +860,9 @@ fn fine_candidates(
                 .filter(|cq| cq.get() < search.first)
                 .rev()
             {
-                let leaf = add_candidate(plane, (na, weight), (&fit, &targets), chain, cq);
-                let c = na.candidates[na.candidates.len() - 1];
-                let b = leaf_bits(&na.node, &leaf, &prediction, &mut ctx);
-                bits.push(b);
+                let rating = (&prediction, &mut ctx);
+                let c = add_candidate(plane, (na, weight), (&fit, &targets), (chain, cq), rating);
+                let b = c.bits;
                 hull.add((f64::from(b), c.sse));
                 let added = f64::from(b) - f64::from(last_bits);
                 let stalls = added > 0.0 && last_sse - c.sse < search.floor * added;
@@ -1091,8 +1055,7 @@ mod tests {
         coarse_candidates(&plane, &header, (&mut all, 1.0), &fits, &start, 0);
         for floor in [f64::INFINITY, f64::NEG_INFINITY] {
             let mut na = fresh();
-            let (mut bits, ends) =
-                coarse_candidates(&plane, &header, (&mut na, 1.0), &fits, &start, 5);
+            let ends = coarse_candidates(&plane, &header, (&mut na, 1.0), &fits, &start, 5);
             assert!(na.candidates.iter().all(|c| c.cq.get() >= 5));
             let coarse = na.candidates.len();
             let search = FineSearch {
@@ -1100,8 +1063,8 @@ mod tests {
                 first: 5,
                 floor,
             };
-            fine_candidates(&plane, &header, (&mut na, 1.0), &ends, &search, &mut bits);
-            assert_eq!(bits.len(), na.candidates.len());
+            fine_candidates(&plane, &header, (&mut na, 1.0), &ends, &search);
+            let bits: Vec<f32> = na.candidates.iter().map(|c| c.bits).collect();
             if floor == f64::NEG_INFINITY {
                 assert_eq!(steps(&na), steps(&all));
                 continue;
@@ -1275,17 +1238,19 @@ mod tests {
         });
         let mut kept = Vec::new();
         for na in &mut nodes {
-            let (bits, _) = coarse_candidates(&plane, &header, (na, 1.0), &fits, &start, 0);
+            coarse_candidates(&plane, &header, (na, 1.0), &fits, &start, 0);
             assert!(na.candidates.len() > 8);
-            assert_eq!(node_bits(na, &image, &start), bits);
+            let rated = na.candidates.clone();
+            rate_node(na, &image, &start);
+            assert_eq!(na.candidates, rated);
             let vary: Vec<u16> = (0..na.candidates.len() as u16).step_by(2).collect();
             let known = na.candidates.len();
             let varied = add_rounding_variants(&plane, &header, (na, 1.0), &vary);
             assert!(!varied.is_empty());
             assert_eq!(na.candidates.len(), known + varied.len());
-            for (c, leaf) in na.candidates[known..].iter().zip(&varied) {
-                assert!(c.rounding > 0);
-                assert_eq!(&na.leaf(c, &image), leaf);
+            for (k, leaf) in (known..).zip(&varied) {
+                assert!(na.candidates[k].rounding > 0);
+                assert_eq!(&na.leaf(k, &image), leaf);
             }
             let keep: Vec<u16> = (0..na.candidates.len() as u16).step_by(3).collect();
             let all = na.leaves(&image);
@@ -1428,12 +1393,7 @@ mod tests {
             Analysis::run_in_bands(plane, None, &config, u32::MAX, &|_| {}).expect("an analysis");
         // The first band's nodes hold their indices, the others make them again.
         let image = prediction_of(&banded.plane, &banded.header);
-        let unplaced = |na: &NodeAnalysis| {
-            let candidates: Vec<Candidate> = (na.candidates.iter())
-                .map(|&c| Candidate { at: 0, ..c })
-                .collect();
-            (candidates, na.leaves(&image))
-        };
+        let unplaced = |na: &NodeAnalysis| (na.candidates.clone(), na.leaves(&image));
         let mut made_again = 0;
         for (a, b) in banded.tree.levels().iter().zip(whole.tree.levels()) {
             for (a, b) in a.nodes.iter().zip(&b.nodes) {

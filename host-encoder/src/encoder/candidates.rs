@@ -28,8 +28,10 @@ pub struct Candidate {
     /// Squared error over the node's in-image pixels, times the node's weight
     /// ([`CandidateTree::masking`]).
     pub sse: f64,
-    /// Where its control indices start in [`NodeAnalysis::indices`], if the node holds them.
-    pub at: u32,
+    /// Its bits, coded from the contexts it was last rated from: those every stream starts from
+    /// during the passes, the trial encode's once the analysis is done. Rate control reads
+    /// them (and `sse`) in place.
+    pub bits: f32,
 }
 
 impl Candidate {
@@ -135,29 +137,40 @@ impl NodeAnalysis {
     }
 
     /// Adds candidate `c` whose syntax is `leaf`.
-    pub fn push(&mut self, mut c: Candidate, leaf: &LeafSyntax) {
+    pub fn push(&mut self, c: Candidate, leaf: &LeafSyntax) {
+        let n = self.index_count(&c);
         if let Some(indices) = &mut self.indices {
-            c.at = indices.len() as u32;
-            let n = self.fits[usize::from(c.fit)].model().control_count();
             indices.extend_from_slice(&leaf.control[..n]);
         }
         self.candidates.push(c);
     }
 
-    /// The leaf syntax of candidate `c`: the indices the node holds, or else made again from
-    /// the image `image` predicts from (the fit, by its model, its targets, then the
+    /// How many control indices candidate `c` has.
+    fn index_count(&self, c: &Candidate) -> usize {
+        self.fits[usize::from(c.fit)].model().control_count()
+    }
+
+    /// The syntax of candidate `c` whose indices are `indices`.
+    fn held_leaf(&self, c: &Candidate, indices: &[i16]) -> LeafSyntax {
+        let mut leaf = super::ids::leaf_syntax(self.fits[usize::from(c.fit)], c.cq, c.coding);
+        leaf.control[..indices.len()].copy_from_slice(indices);
+        leaf
+    }
+
+    /// The leaf syntax of candidate number `k`: the indices the node holds, or else made again
+    /// from the image `image` predicts from (the fit, by its model, its targets, then the
     /// candidate's quantiser and rounding).
-    pub fn leaf(&self, c: &Candidate, image: &ImagePrediction) -> LeafSyntax {
-        let model = self.fits[usize::from(c.fit)];
+    pub fn leaf(&self, k: usize, image: &ImagePrediction) -> LeafSyntax {
+        let c = &self.candidates[k];
         match &self.indices {
             Some(indices) => {
-                let nc = model.model().control_count();
-                let mut leaf = super::ids::leaf_syntax(model, c.cq, c.coding);
-                leaf.control[..nc].copy_from_slice(&indices[c.at as usize..][..nc]);
-                leaf
+                let at: usize = (self.candidates[..k].iter())
+                    .map(|c| self.index_count(c))
+                    .sum();
+                self.held_leaf(c, &indices[at..][..self.index_count(c)])
             }
             None => {
-                let fit = fit_default(image.plane, &self.node, model);
+                let fit = fit_default(image.plane, &self.node, self.fits[usize::from(c.fit)]);
                 let targets = targets_of(image, &self.node, &fit);
                 quantise(&fit, &targets, c.cq, c.coding, c.rounding_lambda()).leaf
             }
@@ -167,11 +180,14 @@ impl NodeAnalysis {
     /// The leaf syntax of every candidate, in order ([`NodeAnalysis::leaf`], each fit made
     /// once).
     pub fn leaves(&self, image: &ImagePrediction) -> Vec<LeafSyntax> {
-        if self.indices.is_some() {
-            return self
-                .candidates
-                .iter()
-                .map(|c| self.leaf(c, image))
+        if let Some(indices) = &self.indices {
+            let mut at = 0;
+            return (self.candidates.iter())
+                .map(|c| {
+                    let n = self.index_count(c);
+                    at += n;
+                    self.held_leaf(c, &indices[at - n..at])
+                })
                 .collect();
         }
         let mut made: Vec<Option<(Fit, ControlTargets)>> =
@@ -192,23 +208,24 @@ impl NodeAnalysis {
     /// Keeps the candidates `keep` lists (indices into the candidate list, ascending), and
     /// only their indices.
     pub fn retain(&mut self, keep: &[u16]) {
-        let kept = keep.iter().map(|&k| self.candidates[usize::from(k)]);
-        let Some(held) = &self.indices else {
-            self.candidates = kept.collect();
-            return;
-        };
-        let count = |c: &Candidate| self.fits[usize::from(c.fit)].model().control_count();
-        let mut indices = Vec::with_capacity(kept.clone().map(|c| count(&c)).sum());
-        let candidates = kept
-            .map(|mut c| {
-                let from = c.at as usize;
-                c.at = indices.len() as u32;
-                indices.extend_from_slice(&held[from..][..count(&c)]);
-                c
-            })
+        if let Some(held) = &self.indices {
+            // Where each candidate's indices start, and where the last ends.
+            let mut starts = Vec::with_capacity(self.candidates.len() + 1);
+            starts.push(0);
+            for c in &self.candidates {
+                starts.push(starts[starts.len() - 1] + self.index_count(c));
+            }
+            let span = |k: u16| starts[usize::from(k)]..starts[usize::from(k) + 1];
+            let mut indices = Vec::with_capacity(keep.iter().map(|&k| span(k).len()).sum());
+            for &k in keep {
+                indices.extend_from_slice(&held[span(k)]);
+            }
+            self.indices = Some(Box::new(indices));
+        }
+        self.candidates = keep
+            .iter()
+            .map(|&k| self.candidates[usize::from(k)])
             .collect();
-        self.candidates = candidates;
-        self.indices = Some(Box::new(indices));
     }
 }
 

@@ -16,56 +16,38 @@ use decoder_core::internal::walk::{node_kind, NodeKind};
 use decoder_core::Node;
 use rayon::prelude::*;
 
-/// Per-candidate rates (bits) under one context snapshot, with the candidates' errors, laid
-/// out flat per level so that the optimiser's inner loop reads three contiguous arrays.
+/// The rates rate control works with: each candidate carries its bits and its error
+/// ([`Candidate::bits`], read in place: copies of them were 12 bytes a candidate in every
+/// table), and the table prices the split flags under the same contexts.
 #[derive(Debug, Clone)]
 pub struct RateTable {
-    levels: Vec<LevelRates>,
     split_bits: Vec<[f64; 2]>,
 }
 
-/// The bits of one level's nodes' candidates: node `i`'s are `first[i]..first[i + 1]`, in the
-/// order of its candidate list (their errors are read from the candidates themselves, not
-/// copied: a copy was 8 bytes a candidate in every table).
-#[derive(Debug, Clone, Default)]
-struct LevelRates {
-    first: Vec<u32>,
-    bits: Vec<f32>,
-}
-
-impl LevelRates {
-    fn range(&self, node: usize) -> std::ops::Range<usize> {
-        self.first[node] as usize..self.first[node + 1] as usize
-    }
-
-    /// The candidate of node `node`, whose candidates are `candidates`, with the least cost
-    /// `sse + lambda * bits` (the first of equals).
-    fn best_leaf(&self, node: usize, candidates: &[Candidate], lambda: f64) -> Option<LeafChoice> {
-        let bits = &self.bits[self.range(node)];
-        let mut best: Option<LeafChoice> = None;
-        for (k, (&b, c)) in bits.iter().zip(candidates).enumerate() {
-            let bits = f64::from(b);
-            let j = c.sse + lambda * bits;
-            if best.is_none_or(|b| j < b.cost.j) {
-                best = Some(LeafChoice {
-                    cost: Cost {
-                        j,
-                        sse: c.sse,
-                        bits,
-                    },
-                    candidate: k as u16,
-                });
-            }
+/// Of `candidates`, the one with the least cost `sse + lambda * bits` (the first of equals).
+fn best_leaf(candidates: &[Candidate], lambda: f64) -> Option<LeafChoice> {
+    let mut best: Option<LeafChoice> = None;
+    for (k, c) in candidates.iter().enumerate() {
+        let bits = f64::from(c.bits);
+        let j = c.sse + lambda * bits;
+        if best.is_none_or(|b| j < b.cost.j) {
+            best = Some(LeafChoice {
+                cost: Cost {
+                    j,
+                    sse: c.sse,
+                    bits,
+                },
+                candidate: k as u16,
+            });
         }
-        best
     }
+    best
 }
 
 impl RateTable {
     /// An empty table (no node rated).
     pub fn empty() -> RateTable {
         RateTable {
-            levels: Vec::new(),
             split_bits: Vec::new(),
         }
     }
@@ -277,37 +259,9 @@ fn decide(
 }
 
 impl RateTable {
-    /// The rate table of `tree` from the bits of its candidates (per level, per node, in the
-    /// order of its candidate list) coded from the context state `snapshot`.
-    /// Owned bits are dropped level by level as the table grows; borrowed ones stay.
-    pub fn of_bits<PerLevel, PerNode>(
-        tree: &CandidateTree,
-        bits: impl IntoIterator<Item = PerLevel>,
-        snapshot: &Contexts,
-    ) -> RateTable
-    where
-        PerLevel: IntoIterator<Item = PerNode>,
-        PerNode: AsRef<[f32]>,
-    {
-        let levels = tree
-            .levels()
-            .iter()
-            .zip(bits)
-            .map(|(level, per_node)| {
-                let mut rates = LevelRates {
-                    first: vec![0],
-                    ..LevelRates::default()
-                };
-                for (na, bits) in level.nodes.iter().zip(per_node) {
-                    if let Some(na) = na {
-                        debug_assert_eq!(bits.as_ref().len(), na.candidates.len());
-                        rates.bits.extend_from_slice(bits.as_ref());
-                    }
-                    rates.first.push(rates.bits.len() as u32);
-                }
-                rates
-            })
-            .collect();
+    /// The rates of the candidates as they stand (each rated from `snapshot`), with the split
+    /// flags priced from `snapshot` too.
+    pub fn of_contexts(snapshot: &Contexts) -> RateTable {
         let split_bits = (0..=decoder_core::internal::format::MAX_LEAF_LOG2)
             .map(|log2| {
                 let mut out = [0.0; 2];
@@ -320,7 +274,7 @@ impl RateTable {
                 out
             })
             .collect();
-        RateTable { levels, split_bits }
+        RateTable { split_bits }
     }
 
     /// The best cut of `tree` (whose candidates this table rates) for multiplier `lambda`
@@ -338,7 +292,7 @@ impl RateTable {
         // The best cuts of the level below: as the image's (`below`), and inside a subtree
         // whose chroma is coded above, without chroma (`below_luma`, colour only).
         let (mut below, mut below_luma) = (empty(), empty());
-        for (level, rates) in tree.levels().iter().zip(&self.levels) {
+        for level in tree.levels() {
             let rows = (u32::from(header.height) + (1 << level.log2) - 1) >> level.log2;
             let flag = &self.split_bits[usize::from(level.log2).min(self.split_bits.len() - 1)];
             // Nodes of a level are independent given the level below.
@@ -354,7 +308,7 @@ impl RateTable {
                 let kind = node_kind(header, &node);
                 let na = level.nodes[i as usize].as_ref();
                 let candidates = na.map_or(&[][..], |na| &na.candidates[..]);
-                let luma = rates.best_leaf(i as usize, candidates, lambda);
+                let luma = best_leaf(candidates, lambda);
                 let leaf = luma.map(|l| match na {
                     Some(na) => l.with_chroma(&na.chroma, lambda),
                     None => l,
@@ -536,16 +490,15 @@ impl Planner<'_> {
     }
 }
 
-/// The bits of every candidate of `na` (whose syntax is made again from the image `prediction`
-/// predicts from), coded from the context state `snapshot` (frozen: every candidate is priced
-/// from the same state), in the order of its candidate list; infinite for a candidate the
-/// syntax cannot code.
-pub fn node_bits(na: &NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) -> Vec<f32> {
+/// Rates every candidate of `na` (whose syntax is made again from the image `prediction`
+/// predicts from) from the context state `snapshot` (frozen: every candidate is priced from
+/// the same state): infinite bits for a candidate the syntax cannot code.
+pub fn rate_node(na: &mut NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) {
     let mut ctx = snapshot.clone();
-    na.leaves(prediction)
-        .iter()
-        .map(|leaf| leaf_bits(&na.node, leaf, prediction, &mut ctx))
-        .collect()
+    let leaves = na.leaves(prediction);
+    for (c, leaf) in na.candidates.iter_mut().zip(&leaves) {
+        c.bits = leaf_bits(&na.node, leaf, prediction, &mut ctx);
+    }
 }
 
 /// The bits of `leaf` at `node`, coded from the context state `ctx` (left as it is); infinite
@@ -564,31 +517,20 @@ pub fn leaf_bits(
     }
 }
 
-/// The candidates of `na`, whose bits are `bits`, that are its best leaf for some multiplier
-/// in `lambdas`: their indices, ascending.
-pub fn node_hull(
-    na: &NodeAnalysis,
-    bits: &[f32],
-    lambdas: &std::ops::RangeInclusive<f64>,
-) -> Vec<u16> {
-    let points: Vec<(f64, f64)> = bits
-        .iter()
-        .zip(&na.candidates)
-        .map(|(&b, c)| (f64::from(b), c.sse))
+/// The candidates of `na` that are its best leaf for some multiplier in `lambdas`: their
+/// indices, ascending.
+pub fn node_hull(na: &NodeAnalysis, lambdas: &std::ops::RangeInclusive<f64>) -> Vec<u16> {
+    let points: Vec<(f64, f64)> = (na.candidates.iter())
+        .map(|c| (f64::from(c.bits), c.sse))
         .collect();
     lower_hull_in(&points, lambdas)
 }
 
-/// Keeps of the candidates of `na`, whose bits are `bits`, those [`node_hull`] lists, and
-/// returns their bits: what no multiplier wants is never stored.
-pub fn prune_node(
-    na: &mut NodeAnalysis,
-    bits: &[f32],
-    lambdas: &std::ops::RangeInclusive<f64>,
-) -> Vec<f32> {
-    let keep = node_hull(na, bits, lambdas);
+/// Keeps of the candidates of `na` those [`node_hull`] lists: what no multiplier wants is
+/// never stored.
+pub fn prune_node(na: &mut NodeAnalysis, lambdas: &std::ops::RangeInclusive<f64>) {
+    let keep = node_hull(na, lambdas);
     na.retain(&keep);
-    keep.iter().map(|&k| bits[usize::from(k)]).collect()
 }
 
 /// The lower convex hull of rate/error points `(bits, sse)` added one at a time: the vertices,

@@ -65,7 +65,8 @@ fn plan_leaves(tree: &CandidateTree, plan: &Plan, image: &ImagePrediction) -> Pl
                 tree.level(node.log2)?.index(node.x, node.y),
                 c,
             );
-            Some((key, na.leaf(na.candidates.get(usize::from(c))?, image)))
+            let k = usize::from(c);
+            (k < na.candidates.len()).then(|| (key, na.leaf(k, image)))
         })
         .collect()
 }
@@ -251,7 +252,7 @@ impl TreeVisitor for PlanVisitor<'_> {
             if let Some(made) = self.plan_leaves.get(&(l, i, c)) {
                 *leaf = *made;
             } else if let Some(na) = self.tree.node(node) {
-                *leaf = na.leaf(&na.candidates[usize::from(c)], &self.image);
+                *leaf = na.leaf(usize::from(c), &self.image);
             }
         }
     }

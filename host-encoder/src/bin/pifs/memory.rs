@@ -12,8 +12,8 @@
 //! and 55 MB (43 to 113). Format 18 (no weights to fit or keep) brought 500² of noise to 47 MB
 //! (150 bytes per pixel beside the fixed part) and RGB noise to 55 MB (`/usr/bin/time -f %M`,
 //! same commands). Since the nodes past an analysis's first band (about a megapixel) make
-//! their candidates' indices again instead of holding them, the mosaics peak at 309 MB and
-//! 992 MB (about 41 bytes a pixel): large photographs need far less than the estimate, which
+//! their candidates' indices again instead of holding them, the mosaics peak at 281 MB and
+//! 818 MB (about 34 bytes a pixel): large photographs need far less than the estimate, which
 //! stays set by the smaller images and noise. [`encode_bytes`] rounds these up: 250 bytes a
 //! pixel with 4 px leaves.
 //!
