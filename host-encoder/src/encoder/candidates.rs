@@ -96,7 +96,7 @@ pub struct NodeAnalysis {
     /// to quantising it and its control values would be a third of the analysis's memory. A
     /// candidate's `fit` indexes them.
     pub fits: Models,
-    /// Every (fit, quantiser) pair with its distortion.
+    /// Every (fit, quantiser, rounding) kept, with its distortion and bits.
     pub candidates: Vec<Candidate>,
     /// The candidates' control indices, one after the other, if the node holds them; if not,
     /// [`NodeAnalysis::leaf`] makes them again (quantising again costs time, holding them
