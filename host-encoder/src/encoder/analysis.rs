@@ -715,11 +715,8 @@ fn add_rounding_variants(
     na.reserve(varied.capacity(), varied.capacity() * MAX_CONTROL);
     for &k in vary {
         let c = na.candidates[usize::from(k)];
-        let (fit, targets) = made[usize::from(c.fit)].get_or_insert_with(|| {
-            let fit = fit_default(plane, &na.node, na.fits[usize::from(c.fit)]);
-            let targets = targets_of(&image, &na.node, &fit);
-            (fit, targets)
-        });
+        let (fit, targets) =
+            made[usize::from(c.fit)].get_or_insert_with(|| na.fit_and_targets(c.fit, &image));
         let n = fit.model.model().control_count();
         let own = match na.indices {
             Some(_) => na.leaf(usize::from(k), &image),

@@ -157,6 +157,14 @@ impl NodeAnalysis {
         leaf
     }
 
+    /// The node's fit number `fit`, made again from the image `image` predicts from, with its
+    /// quantisation targets.
+    pub fn fit_and_targets(&self, fit: u8, image: &ImagePrediction) -> (Fit, ControlTargets) {
+        let fit = fit_default(image.plane, &self.node, self.fits[usize::from(fit)]);
+        let targets = targets_of(image, &self.node, &fit);
+        (fit, targets)
+    }
+
     /// The leaf syntax of candidate number `k`: the indices the node holds, or else made again
     /// from the image `image` predicts from (the fit, by its model, its targets, then the
     /// candidate's quantiser and rounding).
@@ -170,8 +178,7 @@ impl NodeAnalysis {
                 self.held_leaf(c, &indices[at..][..self.index_count(c)])
             }
             None => {
-                let fit = fit_default(image.plane, &self.node, self.fits[usize::from(c.fit)]);
-                let targets = targets_of(image, &self.node, &fit);
+                let (fit, targets) = self.fit_and_targets(c.fit, image);
                 quantise(&fit, &targets, c.cq, c.coding, c.rounding_lambda()).leaf
             }
         }
@@ -195,11 +202,8 @@ impl NodeAnalysis {
         self.candidates
             .iter()
             .map(|c| {
-                let (fit, targets) = made[usize::from(c.fit)].get_or_insert_with(|| {
-                    let fit = fit_default(image.plane, &self.node, self.fits[usize::from(c.fit)]);
-                    let targets = targets_of(image, &self.node, &fit);
-                    (fit, targets)
-                });
+                let (fit, targets) = made[usize::from(c.fit)]
+                    .get_or_insert_with(|| self.fit_and_targets(c.fit, image));
                 quantise(fit, targets, c.cq, c.coding, c.rounding_lambda()).leaf
             })
             .collect()

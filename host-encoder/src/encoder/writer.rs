@@ -43,8 +43,8 @@ pub struct Written {
 }
 
 /// The syntax of a plan's leaves, made again from the image before the walk (in parallel),
-/// by level, node index in the level and candidate.
-type PlanLeaves = HashMap<(usize, usize, u16), LeafSyntax>;
+/// by node (side as a power of two, then its top-left pixel) and candidate.
+type PlanLeaves = HashMap<(u8, u32, u32, u16), LeafSyntax>;
 
 /// The syntax of every leaf `plan` (of `tree`'s candidates) codes, made from the image `image`
 /// predicts from.
@@ -55,20 +55,19 @@ fn plan_leaves(tree: &CandidateTree, plan: &Plan, image: &ImagePrediction) -> Pl
             cut_leaves(tree, plan, (na.node, false), &mut wanted);
         }
     }
-    let min = tree.min_leaf_log2();
     wanted
         .into_par_iter()
         .filter_map(|(node, c)| {
             let na = tree.node(&node)?;
-            let key = (
-                usize::from(node.log2 - min),
-                tree.level(node.log2)?.index(node.x, node.y),
-                c,
-            );
             let k = usize::from(c);
-            (k < na.candidates.len()).then(|| (key, na.leaf(k, image)))
+            (k < na.candidates.len()).then(|| (leaf_key(&node, c), na.leaf(k, image)))
         })
         .collect()
+}
+
+/// Where [`PlanLeaves`] keeps the syntax of candidate `c` of `node`.
+fn leaf_key(node: &Node, c: u16) -> (u8, u32, u32, u16) {
+    (node.log2, node.x, node.y, c)
 }
 
 /// Adds to `leaves` the leaves of `plan`'s cut at and below `node` (`in_subtree`: inside a
@@ -247,9 +246,7 @@ impl TreeVisitor for PlanVisitor<'_> {
         leaf: &mut LeafSyntax,
     ) {
         if let Some(Decision::Leaf(c)) = self.decision(node) {
-            let l = usize::from(node.log2 - self.tree.min_leaf_log2());
-            let i = self.tree.levels()[l].index(node.x, node.y);
-            if let Some(made) = self.plan_leaves.get(&(l, i, c)) {
+            if let Some(made) = self.plan_leaves.get(&leaf_key(node, c)) {
                 *leaf = *made;
             } else if let Some(na) = self.tree.node(node) {
                 *leaf = na.leaf(usize::from(c), &self.image);
