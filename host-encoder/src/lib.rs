@@ -38,6 +38,8 @@
 //! # assert_eq!(drawn.len(), 4097);
 //! ```
 //!
+//! [`relief`] draws a heightmap as a hillshaded relief, for a quick look at a decoded terrain.
+//!
 //! The `pifs` tool is behind the default cargo feature `cli`; a library user writes
 //! `host-encoder = { version = "…", default-features = false }` and gets no command-line
 //! dependencies (`clap`, `indicatif`, `plotters`).
@@ -55,6 +57,7 @@ pub mod ifs;
 pub mod internal;
 pub mod io;
 pub mod packets;
+pub mod relief;
 
 pub use encoder::{
     analyse, analyse_colour, analysis_steps, psnr, Analysis, AnalysisStage, AnalysisSteps,

@@ -1031,3 +1031,84 @@ fn tune_chooses_the_distortion() {
     let line = refused(&pifs(&["encode", png.to_str().unwrap(), "--tune", "blur"]));
     assert!(line.contains("'blur' is not 'ssim' or 'psnr'"), "{line}");
 }
+
+/// `decode --hillshade` draws a grayscale stream's decode as the relief `relief::hillshade`
+/// makes of it (with a chosen exaggeration or the automatic one); a colour stream, packets or
+/// a scale are refused in one line, with no output left behind.
+#[test]
+fn decode_draws_a_heightmap_as_a_hillshaded_relief() {
+    let dir = scratch("hillshade");
+    let png = dir.join("in.png");
+    textured(64, 48).save(&png).unwrap();
+    let stream = dir.join("in.pifs");
+    ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        stream.to_str().unwrap(),
+    ]));
+    let (w, h, heights) = decoded(&stream);
+    let heights: Vec<f64> = heights.iter().map(|&p| f64::from(p)).collect();
+    for (option, z_factor) in [(None, None), (Some("2.5"), Some(2.5))] {
+        let out = dir.join("relief.pgm");
+        let mut args = vec![
+            "decode",
+            stream.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.push("--hillshade");
+        args.extend(option);
+        assert!(ok(&pifs(&args)).contains("hillshaded relief"));
+        let light = host_encoder::relief::Light {
+            z_factor,
+            ..Default::default()
+        };
+        let expected = host_encoder::relief::hillshade(&heights, w as usize, h as usize, &light);
+        let img = image::open(&out).unwrap().to_luma8();
+        assert_eq!(img.dimensions(), (w, h));
+        assert_eq!(img.as_raw(), &expected, "{option:?}");
+        assert!(
+            expected.iter().any(|&s| s != expected[0]),
+            "a relief, not a flat gray"
+        );
+    }
+
+    let colour = dir.join("colour.png");
+    colour_gradient().save(&colour).unwrap();
+    let colour_stream = dir.join("colour.pifs");
+    ok(&pifs(&[
+        "encode",
+        colour.to_str().unwrap(),
+        "-o",
+        colour_stream.to_str().unwrap(),
+    ]));
+    let out = dir.join("refused.png");
+    let line = refused(&pifs(&[
+        "decode",
+        colour_stream.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--hillshade",
+    ]));
+    assert!(line.contains("grayscale"), "{line}");
+    let line = refused(&pifs(&[
+        "decode",
+        stream.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--hillshade",
+        "--scale",
+        "1/2",
+    ]));
+    assert!(line.contains("coded size"), "{line}");
+    let line = refused(&pifs(&[
+        "decode",
+        stream.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--hillshade=-1",
+    ]));
+    assert!(line.contains("vertical exaggeration"), "{line}");
+    assert!(!out.exists());
+}

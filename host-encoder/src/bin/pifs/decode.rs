@@ -9,6 +9,7 @@ use crate::output::{self, Kind};
 use crate::say;
 use decoder_core::{Header, LeafInfo, Limits, Scale};
 use host_encoder::io::{self, Content, Output, OutputFormat, StreamInput};
+use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
@@ -81,6 +82,35 @@ pub fn output_format(output: &Path, chosen: Option<OutputFormat>) -> Result<Outp
     }
 }
 
+/// A `--hillshade` value: the vertical exaggeration, or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZFactor(pub Option<f64>);
+
+/// Parses a `--hillshade` value: `auto` or a positive number.
+pub fn parse_z_factor(text: &str) -> std::result::Result<ZFactor, String> {
+    if text == "auto" {
+        return Ok(ZFactor(None));
+    }
+    match text.parse::<f64>() {
+        Ok(z) if z.is_finite() && z > 0.0 => Ok(ZFactor(Some(z))),
+        _ => Err(format!(
+            "not a vertical exaggeration: {text} (a positive number, or auto)"
+        )),
+    }
+}
+
+/// How `pifs decode` draws: at which scale, from packets or a stream, as the image or as a
+/// hillshaded relief.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drawing {
+    /// The output's scale of the coded size.
+    pub scale: Scale,
+    /// Read the input as packets.
+    pub packets: bool,
+    /// Draw the heights as a hillshaded relief, with this vertical exaggeration.
+    pub hillshade: Option<ZFactor>,
+}
+
 /// `pifs decode`: refuses a bad output name before reading anything, a bad stream on its
 /// header, then opens the output and writes the image at `scale` band by band.
 pub fn run(
@@ -88,9 +118,13 @@ pub fn run(
     output: &Path,
     format: Option<OutputFormat>,
     limits: &Limits,
-    scale: Scale,
-    packets: bool,
+    drawing: Drawing,
 ) -> Result<()> {
+    let Drawing {
+        scale,
+        packets,
+        hillshade,
+    } = drawing;
     let input = inputs.first().map_or(Path::new("-"), |p| p.as_path());
     let start = Instant::now();
     let chosen = format.is_some();
@@ -106,7 +140,16 @@ pub fn run(
     if io::is_std_stream(output) {
         say::stdout_is_data();
     }
-    if packets || inputs.len() > 1 || crate::packets::is_packet_input(input) {
+    let from_packets = packets || inputs.len() > 1 || crate::packets::is_packet_input(input);
+    if let Some(ZFactor(z_factor)) = hillshade {
+        if from_packets || scale != Scale::One {
+            return Err(CliError::Refused(
+                "--hillshade draws one stream at its coded size (not packets, no --scale)".into(),
+            ));
+        }
+        return relief(input, output, format, limits, z_factor);
+    }
+    if from_packets {
         if scale != Scale::One {
             return Err(CliError::Refused(
                 "packets decode at their coded size only".into(),
@@ -129,6 +172,51 @@ pub fn run(
         } else {
             "gray"
         },
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(())
+}
+
+/// `pifs decode --hillshade`: the grayscale stream `input` decoded and drawn as a relief.
+fn relief(
+    input: &Path,
+    output: &Path,
+    format: OutputFormat,
+    limits: &Limits,
+    z_factor: Option<f64>,
+) -> Result<()> {
+    let start = Instant::now();
+    let stream = open_stream(input, limits)?;
+    let (header, pixels) = decode_pixels(&stream, None)?;
+    if header.channels != 1 {
+        return Err(CliError::Refused(format!(
+            "--hillshade needs a grayscale stream (its values are the heights); {} is colour",
+            input.display()
+        )));
+    }
+    let (width, height) = (usize::from(header.width), usize::from(header.height));
+    let heights: Vec<f64> = pixels.iter().map(|&p| f64::from(p)).collect();
+    let light = host_encoder::relief::Light {
+        z_factor,
+        ..Default::default()
+    };
+    let shade = host_encoder::relief::hillshade(&heights, width, height, &light);
+    let bytes = format.encode(
+        output,
+        u32::from(header.width),
+        u32::from(header.height),
+        1,
+        &shade,
+    )?;
+    let mut out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    out.write_all(&bytes).map_err(|e| out.error(e))?;
+    out.commit()?;
+    say!(
+        "{}: {}x{} hillshaded relief decoded in {:.1} ms",
+        name.display(),
+        width,
+        height,
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())

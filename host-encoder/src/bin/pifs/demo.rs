@@ -48,8 +48,11 @@ pub fn run() -> Result<()> {
             &stream.with_extension("png"),
             None,
             &decoder_core::Limits::NONE,
-            decoder_core::Scale::One,
-            false,
+            crate::decode::Drawing {
+                scale: decoder_core::Scale::One,
+                packets: false,
+                hillshade: None,
+            },
         )?;
     }
     say!(

@@ -82,6 +82,13 @@ enum Command {
         /// standard input ("-").
         #[arg(long)]
         packets: bool,
+        /// Write the decoded heightmap as a hillshaded relief (light from the north-west, 45
+        /// degrees up), for a quick look at a terrain: a grayscale stream's values are the
+        /// heights. Optional value: the vertical exaggeration in height units per pixel
+        /// [default: auto, the median slope drawn at 20 degrees].
+        #[arg(long, value_name = "Z", num_args = 0..=1, default_missing_value = "auto",
+              value_parser = decode::parse_z_factor)]
+        hillshade: Option<decode::ZFactor>,
     },
     /// Describe a PIFS stream; with --svg, draw its quadtree over the decoded image.
     ///
@@ -173,13 +180,17 @@ fn main() -> ExitCode {
             max_pixels,
             scale,
             packets,
+            hillshade,
         }) => decode::run(
             &input,
             &output,
             format,
             &decoder_core::Limits::pixels(max_pixels),
-            scale,
-            packets,
+            decode::Drawing {
+                scale,
+                packets,
+                hillshade,
+            },
         ),
         Some(Command::Info {
             input,
