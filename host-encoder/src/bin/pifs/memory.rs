@@ -13,9 +13,12 @@
 //! (150 bytes per pixel beside the fixed part) and RGB noise to 55 MB (`/usr/bin/time -f %M`,
 //! same commands). Since the nodes past an analysis's first band (about a megapixel) make
 //! their candidates' indices again instead of holding them, the mosaics peak at 281 MB and
-//! 818 MB (about 34 bytes a pixel): large photographs need far less than the estimate, which
-//! stays set by the smaller images and noise. [`encode_bytes`] rounds these up: 250 bytes a
-//! pixel with 4 px leaves.
+//! 818 MB (about 34 bytes a pixel). Noise past the first band (`/usr/bin/time -f %M pifs
+//! encode IN.png [--gray] -o x.pifs --bpp 0.25 --max-memory 20G`, uniform noise made with
+//! numpy): grayscale 1024² 137 MB, 2048² 266 MB, 3072x2048 356 MB, so 41 and 43 bytes per
+//! pixel past the first; RGB 1024² 171 MB, 2048² 428 MB, 82 bytes per pixel past it.
+//! [`encode_bytes`] rounds these up: 250 bytes a pixel with 4 px leaves in the first band (up
+//! to 2^20 pixels and a row of 128 px nodes), 64 past it, and the pixels beside the analysis.
 //!
 //! A colour encode analyses the luma plane and keeps, at every node, what its chroma costs
 //! (the hull of its chroma options): RGB noise of 500² peaked at 56 MB against 52 MB in
@@ -32,13 +35,41 @@
 //! `ulimit -d`, `prlimit`) leave. Linux only; elsewhere nothing is known and only
 //! `--max-pixels` bounds an encode.
 
-/// Bytes of the analysis per pixel, by the smallest leaf (log2).
-fn analysis_bytes_per_pixel(min_leaf_log2: u8) -> u64 {
+/// Bytes of the analysis per pixel of its first band, by the smallest leaf (log2): the nodes
+/// there hold their candidates' indices.
+fn first_band_bytes_per_pixel(min_leaf_log2: u8) -> u64 {
     match min_leaf_log2 {
         0 | 1 => 600,
         2 => 250,
         _ => 200,
     }
+}
+
+/// Bytes of the analysis per pixel past its first band, where the nodes make their
+/// candidates' indices again instead of holding them: noise, the worst content, takes 41 to
+/// 43 (module documentation); 2 px leaves are priced as in the first band (not measured).
+fn later_bytes_per_pixel(min_leaf_log2: u8) -> u64 {
+    match min_leaf_log2 {
+        0 | 1 => first_band_bytes_per_pixel(min_leaf_log2),
+        _ => 64,
+    }
+}
+
+/// Pixels of the analysis's first band at most, for an image `width` pixels wide: the
+/// encoder's bands hold 2^20 pixels or more, in whole rows of its largest nodes (128 px).
+fn first_band_pixels(width: u64) -> u64 {
+    width.saturating_mul(128).saturating_add(1 << 20)
+}
+
+/// Bytes the analysis of a `width`-wide image of `pixels` pixels needs, with the pixels
+/// beside it ([`image_bytes_per_pixel`]).
+fn analysis_bytes(pixels: u64, width: u64, channels: u8, min_leaf_log2: u8) -> u64 {
+    let first = pixels.min(first_band_pixels(width));
+    let later = pixels - first;
+    let image = image_bytes_per_pixel(channels);
+    first
+        .saturating_mul(first_band_bytes_per_pixel(min_leaf_log2) + image)
+        .saturating_add(later.saturating_mul(later_bytes_per_pixel(min_leaf_log2) + image))
 }
 
 /// Memory besides the pixels' (the program, its threads, the encoder's tables).
@@ -58,23 +89,37 @@ fn image_bytes_per_pixel(channels: u8) -> u64 {
     }
 }
 
-/// Bytes an encode of a `pixels`-pixel image into a stream of `channels` channels (1 or 3)
-/// needs at its peak: the decoded image in its own colour type (`decoded_bytes`, twice while a
-/// rotation is applied) with the 8-bit plane and RGB (which a colour type gets even for a
-/// grayscale stream), then the analysis and the pixels beside it ([`image_bytes_per_pixel`];
-/// a quality target that analyses again frees the first analysis before).
-pub fn encode_bytes(pixels: u64, decoded_bytes: u64, channels: u8, min_leaf_log2: u8) -> u64 {
-    let decoding = decoded_bytes
+/// The size of an image an encode is asked for, as its header gives it before decoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageSize {
+    /// Width in pixels.
+    pub width: u64,
+    /// Height in pixels.
+    pub height: u64,
+    /// Bytes of the decoded image in its own colour type.
+    pub decoded_bytes: u64,
+}
+
+/// Bytes an encode of an image of `size` into a stream of `channels` channels (1 or 3) needs
+/// at its peak: the decoded image in its own colour type (twice while a rotation is applied)
+/// with the 8-bit plane and RGB (which a colour type gets even for a grayscale stream), then
+/// the analysis and the pixels beside it ([`analysis_bytes`]; a quality target that analyses
+/// again frees the first analysis before).
+pub fn encode_bytes(size: ImageSize, channels: u8, min_leaf_log2: u8) -> u64 {
+    let pixels = size.width.saturating_mul(size.height);
+    let decoding = size
+        .decoded_bytes
         .saturating_mul(2)
         .saturating_add(pixels.saturating_mul(4));
-    let analysing = pixels.saturating_mul(per_pixel(channels, min_leaf_log2));
+    let analysing = analysis_bytes(pixels, size.width, channels, min_leaf_log2);
     decoding.max(analysing).saturating_add(FIXED_BYTES)
 }
 
-/// Bytes per pixel of an encode into `channels` channels with these settings, the analysis
-/// and the pixels beside it (for messages).
-pub fn per_pixel(channels: u8, min_leaf_log2: u8) -> u64 {
-    analysis_bytes_per_pixel(min_leaf_log2) + image_bytes_per_pixel(channels)
+/// Bytes per pixel of the analysis of an image of `size` into `channels` channels, with the
+/// pixels beside it: its mean over the image (for messages).
+pub fn per_pixel(size: ImageSize, channels: u8, min_leaf_log2: u8) -> u64 {
+    let pixels = size.width.saturating_mul(size.height).max(1);
+    analysis_bytes(pixels, size.width, channels, min_leaf_log2).div_ceil(pixels)
 }
 
 /// The memory this process may still use, as far as the system says (Linux), bytes.
@@ -199,18 +244,46 @@ mod tests {
         assert_eq!(human(12), "12 bytes");
     }
 
+    fn size(width: u64, height: u64) -> ImageSize {
+        ImageSize {
+            width,
+            height,
+            decoded_bytes: width.saturating_mul(height).saturating_mul(3),
+        }
+    }
+
     #[test]
     fn the_estimate_grows_with_the_pixels_and_the_settings() {
-        let small = encode_bytes(1_000_000, 3_000_000, 1, 2);
-        // 250 bytes a pixel for the analysis, 2 for the pixels, 64 MiB beside them.
+        let small = encode_bytes(size(1000, 1000), 1, 2);
+        // One band: 250 bytes a pixel for the analysis, 2 for the pixels, 64 MiB beside them.
         assert_eq!(small, 252_000_000 + (64 << 20));
-        assert!(encode_bytes(1_000_000, 3_000_000, 1, 1) > small);
-        assert!(encode_bytes(1_000_000, 3_000_000, 1, 3) < small);
+        assert!(encode_bytes(size(1000, 1000), 1, 1) > small);
+        assert!(encode_bytes(size(1000, 1000), 1, 3) < small);
         // Colour: the RGB pixels and the nodes' chroma costs beside the luma analysis.
-        let colour = encode_bytes(1_000_000, 3_000_000, 3, 2);
+        let colour = encode_bytes(size(1000, 1000), 3, 2);
         assert_eq!(colour - small, 34_000_000);
-        assert_eq!(per_pixel(3, 2) - per_pixel(1, 2), 34);
-        assert_eq!(encode_bytes(u64::MAX, u64::MAX, 3, 2), u64::MAX);
+        assert_eq!(
+            per_pixel(size(1000, 1000), 3, 2) - per_pixel(size(1000, 1000), 1, 2),
+            34
+        );
+        assert_eq!(encode_bytes(size(u64::MAX, 2), 3, 2), u64::MAX);
+        // Past the first band (2^20 pixels and a row of 128 px nodes), 64 + 2 bytes a pixel.
+        let first = (1 << 20) + 128 * 6000;
+        let photo = encode_bytes(size(6000, 4000), 1, 2);
+        assert_eq!(photo, first * 252 + (24_000_000 - first) * 66 + (64 << 20));
+        assert!(
+            photo < 2_000_000_000,
+            "a 24-megapixel photo in {photo} bytes"
+        );
+        assert_eq!(
+            per_pixel(size(6000, 4000), 1, 2),
+            (photo - (64 << 20)).div_ceil(24_000_000)
+        );
+        // 2 px leaves are priced as in the first band throughout.
+        assert_eq!(
+            encode_bytes(size(6000, 4000), 1, 1),
+            24_000_000 * 602 + (64 << 20)
+        );
     }
 
     #[cfg(target_os = "linux")]
