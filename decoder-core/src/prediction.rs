@@ -101,7 +101,15 @@ pub fn edge_offset(base: i32, outside: i32, outside_before: i32, step: i32) -> i
 /// plus the change between those pixels, in steps (at most 2).
 #[inline]
 pub fn edge_context(context: usize, outside: i32, outside_before: i32, step: i32) -> usize {
-    context / 2 + ((outside - outside_before).unsigned_abs() / step.max(1) as u32).min(2) as usize
+    // min(change / step, 2) by comparisons: no division on a core without a divider.
+    let change = (outside - outside_before).unsigned_abs();
+    let step = step.max(1) as u32;
+    let steps = if change >= step.saturating_mul(2) {
+        2
+    } else {
+        usize::from(change >= step)
+    };
+    context / 2 + steps
 }
 
 /// The pixels next to a leaf's control point `k` of its first row (`row == true`) or column,
@@ -357,6 +365,19 @@ impl core::fmt::Debug for Capture<'_> {
 /// `TAPER` limits is smoothed less the larger it is ([`Capture`]).
 const TAPER: i32 = 4;
 
+/// `floor(x / 3)` for `x < 1024` without a division (the Cortex-M0 has no divider and no
+/// 64-bit product, so a constant division is a library call there).
+#[inline(always)]
+fn third(x: u32) -> u32 {
+    (x * 683) >> 11
+}
+
+/// `floor(x / 288)` (288 = 96 (TAPER - 1)) for `x < 32768`, without a division.
+#[inline(always)]
+fn over_span(x: u32) -> u32 {
+    (x * 7282) >> 21
+}
+
 /// The smoothing of one pixel pair across a leaf edge: `(q, p)` corrected, when `D = q - p`
 /// is small enough (see [`Capture`]).
 #[inline]
@@ -364,11 +385,12 @@ fn smooth(q: u8, p: u8, limit: i32) -> Option<(u8, u8)> {
     let d = i32::from(q) - i32::from(p);
     let size = 32 * d.abs();
     let c = if size <= limit {
-        (d.abs() + 1) / 3
+        third(d.unsigned_abs() + 1) as i32
     } else if size <= TAPER * limit {
-        // From a third of the step at the limit down to nothing at TAPER limits.
-        let span = 96 * (TAPER - 1);
-        (TAPER * limit - size + span / 2) / span
+        // From a third of the step at the limit down to nothing at TAPER limits: the
+        // numerator lies in 144..3 size + 144 (as L < size), below 24 625.
+        const SPAN: i32 = 96 * (TAPER - 1);
+        over_span((TAPER * limit - size + SPAN / 2) as u32) as i32
     } else {
         return None;
     };
@@ -717,5 +739,73 @@ mod tests {
         // The taper starts where the third ends: a step of 9 moves by 3 either way.
         assert_eq!(smooth(109, 100, 256), Some((106, 103)));
         assert_eq!(smooth(100, 109, 256), Some((103, 106)));
+    }
+
+    /// The division-free smoothing is the specification's formula, with its divisions, for
+    /// every pixel pair and every strength times every step a stream can give.
+    #[test]
+    fn smoothing_without_division_is_the_formula() {
+        let reference = |q: u8, p: u8, limit: i32| {
+            let d = i32::from(q) - i32::from(p);
+            let size = 32 * d.abs();
+            let c = if size <= limit {
+                (d.abs() + 1) / 3
+            } else if size <= 4 * limit {
+                (4 * limit - size + 144) / 288
+            } else {
+                return None;
+            };
+            let c = if d >= 0 { c } else { -c };
+            Some((
+                (i32::from(q) - c).clamp(0, 255) as u8,
+                (i32::from(p) + c).clamp(0, 255) as u8,
+            ))
+        };
+        // Strengths up to 16 times steps up to 2048 (multiples of 8): every step size at
+        // each limit, from pairs at both ends of the range; every pair at a few limits.
+        for limit in (0..=16 * 2048).step_by(8) {
+            for d in 0..=255u8 {
+                for (q, p) in [(d, 0), (0, d), (255, 255 - d), (255 - d, 255)] {
+                    assert_eq!(
+                        smooth(q, p, limit),
+                        reference(q, p, limit),
+                        "{q} {p} {limit}"
+                    );
+                }
+            }
+        }
+        for limit in [0, 24, 256, 1000, 4096, 32768] {
+            for q in 0..=255u8 {
+                for p in 0..=255u8 {
+                    assert_eq!(
+                        smooth(q, p, limit),
+                        reference(q, p, limit),
+                        "{q} {p} {limit}"
+                    );
+                }
+            }
+        }
+        assert!((0..32768).all(|x| over_span(x) == x / 288));
+        assert!((0..1024).all(|x| third(x) == x / 3));
+    }
+
+    /// The edge context's step count is `min(change / step, 2)`.
+    #[test]
+    fn edge_context_counts_steps_without_division() {
+        for step in [-3, 0, 1, 2, 3, 7, 16, 100, 4096] {
+            for change in 0..20_000 {
+                let steps = (change as u32 / step.max(1) as u32).min(2) as usize;
+                assert_eq!(
+                    edge_context(5, change, 0, step),
+                    2 + steps,
+                    "{change} {step}"
+                );
+                assert_eq!(
+                    edge_context(5, 0, change, step),
+                    2 + steps,
+                    "{change} {step}"
+                );
+            }
+        }
     }
 }
