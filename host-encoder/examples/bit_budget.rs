@@ -172,9 +172,20 @@ impl Coder for Pricing<'_> {
     }
 }
 
-/// A decoder that draws nothing but what prediction needs, and notes each leaf's model and
-/// control quantiser in coding order.
-struct Reader(Vec<(u8, u8)>);
+/// A leaf's model and control quantiser.
+#[derive(Debug, Clone, Copy)]
+struct Choice {
+    model: u8,
+    cquant: u8,
+}
+
+/// What a leaf's quantiser is conditioned on: a key from the leaves of a stream (in coding
+/// order) and the leaf's index.
+type Condition<'a> = &'a dyn Fn(&[Choice], usize) -> u32;
+
+/// A decoder that draws nothing but what prediction needs, and notes each leaf's choices in
+/// coding order.
+struct Reader(Vec<Choice>);
 
 impl TreeVisitor for Reader {
     type Error = DecodeError;
@@ -197,7 +208,10 @@ impl TreeVisitor for Reader {
         patch: &Patch,
         frontier: &mut Frontier<STRIPE>,
     ) -> Result<(), DecodeError> {
-        self.0.push((info.model, info.cquant));
+        self.0.push(Choice {
+            model: info.model,
+            cquant: info.cquant,
+        });
         frontier.record(&info.node, control_step(info.cquant), patch, &mut Discard);
         Ok(())
     }
@@ -206,7 +220,7 @@ impl TreeVisitor for Reader {
 fn main() {
     let mut total: BTreeMap<Element, f64> = BTreeMap::new();
     let mut payload_bits = 0.0;
-    let mut leaves: Vec<Vec<(u8, u8)>> = Vec::new();
+    let mut leaves: Vec<Vec<Choice>> = Vec::new();
     let mut decisions: BTreeMap<Element, u64> = BTreeMap::new();
     for path in std::env::args().skip(1) {
         let stream = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
@@ -264,25 +278,29 @@ fn main() {
     );
     // What the control quantiser would cost with other conditioning: the empirical
     // conditional entropy over all leaves (an adaptive coder pays it and its learning).
-    let entropy = |key: &dyn Fn(usize, &[(u8, u8)]) -> (u32, u8)| {
+    let entropy = |given: Condition| {
         let mut joint: HashMap<(u32, u8), f64> = HashMap::new();
-        let mut given: HashMap<u32, f64> = HashMap::new();
+        let mut marginal: HashMap<u32, f64> = HashMap::new();
         for stream in &leaves {
-            for i in 0..stream.len() {
-                let (k, v) = key(i, stream);
-                *joint.entry((k, v)).or_default() += 1.0;
-                *given.entry(k).or_default() += 1.0;
+            for (i, leaf) in stream.iter().enumerate() {
+                let k = given(stream, i);
+                *joint.entry((k, leaf.cquant)).or_default() += 1.0;
+                *marginal.entry(k).or_default() += 1.0;
             }
         }
         joint
             .iter()
-            .map(|((k, _), n)| -n * (n / given[k]).log2())
+            .map(|((k, _), n)| -n * (n / marginal[k]).log2())
             .sum::<f64>()
     };
-    let by_model = entropy(&|i, s| (u32::from(s[i].0), s[i].1));
-    let prev = |i: usize, s: &[(u8, u8)]| if i == 0 { 255 } else { u32::from(s[i - 1].1) };
-    let by_model_prev = entropy(&|i, s| (u32::from(s[i].0) << 8 | prev(i, s), s[i].1));
-    let by_prev = entropy(&|i, s| (prev(i, s), s[i].1));
+    let model = |s: &[Choice], i: usize| u32::from(s[i].model);
+    let previous = |s: &[Choice], i: usize| match i {
+        0 => 255,
+        _ => u32::from(s[i - 1].cquant),
+    };
+    let by_model = entropy(&model);
+    let by_prev = entropy(&previous);
+    let by_model_prev = entropy(&|s, i| model(s, i) << 8 | previous(s, i));
     let coded = total
         .iter()
         .filter(|(e, _)| **e == Element::Cquant)
