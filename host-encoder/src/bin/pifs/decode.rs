@@ -187,13 +187,14 @@ fn relief(
 ) -> Result<()> {
     let start = Instant::now();
     let stream = open_stream(input, limits)?;
-    let (header, pixels) = decode_pixels(&stream, None)?;
-    if header.channels != 1 {
+    // Refused on its header, before anything is decoded.
+    if stream.header().channels != 1 {
         return Err(CliError::Refused(format!(
             "--hillshade needs a grayscale stream (its values are the heights); {} is colour",
             input.display()
         )));
     }
+    let (header, pixels) = decode_pixels(&stream, None)?;
     let (width, height) = (usize::from(header.width), usize::from(header.height));
     let heights: Vec<f64> = pixels.iter().map(|&p| f64::from(p)).collect();
     let light = host_encoder::relief::Light {
