@@ -1112,3 +1112,32 @@ fn decode_draws_a_heightmap_as_a_hillshaded_relief() {
     assert!(line.contains("vertical exaggeration"), "{line}");
     assert!(!out.exists());
 }
+
+/// A 16-bit grayscale image whose samples span little of their range (a heightmap in metres,
+/// say) gets a note that 8 bits flatten it; one spanning most of it does not.
+#[test]
+fn narrow_16_bit_samples_are_noted() {
+    let dir = scratch("sixteen");
+    let encode = |name: &str, f: &dyn Fn(u32, u32) -> u16| {
+        let png = dir.join(name);
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(40, 30, |x, y| {
+            image::Luma([f(x, y)])
+        })
+        .save(&png)
+        .unwrap();
+        let out = dir.join("x.pifs");
+        ok(&pifs(&[
+            "encode",
+            png.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]))
+    };
+    let heights = encode("dem.png", &|x, y| 1000 + (x * 5 + y * 3) as u16);
+    assert!(
+        heights.contains("16-bit samples from 1000 to 1282 become 2 grey levels"),
+        "{heights}"
+    );
+    let photo = encode("photo.png", &|x, y| (x * 1500 + y * 200) as u16);
+    assert!(!photo.contains("16-bit samples"), "{photo}");
+}

@@ -206,6 +206,38 @@ pub struct DecodedImage {
     pub orientation: Orientation,
     /// The file's pages: only the first was decoded.
     pub pages: usize,
+    /// The range its samples span, for a 16-bit grayscale image (a heightmap, often), which
+    /// [`to_luma`] maps to 8 bits from the type's full range.
+    pub range16: Option<SampleRange>,
+}
+
+/// The smallest and the largest sample of an image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleRange {
+    /// The smallest sample.
+    pub low: u16,
+    /// The largest sample.
+    pub high: u16,
+}
+
+impl SampleRange {
+    /// The range of a 16-bit grayscale image (with or without alpha); `None` for any other.
+    pub fn of_gray16(img: &DynamicImage) -> Option<SampleRange> {
+        let samples: Box<dyn Iterator<Item = u16> + '_> = match img {
+            DynamicImage::ImageLuma16(g) => Box::new(g.pixels().map(|p| p[0])),
+            DynamicImage::ImageLumaA16(g) => Box::new(g.pixels().map(|p| p[0])),
+            _ => return None,
+        };
+        samples.fold(None, |range, v| {
+            Some(match range {
+                None => SampleRange { low: v, high: v },
+                Some(r) => SampleRange {
+                    low: r.low.min(v),
+                    high: r.high.max(v),
+                },
+            })
+        })
+    }
 }
 
 impl DecodedImage {
@@ -250,6 +282,7 @@ impl DecodedImage {
             rgb,
             orientation: probe.orientation,
             pages: probe.pages,
+            range16: SampleRange::of_gray16(&img),
         })
     }
 }

@@ -205,6 +205,20 @@ impl Checked {
                 decoded.pages
             );
         }
+        if let Some(range) = decoded.range16 {
+            // Fewer than 64 of the 256 grey levels: a heightmap, most likely, flattened.
+            let levels = u32::from(range.high - range.low) * 255 / 65535 + 1;
+            if levels < 64 {
+                say!(
+                    "{}: note: 16-bit samples from {} to {} become {levels} grey levels of 8 \
+                     bits (streams are 8-bit; for a heightmap, stretch its range to 0..65535 \
+                     first and keep it to map back)",
+                    self.path.display(),
+                    range.low,
+                    range.high
+                );
+            }
+        }
         Ok(decoded)
     }
 }
