@@ -149,7 +149,6 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// A flat `w x h` 8-bit grayscale PNG, written row by row.
 /// A PNG of `w x h` gray pixels whose image data is an empty zlib stream: what a reader
 /// learns from its header, without the gigabytes of a real one.
 fn png_header_only(path: &Path, w: u32, h: u32) {
@@ -176,6 +175,7 @@ fn png_header_only(path: &Path, w: u32, h: u32) {
     std::fs::write(path, png).unwrap();
 }
 
+/// A flat `w x h` 8-bit grayscale PNG, written row by row.
 fn flat_png(path: &Path, w: u32, h: u32, value: u8) {
     let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
     let mut encoder = png::Encoder::new(file, w, h);
