@@ -86,6 +86,8 @@ def write_pgm(path, a, maxval):
 
 
 def read_pnm(path):
+    """An 8- or 16-bit PGM as floats, samples as written: pillow rescales a 16-bit PGM whose
+    maxval is below 65535, as OpenJPEG writes them."""
     with open(path, "rb") as f:
         data = f.read()
     fields, pos = [], 0
