@@ -34,10 +34,11 @@ impl Default for Light {
     }
 }
 
-/// The slope of `heights` (row-major, `width x height`) at every sample, as `(east, north)`
-/// height differences per pixel: central differences inside, one-sided at the borders.
-fn gradients(heights: &[f64], width: usize, height: usize) -> Vec<(f64, f64)> {
-    let at = |x: usize, y: usize| heights[y * width + x];
+/// The slope of `heights` (row-major, `width x height`) at every sample, in order, as `(east,
+/// north)` height differences per pixel: central differences inside, one-sided at the
+/// borders. Made as they are needed, not stored.
+fn slopes(heights: &[f64], width: usize, height: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
+    let at = move |x: usize, y: usize| heights[y * width + x];
     let diff = |lo: f64, hi: f64, span: usize| {
         if span == 0 {
             0.0
@@ -45,23 +46,21 @@ fn gradients(heights: &[f64], width: usize, height: usize) -> Vec<(f64, f64)> {
             (hi - lo) / span as f64
         }
     };
-    let mut out = Vec::with_capacity(width * height);
-    for y in 0..height {
+    (0..height).flat_map(move |y| {
         let (up, down) = (y.saturating_sub(1), (y + 1).min(height - 1));
-        for x in 0..width {
+        (0..width).map(move |x| {
             let (left, right) = (x.saturating_sub(1), (x + 1).min(width - 1));
             let east = diff(at(left, y), at(right, y), right - left);
             // Rows grow southwards.
             let north = diff(at(x, down), at(x, up), down - up);
-            out.push((east, north));
-        }
-    }
-    out
+            (east, north)
+        })
+    })
 }
 
-/// The z factor at which the median slope of `slopes` is 20 degrees (1 for a flat map).
-fn auto_z_factor(slopes: &[(f64, f64)]) -> f64 {
-    let mut magnitudes: Vec<f64> = slopes.iter().map(|&(e, n)| e.hypot(n)).collect();
+/// The z factor at which the median of `slopes` is 20 degrees (1 for a flat map).
+fn auto_z_factor(slopes: impl Iterator<Item = (f64, f64)>) -> f64 {
+    let mut magnitudes: Vec<f64> = slopes.map(|(e, n)| e.hypot(n)).collect();
     if magnitudes.is_empty() {
         return 1.0;
     }
@@ -79,13 +78,13 @@ fn auto_z_factor(slopes: &[(f64, f64)]) -> f64 {
 /// facing away, as 8-bit gray. Panics if `heights` does not hold `width x height` values.
 pub fn hillshade(heights: &[f64], width: usize, height: usize, light: &Light) -> Vec<u8> {
     assert_eq!(heights.len(), width * height, "heightmap size mismatch");
-    let slopes = gradients(heights, width, height);
-    let z = light.z_factor.unwrap_or_else(|| auto_z_factor(&slopes));
+    let z = light
+        .z_factor
+        .unwrap_or_else(|| auto_z_factor(slopes(heights, width, height)));
     let (az, alt) = (light.azimuth.to_radians(), light.altitude.to_radians());
     let towards = [az.sin() * alt.cos(), az.cos() * alt.cos(), alt.sin()];
-    slopes
-        .iter()
-        .map(|&(east, north)| {
+    slopes(heights, width, height)
+        .map(|(east, north)| {
             let normal = [-east * z, -north * z, 1.0];
             let length = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
             let lambert: f64 = normal.iter().zip(towards).map(|(n, l)| n * l).sum::<f64>() / length;
@@ -147,7 +146,7 @@ mod tests {
     #[test]
     fn the_automatic_scale_gives_a_median_slope_of_twenty_degrees() {
         let ramp = plane(8, 8, |x, _| 0.001 * x as f64);
-        let z = auto_z_factor(&gradients(&ramp, 8, 8));
+        let z = auto_z_factor(slopes(&ramp, 8, 8));
         assert!((z * 0.001 - 20f64.to_radians().tan()).abs() < 1e-12);
         // Scaling the heights does not change the automatic view.
         let light = Light::default();
