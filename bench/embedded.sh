@@ -10,7 +10,11 @@
 #           `-icount shift=0`, from decode entry to return), and the instructions of decodes at
 #           1/2, 1/4 and 1/8 of the size as a share of the full decode's.
 # Images: kodim23 as 128x128, 320x240 and 768x512, grayscale and colour (format 13, decoded to
-# RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder. Generated files go to target/bench-embedded/. Prints markdown tables
+# RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder; and the
+# 320x240 grayscale image as a 16-bit surface (its samples times 257), a 16-bit stream beside
+# its 8-bit twin (the same stream with an 8-bit header: same payload, same pixels), for what
+# making values costs. The 8-bit streams are also decoded by a decoder without the `deep`
+# feature (16-bit streams), for what supporting them costs 8-bit streams. Generated files go to target/bench-embedded/. Prints markdown tables
 # (with ChaN's TJpgDec R0.03 beside ours when ../shared/bench/tjpgdec/out/compare.md is there)
 # and writes bench/results/embedded.csv: one row per target, image and rate.
 #
@@ -49,17 +53,57 @@ for kind in kodim23 kodim23c; do
         done
     done
 done
+python3 - "$out/kodim23_320x240.pgm" "$out/kodim23d_320x240.pgm" <<'PY'
+import sys
+data = open(sys.argv[1], "rb").read()
+fields, pos = [], 0
+while len(fields) < 4:
+    while data[pos:pos + 1].isspace():
+        pos += 1
+    end = pos
+    while not data[end:end + 1].isspace():
+        end += 1
+    fields.append(data[pos:end])
+    pos = end
+w, h = int(fields[1]), int(fields[2])
+pixels = data[pos + 1:pos + 1 + w * h]
+with open(sys.argv[2], "wb") as f:
+    f.write(b"P5\n%d %d\n65535\n" % (w, h))
+    f.write(b"".join((257 * p).to_bytes(2, "big") for p in pixels))
+PY
+for bpp in 0.1 0.5; do
+    d=$out/kodim23d_320x240_${bpp}bpp.pifs
+    ./target/release/pifs encode "$out/kodim23d_320x240.pgm" -o "$d" --bpp "$bpp" >/dev/null
+    # The twin: the header made 8-bit (depth 8, no range), the payload as it is.
+    python3 - "$d" "$out/kodim23s_320x240_${bpp}bpp.pifs" <<'PY'
+import sys, zlib
+s = bytearray(open(sys.argv[1], "rb").read())
+assert s[6] == 16, "not a 16-bit stream"
+pos = 19
+while s[pos] & 0x80:
+    pos += 1
+twin = s[:pos + 1] + s[pos + 5:]
+twin[6] = 8
+twin[15:19] = zlib.crc32(bytes(twin[:15] + twin[19:])).to_bytes(4, "little")
+open(sys.argv[2], "wb").write(twin)
+PY
+    streams+=("$d" "$out/kodim23s_320x240_${bpp}bpp.pifs")
+done
 
 # 2. Firmware builds (one per target and variant, all streams embedded) and runs.
 build() { # target features streams... -> prints the ELF path (a copy under $out)
     # features: cargo features of the firmware; "gray:..." builds without its default `colour`.
     local target=$1 features=$2
     shift 2
-    local list defaults=()
+    # "nodeep:..." builds with `colour` but without `deep`.
+    local list defaults=() wanted=${features#*:}
     list=$(IFS=:; echo "$*")
-    case $features in gray:*) defaults=(--no-default-features) ;; esac
+    case $features in
+        gray:*) defaults=(--no-default-features) ;;
+        nodeep:*) defaults=(--no-default-features) wanted=colour,$wanted ;;
+    esac
     (cd "$fw" && env -u CARGO_TARGET_DIR -u CARGO_BUILD_TARGET -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS \
-        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" "${defaults[@]}" --features "${features#gray:}") \
+        PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" "${defaults[@]}" --features "$wanted") \
         2>"$out/build.log" || { cat "$out/build.log" >&2; exit 1; }
     local elf=$out/fw-$target-${features/:/-}.elf
     cp "$root/target/firmware/$target/release/pifs-firmware-example" "$elf"
@@ -79,7 +123,7 @@ run() { # target elf -> PIFS-BENCH lines on stdout; QEMU's status in $out/status
     grep '^PIFS-BENCH' "$out/qemu.err" || true
 }
 field() { sed -n "s/.* $1=\([^ ]*\).*/\1/p"; }
-declare -A stack instr static flash base_flash gray_flash scaled
+declare -A stack instr static flash base_flash gray_flash scaled nodeep_flash nodeep_stack nodeep_instr
 gray_streams=()
 for s in "${streams[@]}"; do
     case $(basename "$s") in kodim23_*) gray_streams+=("$s") ;; esac
@@ -98,6 +142,19 @@ for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     gelf=$(build $target gray:baseline "${gray_streams[@]}")
     read -r gbtext gbdata _ < <(size "$gelf" | tail -1)
     gray_flash[$target]=$((gtext + gdata - gbtext - gbdata))
+    # Without `deep`: flash, and the 8-bit grayscale streams' stack and instructions.
+    nelf=$(build $target nodeep:bench "${gray_streams[@]}")
+    read -r ntext ndata _ < <(size "$nelf" | tail -1)
+    lines=$(run $target "$nelf")
+    for s in "${gray_streams[@]}"; do
+        n=$(basename "$s")
+        l=$(echo "$lines" | grep "^PIFS-BENCH name=$n " || true)
+        nodeep_stack[$target/$n]=$(echo "$l" | field stack)
+        nodeep_instr[$target/$n]=$(echo "$l" | field instr)
+    done
+    nelf=$(build $target nodeep:baseline "${gray_streams[@]}")
+    read -r nbtext nbdata _ < <(size "$nelf" | tail -1)
+    nodeep_flash[$target]=$((ntext + ndata - nbtext - nbdata))
     # A decode that overflows the board's RAM locks the core up: note it, rebuild without that
     # stream and go on with the rest.
     todo=("${streams[@]}")
@@ -155,11 +212,15 @@ echo "| image | bpp | stream bytes | M3 RAM: static + stack (bytes) | M0 RAM: st
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23c*_\([0-9x]*\)_.*/\1/')
+    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
     bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
     kind=$(echo "$n" | sed 's/_.*//')
-    label="kodim23 $size"
-    [ "$kind" = kodim23 ] || label="kodim23 $size colour"
+    case $kind in
+        kodim23c) label="kodim23 $size colour" ;;
+        kodim23d) label="kodim23 $size 16-bit" ;;
+        kodim23s) label="kodim23 $size, the 16-bit stream's 8-bit twin" ;;
+        *) label="kodim23 $size" ;;
+    esac
     bytes=$(stat -c %s "$s")
     px=$(( ${size%x*} * ${size#*x} ))
     echo "| $label | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | $(per_px "${instr[$v7/$n]:-}" $px) | $(per_px "${instr[$v6/$n]:-}" $px) | $(share "${scaled[$v7/$n/-2]:-}" "${instr[$v7/$n]:-}") | $(share "${scaled[$v6/$n/-2]:-}" "${instr[$v6/$n]:-}") |"
@@ -171,10 +232,30 @@ for s in "${streams[@]}"; do
     done
 done
 echo
-echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) | grayscale-only decoder (no \`colour\` feature) |"
-echo "|---|---:|---:|---:|---:|"
+echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) | without the \`deep\` feature | grayscale-only decoder (no \`colour\`, no \`deep\`) |"
+echo "|---|---:|---:|---:|---:|---:|"
 for t in $v7 $v6; do
-    echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) | ${gray_flash[$t]} |"
+    echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) | ${nodeep_flash[$t]} | ${gray_flash[$t]} |"
+done
+echo
+echo "8-bit streams decoded without the \`deep\` feature (16-bit streams refused on their header):"
+echo
+echo "| image | bpp | M3 RAM | M0 RAM | M3 instr/pixel | M0 instr/pixel |"
+echo "|---|---:|---:|---:|---:|---:|"
+for s in "${gray_streams[@]}"; do
+    n=$(basename "$s")
+    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
+    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
+    px=$(( ${size%x*} * ${size#*x} ))
+    row="| kodim23 $size | $bpp |"
+    for t in $v7 $v6; do
+        st=${nodeep_stack[$t/$n]:-}
+        if [[ $st =~ ^[0-9]+$ ]]; then row="$row $((st + static[$t])) |"; else row="$row n/a |"; fi
+    done
+    for t in $v7 $v6; do
+        row="$row $(per_px "${nodeep_instr[$t/$n]:-}" $px) |"
+    done
+    echo "$row"
 done
 echo
 echo "Scaled decodes (share of the full decode's instructions; every leaf's edge pixels are still"
@@ -184,10 +265,14 @@ echo "| image | bpp | M3 1/2 | M3 1/4 | M3 1/8 | M0 1/2 | M0 1/4 | M0 1/8 |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23c*_\([0-9x]*\)_.*/\1/')
+    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
     bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
-    label="kodim23 $size"
-    [ "${n%%_*}" = kodim23 ] || label="kodim23 $size colour"
+    case ${n%%_*} in
+        kodim23c) label="kodim23 $size colour" ;;
+        kodim23d) label="kodim23 $size 16-bit" ;;
+        kodim23s) label="kodim23 $size, 8-bit twin" ;;
+        *) label="kodim23 $size" ;;
+    esac
     row="| $label | $bpp |"
     for t in $v7 $v6; do
         for k in -1 -2 -3; do
@@ -223,8 +308,8 @@ print("| image | bpp | TJpgDec M3 (f0t0 / fastest) | PIFS M3 | TJpgDec M0 (f0t0 
 print("|---|---:|---:|---:|---:|---:|")
 data = {}
 for r in csv.DictReader(open(ours)):
-    if r["image"].startswith("kodim23c"):
-        continue  # TJpgDec's figures are for the grayscale images
+    if r["image"].split("_")[0] != "kodim23":
+        continue  # TJpgDec's figures are for the 8-bit grayscale images
     data[(r["target"], r["image"].split("_")[1], float(r["bpp"]))] = r["instr_per_pixel"]
 for size in ["128x128", "320x240", "768x512"]:
     for bpp in [0.1, 0.5]:

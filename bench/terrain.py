@@ -2,12 +2,14 @@
 beside OpenJPEG (JPEG 2000, 16-bit lossy) at the same bytes, on the two real DEMs matplotlib
 ships and on fBm terrain from midpoint displacement.
 
-PIFS format 18 codes 8-bit samples only: this script maps each DEM's range linearly onto
-0..255 (`round((z - min) * 255 / (max - min))`), encodes that as a grayscale PGM with
-`pifs encode --gray --tune psnr --bytes N`, decodes it and maps it back; the range (two 16-bit
-numbers) travels beside the stream and is counted: N is the budget less 4 bytes. OpenJPEG
-gets the DEM itself as a 16-bit PGM (`z - min`, maxval the range), `opj_compress -I -r R`
-(9/7 irreversible wavelet), R bisected for the largest codestream within the budget.
+PIFS gets the DEM as a 16-bit PGM (`round(z - min)`, maxval 65535) and codes it as a 16-bit
+stream (format 19: the range in the header, values decoded from the synthesis's 1/16 grey
+level): `pifs encode --tune psnr --bytes N`, `pifs decode` to a 16-bit PGM. Beside it, the
+8-bit path of format 18 (column "8-bit dB"): the range mapped linearly onto 0..255
+(`round((z - min) * 255 / (max - min))`), coded with `--gray --depth 8`, decoded to 8 bits and
+mapped back, the range's 4 bytes counted. OpenJPEG gets the same 16-bit PGM as PIFS (maxval
+the range), `opj_compress -I -r R` (9/7 irreversible wavelet), R bisected for the largest
+codestream within the budget.
 
 Errors against the original values: RMSE and largest absolute error in the data's units
 (metres for the DEMs), and PSNR relative to the data's range, `20 log10(range / RMSE)` (the
@@ -121,12 +123,23 @@ def errors(z, rec):
 
 
 def pifs_at(pifs, z, budget, work):
+    """PIFS's 16-bit stream of the DEM within `budget` bytes."""
+    lo = float(z.min())
+    src, stream, dec = (os.path.join(work, n) for n in ("pifs16-in.pgm", "x16.pifs", "x16.pgm"))
+    write_pgm(src, np.round(z - lo), 65535)
+    run([pifs, "encode", src, "--tune", "psnr", "--bytes", str(budget), "-o", stream])
+    run([pifs, "decode", stream, "-o", dec])
+    return os.path.getsize(stream), lo + read_pnm(dec)
+
+
+def pifs8_at(pifs, z, budget, work):
     """PIFS on the 8-bit range-mapped DEM within `budget` bytes (4 of them the range)."""
     lo, hi = float(z.min()), float(z.max())
     mapped = np.round((z - lo) * 255 / (hi - lo))
     src, stream, dec = (os.path.join(work, n) for n in ("pifs-in.pgm", "x.pifs", "x.pgm"))
     write_pgm(src, mapped, 255)
-    run([pifs, "encode", src, "--gray", "--tune", "psnr", "--bytes", str(budget - 4), "-o", stream])
+    run([pifs, "encode", src, "--gray", "--depth", "8", "--tune", "psnr", "--bytes", str(budget - 4),
+         "-o", stream])
     run([pifs, "decode", stream, "-o", dec])
     rec = lo + read_pnm(dec) * (hi - lo) / 255
     return os.path.getsize(stream) + 4, rec
@@ -187,8 +200,8 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     rows = []
     print("| surface | size | range | bits/sample | PIFS bytes | PIFS RMSE | PIFS max | PIFS dB "
-          "| J2K bytes | J2K RMSE | J2K max | J2K dB |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "| 8-bit dB | J2K bytes | J2K RMSE | J2K max | J2K dB |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name, what, z in dems():
         h, w = z.shape
         span = z.max() - z.min()
@@ -199,6 +212,7 @@ def main():
         for rate in rates:
             budget = int(rate * w * h / 8)
             pb, prec = pifs_at(args.pifs, z, budget, args.out)
+            p8 = errors(z, pifs8_at(args.pifs, z, budget, args.out)[1])
             j2k = j2k_at(z, budget, args.out)
             p = errors(z, prec)
             if j2k is None:
@@ -207,16 +221,16 @@ def main():
                 jb, jrec = j2k
                 j = errors(z, jrec)
                 jcells = f"| {jb} ({8 * jb / (w * h):.3f}) | {j[0]:.2f} | {j[1]:.1f} | {j[2]:.2f} |"
-            rows.append((name, w, h, span, rate, pb, *p, jb, *j))
+            rows.append((name, w, h, span, rate, pb, *p, p8[2], jb, *j))
             print(f"| {name} | {w}x{h} | {span:.0f} | {rate:g} | {pb} ({8 * pb / (w * h):.3f}) "
-                  f"| {p[0]:.2f} | {p[1]:.1f} | {p[2]:.2f} {jcells}", flush=True)
+                  f"| {p[0]:.2f} | {p[1]:.1f} | {p[2]:.2f} | {p8[2]:.2f} {jcells}", flush=True)
             if f"{rate:g}" == args.views and j2k is not None:
                 scale = relief_scale(z)
                 views = [hillshade(a, scale) for a in (z, prec, jrec)]
                 Image.fromarray(np.hstack(views)).save(os.path.join(args.out, f"{name}-{rate:g}-hillshade.png"))
     with open(args.csv, "w") as f:
         f.write("surface,width,height,range,rate,pifs_bytes,pifs_rmse,pifs_max,pifs_psnr,"
-                "j2k_bytes,j2k_rmse,j2k_max,j2k_psnr\n")
+                "pifs8_psnr,j2k_bytes,j2k_rmse,j2k_max,j2k_psnr\n")
         for r in rows:
             f.write(",".join(f"{v:.4f}" if isinstance(v, float) else str(v) for v in r) + "\n")
     print(f"views (original / PIFS / JPEG 2000, hillshaded): {args.out}/*-hillshade.png", file=sys.stderr)

@@ -22,7 +22,8 @@ use crate::geometry::Rect;
 use crate::prediction::{Frontier, SamplePrediction, RECORD_WHOLE};
 use crate::syntax::control_step;
 use crate::syntax::{
-    stream_checksum, Header, LeafSyntax, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
+    stream_checksum, Header, LeafSyntax, SampleRange, CHECKSUM_BYTES, FIXED_HEADER_LEN,
+    MAX_HEADER_LEN,
 };
 use crate::synthesis::{
     Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE,
@@ -425,6 +426,7 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
             sink,
             observer: self.observer,
             scale: self.scale,
+            range: header.range,
         };
         let mut coder = match RangeDecoder::start(self.input) {
             Ok(coder) => coder,
@@ -452,6 +454,23 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
             return Err(DecodeError::BufferTooSmall);
         }
         let mut buffer = Buffer {
+            out,
+            width: width as usize,
+        };
+        Ok(self.decode(&mut buffer)?)
+    }
+
+    /// Decodes the stream's values into `out`, row-major, `width * height * channels` of them
+    /// (as [`Decoder::decode_into`]): a 16-bit stream's in its own units
+    /// ([`Header::range`]), an 8-bit stream's pixels as they are.
+    pub fn decode_values_into(self, out: &mut [u16]) -> Result<Header, DecodeError> {
+        let header = self.header;
+        let (width, height) = self.output_size();
+        let needed = u64::from(width) * u64::from(height) * u64::from(header.channels);
+        if (out.len() as u64) < needed {
+            return Err(DecodeError::BufferTooSmall);
+        }
+        let mut buffer = ValueBuffer {
             out,
             width: width as usize,
         };
@@ -526,6 +545,8 @@ struct Drawer<'s, S: PixelSink + ?Sized, O> {
     sink: &'s mut S,
     observer: O,
     scale: Scale,
+    /// A 16-bit stream's value range, which its samples are mapped onto for the sink.
+    range: Option<SampleRange>,
 }
 
 impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O> {
@@ -559,7 +580,7 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
         frontier: &mut Frontier<CAPACITY>,
     ) -> Result<(), Self::Error> {
         (self.observer)(info);
-        let mut catch = Catch::new(&mut *self.sink);
+        let mut catch = Catch::with_range(&mut *self.sink, self.range);
         draw_leaf(
             (self.clip, self.image, self.scale),
             info,
@@ -660,8 +681,10 @@ struct Subsample<'a> {
     out: &'a mut dyn TileOut,
 }
 
-impl TileOut for Subsample<'_> {
-    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+impl Subsample<'_> {
+    /// Hands on the tile's pixels on the grid, row by row, with their samples when `samples`
+    /// holds the tile's.
+    fn pick(&mut self, tile: TileMut<'_>, samples: Option<&[i16]>) -> Result<(), Stop> {
         let unit = 1u32 << self.shift;
         let Rect { x, y, w, h } = tile.area;
         let first_x = x.next_multiple_of(unit);
@@ -669,16 +692,18 @@ impl TileOut for Subsample<'_> {
             return Ok(());
         }
         let mut row = [0u8; TILE];
+        let mut picked = [0i16; TILE];
         for j in (y.next_multiple_of(unit)..y + h).step_by(unit as usize) {
             let mut n = 0;
             for i in (first_x..x + w).step_by(unit as usize) {
                 let at = ((j - y) * w + (i - x)) as usize;
                 if let (Some(&p), Some(slot)) = (tile.pixels.get(at), row.get_mut(n)) {
                     *slot = p;
+                    picked[n] = samples.and_then(|s| s.get(at)).copied().unwrap_or(0);
                     n += 1;
                 }
             }
-            self.out.put(TileMut {
+            let tile = TileMut {
                 area: Rect {
                     x: first_x >> self.shift,
                     y: j >> self.shift,
@@ -687,9 +712,29 @@ impl TileOut for Subsample<'_> {
                 },
                 pixels: &mut row[..n],
                 channels: 1,
-            })?;
+            };
+            match samples {
+                Some(_) => self.out.put_samples(tile, &mut picked[..n])?,
+                None => self.out.put(tile)?,
+            }
         }
         Ok(())
+    }
+}
+
+impl TileOut for Subsample<'_> {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+        self.pick(tile, None)
+    }
+
+    #[cfg(feature = "deep")]
+    fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        self.pick(tile, Some(samples))
+    }
+
+    #[cfg(feature = "deep")]
+    fn depth(&self) -> crate::synthesis::Depth {
+        self.out.depth()
     }
 }
 
@@ -699,41 +744,88 @@ struct ClipOut<'a> {
     out: &'a mut dyn TileOut,
 }
 
-impl TileOut for ClipOut<'_> {
-    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+/// Where the part of a tile inside a clip lies in the tile's values.
+struct Inside {
+    /// Values before it in each row, and rows above it.
+    skip: (usize, usize),
+    /// Values per row of it, and of the tile; its rows.
+    size: (usize, usize, usize),
+}
+
+impl Inside {
+    /// The part `area` (not empty) of `tile` (`channels` values a pixel).
+    fn of(tile: Rect, area: Rect, channels: u8) -> Inside {
+        let c = usize::from(channels);
+        Inside {
+            skip: ((area.x - tile.x) as usize * c, (area.y - tile.y) as usize),
+            size: (area.w as usize * c, tile.w as usize * c, area.h as usize),
+        }
+    }
+
+    /// Moves the part inside to the front of `values` (the tile's, row-major), row by row:
+    /// never onto a value not yet moved. `None` if `values` is too short.
+    fn cut<'v, T: Copy>(&self, values: &'v mut [T]) -> Option<&'v mut [T]> {
+        let ((dx, dy), (w, tw, h)) = (self.skip, self.size);
+        if (dy + h) * tw > values.len() {
+            return None;
+        }
+        for j in 0..h {
+            let from = (dy + j) * tw + dx;
+            for k in 0..w {
+                values[j * w + k] = values[from + k];
+            }
+        }
+        values.get_mut(..w * h)
+    }
+}
+
+impl ClipOut<'_> {
+    /// Hands on the part of `tile` (and of its `samples`, a 16-bit stream's) inside the clip.
+    fn cut(&mut self, tile: TileMut<'_>, samples: Option<&mut [i16]>) -> Result<(), Stop> {
         let area = tile.area.intersect(&self.clip);
         if area.is_empty() {
             return Ok(());
         }
-        if area == tile.area {
-            return self.out.put(tile);
-        }
-        let c = usize::from(tile.channels);
-        let (dx, dy) = (
-            (area.x - tile.area.x) as usize,
-            (area.y - tile.area.y) as usize,
-        );
-        let (w, tw, h) = (
-            area.w as usize * c,
-            tile.area.w as usize * c,
-            area.h as usize,
-        );
-        if (dy + h) * tw > tile.pixels.len() {
-            return Ok(());
-        }
-        // The part inside moves to the front, row by row: never onto a pixel not yet moved.
-        let pixels = tile.pixels;
-        for j in 0..h {
-            let from = (dy + j) * tw + dx * c;
-            for k in 0..w {
-                pixels[j * w + k] = pixels[from + k];
+        let (tile, samples) = if area == tile.area {
+            (tile, samples)
+        } else {
+            let inside = Inside::of(tile.area, area, tile.channels);
+            let Some(pixels) = inside.cut(tile.pixels) else {
+                return Ok(());
+            };
+            let tile = TileMut {
+                area,
+                pixels,
+                channels: tile.channels,
+            };
+            match samples {
+                Some(s) => match inside.cut(s) {
+                    Some(s) => (tile, Some(s)),
+                    None => return Ok(()),
+                },
+                None => (tile, None),
             }
+        };
+        match samples {
+            Some(s) => self.out.put_samples(tile, s),
+            None => self.out.put(tile),
         }
-        self.out.put(TileMut {
-            area,
-            pixels: &mut pixels[..w * h],
-            channels: tile.channels,
-        })
+    }
+}
+
+impl TileOut for ClipOut<'_> {
+    #[cfg(feature = "deep")]
+    fn depth(&self) -> crate::synthesis::Depth {
+        self.out.depth()
+    }
+
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+        self.cut(tile, None)
+    }
+
+    #[cfg(feature = "deep")]
+    fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        self.cut(tile, Some(samples))
     }
 }
 
@@ -757,6 +849,40 @@ impl PixelSink for Buffer<'_> {
             let start = (y + row) * self.width * ch + x;
             if let Some(dst) = self.out.get_mut(start..start + w) {
                 dst.copy_from_slice(src);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A row-major buffer of values: a tile's [`Tile::values`], or its pixels when it has none.
+struct ValueBuffer<'a> {
+    out: &'a mut [u16],
+    width: usize,
+}
+
+impl PixelSink for ValueBuffer<'_> {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+        let Rect { x, y, w, .. } = tile.area;
+        let ch = usize::from(tile.channels.max(1));
+        let (x, y, w) = (x as usize * ch, y as usize, w as usize * ch);
+        if w == 0 {
+            return Ok(());
+        }
+        for row in 0..tile.area.h as usize {
+            let start = (y + row) * self.width * ch + x;
+            let Some(dst) = self.out.get_mut(start..start + w) else {
+                continue;
+            };
+            let at = row * w..row * w + w;
+            if let Some(values) = tile.values.get(at.clone()) {
+                dst.copy_from_slice(values);
+            } else if let Some(pixels) = tile.pixels.get(at) {
+                for (d, &p) in dst.iter_mut().zip(pixels) {
+                    *d = u16::from(p);
+                }
             }
         }
         Ok(())
@@ -858,12 +984,20 @@ mod tests {
     }
 
     /// The longest header: a payload length of `2^32 - 1` (five LEB128 bytes).
+    /// The longest header this decoder reads: a 16-bit stream's (an 8-bit one's without the
+    /// `deep` feature).
     fn longest_header() -> Vec<u8> {
+        let deep = cfg!(feature = "deep");
         let mut h = Vec::from(*b"PIFS");
         // Version, channels, depth, flags, width, height, leaf sizes, stripe, deblocking.
-        h.extend_from_slice(&[VERSION, 1, 8, 0, 5, 0, 3, 0, 0x42, 0, 0]);
-        // Checksum (not checked by the header parser), then the payload length.
+        let depth = if deep { 16 } else { 8 };
+        h.extend_from_slice(&[VERSION, 1, depth, 0, 5, 0, 3, 0, 0x42, 0, 0]);
+        // Checksum (not checked by the header parser), the payload length, a 16-bit stream's
+        // range.
         h.extend_from_slice(&[1, 2, 3, 4, 0xFF, 0xFF, 0xFF, 0xFF, 0x0F]);
+        if deep {
+            h.extend_from_slice(&[0x10, 0, 0x20, 0]);
+        }
         h
     }
 
@@ -888,7 +1022,10 @@ mod tests {
         assert_eq!(src.pos, len, "read past the header");
         assert_eq!(header.encoded_len(), len);
         assert_eq!(Header::parse(&bytes).unwrap(), (header, len));
-        assert_eq!(len, MAX_HEADER_LEN);
+        assert_eq!(
+            len + usize::from(!cfg!(feature = "deep")) * 4,
+            MAX_HEADER_LEN
+        );
     }
 
     #[test]
@@ -917,6 +1054,12 @@ mod tests {
             if data.get(5) == Some(&3) && !cfg!(feature = "colour") {
                 // Without the `colour` feature: refused on the header, by both.
                 assert_eq!(r_slice, Err(DecodeError::UnsupportedChannels(3)), "{name}");
+                continue;
+            }
+            // The header's bit depth (byte 6).
+            if data.get(6) == Some(&16) && !cfg!(feature = "deep") {
+                // Without the `deep` feature: refused on the header, by both.
+                assert_eq!(r_slice, Err(DecodeError::UnsupportedBitDepth(16)), "{name}");
                 continue;
             }
             assert_eq!(streamed, sliced, "{name}: tiles differ");

@@ -75,6 +75,8 @@ pub enum HeaderField {
     Region,
     /// A packet's index, count or size field is badly encoded or out of range.
     PacketField,
+    /// A 16-bit stream's value range has a step of 0.
+    Range,
 }
 
 impl HeaderField {
@@ -88,6 +90,7 @@ impl HeaderField {
             HeaderField::Deblock => "edge-smoothing strength",
             HeaderField::Region => "packet region (outside the image)",
             HeaderField::PacketField => "packet index, count or size",
+            HeaderField::Range => "value range",
         }
     }
 }

@@ -5,7 +5,7 @@
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 18;
+pub const VERSION: u8 = 19;
 /// Smallest allowed leaf side, as a power of two.
 pub const MIN_LEAF_LOG2: u8 = 1;
 /// Largest allowed leaf side, as a power of two.
@@ -80,5 +80,89 @@ pub fn div_round(v: i32, step: i32) -> i32 {
         (v + step / 2) / step
     } else {
         -((-v + step / 2) / step)
+    }
+}
+
+/// Fractional bits of samples: a grey level `g` is the sample `g << SAMPLE_BITS`.
+pub const SAMPLE_BITS: u32 = 4;
+
+/// The values a 16-bit stream's samples stand for, in the data's own units (metres, counts):
+/// grey level `g` stands for `low + g step / 128`, and a sample (1/16 of a grey level) likewise,
+/// by a multiplication and a shift (no division on a microcontroller without one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct SampleRange {
+    /// The value of grey 0.
+    pub low: u16,
+    /// Value units per grey level, in 1/[`SampleRange::STEP_ONE`]; not 0.
+    pub step: u16,
+}
+
+impl SampleRange {
+    /// The unit of [`SampleRange::step`]: 128 is one value unit per grey level.
+    pub const STEP_ONE: u32 = 128;
+
+    /// The range from `low` with the smallest step whose grey 255 reaches `high` (at least
+    /// `low`).
+    pub fn covering(low: u16, high: u16) -> SampleRange {
+        let span = u32::from(high.saturating_sub(low));
+        let step = (span * Self::STEP_ONE).div_ceil(255).max(1);
+        SampleRange {
+            low,
+            step: step as u16,
+        }
+    }
+
+    /// The value a synthesised sample `s` (1/16 grey level) stands for: `min(65535, low +
+    /// ((s step + 1024) >> 11))`, `s` first clamped to `0..=4080` (grey 0 to 255).
+    #[inline]
+    pub fn value(self, sample: i16) -> u16 {
+        const TOP: u32 = 255 << SAMPLE_BITS;
+        const SHIFT: u32 = SAMPLE_BITS + SampleRange::STEP_ONE.trailing_zeros();
+        let s = (sample.max(0) as u32).min(TOP);
+        let offset = (s * u32::from(self.step) + (1 << (SHIFT - 1))) >> SHIFT;
+        (u32::from(self.low) + offset).min(u32::from(u16::MAX)) as u16
+    }
+
+    /// The value an 8-bit pixel stands for: [`SampleRange::value`] of its sample.
+    #[inline]
+    pub fn pixel_value(self, pixel: u8) -> u16 {
+        self.value(i16::from(pixel) << SAMPLE_BITS)
+    }
+
+    /// The value of grey 255, the range's top.
+    pub fn high(self) -> u16 {
+        self.pixel_value(255)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Grey 0 is `low`, each grey level `step / 128` more, samples between rounded, samples
+    /// outside clamped; the covering range reaches its top at grey 255 or just before.
+    #[test]
+    fn samples_map_onto_the_range() {
+        let range = SampleRange::covering(236, 1076);
+        // 840 * 128 / 255 = 421.6: 422, 3.297 units a grey level.
+        assert_eq!(range.step, 422);
+        assert_eq!(range.value(0), 236);
+        assert_eq!(range.value(-300), 236);
+        // 255 * 422 / 128 = 840.7.
+        assert_eq!(range.high(), 1077);
+        assert_eq!(range.value(5000), 1077);
+        // Half way, grey 127.5: 420.35.
+        assert_eq!(range.value(2040), 656);
+        // 1/16 of a grey level is 0.206 units: rounds to 0; 3/16 (0.618) to 1.
+        assert_eq!(range.value(1), 236);
+        assert_eq!(range.value(3), 237);
+        assert_eq!(range.pixel_value(1), 236 + 3);
+        let full = SampleRange::covering(0, u16::MAX);
+        assert_eq!(full.step, 32896);
+        assert_eq!(full.high(), u16::MAX);
+        assert_eq!(full.value(4079), 65519);
+        // A flat or inverted range still steps.
+        assert_eq!(SampleRange::covering(7, 7).step, 1);
+        assert_eq!(SampleRange::covering(u16::MAX, u16::MAX).high(), u16::MAX);
     }
 }

@@ -45,11 +45,18 @@
 //! the embedded-graphics conversion from [`Gray8`] for luma and from [`Rgb888`] for RGB;
 //! a colour stream on a gray display is drawn as its luma; [`BinaryColor`] is `On` for luma
 //! `>= 128`). Everything is integer arithmetic.
+//!
+//! # 16-bit streams
+//!
+//! A [`PifsImage`] of a 16-bit stream (an elevation model, say) draws its values mapped onto
+//! grey, as the stream maps them. [`PifsImage::with_values`] draws them through a mapping of
+//! the caller's instead, from the value (in the data's units) to the display's colour: a
+//! colour ramp, bands of height, a different grey scale.
 
 use core::marker::PhantomData;
 
 use embedded_graphics_core::draw_target::DrawTarget;
-use embedded_graphics_core::geometry::{OriginDimensions, Point, Size};
+use embedded_graphics_core::geometry::{Dimensions, OriginDimensions, Point, Size};
 use embedded_graphics_core::image::ImageDrawable;
 use embedded_graphics_core::pixelcolor::{
     Bgr555, Bgr565, Bgr666, Bgr888, BinaryColor, Gray2, Gray4, Gray8, PixelColor, Rgb555, Rgb565,
@@ -202,6 +209,115 @@ impl<C: FromGray> PifsImage<'_, C> {
     }
 }
 
+impl<'a> PifsImage<'a> {
+    /// The image drawn through `map`, from each pixel's value to a colour (see the
+    /// [module documentation](self#16-bit-streams)): a 16-bit stream's values
+    /// ([`Tile::values`]), an 8-bit stream's pixels (0 to 255, the luma of a colour stream).
+    pub fn with_values<C, F>(self, map: F) -> ValueImage<'a, F>
+    where
+        C: PixelColor,
+        F: Fn(u16) -> C,
+    {
+        ValueImage { image: self, map }
+    }
+}
+
+/// A PIFS stream drawn through a mapping from values to colours ([`PifsImage::with_values`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ValueImage<'a, F> {
+    image: PifsImage<'a>,
+    map: F,
+}
+
+impl<F> ValueImage<'_, F> {
+    /// Draws the part `area` of the image at the target's origin, reporting decoding errors
+    /// (see [`PifsImage::draw_sub_image_checked`]).
+    pub fn draw_sub_image_checked<C, D>(
+        &self,
+        target: &mut D,
+        area: &Rectangle,
+    ) -> Result<(), DrawError<D::Error>>
+    where
+        C: PixelColor,
+        F: Fn(u16) -> C,
+        D: DrawTarget<Color = C>,
+    {
+        let offset = area.top_left;
+        let Some(clip) = visible_clip(&self.image.decoder(), target, area) else {
+            return Ok(());
+        };
+        let mut sink = ValueSink {
+            target,
+            offset,
+            map: &self.map,
+        };
+        self.image.decoder().clip(clip).decode(&mut sink)?;
+        Ok(())
+    }
+}
+
+impl<F> OriginDimensions for ValueImage<'_, F> {
+    fn size(&self) -> Size {
+        self.image.size()
+    }
+}
+
+impl<C: PixelColor, F: Fn(u16) -> C> ImageDrawable for ValueImage<'_, F> {
+    type Color = C;
+
+    /// Draws the image; a decoding error stops the drawing silently.
+    fn draw<D>(&self, target: &mut D) -> Result<(), D::Error>
+    where
+        D: DrawTarget<Color = C>,
+    {
+        let all = Rectangle::new(Point::zero(), self.size());
+        ignore_decode_errors(self.draw_sub_image_checked(target, &all))
+    }
+
+    /// Draws the part `area` of the image at the target's origin; decoding errors stop the
+    /// drawing silently.
+    fn draw_sub_image<D>(&self, target: &mut D, area: &Rectangle) -> Result<(), D::Error>
+    where
+        D: DrawTarget<Color = C>,
+    {
+        ignore_decode_errors(self.draw_sub_image_checked(target, area))
+    }
+}
+
+/// Forwards decoded tiles to a draw target through a mapping of their values.
+struct ValueSink<'t, D, F> {
+    target: &'t mut D,
+    offset: Point,
+    map: &'t F,
+}
+
+impl<D, F> PixelSink for ValueSink<'_, D, F>
+where
+    D: DrawTarget,
+    F: Fn(u16) -> D::Color,
+{
+    type Error = D::Error;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), D::Error> {
+        let Rect { x, y, w, h } = tile.area;
+        let at = Point::new(x as i32, y as i32) - self.offset;
+        let area = Rectangle::new(at, Size::new(w, h));
+        let map = self.map;
+        if tile.values.is_empty() {
+            let step = usize::from(tile.channels.max(1));
+            let luma = tile.pixels.chunks_exact(step).map(|p| match *p {
+                [r, g, b] => rgb_to_luma(r, g, b),
+                _ => p[0],
+            });
+            self.target
+                .fill_contiguous(&area, luma.map(|l| map(u16::from(l))))
+        } else {
+            let colors = tile.values.iter().map(|&v| map(v));
+            self.target.fill_contiguous(&area, colors)
+        }
+    }
+}
+
 impl<C> OriginDimensions for PifsImage<'_, C> {
     fn size(&self) -> Size {
         Size::new(
@@ -272,28 +388,37 @@ where
     D::Color: FromGray,
 {
     let offset = area.top_left;
-    let (width, height) = decoder.output_size();
-    let image = Rectangle::new(Point::zero(), Size::new(width, height));
-    // The target's visible area, in image coordinates.
-    let visible = target.bounding_box();
-    let visible = Rectangle::new(visible.top_left + offset, visible.size);
-    let clip = area.intersection(&image).intersection(&visible);
-    let clip = if clip.is_zero_sized() || clip.top_left.x < 0 || clip.top_left.y < 0 {
-        if I::VERIFIED {
-            return Ok(());
-        }
-        Rect::of_size(0, 0)
-    } else {
-        Rect {
-            x: clip.top_left.x as u32,
-            y: clip.top_left.y as u32,
-            w: clip.size.width,
-            h: clip.size.height,
-        }
+    let Some(clip) = visible_clip(&decoder, target, area) else {
+        return Ok(());
     };
     let mut sink = TargetSink { target, offset };
     decoder.clip(clip).decode(&mut sink)?;
     Ok(())
+}
+
+/// The part of `area` (image coordinates) of `decoder`'s image that `target` shows, with
+/// `area`'s top-left corner at the target's origin; `None` when nothing is and the stream
+/// need not be read (an empty clip when its checksum is still to be verified).
+fn visible_clip<I: Input, D: Dimensions>(
+    decoder: &Decoder<I>,
+    target: &D,
+    area: &Rectangle,
+) -> Option<Rect> {
+    let (width, height) = decoder.output_size();
+    let image = Rectangle::new(Point::zero(), Size::new(width, height));
+    // The target's visible area, in image coordinates.
+    let visible = target.bounding_box();
+    let visible = Rectangle::new(visible.top_left + area.top_left, visible.size);
+    let clip = area.intersection(&image).intersection(&visible);
+    if clip.is_zero_sized() || clip.top_left.x < 0 || clip.top_left.y < 0 {
+        return (!I::VERIFIED).then(|| Rect::of_size(0, 0));
+    }
+    Some(Rect {
+        x: clip.top_left.x as u32,
+        y: clip.top_left.y as u32,
+        w: clip.size.width,
+        h: clip.size.height,
+    })
 }
 
 /// Forwards decoded tiles to a draw target, translated by `-offset`.

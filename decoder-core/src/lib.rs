@@ -26,6 +26,9 @@
 //!   error ends the decode as [`DrawError::Sink`].
 //! - [`Header`]: the image's size and format fields; [`LeafInfo`] (with [`Node`] and
 //!   [`ControlCoding`]) describes each leaf to a [`Decoder::observe`] callback.
+//! - 16-bit streams (cargo feature `deep`, on by default): surfaces such as elevation models,
+//!   whose [`Header::range`] ([`SampleRange`]) gives each pixel a value in the data's units,
+//!   finer than its grey: [`Tile::values`], [`Decoder::decode_values_into`].
 //! - Errors: [`DecodeError`] (with [`HeaderField`] and [`SyntaxElement`]), [`DrawError`].
 //! - [`Packet`]: an image sent as self-contained packets for lossy links (`docs/bitstream.md`,
 //!   section 9): [`Packet::parse`] checks one (its CRC-32 first), [`Packet::decode`] draws its
@@ -95,7 +98,7 @@ pub use error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 pub use format::{MAGIC, VERSION};
 pub use geometry::{Node, Rect};
 pub use packet::{Packet, PacketKind, REGION_UNIT};
-pub use syntax::{ControlCoding, Header, MAX_HEADER_LEN};
+pub use syntax::{ControlCoding, Header, SampleRange, MAX_HEADER_LEN};
 pub use synthesis::{PixelSink, Scale, Tile, TILE};
 pub use walk::LeafInfo;
 

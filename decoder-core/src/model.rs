@@ -19,8 +19,7 @@ pub const WEIGHT_ONE: i32 = 1 << WEIGHT_BITS;
 pub const WEIGHT_BITS: u32 = 12;
 /// Fixed-point scale of samples: a grey level `g` is stored as `g * 16`.
 pub const SAMPLE_ONE: i32 = 1 << SAMPLE_BITS;
-/// Fractional bits of samples.
-pub const SAMPLE_BITS: u32 = 4;
+pub use crate::format::SAMPLE_BITS;
 /// Smallest representable sample value (grey level -256).
 pub const SAMPLE_MIN: i32 = -256 * SAMPLE_ONE;
 /// Largest representable sample value (grey level 511.9375).

@@ -141,6 +141,7 @@ impl<'a> Packet<'a> {
             deblock,
             payload_len: payload.len() as u32,
             checksum: stored,
+            range: None,
         };
         Ok(Packet {
             image_id,

@@ -293,8 +293,10 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
         let last = node.size() - 1;
         let (w, h, stripe) = (self.width, self.height, self.stripe);
         let (right, bottom) = (node.x + last, node.y + last);
-        let above_known = self.known(true, node.x, node.y);
-        let left_known = self.known(false, node.x, node.y);
+        // Without smoothing nothing waits: a pixel is final as synthesised.
+        let smoothing = self.deblock > 0;
+        let above_known = smoothing && self.known(true, node.x, node.y);
+        let left_known = smoothing && self.known(false, node.x, node.y);
         Capture {
             columns: &mut self.columns,
             rows: &mut self.rows,
@@ -305,8 +307,8 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
             top: node.y,
             right,
             bottom,
-            defer_row: bottom + 1 < h,
-            defer_column: right + 1 < w && stripe.column(right + 1) != 0,
+            defer_row: smoothing && bottom + 1 < h,
+            defer_column: smoothing && right + 1 < w && stripe.column(right + 1) != 0,
             above_known,
             left_known,
             limit: i32::from(self.deblock) * step,
@@ -409,6 +411,25 @@ fn moved(q: u8, q_before: u8, q_new: u8) -> u8 {
 }
 
 impl Capture<'_> {
+    /// Keeps the leaf's bottom row and right column, as drawn, in the frontier, from the tile
+    /// at `(x, y)`, `w` wide, whose pixels are `buf`.
+    fn keep_edges(&mut self, x: u32, y: u32, w: usize, buf: &[u8]) {
+        let on_right = x + w as u32 - 1 == self.right;
+        for (j, row) in buf.chunks_exact(w).enumerate() {
+            let py = y + j as u32;
+            if on_right {
+                self.rows[(py % CODING_TILE) as usize] = row[w - 1];
+                self.set_corner(py, py == self.bottom && self.defer_row);
+            }
+            if py == self.bottom {
+                let first = self.stripe.column(x) as usize;
+                if let Some(slots) = self.columns.get_mut(first..first + w) {
+                    slots.copy_from_slice(row);
+                }
+            }
+        }
+    }
+
     /// Whether the frontier's pixel of band row `r` is a leaf's bottom-right pixel that waits
     /// with its row (not with its column).
     fn is_corner(&self, r: u32) -> bool {
@@ -499,6 +520,25 @@ impl Capture<'_> {
 }
 
 impl TileOut for Capture<'_> {
+    #[cfg(feature = "deep")]
+    fn depth(&self) -> crate::synthesis::Depth {
+        self.out.depth()
+    }
+
+    /// A 16-bit stream's tile (a stream not smoothed, so nothing waits): the leaf's bottom row
+    /// and right column go to the frontier, and the tile goes on whole with its samples.
+    #[cfg(feature = "deep")]
+    fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        let Rect { x, y, w, h } = tile.area;
+        if x + w - 1 == self.right || (y..y + h).contains(&self.bottom) {
+            let n = (w * h) as usize;
+            if let Some(buf) = tile.pixels.get(..n).filter(|_| n > 0 && w as usize <= TILE) {
+                self.keep_edges(x, y, w as usize, buf);
+            }
+        }
+        self.out.put_samples(tile, samples)
+    }
+
     fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let Rect { x, y, w, h } = tile.area;
         let (wu, hu) = (w as usize, h as usize);
@@ -520,21 +560,7 @@ impl TileOut for Capture<'_> {
         if self.left_known && x == self.left {
             self.left_edge(x, y, (wu, hu), buf, corner)?;
         }
-        // The leaf's bottom row and right column, as drawn, wait in the frontier.
-        for j in 0..hu {
-            let py = y + j as u32;
-            if on_right {
-                self.rows[(py % CODING_TILE) as usize] = buf[j * wu + wu - 1];
-                self.set_corner(py, py == self.bottom && self.defer_row);
-            }
-            if py == self.bottom {
-                let first = self.stripe.column(x) as usize;
-                let row = &buf[j * wu..(j + 1) * wu];
-                if let Some(slots) = self.columns.get_mut(first..first + wu) {
-                    slots.copy_from_slice(row);
-                }
-            }
-        }
+        self.keep_edges(x, y, wu, buf);
         // The rest of the tile is drawn now.
         let keep_h = hu - usize::from(self.defer_row && y + h - 1 == self.bottom);
         let keep_w = wu - usize::from(self.defer_column && on_right);

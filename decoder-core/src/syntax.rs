@@ -13,7 +13,7 @@ use crate::colour::{chroma_models, ChromaPlane, CHROMA_GRIDS};
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::{DecodeError, HeaderField, SyntaxElement};
 use crate::format::{div_round, med, read_leb128, write_leb128, Leb128Error, CODING_TILE};
-pub use crate::format::{MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
+pub use crate::format::{SampleRange, MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
 use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN};
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
@@ -33,9 +33,11 @@ pub const CHECKSUM_BYTES: core::ops::Range<usize> = 15..19;
 pub const MAX_DEBLOCK: u8 = 16;
 /// Longest encoding of the payload length (LEB128 of a `u32`).
 pub const MAX_LENGTH_BYTES: usize = 5;
-/// Longest possible header: the fixed part and the longest payload length (24 bytes). A
-/// decoder reading a sequential source never buffers more.
-pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES;
+/// Bytes of the value range a 16-bit stream's header ends with ([`SampleRange`]).
+pub const RANGE_BYTES: usize = 4;
+/// Longest possible header: the fixed part, the longest payload length and a 16-bit stream's
+/// value range (28 bytes). A decoder reading a sequential source never buffers more.
+pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES + RANGE_BYTES;
 
 /// The stream header.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,7 +48,8 @@ pub struct Header {
     pub height: u16,
     /// Channels per pixel (1: grayscale).
     pub channels: u8,
-    /// Bits per sample (8).
+    /// Bits per sample of the data: 8, or 16 for a grayscale stream whose samples stand for
+    /// values in [`Header::range`].
     pub bit_depth: u8,
     /// Smallest leaf side, as a power of two.
     pub min_leaf_log2: u8,
@@ -65,6 +68,8 @@ pub struct Header {
     /// CRC-32 of every byte of the stream except the four that hold it
     /// ([`CHECKSUM_BYTES`]): see [`stream_checksum`].
     pub checksum: u32,
+    /// The values a 16-bit stream's samples stand for; `None` for an 8-bit stream.
+    pub range: Option<SampleRange>,
 }
 
 /// The CRC-32 a stream must carry: over all its bytes (header and payload) except
@@ -142,7 +147,8 @@ impl Header {
 
     /// Length of the serialised header in bytes.
     pub fn encoded_len(&self) -> usize {
-        FIXED_HEADER_LEN + leb128_len(self.payload_len)
+        let range = if self.range.is_some() { RANGE_BYTES } else { 0 };
+        FIXED_HEADER_LEN + leb128_len(self.payload_len) + range
     }
 
     /// Length of the whole stream: header and payload.
@@ -176,7 +182,7 @@ impl Header {
             return Err(DecodeError::UnsupportedChannels(channels));
         }
         let bit_depth = fixed[6];
-        if bit_depth != 8 {
+        if bit_depth != 8 && (bit_depth != 16 || channels != 1 || !cfg!(feature = "deep")) {
             return Err(DecodeError::UnsupportedBitDepth(bit_depth));
         }
         if fixed[7] != 0 {
@@ -199,6 +205,7 @@ impl Header {
             deblock: fixed[14],
             payload_len: 0,
             checksum: u32::from_le_bytes([fixed[15], fixed[16], fixed[17], fixed[18]]),
+            range: None,
         };
         let mut pos = FIXED_HEADER_LEN;
         // Payload length: LEB128, at most five bytes, no redundant trailing zero group.
@@ -208,6 +215,23 @@ impl Header {
         })?;
         header.payload_len = u32::try_from(len)
             .map_err(|_| DecodeError::InvalidHeader(HeaderField::PayloadLength))?;
+        if bit_depth == 16 {
+            // A deep stream's samples are delivered as the leaves make them: nothing is
+            // smoothed (see the prediction frontier's `Capture`).
+            if header.deblock != 0 {
+                return Err(DecodeError::InvalidHeader(HeaderField::Deblock));
+            }
+            let range = data
+                .get(pos..pos + RANGE_BYTES)
+                .ok_or(DecodeError::Truncated)?;
+            let low = u16::from_le_bytes([range[0], range[1]]);
+            let step = u16::from_le_bytes([range[2], range[3]]);
+            if step == 0 {
+                return Err(DecodeError::InvalidHeader(HeaderField::Range));
+            }
+            header.range = Some(SampleRange { low, step });
+            pos += RANGE_BYTES;
+        }
         Ok((header, pos))
     }
 
@@ -235,7 +259,13 @@ impl Header {
         ];
         out[..CHECKSUM_BYTES.start].copy_from_slice(&fixed);
         out[CHECKSUM_BYTES].copy_from_slice(&self.checksum.to_le_bytes());
-        write_leb128(out, FIXED_HEADER_LEN, self.payload_len)
+        let mut len = write_leb128(out, FIXED_HEADER_LEN, self.payload_len);
+        if let Some(SampleRange { low, step }) = self.range {
+            out[len..len + 2].copy_from_slice(&low.to_le_bytes());
+            out[len + 2..len + RANGE_BYTES].copy_from_slice(&step.to_le_bytes());
+            len += RANGE_BYTES;
+        }
+        len
     }
 }
 
@@ -1035,7 +1065,8 @@ mod tests {
     use crate::model::SAMPLE_ONE;
 
     /// A colour header parses with the `colour` feature (on by default) and is refused on its
-    /// channel count without it; a grayscale one parses either way.
+    /// channel count without it, a 16-bit one likewise with `deep` and its depth; a grayscale
+    /// 8-bit one parses either way.
     #[test]
     fn colour_headers_need_the_colour_feature() {
         let gray = Header {
@@ -1049,16 +1080,25 @@ mod tests {
             deblock: 2,
             payload_len: 10,
             checksum: 0,
+            range: None,
         };
         let colour = Header {
             channels: 3,
             ..gray
         };
-        for header in [gray, colour] {
+        let deep = Header {
+            bit_depth: 16,
+            deblock: 0,
+            range: Some(SampleRange::covering(236, 1076)),
+            ..gray
+        };
+        for header in [gray, colour, deep] {
             let mut out = [0u8; MAX_HEADER_LEN];
             let n = header.write(&mut out);
             let parsed = Header::parse(&out[..n]).map(|(h, _)| h);
-            if header.channels == 1 || cfg!(feature = "colour") {
+            if header.bit_depth == 16 && !cfg!(feature = "deep") {
+                assert_eq!(parsed, Err(DecodeError::UnsupportedBitDepth(16)));
+            } else if header.channels == 1 || cfg!(feature = "colour") {
                 assert_eq!(parsed, Ok(header));
             } else {
                 assert_eq!(parsed, Err(DecodeError::UnsupportedChannels(3)));

@@ -19,6 +19,7 @@
 //! full decode, exactly), larger by letting it go on below the pixel (pixel `(X, Y)` of a decode
 //! at `2^k` is the patch's point at `(X / 2^k, Y / 2^k)`).
 
+use crate::format::SampleRange;
 use crate::format::MAX_LEAF_LOG2;
 use crate::geometry::{Node, Rect};
 use crate::model::{ModelType, Rules, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
@@ -35,6 +36,17 @@ pub const ARENA_LEN: usize = arena_len(0);
 /// The same for decodes at up to four times the coded size ([`Scale::Quadruple`]): two 9x9
 /// grids for the 9x9/4x4 model. Only an enlarged decode uses it.
 const ARENA_LARGE_LEN: usize = arena_len(2);
+
+/// What a rendering makes: 8-bit pixels, or the pixels and their samples (1/16 grey level,
+/// before rounding), which a 16-bit stream's values are made from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Depth {
+    /// Pixels only (an 8-bit stream).
+    #[default]
+    Pixels,
+    /// Pixels and their samples (a 16-bit stream).
+    Samples,
+}
 
 /// The output size of a decode relative to the coded image. Smaller decodes stop the
 /// subdivision earlier: pixel `(X, Y)` of a decode at `1/2^k` is pixel `(X 2^k, Y 2^k)` of the
@@ -147,6 +159,10 @@ pub struct Tile<'a> {
     pub pixels: &'a [u8],
     /// Values per pixel: 1 (gray) or 3 (RGB).
     pub channels: u8,
+    /// A 16-bit stream's values for the same pixels, in the data's units (its header's
+    /// [`SampleRange`](crate::SampleRange)); empty for an 8-bit stream, whose `pixels` are the
+    /// data. `pixels` then holds the values mapped onto grey (`low` black, `high` white).
+    pub values: &'a [u16],
 }
 
 /// Receives decoded pixels, one [`Tile`] at a time, in the order the decoder makes them. A sink
@@ -178,6 +194,20 @@ pub struct Stop;
 pub trait TileOut {
     /// Takes one tile; [`Stop`] ends the synthesis.
     fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop>;
+
+    /// Takes one tile of a 16-bit stream with its pixels' `samples` (1/16 grey level, before
+    /// their rounding; laid out as the pixels). An output that does not carry samples on
+    /// takes the pixels alone.
+    fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        let _ = samples;
+        self.put(tile)
+    }
+
+    /// What the output wants made: pixels, or pixels and their samples (for a 16-bit
+    /// stream's sink). An output that passes tiles on asks the one it passes them to.
+    fn depth(&self) -> Depth {
+        Depth::Pixels
+    }
 }
 
 /// A tile on its way through the decoder's own outputs ([`TileOut`]): a [`Tile`] whose pixels
@@ -194,13 +224,14 @@ pub struct TileMut<'a> {
 }
 
 impl TileMut<'_> {
-    /// The tile as a [`PixelSink`] takes it.
+    /// The tile as a [`PixelSink`] takes it, with `values` (empty for an 8-bit stream).
     #[inline]
-    pub fn tile(&self) -> Tile<'_> {
+    pub fn tile<'t>(&'t self, values: &'t [u16]) -> Tile<'t> {
         Tile {
             area: self.area,
             pixels: self.pixels,
             channels: self.channels,
+            values,
         }
     }
 }
@@ -215,16 +246,33 @@ impl TileOut for Discard {
     }
 }
 
-/// A [`PixelSink`] seen as a [`TileOut`]: keeps the sink's first error for [`Catch::finish`].
+/// A [`PixelSink`] seen as a [`TileOut`]: keeps the sink's first error for [`Catch::finish`],
+/// and maps a 16-bit stream's samples onto its values.
 pub struct Catch<'s, S: PixelSink + ?Sized> {
     sink: &'s mut S,
     error: Option<S::Error>,
+    #[cfg_attr(not(feature = "deep"), allow(dead_code))]
+    range: Option<SampleRange>,
 }
 
 impl<'s, S: PixelSink + ?Sized> Catch<'s, S> {
     /// Wraps `sink`.
     pub fn new(sink: &'s mut S) -> Self {
-        Catch { sink, error: None }
+        Catch {
+            sink,
+            error: None,
+            range: None,
+        }
+    }
+
+    /// Wraps `sink`, mapping the samples of tiles that carry them onto `range` (a 16-bit
+    /// stream's [`Header::range`](crate::Header::range)).
+    pub fn with_range(sink: &'s mut S, range: Option<SampleRange>) -> Self {
+        Catch {
+            sink,
+            error: None,
+            range,
+        }
     }
 
     /// The sink's first error, if it failed (and synthesis stopped for it).
@@ -250,11 +298,47 @@ impl<S: PixelSink + ?Sized> TileOut for Catch<'_, S> {
         if self.error.is_some() {
             return Err(Stop);
         }
-        self.sink.tile(tile.tile()).map_err(|e| {
+        self.sink.tile(tile.tile(&[])).map_err(|e| {
             self.error = Some(e);
             Stop
         })
     }
+
+    #[cfg(feature = "deep")]
+    fn depth(&self) -> Depth {
+        match self.range {
+            Some(_) => Depth::Samples,
+            None => Depth::Pixels,
+        }
+    }
+
+    /// With a range (a 16-bit stream's), the sink gets the tile's values too.
+    #[cfg(feature = "deep")]
+    fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        let Some(range) = self.range else {
+            return self.put(tile);
+        };
+        if self.error.is_some() {
+            return Err(Stop);
+        }
+        let mut values = [0u16; TILE * TILE];
+        let n = to_values(&mut values, samples, range);
+        self.sink.tile(tile.tile(&values[..n])).map_err(|e| {
+            self.error = Some(e);
+            Stop
+        })
+    }
+}
+
+/// `values[i]` = the value of `samples[i]` in `range`; returns how many were made (at most a
+/// tile's).
+#[cfg(feature = "deep")]
+#[inline(never)]
+fn to_values(values: &mut [u16; TILE * TILE], samples: &[i16], range: SampleRange) -> usize {
+    for (v, &s) in values.iter_mut().zip(samples) {
+        *v = range.value(s);
+    }
+    samples.len().min(TILE * TILE)
 }
 
 /// A reconstructed patch: a model type (its subdivision rules are the model's, [`Rules`]) and
@@ -536,7 +620,8 @@ const LATTICE: usize = TILE + 1;
 /// The points of a tile (or the row rule's points of a refinement window), by row.
 type Lattice = [[i16; LATTICE]; LATTICE];
 
-/// A row a new row of points goes to: pixels, or samples (of a child grid).
+/// A row a new row of points goes to: pixels, or samples (of a child grid, or of a 16-bit
+/// stream's tile).
 enum Row<'a> {
     Pixels(&'a mut [u8]),
     Samples(&'a mut [i16]),
@@ -563,22 +648,61 @@ impl Square {
     }
 }
 
-/// What one rendering of a patch draws into: the clip, the tile output and its pixels.
+/// What one rendering of a patch draws into: the clip, the tile output, its pixels and, for
+/// a 16-bit stream, its samples.
 struct Job<'a> {
     clip: Rect,
     out: &'a mut dyn TileOut,
     pixels: [u8; TILE * TILE],
+    #[cfg_attr(not(feature = "deep"), allow(dead_code))]
+    samples: Option<&'a mut [i16; TILE * TILE]>,
 }
 
 impl Job<'_> {
-    /// Hands the first `len` pixels on as the tile `area`.
+    /// Hands the first `len` pixels (and samples) on as the tile `area`.
+    #[inline(always)]
     fn put(&mut self, area: Rect, len: usize) -> Result<(), Stop> {
-        let Job { out, pixels, .. } = self;
-        out.put(TileMut {
+        let Job {
+            out,
+            pixels,
+            samples,
+            ..
+        } = self;
+        let tile = TileMut {
             area,
             pixels: pixels.get_mut(..len).unwrap_or(&mut []),
             channels: 1,
-        })
+        };
+        #[cfg(feature = "deep")]
+        if let Some(samples) = samples.as_deref_mut().and_then(|s| s.get_mut(..len)) {
+            to_pixels(tile.pixels, samples);
+            return out.put_samples(tile, samples);
+        }
+        let _ = samples;
+        out.put(tile)
+    }
+
+    /// Row `j` (of `cols`) of the tile being made: its pixels, or a 16-bit stream's samples
+    /// (made pixels by [`Job::put`]).
+    #[inline(always)]
+    fn row(&mut self, j: usize, cols: usize) -> Option<Row<'_>> {
+        let at = j * cols..j * cols + cols;
+        #[cfg(feature = "deep")]
+        if let Some(samples) = self.samples.as_deref_mut() {
+            return samples.get_mut(at).map(Row::Samples);
+        }
+        self.pixels.get_mut(at).map(Row::Pixels)
+    }
+}
+
+impl Row<'_> {
+    /// The row made of the samples `src` (at least as many as the row).
+    #[inline]
+    fn take(self, src: &[i16]) {
+        match self {
+            Row::Pixels(p) => to_pixels(p, src),
+            Row::Samples(s) => copy_short(s, src),
+        }
     }
 }
 
@@ -613,14 +737,47 @@ impl Patch {
 
     /// Renders the leaf `node` at `scale` (see [`Scale`]): the pixels of its square in the
     /// scaled image (`node`'s coordinates times the scale) that fall inside `clip` (scaled
-    /// image coordinates), tile by tile.
-    #[inline(never)]
+    /// image coordinates), tile by tile; with their samples when `out` asks for them
+    /// ([`TileOut::depth`]).
+    #[inline]
     pub fn render_scaled(
         &self,
         node: &Node,
         scale: Scale,
         clip: Rect,
         out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
+        #[cfg(feature = "deep")]
+        if out.depth() == Depth::Samples {
+            return self.render_deep(node, scale, clip, out);
+        }
+        self.render_job(node, scale, clip, out, None)
+    }
+
+    /// [`Patch::render_scaled`] with samples (out of line: their buffer is on the stack only
+    /// for a 16-bit stream).
+    #[cfg(feature = "deep")]
+    #[inline(never)]
+    fn render_deep(
+        &self,
+        node: &Node,
+        scale: Scale,
+        clip: Rect,
+        out: &mut dyn TileOut,
+    ) -> Result<(), Stop> {
+        let mut samples = [0i16; TILE * TILE];
+        self.render_job(node, scale, clip, out, Some(&mut samples))
+    }
+
+    /// [`Patch::render_scaled`], with a tile's `samples` for a 16-bit stream.
+    #[inline(never)]
+    fn render_job(
+        &self,
+        node: &Node,
+        scale: Scale,
+        clip: Rect,
+        out: &mut dyn TileOut,
+        samples: Option<&mut [i16; TILE * TILE]>,
     ) -> Result<(), Stop> {
         let m = self.model.intervals;
         let log2 = i32::from(node.log2);
@@ -633,6 +790,7 @@ impl Patch {
             clip,
             out,
             pixels: [0; TILE * TILE],
+            samples,
         };
         if sp_log2 < 0 {
             // Control points closer than an output pixel: output pixel (X, Y) is control point
@@ -846,11 +1004,8 @@ impl Patch {
             d = nd;
         }
         for j in 0..rows {
-            if let (Some(dst), Some(src)) = (
-                job.pixels.get_mut(j * cols..j * cols + cols),
-                lattice.get(r0 + j),
-            ) {
-                to_pixels(dst, &src[c0.min(TILE)..]);
+            if let (Some(dst), Some(src)) = (job.row(j, cols), lattice.get(r0 + j)) {
+                dst.take(&src[c0.min(TILE)..]);
             }
         }
         job.put(area, len)
@@ -962,14 +1117,14 @@ impl Patch {
             while ty < y_hi {
                 let th = (y_hi - ty).min(TILE as u32);
                 for j in 0..th as usize {
-                    let Some(out) = job.pixels.get_mut(j * cols..j * cols + cols) else {
+                    let Some(out) = job.row(j, cols) else {
                         break;
                     };
                     let q1 = (ty - y) as usize * stride + j * stride;
                     let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
                     if r1 == 0 {
                         if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
-                            to_pixels(out, row);
+                            out.take(row);
                         }
                         continue;
                     }
@@ -978,7 +1133,7 @@ impl Patch {
                     else {
                         continue;
                     };
-                    self.new_row(Row::Pixels(out), [v0, v1, v2, v3], r1);
+                    self.new_row(out, [v0, v1, v2, v3], r1);
                 }
                 let area = Rect {
                     x: tx,
@@ -1095,11 +1250,15 @@ impl Patch {
         let (cols, rows) = (area.w as usize, area.h as usize);
         for j in 0..rows {
             let row = (r0 + j) * step * grid + c0 * step;
-            for i in 0..cols {
-                let v = g.get(row + i * step).copied().unwrap_or(0);
-                if let Some(p) = job.pixels.get_mut(j * cols + i) {
-                    *p = sample_to_pixel(i32::from(v));
+            let points = (0..cols).map(|i| g.get(row + i * step).copied().unwrap_or(0));
+            match job.row(j, cols) {
+                Some(Row::Pixels(p)) => {
+                    for (p, v) in p.iter_mut().zip(points) {
+                        *p = sample_to_pixel(i32::from(v));
+                    }
                 }
+                Some(Row::Samples(s)) => s.iter_mut().zip(points).for_each(|(s, v)| *s = v),
+                None => {}
             }
         }
         job.put(area, cols * rows)

@@ -18,6 +18,10 @@
 //! - `stack`, `instr`: peak stack (bytes, by painting) and instructions (SysTick under
 //!   `-icount shift=0`) of one full decode drawn onto a display that only sums the pixels.
 //!
+//! A 16-bit vector's values are hashed too, decoded one clipped row at a time
+//! (`PIFS-VALUES name=<file> sha256=<hex>`, row-major, each value little-endian: what
+//! `tests/golden/values.txt` records).
+//!
 //! Every golden packet set is received as a radio would hand it over, out of order and with
 //! losses, and drawn into a frame buffer (`PIFS-PACKETS`; see `packets.rs`).
 //!

@@ -238,12 +238,75 @@ impl ByteSource for Uart {
 /// Every pass is its own function (not inlined), so that only one decoder state and one
 /// display are on the stack at a time: the micro:bit has 16 KiB of RAM.
 pub fn check_vector(v: &Vector, counter: &measure::Counter) -> bool {
-    let colour = decoder_core::Header::read(v.data).is_ok_and(|h| h.channels == 3);
+    let header = decoder_core::Header::read(v.data);
+    let colour = header.is_ok_and(|h| h.channels == 3);
+    let deep = header.is_ok_and(|h| h.range.is_some());
     if colour {
         check_vector_as::<Rgb565>(v, counter)
     } else {
-        check_vector_as::<Gray8>(v, counter)
+        check_vector_as::<Gray8>(v, counter) && (!deep || value_hash(v))
     }
+}
+
+/// A row of a 16-bit stream's values, as the decoder hands them over.
+struct ValueRow {
+    values: [u16; MAX_WIDTH],
+    missing: u32,
+}
+
+impl decoder_core::PixelSink for ValueRow {
+    type Error = Infallible;
+
+    fn tile(&mut self, tile: decoder_core::Tile<'_>) -> Result<(), Infallible> {
+        let x = tile.area.x as usize;
+        if tile.values.len() != tile.pixels.len() || tile.area.h != 1 {
+            self.missing += 1;
+        }
+        for (i, &v) in tile.values.iter().enumerate() {
+            if let Some(slot) = self.values.get_mut(x + i) {
+                *slot = v;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A 16-bit stream's values, row-major and little-endian, hashed one clipped row at a time
+/// (`PIFS-VALUES name=<file> sha256=<hex>`, what `values.txt` records); `false` on an error.
+#[inline(never)]
+fn value_hash(v: &Vector) -> bool {
+    let mut sha = Sha256::new();
+    let mut row = ValueRow {
+        values: [0; MAX_WIDTH],
+        missing: 0,
+    };
+    let (w, h) = (u32::from(v.width), u32::from(v.height));
+    for y in 0..h {
+        let area = decoder_core::Rect { x: 0, y, w, h: 1 };
+        let decoded =
+            decoder_core::Decoder::new(v.data).and_then(|d| Ok(d.clip(area).decode(&mut row)?));
+        if let Err(e) = decoded {
+            heprintln!("PIFS-ERROR name={} values: {}", v.name, e);
+            return false;
+        }
+        for &value in &row.values[..w as usize] {
+            sha.update(value.to_le_bytes());
+        }
+    }
+    if row.missing != 0 {
+        heprintln!(
+            "PIFS-ERROR name={} {} tiles without values",
+            v.name,
+            row.missing
+        );
+        return false;
+    }
+    heprintln!(
+        "PIFS-VALUES name={} sha256={}",
+        v.name,
+        Hex(sha.finalize().into())
+    );
+    true
 }
 
 /// [`check_vector`] in colour `C`.

@@ -72,6 +72,7 @@ pub fn synthetic_stream(
         deblock: SYNTHETIC_DEBLOCK,
         payload_len: 0,
         checksum: 0,
+        range: None,
     };
     let mut coder = RangeEncoder::new();
     walk::<_, _, DEFAULT_STRIPE>(&header, &mut coder, &mut Uniform { leaf_log2, fill })?;

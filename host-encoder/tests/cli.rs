@@ -1113,31 +1113,136 @@ fn decode_draws_a_heightmap_as_a_hillshaded_relief() {
     assert!(!out.exists());
 }
 
-/// A 16-bit grayscale image whose samples span little of their range (a heightmap in metres,
-/// say) gets a note that 8 bits flatten it; one spanning most of it does not.
+/// A 16-bit grayscale image (a heightmap) is coded as a 16-bit stream: `info` shows its depth
+/// and range, `decode` writes 16-bit PNG and PGM of values in its units (finer than 256 grey
+/// levels, within the error `encode` reports), `--hillshade` shades those values; `--depth 8`
+/// makes an 8-bit stream (with a note when the samples span few grey levels); packets refuse a
+/// 16-bit image in one line.
 #[test]
-fn narrow_16_bit_samples_are_noted() {
+fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     let dir = scratch("sixteen");
-    let encode = |name: &str, f: &dyn Fn(u32, u32) -> u16| {
-        let png = dir.join(name);
-        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(40, 30, |x, y| {
-            image::Luma([f(x, y)])
-        })
+    let (w, h) = (64u32, 48u32);
+    let height = |x: u32, y: u32| {
+        let (x, y) = (f64::from(x), f64::from(y));
+        1000.0 + 400.0 * (x / 9.0).sin() * (y / 13.0).cos() + 6.0 * x + 3.0 * y
+    };
+    let dem: Vec<u16> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| height(x, y).round() as u16))
+        .collect();
+    let png = dir.join("dem.png");
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(w, h, dem.clone())
+        .unwrap()
         .save(&png)
         .unwrap();
-        let out = dir.join("x.pifs");
-        ok(&pifs(&[
-            "encode",
-            png.to_str().unwrap(),
+    let (low, high) = (*dem.iter().min().unwrap(), *dem.iter().max().unwrap());
+    let stream = dir.join("dem.pifs");
+    let line = ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--bpp",
+        "2",
+        "-o",
+        stream.to_str().unwrap(),
+    ]));
+    assert!(
+        line.contains(&format!("16-bit surface {low}..{high}")),
+        "{line}"
+    );
+    let rmse_reported: f64 = {
+        let at = line.find("RMSE ").unwrap() + 5;
+        line[at..].split(',').next().unwrap().parse().unwrap()
+    };
+    let info = ok(&pifs(&["info", stream.to_str().unwrap()]));
+    assert!(info.contains("16 bits"), "{info}");
+    assert!(
+        info.contains(&format!(
+            "values           {low}..{}",
+            decoder_core::SampleRange::covering(low, high).high()
+        )),
+        "{info}"
+    );
+
+    let read16 = |path: &Path| match image::open(path).unwrap() {
+        image::DynamicImage::ImageLuma16(img) => img.into_raw(),
+        other => panic!("{}: {:?}, not 16-bit gray", path.display(), other.color()),
+    };
+    let out_png = dir.join("out.png");
+    let out_pgm = dir.join("out.pgm");
+    for out in [&out_png, &out_pgm] {
+        let said = ok(&pifs(&[
+            "decode",
+            stream.to_str().unwrap(),
             "-o",
             out.to_str().unwrap(),
-        ]))
-    };
-    let heights = encode("dem.png", &|x, y| 1000 + (x * 5 + y * 3) as u16);
+        ]));
+        assert!(said.contains("16-bit surface"), "{said}");
+    }
+    let values = read16(&out_png);
+    assert_eq!(values, read16(&out_pgm), "PNG and PGM hold the same values");
+    assert_eq!(values.len(), dem.len());
+    assert!(values.iter().all(|v| (low..=high).contains(v)));
+    let sum: f64 = values
+        .iter()
+        .zip(&dem)
+        .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+        .sum();
+    let rmse = (sum / dem.len() as f64).sqrt();
     assert!(
-        heights.contains("16-bit samples from 1000 to 1282 become 2 grey levels"),
-        "{heights}"
+        (rmse - rmse_reported).abs() < 0.01,
+        "{rmse} vs {rmse_reported}"
     );
-    let photo = encode("photo.png", &|x, y| (x * 1500 + y * 200) as u16);
-    assert!(!photo.contains("16-bit samples"), "{photo}");
+    // 2 bits a sample: well within a grey level of the range (the range / 255 = 4.9).
+    assert!(rmse < f64::from(high - low) / 255.0, "RMSE {rmse}");
+    let distinct: std::collections::BTreeSet<u16> = values.iter().copied().collect();
+    assert!(
+        distinct.len() > 256,
+        "{} values: no finer than grey",
+        distinct.len()
+    );
+
+    // The relief of a 16-bit stream shades its values.
+    let relief = dir.join("relief.png");
+    ok(&pifs(&[
+        "decode",
+        stream.to_str().unwrap(),
+        "-o",
+        relief.to_str().unwrap(),
+        "--hillshade",
+    ]));
+    let heights: Vec<f64> = values.iter().map(|&v| f64::from(v)).collect();
+    let expected =
+        host_encoder::relief::hillshade(&heights, w as usize, h as usize, &Default::default());
+    assert_eq!(image::open(&relief).unwrap().to_luma8().as_raw(), &expected);
+
+    // --depth 8: an 8-bit stream of the samples' full 16-bit range, noted as flattened.
+    let eight = dir.join("eight.pifs");
+    let line = ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--depth",
+        "8",
+        "-o",
+        eight.to_str().unwrap(),
+    ]));
+    assert!(
+        line.contains(&format!(
+            "16-bit samples from {low} to {high} become 4 grey levels"
+        )),
+        "{line}"
+    );
+    assert!(ok(&pifs(&["info", eight.to_str().unwrap()])).contains("8 bits"));
+
+    let packets = dir.join("dem.pifsp");
+    let line = refused(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--packet-size",
+        "64",
+        "--bytes",
+        "600",
+        "-o",
+        packets.to_str().unwrap(),
+    ]));
+    assert!(line.contains("--depth 8"), "{line}");
+    assert!(!packets.exists());
 }

@@ -90,6 +90,17 @@ fn decode_checked(data: &[u8]) {
             "Ok, but a pixel was never written"
         );
     }
+    // A 16-bit stream's every tile carries its values, in the header's range; an 8-bit
+    // stream's none.
+    match header.range {
+        Some(range) => {
+            assert_eq!(sink.tiles_with_values, sink.tiles, "a tile without values");
+            if let Some((lo, hi)) = sink.value_extremes {
+                assert!(lo >= range.low && hi <= range.high(), "values out of range");
+            }
+        }
+        None => assert_eq!(sink.tiles_with_values, 0, "values from an 8-bit stream"),
+    }
 }
 
 /// A digest of the tiles a decoder produces, in order (64-bit FNV-1a over positions, sizes and
@@ -312,10 +323,11 @@ pub fn large_leaf_byte(header: &decoder_core::Header) -> Option<u8> {
 /// The stream [`large_dimensions`] makes of `data`: width and height (big-endian, 2 bytes
 /// each), a byte choosing the leaf sizes (bits 0–3), the stripe width (bits 4–5: the whole
 /// width, 1, 2 or 4 coding tiles) and the edge smoothing (bits 6–7), a byte choosing the
-/// channels (bit 0: 1, grayscale, or 3, colour; the other bits unused), the rest the payload;
+/// channels (bit 0: 1, grayscale, or 3, colour; bit 1: a 16-bit grayscale stream), the rest the payload;
 /// header written and sealed.
 pub fn large_stream(data: &[u8]) -> Option<Vec<u8>> {
     use decoder_core::internal::syntax::Header;
+    use decoder_core::SampleRange;
     if data.len() < LARGE_PREFIX {
         return None;
     }
@@ -324,17 +336,24 @@ pub fn large_stream(data: &[u8]) -> Option<Vec<u8>> {
     let max_leaf_log2 = 4 + data[4] % 4;
     let min_leaf_log2 = (max_leaf_log2 - (data[4] >> 2) % 4).max(1);
     let payload = &data[LARGE_PREFIX..];
+    let channels = if data[5] & 1 == 0 { 1 } else { 3 };
+    // Bit 1 of the channels byte: a 16-bit stream (grayscale, unsmoothed, the widest range).
+    let range = (channels == 1 && data[5] & 2 != 0).then_some(SampleRange::covering(0, u16::MAX));
     let header = Header {
         width,
         height,
-        channels: if data[5] & 1 == 0 { 1 } else { 3 },
-        bit_depth: 8,
+        channels,
+        bit_depth: if range.is_some() { 16 } else { 8 },
         min_leaf_log2,
         max_leaf_log2,
         stripe: [0, 1, 2, 4][usize::from(data[4] >> 4) % 4],
-        deblock: [0, 2, 8, 16][usize::from(data[4] >> 6)],
+        deblock: match range {
+            Some(_) => 0,
+            None => [0, 2, 8, 16][usize::from(data[4] >> 6)],
+        },
         payload_len: payload.len() as u32,
         checksum: 0,
+        range,
     };
     let mut stream = vec![0u8; header.encoded_len()];
     header.write(&mut stream);

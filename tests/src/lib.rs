@@ -15,7 +15,8 @@ use std::convert::Infallible;
 
 /// A [`decoder_core::PixelSink`] that records how often every pixel of a `width x height` image
 /// is written, the last value written, and any tile that breaks the sink contract (out of the
-/// image, larger than [`decoder_core::TILE`], or `pixels.len() != w * h`).
+/// image, larger than [`decoder_core::TILE`], `pixels.len() != w * h`, or values that are
+/// neither absent nor one per pixel), and the tiles that carried values and their extremes.
 pub struct CoverageSink {
     pub width: u32,
     pub height: u32,
@@ -25,6 +26,10 @@ pub struct CoverageSink {
     pub violations: Vec<String>,
     /// Values per pixel of the tiles (1 until a colour tile comes: `pixels` then holds RGB).
     pub channels: usize,
+    /// Tiles that carried values (a 16-bit stream's, [`Tile::values`]).
+    pub tiles_with_values: usize,
+    /// The smallest and largest value any tile carried.
+    pub value_extremes: Option<(u16, u16)>,
 }
 
 impl CoverageSink {
@@ -38,6 +43,8 @@ impl CoverageSink {
             tiles: 0,
             violations: Vec::new(),
             channels: 1,
+            tiles_with_values: 0,
+            value_extremes: None,
         }
     }
 
@@ -64,7 +71,7 @@ impl decoder_core::PixelSink for CoverageSink {
 
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
         let Rect { x, y, w, h } = tile.area;
-        let pixels = tile.pixels;
+        let (pixels, values) = (tile.pixels, tile.values);
         self.tiles += 1;
         let ch = usize::from(tile.channels);
         if self.tiles == 1 && ch == 3 {
@@ -89,6 +96,19 @@ impl decoder_core::PixelSink for CoverageSink {
                 pixels.len()
             ));
             return Ok(());
+        }
+        if !values.is_empty() {
+            self.tiles_with_values += 1;
+            if values.len() != pixels.len() {
+                self.violations.push(format!(
+                    "tile {w}x{h} at ({x}, {y}): {} values",
+                    values.len()
+                ));
+            }
+            for &v in values {
+                let (lo, hi) = self.value_extremes.unwrap_or((v, v));
+                self.value_extremes = Some((lo.min(v), hi.max(v)));
+            }
         }
         if u64::from(x) + u64::from(w) > u64::from(self.width)
             || u64::from(y) + u64::from(h) > u64::from(self.height)

@@ -161,6 +161,16 @@ fn specs() -> Vec<Spec> {
             config: config(3, 7),
             targets: bpp(&[0.02, 0.25, 1.0]),
         },
+        Spec {
+            // A 16-bit surface (its samples delivered as values in the header's range).
+            name: "surface16-40x36",
+            image: Image::Gray(common::synthetic(40, 36, 19, 3)),
+            config: EncoderConfig {
+                range: Some(decoder_core::SampleRange::covering(500, 60000)),
+                ..config(1, 5)
+            },
+            targets: bpp(&[0.5, 2.0]),
+        },
         // Colour (YCbCr 4:2:0): chroma planes of half the size rounded up, so odd sizes leave
         // a chroma row or column half outside the image.
         Spec {
@@ -218,6 +228,8 @@ struct Usage {
     channels: BTreeSet<u8>,
     /// Sizes of the colour streams.
     colour_sizes: BTreeSet<(u16, u16)>,
+    /// Bit depths of the streams.
+    depths: BTreeSet<u8>,
 }
 
 impl Usage {
@@ -237,6 +249,7 @@ impl Usage {
         let header = Header::read(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
         self.sizes.insert((header.width, header.height));
         self.channels.insert(header.channels);
+        self.depths.insert(header.bit_depth);
         if header.channels == 3 {
             self.colour_sizes.insert((header.width, header.height));
         }
@@ -280,6 +293,9 @@ impl Usage {
         }
         if self.channels != BTreeSet::from([1, 3]) {
             out.push(format!("channels {:?} of [1, 3]", self.channels));
+        }
+        if self.depths != BTreeSet::from([8, 16]) {
+            out.push(format!("bit depths {:?} of [8, 16]", self.depths));
         }
         // Chroma planes are half the size rounded up: odd sides reach their edge cases.
         let odd = |(w, h): (u16, u16)| w % 2 == 1 && h % 2 == 1 && w > 1 && h > 1;
@@ -498,14 +514,12 @@ fn large_dimension_seeds(streams: &[(String, Vec<u8>)]) -> Vec<(String, Vec<u8>)
         seed.extend_from_slice(&w.to_be_bytes());
         seed.extend_from_slice(&h.to_be_bytes());
         seed.push(leaves);
-        seed.push(u8::from(header.channels == 3));
+        seed.push(u8::from(header.channels == 3) | u8::from(header.range.is_some()) << 1);
         seed.extend_from_slice(&bytes[offset..]);
         let made = pifs_tests::fuzz::large_stream(&seed).unwrap();
-        assert_eq!(
-            Header::read(&made).unwrap().channels,
-            header.channels,
-            "{name}"
-        );
+        let made = Header::read(&made).unwrap();
+        assert_eq!(made.channels, header.channels, "{name}");
+        assert_eq!(made.bit_depth, header.bit_depth, "{name}");
         (format!("{w}x{h}-{}", name.trim_end_matches(".pifs")), seed)
     };
     let mut out = Vec::new();

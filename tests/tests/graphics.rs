@@ -8,7 +8,8 @@
 //!   synthesises tiles that intersect it;
 //! - pixels arrive through `fill_contiguous` in tiles of at most 16x16, never through
 //!   `draw_iter`;
-//! - colour conversion to Gray8, Rgb565, Rgb888, BinaryColor (luma >= 128 is On);
+//! - colour conversion to Gray8, Rgb565, Rgb888, BinaryColor (luma >= 128 is On), and a
+//!   caller's mapping of values (`PifsImage::with_values`: a 16-bit stream's values);
 //! - damaged streams never panic, `draw_checked` reports them, target errors stop the drawing;
 //! - `draw_stream` from a byte-at-a-time source draws what the in-memory image draws.
 //!
@@ -184,6 +185,51 @@ fn expected<C: FromGray>(d: &Decoded, area: Rectangle, at: Point) -> MockDisplay
 
 fn whole(d: &Decoded) -> Rectangle {
     Rectangle::new(Point::zero(), Size::new(d.width, d.height))
+}
+
+/// `with_values` draws each pixel's value through the caller's mapping: a 16-bit stream's
+/// values (a colour ramp here), an 8-bit stream's pixels (its luma for a colour stream), each
+/// once, also as a sub-image.
+#[test]
+fn values_draw_through_the_callers_mapping() {
+    let ramp = |v: u16| Rgb565::new((v >> 11) as u8, (v >> 5) as u8 & 0x3F, v as u8 & 0x1F);
+    let mut deep = 0;
+    for d in small() {
+        let values: Vec<u16> = common::decode_values(&d.stream)
+            .unwrap()
+            .chunks_exact(2)
+            .map(|b| u16::from_le_bytes([b[0], b[1]]))
+            .collect();
+        let header = decoder_core::Header::read(&d.stream).unwrap();
+        deep += usize::from(header.range.is_some());
+        let value = |x: i32, y: i32| -> u16 {
+            let i = y as usize * d.width as usize + x as usize;
+            match (header.range, d.channels) {
+                (Some(_), _) => values[i],
+                (None, 3) => {
+                    let p = &d.pixels[3 * i..3 * i + 3];
+                    u16::from(decoder_core::internal::colour::rgb_to_luma(
+                        p[0], p[1], p[2],
+                    ))
+                }
+                (None, _) => u16::from(d.pixels[i]),
+            }
+        };
+        let img = PifsImage::new(&d.stream).unwrap().with_values(ramp);
+        let area = Rectangle::new(Point::new(1, 2), Size::new(d.width - 1, d.height - 2));
+        for (area, at) in [(whole(&d), Point::zero()), (area, Point::new(1, 0))] {
+            let mut display = MockDisplay::<Rgb565>::new();
+            Image::new(&img.sub_image(&area), at)
+                .draw(&mut display)
+                .unwrap();
+            let mut expected = MockDisplay::new();
+            for p in area.points() {
+                expected.set_pixel(p - area.top_left + at, Some(ramp(value(p.x, p.y))));
+            }
+            display.assert_eq(&expected);
+        }
+    }
+    assert!(deep > 0, "no 16-bit golden vector of at most 64x64");
 }
 
 #[test]

@@ -12,7 +12,9 @@
 //! - `PIFS-PACKETS`: each golden packet set of `tests/golden/packets.txt`, received out of
 //!   order with some packets lost, hashed from a frame buffer;
 //! - `PIFS-SCALED`: the row-major hash of every vector decoded at 1/4, 1/2 and 2 times its size
-//!   (`PifsImage::with_scale`).
+//!   (`PifsImage::with_scale`);
+//! - `PIFS-VALUES`: the values of every 16-bit vector (`tests/golden/values.txt`), row-major,
+//!   each u16 little-endian.
 //!
 //! Colour vectors are drawn by the firmware on an `Rgb565` display: their hashes are of each
 //! pixel's RGB565 value (u16 little-endian) instead of the luma byte, which the host computes
@@ -351,6 +353,7 @@ fn check_board(board: &Board) {
     );
 
     check_packets(&context, &lines);
+    check_values(&context, &lines);
 
     let fb: Vec<&&str> = lines.iter().filter(|l| l.starts_with("PIFS-FB ")).collect();
     assert_eq!(fb.len(), 1, "{context}: frame-buffer lines {fb:?}");
@@ -360,6 +363,37 @@ fn check_board(board: &Board) {
         "{context}: frame-buffer decode of {} differs from the host's",
         f["name"]
     );
+}
+
+/// Every 16-bit golden stream's values, decoded by the firmware one clipped row at a time,
+/// hash as the host's do (and as `values.txt` records).
+fn check_values(context: &str, lines: &[&str]) {
+    let expected = common::golden_values();
+    assert!(!expected.is_empty(), "values.txt lists no stream");
+    let got: BTreeMap<&str, &str> = lines
+        .iter()
+        .filter(|l| l.starts_with("PIFS-VALUES "))
+        .map(|l| {
+            let f = fields(l);
+            (f["name"], f["sha256"])
+        })
+        .collect();
+    for g in &expected {
+        let stream = std::fs::read(golden_dir().join(&g.file)).unwrap();
+        assert_eq!(
+            sha256_hex(&common::decode_values(&stream).unwrap()),
+            g.sha256,
+            "{}: host values",
+            g.file
+        );
+        assert_eq!(
+            got.get(g.file.as_str()).copied(),
+            Some(g.sha256.as_str()),
+            "{context}: {}: values differ from the host's",
+            g.file
+        );
+    }
+    assert_eq!(got.len(), expected.len(), "{context}: values of {got:?}");
 }
 
 /// Every golden packet set, received by the firmware out of order and without its lost

@@ -88,6 +88,7 @@ fn header(width: u16, height: u16, min_leaf: u8, max_leaf: u8) -> Header {
         deblock: 0,
         payload_len: 0,
         checksum: 0,
+        range: None,
     }
 }
 
@@ -214,9 +215,43 @@ fn header_errors_are_typed() {
             DecodeError::UnsupportedChannels(0),
         ),
         (
-            "bit depth 16",
-            with(6, 16),
+            "bit depth 12",
+            with(6, 12),
+            DecodeError::UnsupportedBitDepth(12),
+        ),
+        (
+            "bit depth 16 in colour",
+            {
+                let mut h = with(6, 16);
+                h[5] = 3;
+                h
+            },
             DecodeError::UnsupportedBitDepth(16),
+        ),
+        (
+            // The range is read from the bytes after the payload length: zeros here.
+            "bit depth 16, empty value range",
+            with(6, 16),
+            DecodeError::InvalidHeader(decoder_core::HeaderField::Range),
+        ),
+        (
+            "bit depth 16, value range cut short",
+            {
+                let mut h = good.clone();
+                h[6] = 16;
+                h.extend_from_slice(&[0, 1]);
+                h
+            },
+            DecodeError::Truncated,
+        ),
+        (
+            "bit depth 16, smoothed",
+            {
+                let mut h = with(6, 16);
+                h[14] = 2;
+                h
+            },
+            DecodeError::InvalidHeader(decoder_core::HeaderField::Deblock),
         ),
         (
             "reserved flag",

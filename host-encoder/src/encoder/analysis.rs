@@ -152,7 +152,11 @@ impl Analysis {
                 bits: 1.0,
                 sse: 1.0,
             },
-            deblock: config.deblock.map(|d| d.min(MAX_DEBLOCK)),
+            // A 16-bit stream is not smoothed (its samples are the leaves').
+            deblock: match config.range {
+                Some(_) => Some(0),
+                None => config.deblock.map(|d| d.min(MAX_DEBLOCK)),
+            },
             timing: AnalysisTiming::default(),
             colour,
             chroma_cache: ChromaCache::default(),
@@ -437,7 +441,7 @@ fn header_of_size(width: u32, height: u32, config: &EncoderConfig) -> Result<Hea
         width,
         height,
         channels: 1,
-        bit_depth: 8,
+        bit_depth: if config.range.is_some() { 16 } else { 8 },
         min_leaf_log2,
         max_leaf_log2: config.max_leaf_log2.clamp(min_leaf_log2, MAX_LEAF_LOG2),
         stripe: config.stripe,
@@ -445,6 +449,7 @@ fn header_of_size(width: u32, height: u32, config: &EncoderConfig) -> Result<Hea
         // Set by the writer.
         payload_len: 0,
         checksum: 0,
+        range: config.range,
     })
 }
 

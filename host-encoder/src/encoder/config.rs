@@ -4,6 +4,7 @@
 //! Bottom layer of the encoder: uses nothing else of it.
 
 use decoder_core::internal::format::CODING_TILE;
+use decoder_core::SampleRange;
 use std::fmt;
 
 /// Settings of the analysis.
@@ -37,6 +38,10 @@ pub struct EncoderConfig {
     /// What the analysis minimises besides the bits: the plain squared error, or the error
     /// weighted by local contrast ([`Tune`]).
     pub tune: Tune,
+    /// `Some`: the plane is a 16-bit surface whose grey levels stand for values in this range
+    /// (grey 0 `low`, 255 `high`), coded as 16-bit streams (decoded to values in the range at
+    /// 1/16 grey level, unsmoothed). `None`: 8-bit streams.
+    pub range: Option<SampleRange>,
 }
 
 /// What an encode's distortion is.
@@ -80,6 +85,7 @@ impl Default for EncoderConfig {
             deblock: None,
             fine_steps: None,
             tune: Tune::default(),
+            range: None,
         }
     }
 }

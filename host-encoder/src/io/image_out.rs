@@ -1,5 +1,6 @@
 //! Decoded images out: 8-bit gray or RGB as PNG, PGM or PPM, written row by row
-//! ([`ImageWriter`]), so that an image never has to be whole in memory to be written.
+//! ([`ImageWriter`]), so that an image never has to be whole in memory to be written; the
+//! values of a 16-bit stream as 16-bit gray ([`OutputFormat::encode_values`]).
 
 use super::FileError;
 use decoder_core::internal::colour::rgb_to_luma;
@@ -102,6 +103,57 @@ impl OutputFormat {
             writer.write_row(row).map_err(failed)?;
         }
         writer.finish().map_err(failed)
+    }
+}
+
+impl OutputFormat {
+    /// Encodes 16-bit gray values (`width * height`, row-major) in this format into memory:
+    /// PNG of bit depth 16, PGM and PPM of largest value 65535 (big-endian samples, the grey
+    /// in every channel of a PPM).
+    pub fn encode_values(
+        self,
+        path: &Path,
+        width: u32,
+        height: u32,
+        values: &[u16],
+    ) -> Result<Vec<u8>, FileError> {
+        if values.len() as u64 != u64::from(width) * u64::from(height) {
+            return Err(FileError::BufferSize {
+                width,
+                height,
+                len: values.len(),
+            });
+        }
+        let failed = |source| FileError::Write {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut out = Vec::new();
+        match self {
+            OutputFormat::Png => {
+                let mut encoder = png::Encoder::new(&mut out, width, height);
+                encoder.set_color(png::ColorType::Grayscale);
+                encoder.set_depth(png::BitDepth::Sixteen);
+                let be: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
+                encoder
+                    .write_header()
+                    .and_then(|mut w| w.write_image_data(&be))
+                    .map_err(|e| failed(png_error(e)))?;
+            }
+            OutputFormat::Pgm | OutputFormat::Ppm => {
+                let (magic, repeat) = match self {
+                    OutputFormat::Pgm => ("P5", 1),
+                    _ => ("P6", 3),
+                };
+                out.extend_from_slice(format!("{magic}\n{width} {height}\n65535\n").as_bytes());
+                for v in values {
+                    for _ in 0..repeat {
+                        out.extend_from_slice(&v.to_be_bytes());
+                    }
+                }
+            }
+        }
+        Ok(out)
     }
 }
 

@@ -9,6 +9,7 @@
 
 use super::{input_name, is_std_stream, FileError};
 use crate::encoder::Plane;
+use decoder_core::SampleRange;
 use image::metadata::Orientation;
 use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader};
 use std::io::{Cursor, Read};
@@ -206,37 +207,90 @@ pub struct DecodedImage {
     pub orientation: Orientation,
     /// The file's pages: only the first was decoded.
     pub pages: usize,
-    /// The range its samples span, for a 16-bit grayscale image (a heightmap, often), which
-    /// [`to_luma`] maps to 8 bits from the type's full range.
-    pub range16: Option<SampleRange>,
+    /// A 16-bit grayscale image's samples (a heightmap, often), which [`to_luma`] maps to 8
+    /// bits from the type's full range: what a 16-bit stream codes.
+    pub surface: Option<Surface>,
 }
 
-/// The smallest and the largest sample of an image.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct SampleRange {
+/// A 16-bit grayscale image as a surface: its samples and the smallest and largest of them.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Surface {
+    /// Width in samples.
+    pub width: u32,
+    /// Height in samples.
+    pub height: u32,
+    /// Row-major samples.
+    pub values: Vec<u16>,
     /// The smallest sample.
-    pub low: u16,
+    pub min: u16,
     /// The largest sample.
-    pub high: u16,
+    pub max: u16,
 }
 
-impl SampleRange {
-    /// The range of a 16-bit grayscale image (with or without alpha); `None` for any other.
-    pub fn of_gray16(img: &DynamicImage) -> Option<SampleRange> {
-        let samples: Box<dyn Iterator<Item = u16> + '_> = match img {
-            DynamicImage::ImageLuma16(g) => Box::new(g.pixels().map(|p| p[0])),
-            DynamicImage::ImageLumaA16(g) => Box::new(g.pixels().map(|p| p[0])),
+/// How far a decoded surface is from its samples, in their units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceError {
+    /// Root-mean-square error.
+    pub rmse: f64,
+    /// Largest absolute error.
+    pub max: u16,
+    /// PSNR relative to the surface's range (`20 log10(range / rmse)`), as the thesis measures
+    /// terrain.
+    pub psnr: f64,
+}
+
+impl Surface {
+    /// The surface of a 16-bit grayscale image (with or without alpha); `None` for any other.
+    pub fn of_gray16(img: &DynamicImage) -> Option<Surface> {
+        let values: Vec<u16> = match img {
+            DynamicImage::ImageLuma16(g) => g.pixels().map(|p| p[0]).collect(),
+            DynamicImage::ImageLumaA16(g) => g.pixels().map(|p| p[0]).collect(),
             _ => return None,
         };
-        samples.fold(None, |range, v| {
-            Some(match range {
-                None => SampleRange { low: v, high: v },
-                Some(r) => SampleRange {
-                    low: r.low.min(v),
-                    high: r.high.max(v),
-                },
-            })
+        Some(Surface {
+            width: img.width(),
+            height: img.height(),
+            min: values.iter().copied().min()?,
+            max: values.iter().copied().max()?,
+            values,
         })
+    }
+
+    /// The value range of its streams' headers: from its smallest sample, the smallest step
+    /// that reaches its largest at grey 255.
+    pub fn range(&self) -> SampleRange {
+        SampleRange::covering(self.min, self.max)
+    }
+
+    /// The samples as the encoder takes them: mapped onto grey by [`Surface::range`] (the
+    /// nearest grey level, at most 255).
+    pub fn plane(&self) -> Plane {
+        let SampleRange { low, step } = self.range();
+        let (one, step) = (SampleRange::STEP_ONE, u32::from(step));
+        let data = self
+            .values
+            .iter()
+            .map(|&v| ((2 * one * u32::from(v - low) + step) / (2 * step)).min(255) as u8)
+            .collect();
+        Plane::new(self.width, self.height, data)
+    }
+
+    /// The error of `decoded` (the same number of samples) against this surface.
+    pub fn error(&self, decoded: &[u16]) -> SurfaceError {
+        let mut sum = 0.0;
+        let mut max = 0;
+        for (&a, &b) in self.values.iter().zip(decoded) {
+            let d = a.abs_diff(b);
+            sum += f64::from(d) * f64::from(d);
+            max = max.max(d);
+        }
+        let rmse = (sum / self.values.len().max(1) as f64).sqrt();
+        let span = f64::from(self.max - self.min).max(1.0);
+        SurfaceError {
+            rmse,
+            max,
+            psnr: 20.0 * (span / rmse.max(1e-9)).log10(),
+        }
     }
 }
 
@@ -282,30 +336,44 @@ impl DecodedImage {
             rgb,
             orientation: probe.orientation,
             pages: probe.pages,
-            range16: SampleRange::of_gray16(&img),
+            surface: Surface::of_gray16(&img),
         })
     }
 }
 
 impl DecodedImage {
-    /// The image as the encoder takes it: colour when it has colour, unless `gray`.
-    pub fn into_loaded(self, gray: bool) -> Loaded {
-        match self.rgb {
-            Some(data) if !gray => Loaded::Rgb {
+    /// The image as the encoder takes it: colour when it has colour, unless `gray`; a 16-bit
+    /// grayscale image as a surface, unless `depth` is [`Depth::Eight`].
+    pub fn into_loaded(self, gray: bool, depth: Depth) -> Loaded {
+        match (self.rgb, self.surface) {
+            (Some(data), _) if !gray => Loaded::Rgb {
                 width: self.plane.width,
                 height: self.plane.height,
                 data,
             },
+            (_, Some(surface)) if depth == Depth::Auto => Loaded::Surface(surface),
             _ => Loaded::Gray(self.plane),
         }
     }
 }
 
-/// An image as the encoder takes it: grayscale, or colour.
+/// The bit depth of the streams made from an image.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Depth {
+    /// The image's: 16 for a 16-bit grayscale image, else 8.
+    #[default]
+    Auto,
+    /// 8, a 16-bit image's samples mapped to 8 bits from their type's full range.
+    Eight,
+}
+
+/// An image as the encoder takes it: grayscale, colour, or a 16-bit surface.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Loaded {
     /// 8-bit luma ([`to_luma`]).
     Gray(Plane),
+    /// 16-bit grayscale samples, for a 16-bit stream.
+    Surface(Surface),
     /// 8-bit RGB ([`to_rgb`]).
     Rgb {
         /// Width in pixels.
@@ -321,7 +389,8 @@ pub enum Loaded {
 /// orientation applied, within the `image` crate's default limits.
 pub fn load_image(path: &Path) -> Result<Loaded, FileError> {
     let bytes = read_input(path, "an image", u64::MAX)?;
-    DecodedImage::decode(&bytes, path, &ImageLimits::DEFAULT).map(|d| d.into_loaded(false))
+    DecodedImage::decode(&bytes, path, &ImageLimits::DEFAULT)
+        .map(|d| d.into_loaded(false, Depth::Auto))
 }
 
 /// Converts a decoded image to 8-bit row-major RGB: any bit depth from its full range,
@@ -403,6 +472,38 @@ pub fn has_image_extension(path: &Path) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 16-bit gray image is a surface whose range starts at its smallest sample and reaches
+    /// its largest at (or just before) grey 255; a flat one steps by 1/128; an 8-bit image is
+    /// none.
+    #[test]
+    fn sixteen_bit_gray_images_are_surfaces() {
+        let ramp = image::ImageBuffer::from_fn(4, 1, |x, _| image::Luma([300 + 100 * x as u16]));
+        let surface = Surface::of_gray16(&DynamicImage::ImageLuma16(ramp)).unwrap();
+        assert_eq!((surface.min, surface.max), (300, 600));
+        // 300 * 128 / 255 = 150.6: a step of 151 / 128 = 1.18 a grey level.
+        assert_eq!(
+            surface.range(),
+            SampleRange {
+                low: 300,
+                step: 151
+            }
+        );
+        assert_eq!(surface.plane().data, vec![0, 85, 170, 254]);
+        let error = surface.error(&[300, 402, 498, 600]);
+        assert_eq!(error.max, 2);
+        assert!((error.rmse - 2f64.sqrt()).abs() < 1e-12);
+        assert!((error.psnr - 20.0 * (300.0 / 2f64.sqrt()).log10()).abs() < 1e-9);
+        for v in [7, u16::MAX] {
+            let flat = image::ImageBuffer::from_pixel(3, 2, image::Luma([v]));
+            let surface = Surface::of_gray16(&DynamicImage::ImageLuma16(flat)).unwrap();
+            assert_eq!(surface.range(), SampleRange { low: v, step: 1 });
+            assert_eq!(surface.plane().data, vec![0; 6]);
+        }
+        let eight =
+            DynamicImage::ImageLuma8(image::ImageBuffer::from_pixel(2, 2, image::Luma([9])));
+        assert_eq!(Surface::of_gray16(&eight), None);
+    }
 
     fn png(img: &DynamicImage) -> Vec<u8> {
         let mut out = Vec::new();

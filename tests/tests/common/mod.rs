@@ -193,6 +193,31 @@ pub fn golden_list() -> Vec<GoldenEntry> {
         .collect()
 }
 
+/// Parses `tests/golden/values.txt`: the 16-bit golden streams, each with the SHA-256 of its
+/// decoded values (row-major, each value little-endian), in `golden.txt`'s form.
+#[allow(dead_code)]
+pub fn golden_values() -> Vec<GoldenEntry> {
+    list_lines("values.txt", 4)
+        .into_iter()
+        .map(|f| GoldenEntry {
+            file: f[0].clone(),
+            width: f[1].parse().expect("width"),
+            height: f[2].parse().expect("height"),
+            sha256: f[3].to_string(),
+        })
+        .collect()
+}
+
+/// A stream's decoded values ([`decoder_core::Decoder::decode_values_into`]) as the bytes
+/// `values.txt` hashes: row-major, little-endian.
+#[allow(dead_code)]
+pub fn decode_values(stream: &[u8]) -> Result<Vec<u8>, decoder_core::DecodeError> {
+    let header = decoder_core::Header::read(stream)?;
+    let mut out = vec![0u16; header.pixel_count() * usize::from(header.channels)];
+    decoder_core::Decoder::new(stream)?.decode_values_into(&mut out)?;
+    Ok(out.iter().flat_map(|v| v.to_le_bytes()).collect())
+}
+
 /// The golden streams: `(file name, bytes)`.
 pub fn golden_streams() -> Vec<(String, Vec<u8>)> {
     golden_list()

@@ -3,6 +3,7 @@
 //!
 //! The stream's header is read first and checked against `--max-pixels`; the image is written
 //! row band by row band ([`io::decode_to_image`]), so memory follows the width, not the image.
+//! A 16-bit stream is decoded whole to its values and written as a 16-bit image.
 
 use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
@@ -46,6 +47,18 @@ pub fn decode_pixels(
     };
     let header = decoded.map_err(|e| input.error(e, &failure))?;
     Ok((header, pixels))
+}
+
+/// Decodes the 16-bit stream `input` (at `scale`) into memory: its header and values.
+pub fn decode_values(input: &StreamInput, scale: Scale) -> Result<(Header, Vec<u16>)> {
+    let (decoder, failure) = input.decoder()?;
+    let decoder = decoder.scale(scale);
+    let (width, height) = decoder.output_size();
+    let mut values = vec![0u16; width as usize * height as usize];
+    let header = decoder
+        .decode_values_into(&mut values)
+        .map_err(|e| input.error(e, &failure))?;
+    Ok((header, values))
 }
 
 /// A `--scale` value: `1/8`, `1/4`, `1/2`, `1`, `2` or `4` (or the same as a decimal, `0.25`).
@@ -158,6 +171,9 @@ pub fn run(
         return crate::packets::decode(inputs, output, format, limits.max_pixels);
     }
     let stream = open_stream(input, limits)?;
+    if stream.header().range.is_some() {
+        return surface(&stream, output, format, scale, start);
+    }
     let out = Output::create(output, Content::Binary("an image"))?;
     let name = out.name().to_path_buf();
     let (decoded, out) = io::decode_to_image(&stream, format, scale, out, &name, io::BAND_BYTES)?;
@@ -172,6 +188,33 @@ pub fn run(
         } else {
             "gray"
         },
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(())
+}
+
+/// `pifs decode` of a 16-bit stream: its values, as a 16-bit image.
+fn surface(
+    stream: &StreamInput,
+    output: &Path,
+    format: OutputFormat,
+    scale: Scale,
+    start: Instant,
+) -> Result<()> {
+    let (header, values) = decode_values(stream, scale)?;
+    let (width, height) = (
+        scale.apply(header.width.into()),
+        scale.apply(header.height.into()),
+    );
+    let bytes = format.encode_values(output, width, height, &values)?;
+    let mut out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    out.write_all(&bytes).map_err(|e| out.error(e))?;
+    out.commit()?;
+    let (low, high) = header.range.map_or((0, 0), |r| (r.low, r.high()));
+    say!(
+        "{}: {width}x{height} 16-bit surface ({low}..{high}) decoded in {:.1} ms",
+        name.display(),
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())
@@ -194,9 +237,15 @@ fn relief(
             input.display()
         )));
     }
-    let (header, pixels) = decode_pixels(&stream, None)?;
+    // A 16-bit stream's heights are its values (finer than its grey).
+    let (header, heights): (Header, Vec<f64>) = if stream.header().range.is_some() {
+        let (header, values) = decode_values(&stream, Scale::One)?;
+        (header, values.iter().map(|&v| f64::from(v)).collect())
+    } else {
+        let (header, pixels) = decode_pixels(&stream, None)?;
+        (header, pixels.iter().map(|&p| f64::from(p)).collect())
+    };
     let (width, height) = (usize::from(header.width), usize::from(header.height));
-    let heights: Vec<f64> = pixels.iter().map(|&p| f64::from(p)).collect();
     let light = host_encoder::relief::Light {
         z_factor,
         ..Default::default()

@@ -32,7 +32,7 @@ pub fn run() -> Result<()> {
     );
     let image =
         io::DecodedImage::decode(SAMPLE, Path::new(SAMPLE_NAME), &io::ImageLimits::DEFAULT)?
-            .into_loaded(false);
+            .into_loaded(false, io::Depth::Auto);
     let targets: Vec<Target> = RATES.iter().map(|&b| Target::Bpp(b)).collect();
     let analysed = encode::analyse_loaded(&image, &AnalysisArgs::default(), &targets)?;
     for &target in &targets {

@@ -180,12 +180,14 @@ pub fn check_image(
 
 impl Checked {
     /// Decodes the pixels as the encoder takes them (colour unless `gray` or the image is
-    /// gray), orientation applied; a note for a TIFF of several pages (the first is taken).
-    pub fn decode(self, gray: bool) -> Result<io::Loaded> {
-        Ok(self.decode_image()?.into_loaded(gray))
+    /// gray; a 16-bit grayscale image as a surface unless `depth` says 8), orientation
+    /// applied; a note for a TIFF of several pages (the first is taken).
+    pub fn decode(self, gray: bool, depth: io::Depth) -> Result<io::Loaded> {
+        let decoded = self.decode_image(depth)?;
+        Ok(decoded.into_loaded(gray, depth))
     }
 
-    fn decode_image(self) -> Result<io::DecodedImage> {
+    fn decode_image(self, depth: io::Depth) -> Result<io::DecodedImage> {
         let limits = ImageLimits {
             max_pixels: u64::MAX,
             max_alloc: self.max_alloc,
@@ -205,17 +207,17 @@ impl Checked {
                 decoded.pages
             );
         }
-        if let Some(range) = decoded.range16 {
+        let range = decoded.surface.as_ref().map(|s| (s.min, s.max));
+        if let (Some((low, high)), io::Depth::Eight) = (range, depth) {
             // Fewer than 64 of the 256 grey levels: a heightmap, most likely, flattened.
-            let levels = u32::from(range.high - range.low) * 255 / 65535 + 1;
+            let levels = u32::from(high - low) * 255 / 65535 + 1;
             if levels < 64 {
                 say!(
                     "{}: note: 16-bit samples from {} to {} become {levels} grey levels of 8 \
-                     bits (streams are 8-bit; for a heightmap, stretch its range to 0..65535 \
-                     first and keep it to map back)",
+                     bits with --depth 8 (the default codes them as a 16-bit surface)",
                     self.path.display(),
-                    range.low,
-                    range.high
+                    low,
+                    high
                 );
             }
         }
@@ -248,6 +250,20 @@ pub struct AnalysisArgs {
     /// `psnr`, the plain squared error (a few hundredths of a dB more PSNR, less SSIM).
     #[arg(long, default_value = "ssim", value_parser = parse_tune)]
     pub tune: Tune,
+    /// Bit depth of the stream: `auto` (16 for a 16-bit grayscale image such as a heightmap:
+    /// its range goes in the header and it decodes to values in its own units; 8 for any
+    /// other image) or `8` (a 16-bit image mapped to 8 bits from its type's full range).
+    #[arg(long, default_value = "auto", value_parser = parse_depth)]
+    pub depth: io::Depth,
+}
+
+/// `--depth`: `auto` or `8`.
+fn parse_depth(s: &str) -> std::result::Result<io::Depth, String> {
+    match s {
+        "auto" => Ok(io::Depth::Auto),
+        "8" => Ok(io::Depth::Eight),
+        _ => Err(format!("'{s}' is not 'auto' or '8'")),
+    }
 }
 
 /// `--tune`: `ssim` or `psnr`.
@@ -300,6 +316,7 @@ impl Default for AnalysisArgs {
             stripe_width: d.stripe,
             deblock: Deblock(d.deblock),
             tune: d.tune,
+            depth: io::Depth::Auto,
         }
     }
 }
@@ -326,6 +343,8 @@ pub struct Analysed {
     pub analysis: Analysis,
     /// Its wall time, seconds.
     pub seconds: f64,
+    /// The 16-bit surface it codes, if it is one (its streams' errors are in its units).
+    pub surface: Option<io::Surface>,
 }
 
 impl Analysed {
@@ -343,8 +362,31 @@ impl Analysed {
 
 /// Analyses `plane` once for `targets`, with a progress display on a terminal.
 pub fn analyse_plane(plane: Plane, args: &AnalysisArgs, targets: &[Target]) -> Result<Analysed> {
-    let start = Instant::now();
     let config = args.config(plane.data.len(), targets);
+    analyse_with(plane, config)
+}
+
+/// Analyses a 16-bit surface once for `targets`: its samples mapped onto grey, its range in
+/// the streams' headers.
+pub fn analyse_surface(
+    surface: &io::Surface,
+    args: &AnalysisArgs,
+    targets: &[Target],
+) -> Result<Analysed> {
+    let plane = surface.plane();
+    let config = EncoderConfig {
+        range: Some(surface.range()),
+        ..args.config(plane.data.len(), targets)
+    };
+    Ok(Analysed {
+        surface: Some(surface.clone()),
+        ..analyse_with(plane, config)?
+    })
+}
+
+/// Analyses `plane` under `config`, with a progress display on a terminal.
+fn analyse_with(plane: Plane, config: EncoderConfig) -> Result<Analysed> {
+    let start = Instant::now();
     let work = Work::new(&host_encoder::analysis_steps(
         plane.width,
         plane.height,
@@ -362,6 +404,7 @@ pub fn analyse_plane(plane: Plane, args: &AnalysisArgs, targets: &[Target]) -> R
     Ok(Analysed {
         analysis: result?,
         seconds: start.elapsed().as_secs_f64(),
+        surface: None,
     })
 }
 
@@ -371,16 +414,14 @@ pub fn analyse_loaded(
     args: &AnalysisArgs,
     targets: &[Target],
 ) -> Result<Analysed> {
-    let io::Loaded::Rgb {
-        width,
-        height,
-        data,
-    } = image
-    else {
-        let io::Loaded::Gray(plane) = image else {
-            unreachable!("two variants")
-        };
-        return analyse_plane(plane.clone(), args, targets);
+    let (width, height, data) = match image {
+        io::Loaded::Gray(plane) => return analyse_plane(plane.clone(), args, targets),
+        io::Loaded::Surface(surface) => return analyse_surface(surface, args, targets),
+        io::Loaded::Rgb {
+            width,
+            height,
+            data,
+        } => (width, height, data),
     };
     let start = Instant::now();
     let pixels = *width as usize * *height as usize;
@@ -398,6 +439,7 @@ pub fn analyse_loaded(
     Ok(Analysed {
         analysis: result?,
         seconds: start.elapsed().as_secs_f64(),
+        surface: None,
     })
 }
 
@@ -469,7 +511,13 @@ fn write_encoded(
     let actual = encoded.actual_payload_bits;
     let gap = 100.0 * (encoded.estimated_payload_bits - actual) / actual.max(1.0);
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
-    let kind = if encoded.channels == 3 {
+    let kind = if let Some(surface) = &analysed.surface {
+        let error = surface_error(surface, &encoded.bytes)?;
+        format!(
+            "16-bit surface {}..{}, RMSE {:.2}, max error {}, PSNR {:.2} dB of the range",
+            surface.min, surface.max, error.rmse, error.max, error.psnr
+        )
+    } else if encoded.channels == 3 {
         format!(
             "colour, PSNR-RGB {:.2} dB, chroma {:.1}% of the payload",
             encoded.psnr,
@@ -488,6 +536,15 @@ fn write_encoded(
         t.elapsed().as_secs_f64()
     );
     Ok(encoded)
+}
+
+/// The error of the 16-bit `stream` against the `surface` it codes, in the surface's units.
+fn surface_error(surface: &io::Surface, stream: &[u8]) -> Result<io::SurfaceError> {
+    let mut values = vec![0u16; surface.values.len()];
+    decoder_core::Decoder::new(stream)
+        .and_then(|d| d.decode_values_into(&mut values))
+        .map_err(|_| CliError::Encode(EncodeError::Internal("a 16-bit stream did not decode")))?;
+    Ok(surface.error(&values))
 }
 
 /// A number as a person reads it: plain, or in exponent notation when very large or very
@@ -661,7 +718,13 @@ fn encode_packets(args: &EncodeArgs, job: Job) -> Result<()> {
         }
     }
     let checked = check_image(input, &args.limits, &args.analysis, args.gray)?;
-    let image = checked.decode(args.gray)?;
+    let image = checked.decode(args.gray, args.analysis.depth)?;
+    if let io::Loaded::Surface(_) = image {
+        return Err(CliError::Refused(format!(
+            "{}: packets carry 8-bit pictures; add --depth 8 to send this 16-bit image as one",
+            input.display()
+        )));
+    }
     let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
     crate::packets::encode(
         &analysed,
@@ -684,7 +747,7 @@ pub fn encode_one(
     check_target_fits(job, checked.probe.width, checked.probe.height)?;
     let out = Output::create(output, Content::Binary("a PIFS stream"))?;
     let input = checked.path.clone();
-    let image = checked.decode(args.gray)?;
+    let image = checked.decode(args.gray, args.analysis.depth)?;
     let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
     let t = Instant::now();
     match encode_stream(&analysed.analysis, job) {

@@ -65,6 +65,14 @@ impl Stats {
                 "grayscale"
             }
         );
+        if let Some(range) = header.range {
+            say!(
+                "  values           {}..{} (a grey level {:.4}, decoded in 1/16 of that)",
+                range.low,
+                range.high(),
+                f64::from(range.step) / f64::from(decoder_core::SampleRange::STEP_ONE)
+            );
+        }
         say!(
             "  size             {stream_len} bytes ({} header), {:.4} bpp",
             header.encoded_len(),
