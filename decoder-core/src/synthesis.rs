@@ -161,7 +161,7 @@ pub struct Tile<'a> {
     pub channels: u8,
     /// A 16-bit stream's values for the same pixels, in the data's units (its header's
     /// [`SampleRange`](crate::SampleRange)); empty for an 8-bit stream, whose `pixels` are the
-    /// data. `pixels` then holds the values mapped onto grey (`low` black, `high` white).
+    /// data. A 16-bit stream's `pixels` are its values mapped onto grey by that range.
     pub values: &'a [u16],
 }
 
