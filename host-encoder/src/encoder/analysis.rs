@@ -28,6 +28,7 @@ use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::LeafSyntax;
 use decoder_core::internal::syntax::{reconstruct, Contexts, ControlCoding, Header, MAX_DEBLOCK};
+use decoder_core::internal::synthesis::{Depth, Patch, Stop, TileMut, TileOut};
 use decoder_core::{Node, PixelSink, Rect, Tile};
 use rayon::prelude::*;
 use std::convert::Infallible;
@@ -596,7 +597,7 @@ fn settles(plane: &Plane, node: &Node, fits: &[Fit]) -> bool {
         let (mut sum, mut sum2) = (0.0, 0.0);
         for y in node.y..y1 {
             for x in node.x..x1 {
-                let v = f64::from(plane.get(x, y));
+                let v = plane.value(x, y);
                 sum += v;
                 sum2 += v * v;
             }
@@ -921,11 +922,15 @@ fn quantised_sse(plane: &Plane, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
     closed_loop_sse(plane, node, &q.leaf)
 }
 
-/// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels.
+/// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels
+/// (a 16-bit surface's: its samples against the fine targets, in grey levels squared).
 fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
     let Ok(patch) = reconstruct(leaf, node.log2) else {
         return f64::INFINITY;
     };
+    if plane.fine.is_some() {
+        return fine_sse(plane, node, &patch);
+    }
     /// Adds up the squared errors of the tiles it is given.
     struct Sse<'a> {
         plane: &'a Plane,
@@ -951,6 +956,44 @@ fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
     let image = Rect::of_size(plane.width, plane.height);
     let Ok(()) = patch.render(node, image, &mut sink);
     sink.total as f64
+}
+
+/// [`closed_loop_sse`] of a 16-bit surface: the patch's samples, clamped to grey 0..255 as a
+/// decoder clamps them, against the plane's fine targets.
+fn fine_sse(plane: &Plane, node: &Node, patch: &Patch) -> f64 {
+    /// Adds up the squared errors of the tiles' samples.
+    struct Sse<'a> {
+        plane: &'a Plane,
+        total: u64,
+    }
+    impl TileOut for Sse<'_> {
+        fn put(&mut self, _tile: TileMut<'_>) -> Result<(), Stop> {
+            // Every tile comes with its samples (`depth`).
+            Err(Stop)
+        }
+
+        fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+            let Rect { x, y, w, h } = tile.area;
+            let top = 255 * SAMPLE_ONE;
+            let points = (y..y + h).flat_map(|py| (x..x + w).map(move |px| (px, py)));
+            for ((px, py), &s) in points.zip(samples.iter()) {
+                let d = i64::from(self.plane.sample(px, py) - i32::from(s).clamp(0, top));
+                self.total += (d * d) as u64;
+            }
+            Ok(())
+        }
+
+        fn depth(&self) -> Depth {
+            Depth::Samples
+        }
+    }
+    let mut sink = Sse { plane, total: 0 };
+    let image = Rect::of_size(plane.width, plane.height);
+    if patch.render_to(node, image, &mut sink).is_err() {
+        return f64::INFINITY;
+    }
+    let one = f64::from(SAMPLE_ONE);
+    sink.total as f64 / (one * one)
 }
 
 #[cfg(test)]

@@ -246,7 +246,7 @@ impl Solver {
                     offsets.len(),
                     offsets
                         .iter()
-                        .map(|&(dx, dy)| f64::from(plane.get(node.x + dx, node.y + dy))),
+                        .map(|&(dx, dy)| plane.value(node.x + dx, node.y + dy)),
                 );
                 (pinv * &y, y.norm_squared())
             }
@@ -258,10 +258,9 @@ impl Solver {
                 let mut rows = vec![0.0; size * side];
                 for (dy, out) in rows.chunks_exact_mut(*side).enumerate() {
                     let y = node.y as usize + dy;
-                    let start = y * plane.width as usize + node.x as usize;
-                    for (r, &v) in row.iter_mut().zip(&plane.data[start..start + size]) {
-                        *r = f64::from(v);
-                        squares += *r * *r;
+                    plane.row_values(node.x, y as u32, &mut row);
+                    for r in &row {
+                        squares += r * r;
                     }
                     for (o, p) in out.iter_mut().zip(axis.chunks_exact(size)) {
                         *o = p.iter().zip(&row).map(|(a, b)| a * b).sum();
@@ -436,7 +435,7 @@ fn initial_control(plane: &Plane, node: &Node, model: ModelType) -> Vec<f64> {
             let y = (node.y + u * sp)
                 .min(node.y + node.size() - 1)
                 .min(plane.height - 1);
-            c.push(f64::from(plane.get(x, y)));
+            c.push(plane.value(x, y));
         }
     }
     c
@@ -459,7 +458,7 @@ fn for_each_residual(
         node.log2,
         &|dx, dy| lattice.wants(dx, dy),
         &|dx, dy, e| lattice.any_in(dx, dy, e),
-        &mut |dx, dy, s| f(f64::from(plane.get(node.x + dx, node.y + dy)) - s[0], s),
+        &mut |dx, dy, s| f(plane.value(node.x + dx, node.y + dy) - s[0], s),
     );
 }
 

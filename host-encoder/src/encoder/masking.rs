@@ -155,7 +155,7 @@ fn block_variance(plane: &Plane, c: u32, r: u32) -> f64 {
     let (mut sum, mut sum2) = (0.0f64, 0.0f64);
     for y in y0..y1 {
         for x in x0..x1 {
-            let v = f64::from(plane.get(x, y));
+            let v = plane.value(x, y);
             sum += v;
             sum2 += v * v;
         }

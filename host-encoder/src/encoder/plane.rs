@@ -3,10 +3,10 @@
 //!
 //! Bottom layer of the encoder: uses nothing else of it.
 
-use decoder_core::internal::model::SAMPLE_ONE;
+use decoder_core::internal::model::{SAMPLE_BITS, SAMPLE_ONE};
 use decoder_core::internal::prediction::{beside_known, SamplePrediction};
 
-/// An 8-bit grayscale image.
+/// An 8-bit grayscale image, and for a 16-bit surface its samples finer than grey.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Plane {
     /// Width in pixels.
@@ -15,6 +15,10 @@ pub struct Plane {
     pub height: u32,
     /// Row-major samples.
     pub data: Vec<u8>,
+    /// For a 16-bit surface: row-major samples in 1/16 of a grey level (`0..=4080`, the
+    /// resolution of the decoder's patches), which the analysis fits instead of `data` (their
+    /// rounding to grey).
+    pub fine: Option<Vec<u16>>,
 }
 
 impl Plane {
@@ -29,13 +33,65 @@ impl Plane {
             width,
             height,
             data,
+            fine: None,
         }
     }
 
-    /// The sample at `(x, y)`.
+    /// Wraps row-major samples in 1/16 of a grey level (`0..=4080`; larger ones are taken as
+    /// 4080): a 16-bit surface mapped onto grey, finer than grey.
+    pub fn with_samples(width: u32, height: u32, samples: Vec<u16>) -> Self {
+        let top = (255 * SAMPLE_ONE) as u16;
+        let samples: Vec<u16> = samples.into_iter().map(|s| s.min(top)).collect();
+        let data = samples
+            .iter()
+            .map(|&s| ((s + (SAMPLE_ONE / 2) as u16) >> SAMPLE_BITS) as u8)
+            .collect();
+        Plane {
+            fine: Some(samples),
+            ..Plane::new(width, height, data)
+        }
+    }
+
+    /// The pixel at `(x, y)`, rounded to grey.
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> u8 {
         self.data[y as usize * self.width as usize + x as usize]
+    }
+
+    /// The target at `(x, y)` in grey levels: the fine sample's, or the pixel's.
+    #[inline]
+    pub fn value(&self, x: u32, y: u32) -> f64 {
+        f64::from(self.sample(x, y)) / f64::from(SAMPLE_ONE)
+    }
+
+    /// The targets of the `out.len()` pixels from `(x, y)` rightwards, in grey levels (as
+    /// [`Plane::value`]).
+    pub fn row_values(&self, x: u32, y: u32, out: &mut [f64]) {
+        let start = y as usize * self.width as usize + x as usize;
+        let at = start..start + out.len();
+        match &self.fine {
+            Some(fine) => {
+                let one = f64::from(SAMPLE_ONE);
+                for (o, &s) in out.iter_mut().zip(&fine[at]) {
+                    *o = f64::from(s) / one;
+                }
+            }
+            None => {
+                for (o, &p) in out.iter_mut().zip(&self.data[at]) {
+                    *o = f64::from(p);
+                }
+            }
+        }
+    }
+
+    /// The target at `(x, y)` in 1/16 of a grey level.
+    #[inline]
+    pub fn sample(&self, x: u32, y: u32) -> i32 {
+        let at = y as usize * self.width as usize + x as usize;
+        match &self.fine {
+            Some(fine) => i32::from(fine[at]),
+            None => i32::from(self.data[at]) * SAMPLE_ONE,
+        }
     }
 }
 
@@ -60,7 +116,7 @@ pub struct ImagePrediction<'a> {
 
 impl ImagePrediction<'_> {
     fn sample(&self, x: u32, y: u32) -> i32 {
-        i32::from(self.plane.get(x, y)) * SAMPLE_ONE
+        self.plane.sample(x, y)
     }
 }
 
@@ -71,5 +127,29 @@ impl SamplePrediction for ImagePrediction<'_> {
             let (x, y) = if above { (x, y - 1) } else { (x - 1, y) };
             self.sample(x, y)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A plane of samples keeps them as its targets (`value`, `row_values`, `sample`) and
+    /// their rounding to grey as its pixels; a plane of pixels targets the pixels.
+    #[test]
+    fn fine_samples_are_the_targets_and_round_to_the_pixels() {
+        let plane = Plane::with_samples(3, 1, vec![0, 24, 5000]);
+        assert_eq!(plane.data, vec![0, 2, 255]);
+        assert_eq!(plane.sample(1, 0), 24);
+        assert_eq!(plane.value(1, 0), 1.5);
+        assert_eq!(plane.value(2, 0), 255.0);
+        let mut row = [0.0; 3];
+        plane.row_values(0, 0, &mut row);
+        assert_eq!(row, [0.0, 1.5, 255.0]);
+        let pixels = Plane::new(2, 1, vec![7, 9]);
+        assert_eq!(
+            (pixels.value(1, 0), pixels.sample(0, 0)),
+            (9.0, 7 * SAMPLE_ONE)
+        );
     }
 }

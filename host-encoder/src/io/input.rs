@@ -9,6 +9,7 @@
 
 use super::{input_name, is_std_stream, FileError};
 use crate::encoder::Plane;
+use decoder_core::internal::model::SAMPLE_ONE;
 use decoder_core::SampleRange;
 use image::metadata::Orientation;
 use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader};
@@ -262,17 +263,18 @@ impl Surface {
         SampleRange::covering(self.min, self.max)
     }
 
-    /// The samples as the encoder takes them: mapped onto grey by [`Surface::range`] (the
-    /// nearest grey level, at most 255).
+    /// The samples as the encoder takes them: mapped onto grey by [`Surface::range`], to the
+    /// nearest 1/16 of a grey level (the decoder's resolution; at most 255).
     pub fn plane(&self) -> Plane {
         let SampleRange { low, step } = self.range();
-        let (one, step) = (SampleRange::STEP_ONE, u32::from(step));
-        let data = self
+        let one = u64::from(SampleRange::STEP_ONE) * u64::from(SAMPLE_ONE as u32);
+        let step = u64::from(step);
+        let samples = self
             .values
             .iter()
-            .map(|&v| ((2 * one * u32::from(v - low) + step) / (2 * step)).min(255) as u8)
+            .map(|&v| ((2 * one * u64::from(v - low) + step) / (2 * step)) as u16)
             .collect();
-        Plane::new(self.width, self.height, data)
+        Plane::with_samples(self.width, self.height, samples)
     }
 
     /// The error of `decoded` (the same number of samples) against this surface.
