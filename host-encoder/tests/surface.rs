@@ -66,3 +66,34 @@ fn surfaces_are_fitted_finer_than_grey() {
         );
     }
 }
+
+/// A quality target on a surface is the PSNR of its range, measured on the stream's values.
+#[test]
+fn a_surfaces_quality_target_is_the_psnr_of_its_range() {
+    let surface = surface();
+    let config = EncoderConfig {
+        range: Some(surface.range()),
+        ..EncoderConfig::default()
+    };
+    let analysis = analyse(surface.plane(), &config, &|_| {}).unwrap();
+    for target in [36.0, 44.0] {
+        let encoded = analysis.encode(Target::Psnr(target)).unwrap();
+        let mut values = vec![0u16; surface.values.len()];
+        Decoder::new(&encoded.bytes)
+            .unwrap()
+            .decode_values_into(&mut values)
+            .unwrap();
+        let measured = surface.error(&values).psnr;
+        // The stream's own figure: its values against the surface at 1/16 of a grey level,
+        // whose range is the data's to within a step (0.02 dB here).
+        assert!(
+            (encoded.psnr - measured).abs() < 0.05,
+            "{} vs {measured}",
+            encoded.psnr
+        );
+        assert!(
+            measured >= target - 0.05,
+            "{target} dB asked, {measured} reached"
+        );
+    }
+}

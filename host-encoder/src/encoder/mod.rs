@@ -38,6 +38,7 @@ pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;
 
 use decoder_core::internal::syntax::Header;
+use decoder_core::SampleRange;
 use rayon::prelude::*;
 
 /// An encoded stream with its figures.
@@ -134,14 +135,17 @@ impl Analysis {
             Some(colour) => &colour.rgb,
             None => &self.plane.data,
         };
-        let sse: f64 = reconstruction
-            .iter()
-            .zip(reference)
-            .map(|(&a, &b)| {
-                let d = f64::from(a) - f64::from(b);
-                d * d
-            })
-            .sum();
+        let sse: f64 = match (&self.plane.fine, self.header.range) {
+            (Some(fine), Some(range)) => surface_sse(&written.bytes, fine, range)?,
+            _ => reconstruction
+                .iter()
+                .zip(reference)
+                .map(|(&a, &b)| {
+                    let d = f64::from(a) - f64::from(b);
+                    d * d
+                })
+                .sum(),
+        };
         Ok(Encoded {
             psnr: psnr(sse, pixels),
             sse,
@@ -515,6 +519,28 @@ pub fn analyse_colour(
 }
 
 /// The image a stream decodes to, by decoder-core (what every decoder shows).
+/// The squared error of a 16-bit stream's values against a surface's targets `fine` (1/16 grey
+/// level), in grey levels squared (so that its PSNR, peak 255, is the PSNR of the range).
+fn surface_sse(stream: &[u8], fine: &[u16], range: SampleRange) -> Result<f64, EncodeError> {
+    let decoder = decoder_core::Decoder::new(stream)
+        .map_err(EncodeError::Syntax)?
+        .stripe_capacity::<{ 1 << 16 }>();
+    let mut values = vec![0u16; fine.len()];
+    decoder
+        .decode_values_into(&mut values)
+        .map_err(EncodeError::Syntax)?;
+    let grey = f64::from(SampleRange::STEP_ONE) / f64::from(range.step);
+    Ok(values
+        .iter()
+        .zip(fine)
+        .map(|(&v, &s)| {
+            let target = range.value(s as i16);
+            let d = (f64::from(v) - f64::from(target)) * grey;
+            d * d
+        })
+        .sum())
+}
+
 fn decode(stream: &[u8]) -> Result<Vec<u8>, EncodeError> {
     let decoder = decoder_core::Decoder::new(stream)
         .map_err(EncodeError::Syntax)?

@@ -65,8 +65,8 @@ pub struct EncodeArgs {
     /// Largest file size in bytes, header included, never exceeded.
     #[arg(long, group = "target")]
     pub bytes: Option<usize>,
-    /// Smallest file reaching this PSNR (dB); if no stream does, the error says the best
-    /// reachable.
+    /// Smallest file reaching this PSNR (dB; of a 16-bit surface, the PSNR of its range); if
+    /// no stream does, the error says the best reachable.
     #[arg(long, group = "target")]
     pub psnr: Option<f64>,
     #[command(flatten)]
