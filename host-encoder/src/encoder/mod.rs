@@ -48,9 +48,11 @@ pub struct Encoded {
     pub bytes: Vec<u8>,
     /// The encoder's closed-loop reconstruction (equal to what any decoder produces).
     pub reconstruction: Vec<u8>,
-    /// Squared error of the reconstruction.
+    /// Squared error of the reconstruction (of a 16-bit surface: of the stream's values
+    /// against the surface at 1/16 of a grey level, in grey levels squared).
     pub sse: f64,
-    /// PSNR of the reconstruction, dB (infinite when lossless).
+    /// PSNR of the reconstruction, dB (infinite when lossless; of a 16-bit surface, the PSNR
+    /// of its range).
     pub psnr: f64,
     /// Payload bits the rate model predicted for the final plan.
     pub estimated_payload_bits: f64,
