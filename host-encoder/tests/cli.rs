@@ -1116,8 +1116,8 @@ fn decode_draws_a_heightmap_as_a_hillshaded_relief() {
 /// A 16-bit grayscale image (a heightmap) is coded as a 16-bit stream: `info` shows its depth
 /// and range, `decode` writes 16-bit PNG and PGM of values in its units (finer than 256 grey
 /// levels, within the error `encode` reports), `--hillshade` shades those values; `--depth 8`
-/// makes an 8-bit stream (with a note when the samples span few grey levels); packets refuse a
-/// 16-bit image in one line.
+/// makes an 8-bit stream (with a note when the samples span few grey levels); `--max-error`
+/// keeps every value within it; packets refuse a 16-bit image in one line.
 #[test]
 fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     let dir = scratch("sixteen");
@@ -1213,6 +1213,41 @@ fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     let expected =
         host_encoder::relief::hillshade(&heights, w as usize, h as usize, &Default::default());
     assert_eq!(image::open(&relief).unwrap().to_luma8().as_raw(), &expected);
+
+    // --max-error: every value within it (in metres here), the smaller error the larger file.
+    let mut sizes = Vec::new();
+    for max in [6u16, 20] {
+        let out = dir.join(format!("within-{max}.pifs"));
+        let line = ok(&pifs(&[
+            "encode",
+            png.to_str().unwrap(),
+            "--max-error",
+            &max.to_string(),
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        assert!(line.contains("largest error"), "{line}");
+        let bytes = std::fs::read(&out).unwrap();
+        let mut values = vec![0u16; dem.len()];
+        decoder_core::Decoder::new(&bytes)
+            .unwrap()
+            .decode_values_into(&mut values)
+            .unwrap();
+        let largest = values.iter().zip(&dem).map(|(a, b)| a.abs_diff(*b)).max();
+        assert!(largest.unwrap() <= max, "{max}: {largest:?}");
+        sizes.push(bytes.len());
+    }
+    assert!(sizes[0] > sizes[1], "{sizes:?}");
+    let line = refused(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--max-error",
+        "0.01",
+        "-o",
+        dir.join("none.pifs").to_str().unwrap(),
+    ]));
+    assert!(line.contains("unreachable"), "{line}");
+    assert!(!dir.join("none.pifs").exists());
 
     // --depth 8: an 8-bit stream of the samples' full 16-bit range, noted as flattened.
     let eight = dir.join("eight.pifs");

@@ -69,6 +69,10 @@ pub struct EncodeArgs {
     /// no stream does, the error says the best reachable.
     #[arg(long, group = "target")]
     pub psnr: Option<f64>,
+    /// Smallest file whose every pixel is within this of the image: in grey levels, or in a
+    /// 16-bit surface's own units (metres of a heightmap). Grayscale images and surfaces.
+    #[arg(long, group = "target", value_name = "ERROR")]
+    pub max_error: Option<f64>,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
     #[command(flatten)]
@@ -668,6 +672,8 @@ impl EncodeArgs {
             (_, Some(n), _) => Some(Target::Bytes(n)),
             (_, _, Some(p)) => Some(Target::Psnr(p)),
             (Some(b), _, _) => Some(Target::Bpp(b)),
+            // Its streams are searched among those of the analysis for the highest quality.
+            _ if self.max_error.is_some() => Some(TOP_TUNING),
             _ => None,
         };
         Job {
@@ -681,6 +687,19 @@ impl EncodeArgs {
 pub fn run(args: &EncodeArgs) -> Result<()> {
     let job = args.job();
     validate_target(job.target)?;
+    if let Some(e) = args.max_error {
+        if !(e.is_finite() && e > 0.0) {
+            return Err(CliError::Refused(format!(
+                "--max-error must be a positive number, got {}",
+                number(e)
+            )));
+        }
+        if args.packets.wanted() {
+            return Err(CliError::Refused(
+                "--max-error writes a stream, not packets: use --bytes or --bpp".into(),
+            ));
+        }
+    }
     if args.packets.wanted() {
         return encode_packets(args, job);
     }
@@ -748,8 +767,17 @@ pub fn encode_one(
     let out = Output::create(output, Content::Binary("a PIFS stream"))?;
     let input = checked.path.clone();
     let image = checked.decode(args.gray, args.analysis.depth)?;
+    if args.max_error.is_some() && matches!(image, io::Loaded::Rgb { .. }) {
+        return Err(CliError::Refused(
+            "--max-error needs a grayscale image or a 16-bit surface (add --gray)".into(),
+        ));
+    }
     let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
     let t = Instant::now();
+    if let Some(max) = args.max_error {
+        let (encoded, note) = smallest_within(&analysed, max)?;
+        return write_encoded(&analysed, encoded, Some(note), out, t).map(|_| ());
+    }
     match encode_stream(&analysed.analysis, job) {
         Err(CliError::Encode(EncodeError::QualityUnreachable { .. })) => {
             // A quality target's analysis is tuned (its trial encode, which trains the rate
@@ -772,6 +800,67 @@ pub fn encode_one(
         Err(e) => Err(explain(e, job, analysed.size())),
         Ok((encoded, note)) => write_encoded(&analysed, encoded, note, out, t).map(|_| ()),
     }
+}
+
+/// The largest error of `encoded` against the image `analysed` holds: in its units for a
+/// surface, in grey levels otherwise (`None` for colour).
+fn largest_error(analysed: &Analysed, encoded: &Encoded) -> Result<Option<f64>> {
+    if let Some(surface) = &analysed.surface {
+        return Ok(Some(f64::from(surface_error(surface, &encoded.bytes)?.max)));
+    }
+    if encoded.channels != 1 {
+        return Ok(None);
+    }
+    let plane = &analysed.analysis.plane().data;
+    let max = encoded
+        .reconstruction
+        .iter()
+        .zip(plane)
+        .map(|(&a, &b)| a.abs_diff(b))
+        .max()
+        .unwrap_or(0);
+    Ok(Some(f64::from(max)))
+}
+
+/// `--max-error`: the smallest stream found whose largest error is at most `max`, by bisection
+/// on the byte budget between the smallest stream and the best (the error is not strictly
+/// monotonic in the bytes: a smaller stream that meets it may be missed), and what it reached.
+fn smallest_within(analysed: &Analysed, max: f64) -> Result<(Encoded, String)> {
+    let analysis = &analysed.analysis;
+    let error = |e: &Encoded| -> Result<f64> {
+        largest_error(analysed, e)?.ok_or(CliError::Encode(EncodeError::Internal(
+            "a colour stream's largest error",
+        )))
+    };
+    let top = analysis.encode(TOP_TUNING)?;
+    let least = error(&top)?;
+    if least > max {
+        return Err(CliError::Refused(format!(
+            "--max-error {} is unreachable for this image: the least this encoder reaches is {}",
+            number(max),
+            number(least)
+        )));
+    }
+    let (mut lo, mut hi, mut best, mut reached) = (0, top.bytes.len(), top, least);
+    while hi.saturating_sub(lo) > (hi / 200).max(1) {
+        let mid = lo + (hi - lo) / 2;
+        let encoded = match analysis.encode(Target::Bytes(mid)) {
+            Err(EncodeError::BudgetTooSmall { .. }) => {
+                lo = mid;
+                continue;
+            }
+            other => other?,
+        };
+        let e = error(&encoded)?;
+        if e <= max {
+            // A stream may come out smaller than its budget, below budgets that failed.
+            hi = encoded.bytes.len().clamp(lo, mid);
+            (best, reached) = (encoded, e);
+        } else {
+            lo = mid;
+        }
+    }
+    Ok((best, format!("largest error {}", number(reached))))
 }
 
 /// The target whose analysis reaches the highest quality: a budget of unlimited bytes.
