@@ -412,19 +412,21 @@ fn moved(q: u8, q_before: u8, q_new: u8) -> u8 {
 
 impl Capture<'_> {
     /// Keeps the leaf's bottom row and right column, as drawn, in the frontier, from the tile
-    /// at `(x, y)`, `w` wide, whose pixels are `buf`.
-    fn keep_edges(&mut self, x: u32, y: u32, w: usize, buf: &[u8]) {
+    /// at `(x, y)`, `w x h`, whose pixels are `buf` (rows by index: cutting `buf` into rows
+    /// would divide by `w`, a library call on a Cortex-M0).
+    #[inline(always)]
+    fn keep_edges(&mut self, x: u32, y: u32, (w, h): (usize, usize), buf: &[u8]) {
         let on_right = x + w as u32 - 1 == self.right;
-        for (j, row) in buf.chunks_exact(w).enumerate() {
+        for j in 0..h {
             let py = y + j as u32;
             if on_right {
-                self.rows[(py % CODING_TILE) as usize] = row[w - 1];
+                self.rows[(py % CODING_TILE) as usize] = buf[j * w + w - 1];
                 self.set_corner(py, py == self.bottom && self.defer_row);
             }
             if py == self.bottom {
                 let first = self.stripe.column(x) as usize;
                 if let Some(slots) = self.columns.get_mut(first..first + w) {
-                    slots.copy_from_slice(row);
+                    slots.copy_from_slice(&buf[j * w..(j + 1) * w]);
                 }
             }
         }
@@ -533,7 +535,7 @@ impl TileOut for Capture<'_> {
         if x + w - 1 == self.right || (y..y + h).contains(&self.bottom) {
             let n = (w * h) as usize;
             if let Some(buf) = tile.pixels.get(..n).filter(|_| n > 0 && w as usize <= TILE) {
-                self.keep_edges(x, y, w as usize, buf);
+                self.keep_edges(x, y, (w as usize, h as usize), buf);
             }
         }
         self.out.put_samples(tile, samples)
@@ -560,7 +562,7 @@ impl TileOut for Capture<'_> {
         if self.left_known && x == self.left {
             self.left_edge(x, y, (wu, hu), buf, corner)?;
         }
-        self.keep_edges(x, y, wu, buf);
+        self.keep_edges(x, y, (wu, hu), buf);
         // The rest of the tile is drawn now.
         let keep_h = hu - usize::from(self.defer_row && y + h - 1 == self.bottom);
         let keep_w = wu - usize::from(self.defer_column && on_right);
