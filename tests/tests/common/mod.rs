@@ -182,7 +182,12 @@ pub struct GoldenEntry {
 /// Parses `tests/golden/golden.txt` (`<file> <width> <height> <sha256>` per line; blank lines
 /// and lines starting with `#` are ignored).
 pub fn golden_list() -> Vec<GoldenEntry> {
-    list_lines("golden.txt", 4)
+    entries("golden.txt")
+}
+
+/// The lines of a list in `golden.txt`'s form (`<file> <width> <height> <sha256>`).
+fn entries(name: &str) -> Vec<GoldenEntry> {
+    list_lines(name, 4)
         .into_iter()
         .map(|f| GoldenEntry {
             file: f[0].clone(),
@@ -197,15 +202,7 @@ pub fn golden_list() -> Vec<GoldenEntry> {
 /// decoded values (row-major, each value little-endian), in `golden.txt`'s form.
 #[allow(dead_code)]
 pub fn golden_values() -> Vec<GoldenEntry> {
-    list_lines("values.txt", 4)
-        .into_iter()
-        .map(|f| GoldenEntry {
-            file: f[0].clone(),
-            width: f[1].parse().expect("width"),
-            height: f[2].parse().expect("height"),
-            sha256: f[3].to_string(),
-        })
-        .collect()
+    entries("values.txt")
 }
 
 /// A stream's decoded values ([`decoder_core::Decoder::decode_values_into`]) as the bytes
