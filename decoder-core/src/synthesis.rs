@@ -462,21 +462,56 @@ fn across<R: Rule>(
     }
 }
 
-/// `out[i] = rule(a[i], b[i], c[i], d[i])` as pixels, for every `i` of `out` (at most a row
-/// of the lattice): a row of output pixels from four old rows.
-#[inline(never)]
-fn across_pixels<R: Rule>(rule: R, out: &mut [u8], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
-    for ((((p, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
-        *p = rule.pixel(a, b, c, d);
+/// What a tile's rows are made of: 8-bit pixels, or samples (a child grid's, or a 16-bit
+/// stream's tile, made pixels by [`Job::put`]). The choice is made once per tile
+/// ([`with_rows!`]), so that the loops over rows and pixels are the same as without it.
+trait Point: Copy {
+    /// The point a sample makes.
+    fn of(v: i16) -> Self;
+
+    /// `out[i] = rule(a[i], b[i], c[i], d[i])` for every `i` of `out` (at most a row of the
+    /// lattice): a new row from four old rows.
+    fn across<R: Rule>(rule: R, out: &mut [Self], from: [&[i16; LATTICE]; 4]);
+
+    /// `out[i]` = the point of `src[i]` for every `i` of `out`.
+    fn take(out: &mut [Self], src: &[i16]);
+}
+
+impl Point for u8 {
+    #[inline(always)]
+    fn of(v: i16) -> u8 {
+        sample_to_pixel(i32::from(v))
+    }
+
+    #[inline(never)]
+    fn across<R: Rule>(rule: R, out: &mut [u8], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
+        for ((((p, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+            *p = rule.pixel(a, b, c, d);
+        }
+    }
+
+    #[inline(always)]
+    fn take(out: &mut [u8], src: &[i16]) {
+        to_pixels(out, src);
     }
 }
 
-/// `out[i] = rule(a[i], b[i], c[i], d[i])` for every `i` of `out` (at most a row of the
-/// lattice).
-#[inline(never)]
-fn across_samples<R: Rule>(rule: R, out: &mut [i16], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
-    for ((((v, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
-        *v = rule.apply(a, b, c, d);
+impl Point for i16 {
+    #[inline(always)]
+    fn of(v: i16) -> i16 {
+        v
+    }
+
+    #[inline(never)]
+    fn across<R: Rule>(rule: R, out: &mut [i16], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
+        for ((((v, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+            *v = rule.apply(a, b, c, d);
+        }
+    }
+
+    #[inline(always)]
+    fn take(out: &mut [i16], src: &[i16]) {
+        copy_short(out, src);
     }
 }
 
@@ -486,6 +521,31 @@ fn to_pixels(out: &mut [u8], src: &[i16]) {
     for (p, &v) in out.iter_mut().zip(src) {
         *p = sample_to_pixel(i32::from(v));
     }
+}
+
+/// Runs `$body` with `$rows` bound to the buffer the tile being made goes to (its samples
+/// for a 16-bit stream, else its pixels), a slice of a [`Point`] type: the choice made once
+/// per tile.
+macro_rules! with_rows {
+    ($job:expr, |$rows:ident| $body:expr) => {{
+        #[cfg(feature = "deep")]
+        let made = match $job.samples.as_deref_mut() {
+            Some(samples) => {
+                let $rows: &mut [i16] = samples;
+                $body
+            }
+            None => {
+                let $rows: &mut [u8] = &mut $job.pixels;
+                $body
+            }
+        };
+        #[cfg(not(feature = "deep"))]
+        let made = {
+            let $rows: &mut [u8] = &mut $job.pixels;
+            $body
+        };
+        made
+    }};
 }
 
 /// The old point itself (phase 0 of a refinement): a [`Rule`] with the taps `(0, 1, 0, 0)`.
@@ -620,13 +680,6 @@ const LATTICE: usize = TILE + 1;
 /// The points of a tile (or the row rule's points of a refinement window), by row.
 type Lattice = [[i16; LATTICE]; LATTICE];
 
-/// A row a new row of points goes to: pixels, or samples (of a child grid, or of a 16-bit
-/// stream's tile).
-enum Row<'a> {
-    Pixels(&'a mut [u8]),
-    Samples(&'a mut [i16]),
-}
-
 /// Where a grid lies in the output: its top-left point and the output pixels between its
 /// points (at least 1).
 #[derive(Debug, Clone, Copy)]
@@ -681,29 +734,73 @@ impl Job<'_> {
         let _ = samples;
         out.put(tile)
     }
+}
 
-    /// Row `j` (of `cols`) of the tile being made: its pixels, or a 16-bit stream's samples
-    /// (made pixels by [`Job::put`]).
-    #[inline(always)]
-    fn row(&mut self, j: usize, cols: usize) -> Option<Row<'_>> {
-        let at = j * cols..j * cols + cols;
-        #[cfg(feature = "deep")]
-        if let Some(samples) = self.samples.as_deref_mut() {
-            return samples.get_mut(at).map(Row::Samples);
+/// Rows `r0 ..` and columns `c0 ..` of a refined `lattice` into `out` (`rows` rows of `cols`
+/// points): the last step of [`Patch::tile`].
+#[inline(always)]
+fn take_rows<P: Point>(
+    out: &mut [P],
+    lattice: &Lattice,
+    r0: usize,
+    c0: usize,
+    rows: usize,
+    cols: usize,
+) {
+    for j in 0..rows {
+        if let (Some(dst), Some(src)) =
+            (out.get_mut(j * cols..j * cols + cols), lattice.get(r0 + j))
+        {
+            P::take(dst, &src[c0.min(TILE)..]);
         }
-        self.pixels.get_mut(at).map(Row::Pixels)
     }
 }
 
-impl Row<'_> {
-    /// The row made of the samples `src` (at least as many as the row).
-    #[inline]
-    fn take(self, src: &[i16]) {
-        match self {
-            Row::Pixels(p) => to_pixels(p, src),
-            Row::Samples(s) => copy_short(s, src),
+/// How far apart, in a grid's values, the points [`grid_points`] draws are: from one row to
+/// the next and from one column to the next.
+#[derive(Clone, Copy)]
+struct Spacing {
+    row: usize,
+    col: usize,
+}
+
+/// `rows` rows of `cols` points of grid `g` into `out`, from value `first` on, `spacing`
+/// apart: the pixels of a pixel grid, or of a leaf drawn smaller than its points are apart.
+#[inline(always)]
+fn grid_points<P: Point>(
+    out: &mut [P],
+    g: &[i16],
+    first: usize,
+    spacing: Spacing,
+    rows: usize,
+    cols: usize,
+) {
+    for j in 0..rows {
+        let row = first + j * spacing.row;
+        let Some(dst) = out.get_mut(j * cols..j * cols + cols) else {
+            return;
+        };
+        match g.get(row..row + cols).filter(|_| spacing.col == 1) {
+            // A pixel grid at its coded size: a row of points is a row of pixels.
+            Some(src) => P::take(dst, src),
+            None => {
+                for (i, p) in dst.iter_mut().enumerate() {
+                    *p = P::of(g.get(row + i * spacing.col).copied().unwrap_or(0));
+                }
+            }
         }
     }
+}
+
+/// One tile of a strip of [`Patch::emit`]: its rows `first, first + stride, ...` (`rows`
+/// of them, in refined points of the grid), `cols` points a row, made from the old rows of
+/// the strip's store whose first is old row `k_lo`.
+struct Strip {
+    first: usize,
+    stride: usize,
+    k_lo: usize,
+    rows: usize,
+    cols: usize,
 }
 
 impl Patch {
@@ -1003,11 +1100,7 @@ impl Patch {
             }
             d = nd;
         }
-        for j in 0..rows {
-            if let (Some(dst), Some(src)) = (job.row(j, cols), lattice.get(r0 + j)) {
-                dst.take(&src[c0.min(TILE)..]);
-            }
-        }
+        with_rows!(job, |out| take_rows(out, lattice, r0, c0, rows, cols));
         job.put(area, len)
     }
 
@@ -1085,7 +1178,6 @@ impl Patch {
         let m = usize::from(self.model.intervals);
         let side = m + 1;
         let shift = self.model.transforms.trailing_zeros();
-        let mask = (1usize << shift) - 1;
         let (x, y, sp) = (at.x, at.y, at.sp);
         let ext = u32::from(self.model.intervals) * sp;
         let stride = (u32::from(self.model.transforms) >> sp.trailing_zeros()).max(1) as usize;
@@ -1116,25 +1208,14 @@ impl Patch {
             let mut ty = y_lo;
             while ty < y_hi {
                 let th = (y_hi - ty).min(TILE as u32);
-                for j in 0..th as usize {
-                    let Some(out) = job.row(j, cols) else {
-                        break;
-                    };
-                    let q1 = (ty - y) as usize * stride + j * stride;
-                    let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
-                    if r1 == 0 {
-                        if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
-                            out.take(row);
-                        }
-                        continue;
-                    }
-                    let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
-                    let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3))
-                    else {
-                        continue;
-                    };
-                    self.new_row(out, [v0, v1, v2, v3], r1);
-                }
+                let strip = Strip {
+                    first: (ty - y) as usize * stride,
+                    stride,
+                    k_lo,
+                    rows: th as usize,
+                    cols,
+                };
+                with_rows!(job, |out| self.strip_rows(out, h, &strip));
                 let area = Rect {
                     x: tx,
                     y: ty,
@@ -1147,6 +1228,34 @@ impl Patch {
             tx += tw;
         }
         Ok(())
+    }
+
+    /// The rows of one tile of [`Patch::emit`]'s strip into `out` (`strip.cols` points a
+    /// row): each an old row of `h` or, across four of them, the column or cell rule's.
+    #[inline(always)]
+    fn strip_rows<P: Point>(&self, out: &mut [P], h: &Lattice, strip: &Strip) {
+        let m = usize::from(self.model.intervals);
+        let shift = self.model.transforms.trailing_zeros();
+        let mask = (1usize << shift) - 1;
+        let (cols, k_lo) = (strip.cols, strip.k_lo);
+        for j in 0..strip.rows {
+            let Some(out) = out.get_mut(j * cols..j * cols + cols) else {
+                break;
+            };
+            let q1 = strip.first + j * strip.stride;
+            let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
+            if r1 == 0 {
+                if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
+                    P::take(out, row);
+                }
+                continue;
+            }
+            let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
+            let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
+                continue;
+            };
+            self.new_row(out, [v0, v1, v2, v3], r1);
+        }
     }
 
     /// The refined points of a padded old row `pad` (its points `1..=m+1`, mirrored end points
@@ -1175,12 +1284,9 @@ impl Patch {
     /// columns `q2, q2 + stride, ...`), as pixels or samples: one rule for the whole row (the
     /// column rule and the cell rules are the line rule of phase `r1`).
     #[inline(never)]
-    fn new_row(&self, out: Row<'_>, from: [&[i16; LATTICE]; 4], r1: usize) {
+    fn new_row<P: Point>(&self, out: &mut [P], from: [&[i16; LATTICE]; 4], r1: usize) {
         let rule = &Rules::of(self.model).taps[(r1 - 1).min(2)];
-        match out {
-            Row::Pixels(p) => with_rule!(rule, |rule| across_pixels(rule, p, from)),
-            Row::Samples(v) => with_rule!(rule, |rule| across_samples(rule, v, from)),
-        }
+        with_rule!(rule, |rule| P::across(rule, out, from));
     }
 
     /// Child grid `(i, j)` of grid `g` (one subdivision of the whole grid; `out` holds
@@ -1220,7 +1326,7 @@ impl Patch {
             let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
                 continue;
             };
-            self.new_row(Row::Samples(dst), [v0, v1, v2, v3], r1);
+            self.new_row(dst, [v0, v1, v2, v3], r1);
         }
     }
 
@@ -1248,19 +1354,12 @@ impl Patch {
         }
         let (c0, r0) = ((area.x - at.x) as usize, (area.y - at.y) as usize);
         let (cols, rows) = (area.w as usize, area.h as usize);
-        for j in 0..rows {
-            let row = (r0 + j) * step * grid + c0 * step;
-            let points = (0..cols).map(|i| g.get(row + i * step).copied().unwrap_or(0));
-            match job.row(j, cols) {
-                Some(Row::Pixels(p)) => {
-                    for (p, v) in p.iter_mut().zip(points) {
-                        *p = sample_to_pixel(i32::from(v));
-                    }
-                }
-                Some(Row::Samples(s)) => s.iter_mut().zip(points).for_each(|(s, v)| *s = v),
-                None => {}
-            }
-        }
+        let first = r0 * step * grid + c0 * step;
+        let spacing = Spacing {
+            row: step * grid,
+            col: step,
+        };
+        with_rows!(job, |out| grid_points(out, g, first, spacing, rows, cols));
         job.put(area, cols * rows)
     }
 }
