@@ -267,20 +267,15 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
     /// nothing more), then the sign and the prefix bits.
     #[inline(never)]
     fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
-        let [zero @ .., sign, p0, p1, p2, p3, p4, p5] = &mut ints.probs;
-        if !self.decision(&mut zero[ctx.min(ZERO_CONTEXTS - 1)])? {
+        let probs = &mut ints.probs;
+        if !self.decision(&mut probs[ctx.min(ZERO_CONTEXTS - 1)])? {
             *v = 0;
             return Ok(());
         }
-        let negative = self.decision(sign)?;
-        let prefix = [p0, p1, p2, p3, p4, p5];
+        let negative = self.decision(&mut probs[SIGN])?;
         // Ones of the Exp-Golomb prefix so far: the magnitude has that many suffix bits.
         let mut k = 0;
-        loop {
-            let p = &mut *prefix[k.min(PREFIX_CONTEXTS - 1)];
-            if !self.decision(p)? {
-                break;
-            }
+        while self.decision(&mut probs[PREFIX + k.min(PREFIX_CONTEXTS - 1)])? {
             k += 1;
             if k >= MAX_PREFIX {
                 return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));

@@ -110,6 +110,17 @@ impl ModelType {
         size >= m
     }
 
+    /// `log2 N`: the shift of one subdivision (a compare rather than a count of trailing zeros,
+    /// which a Cortex-M0 makes with a multiply and a table).
+    #[inline(always)]
+    pub const fn transforms_log2(self) -> u32 {
+        match self.transforms {
+            2 => 1,
+            4 => 2,
+            n => n.trailing_zeros(),
+        }
+    }
+
     /// Whether a leaf of side `2^log2` subdivides this model's control grid at least once
     /// (its control points are at least two pixels apart); otherwise it is a pixel grid.
     pub const fn subdivides(self, log2: u8) -> bool {

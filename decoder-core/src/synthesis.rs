@@ -548,40 +548,6 @@ macro_rules! with_rows {
     }};
 }
 
-/// The old point itself (phase 0 of a refinement): a [`Rule`] with the taps `(0, 1, 0, 0)`.
-#[derive(Clone, Copy)]
-struct Keep;
-
-impl Rule for Keep {
-    #[inline(always)]
-    fn apply(self, _a: i16, b: i16, _c: i16, _d: i16) -> i16 {
-        b
-    }
-
-    #[inline(always)]
-    fn pixel(self, _a: i16, b: i16, _c: i16, _d: i16) -> u8 {
-        sample_to_pixel(i32::from(b))
-    }
-}
-
-/// `out[i] = rule(pad[a..a + 4])` for `i = start, start + period, ...`, `a` growing by `step`
-/// from `a`: the new points of one phase of a padded old row.
-#[inline(never)]
-fn pad_points<R: Rule>(
-    rule: R,
-    out: &mut [i16],
-    pad: &[i16; LATTICE + 3],
-    mut a: usize,
-    (start, period, step): (usize, usize, usize),
-) {
-    let mut i = start;
-    while let (Some(v), Some(&[p0, p1, p2, p3])) = (out.get_mut(i), pad.get(a..a + 4)) {
-        *v = rule.apply(p0, p1, p2, p3);
-        i += period;
-        a += step;
-    }
-}
-
 /// `pad` = the old row `row` (`m + 1` points, `m >= 1`) between its mirrored end points:
 /// `row[1], row[0], ..., row[m], row[m - 1]`, so that the taps of interval `a` are
 /// `pad[a..a + 4]`.
@@ -936,6 +902,9 @@ impl Patch {
     #[inline(never)]
     fn tile_root(&self, g: &[i16], at: &Square, job: &mut Job<'_>) -> Result<(), Stop> {
         let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
+        if at.sp <= u32::from(self.model.transforms) {
+            return self.emit(g, at, job, &mut lattice);
+        }
         self.tile(g, at, job, Some(&mut lattice))
     }
 
@@ -975,7 +944,7 @@ impl Patch {
     ) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
         let n = u32::from(self.model.transforms);
-        let shift = n.trailing_zeros();
+        let shift = self.model.transforms_log2();
         let n2 = self.model.control_count();
         // Per depth: the grid's corner (as an offset from the root's: a leaf drawn at most four
         // times larger is at most 2^9 pixels a side) and the next of its children to visit (N^2:
@@ -1002,11 +971,11 @@ impl Patch {
                 };
                 if !job.clip.overlaps_square(at.x, at.y, ext) {
                     next[depth] = done;
-                } else if ext <= TILE as u32 {
-                    self.tile(grid, &at, job, Some(lattice))?;
-                    next[depth] = done;
                 } else if at.sp <= n {
                     self.emit(grid, &at, job, lattice)?;
+                    next[depth] = done;
+                } else if ext <= TILE as u32 {
+                    self.tile(grid, &at, job, Some(lattice))?;
                     next[depth] = done;
                 } else {
                     next[depth] = 0;
@@ -1090,7 +1059,11 @@ impl Patch {
         }
         let mut d = sp;
         while d > 1 {
-            let nd = if d >= n { d >> n.trailing_zeros() } else { 1 };
+            let nd = if d >= n {
+                d >> self.model.transforms_log2()
+            } else {
+                1
+            };
             if nd == 1 {
                 // The last level: only the pixels inside the clip.
                 let (last_row, last_col) = (r0 + rows - 1, c0 + cols - 1);
@@ -1120,7 +1093,7 @@ impl Patch {
     ) {
         let m = usize::from(self.model.intervals);
         let rules = Rules::of(self.model);
-        let (shift_n, shift_d) = (self.model.transforms.trailing_zeros(), d.trailing_zeros());
+        let (shift_n, shift_d) = (self.model.transforms_log2(), d.trailing_zeros());
         let phase = |offset: usize| ((offset << shift_n) >> shift_d).wrapping_sub(1).min(2);
         let intervals = (ext >> shift_d).min(TILE);
         let last = m - 1;
@@ -1177,7 +1150,7 @@ impl Patch {
     fn emit(&self, g: &[i16], at: &Square, job: &mut Job<'_>, h: &mut Lattice) -> Result<(), Stop> {
         let m = usize::from(self.model.intervals);
         let side = m + 1;
-        let shift = self.model.transforms.trailing_zeros();
+        let shift = self.model.transforms_log2();
         let (x, y, sp) = (at.x, at.y, at.sp);
         let ext = u32::from(self.model.intervals) * sp;
         let stride = (u32::from(self.model.transforms) >> sp.trailing_zeros()).max(1) as usize;
@@ -1235,7 +1208,7 @@ impl Patch {
     #[inline(always)]
     fn strip_rows<P: Point>(&self, out: &mut [P], h: &Lattice, strip: &Strip) {
         let m = usize::from(self.model.intervals);
-        let shift = self.model.transforms.trailing_zeros();
+        let shift = self.model.transforms_log2();
         let mask = (1usize << shift) - 1;
         let (cols, k_lo) = (strip.cols, strip.k_lo);
         for j in 0..strip.rows {
@@ -1259,24 +1232,23 @@ impl Patch {
     }
 
     /// The refined points of a padded old row `pad` (its points `1..=m+1`, mirrored end points
-    /// at 0 and `m + 2`) at columns `q2, q2 + stride, ...`, one per entry of `out`.
+    /// at 0 and `m + 2`) at columns `q2, q2 + stride, ...`, one per entry of `out`: one loop
+    /// over the entries, each choosing its phase's rule (rows here are short, a few points a
+    /// phase: a loop per phase cost more in calls than in points).
     fn row_points(&self, pad: &[i16; LATTICE + 3], q2: usize, stride: usize, out: &mut [i16]) {
-        let shift = self.model.transforms.trailing_zeros();
+        let shift = self.model.transforms_log2();
         let mask = (1usize << shift) - 1;
-        // Entries c, c + period, ... have one phase; their intervals follow each other `step`
-        // apart.
-        let period = ((mask + 1) >> stride.trailing_zeros()).clamp(1, out.len().max(1));
-        let step = (period * stride) >> shift;
-        for c in 0..period {
-            let q = q2 + c * stride;
-            let a = q >> shift;
-            let run = (c, period, step);
-            match q & mask {
-                0 => pad_points(Keep, out, pad, a, run),
-                r => with_rule!(&Rules::of(self.model).taps[(r - 1).min(2)], |rule| {
-                    pad_points(rule, out, pad, a, run)
-                }),
-            }
+        let rules = Rules::of(self.model);
+        let mut q = q2;
+        for v in out.iter_mut() {
+            let Some(&[p0, p1, p2, p3]) = pad.get(q >> shift..(q >> shift) + 4) else {
+                return;
+            };
+            *v = match q & mask {
+                0 => p1,
+                r => Taps::of(&rules.taps[(r - 1).min(2)]).apply(p0, p1, p2, p3),
+            };
+            q += stride;
         }
     }
 
@@ -1297,7 +1269,7 @@ impl Patch {
     fn child(&self, g: &[i16], i: usize, j: usize, h: &mut Lattice, out: &mut [i16]) {
         let m = usize::from(self.model.intervals);
         let side = m + 1;
-        let shift = self.model.transforms.trailing_zeros();
+        let shift = self.model.transforms_log2();
         let mask = (1usize << shift) - 1;
         let (q1, q2) = (i * m, j * m);
         let k_lo = (q1 >> shift).saturating_sub(1);

@@ -242,43 +242,41 @@ const fn inverse_line(
     // Even samples: low band minus the update from the neighbouring details (mirrored at the
     // ends: d[-1] = d[0], d[nh] = d[nh - 1]); odd samples: detail plus the prediction from the
     // neighbouring even samples (the one to the right is made first; past the end, the one to
-    // the left).
+    // the left). The last pair, where the mirrors are, is made after the loop.
     let mut detail = y[nl] as i32;
-    let mut left = y[0] as i32 - ((2 * detail + 2) >> 2);
+    let mut left = y[0] as i32 - ((detail + 1) >> 1);
     g[start] = narrow(left);
     let mut at = start + stride;
     i = 0;
-    while i < nh {
-        let next = if i + 1 < nh {
-            y[nl + i + 1] as i32
-        } else {
-            detail
-        };
-        let more = 2 * i + 2 < m;
-        let right = if more {
-            y[i + 1] as i32 - ((detail + next + 2) >> 2)
-        } else {
-            left
-        };
+    while i + 1 < nh {
+        let next = y[nl + i + 1] as i32;
+        let right = y[i + 1] as i32 - ((detail + next + 2) >> 2);
         g[at] = narrow(detail + ((left + right + 1) >> 1));
-        if more {
-            g[at + stride] = narrow(right);
-        }
+        g[at + stride] = narrow(right);
         at += 2 * stride;
         left = right;
         detail = next;
         i += 1;
     }
+    if 2 * nh < m {
+        // An odd line ends on an even sample, whose detail to the right is mirrored.
+        let right = y[nh] as i32 - ((detail + 1) >> 1);
+        g[at] = narrow(detail + ((left + right + 1) >> 1));
+        g[at + stride] = narrow(right);
+    } else {
+        g[at] = narrow(detail + left);
+    }
 }
 
 /// `v` saturated to the `i16` range.
 const fn narrow(v: i32) -> i16 {
-    if v > i16::MAX as i32 {
-        i16::MAX
-    } else if v < i16::MIN as i32 {
+    // One unsigned compare for the values in range, as they nearly always are.
+    if (v.wrapping_sub(i16::MIN as i32) as u32) <= u16::MAX as u32 {
+        v as i16
+    } else if v < 0 {
         i16::MIN
     } else {
-        v as i16
+        i16::MAX
     }
 }
 
