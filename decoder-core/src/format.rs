@@ -76,10 +76,30 @@ pub fn med(left: i32, up: i32, up_left: i32) -> i32 {
 /// Rounded division of a sample value by a quantiser step (ties away from zero); used for
 /// prediction in the index domain.
 pub fn div_round(v: i32, step: i32) -> i32 {
+    if step > 0 {
+        // |v| + step / 2 < 3 * 2^30: no overflow.
+        let q = div_floor(v.unsigned_abs() + (step as u32 >> 1), step as u32) as i32;
+        return if v >= 0 { q } else { -q };
+    }
     if v >= 0 {
         (v + step / 2) / step
     } else {
         -((-v + step / 2) / step)
+    }
+}
+
+/// `floor(n / d)` for `d > 0`. The divisors a stream divides by are `2^k` or `3 * 2^k` (the
+/// control steps, the pixels beside a leaf): for those a shift and a multiply, as a
+/// Cortex-M0 has no divider.
+#[inline]
+pub fn div_floor(n: u32, d: u32) -> u32 {
+    let k = d.trailing_zeros();
+    match d >> k {
+        1 => n >> k,
+        // floor(n / (3 * 2^k)) = floor(floor(n / 2^k) / 3); floor(m / 3) = (m * 43691) >> 17
+        // exactly for m < 2^16 (43691 = ceil(2^17 / 3), one over).
+        3 if n >> k < 1 << 16 => ((n >> k) * 43_691) >> 17,
+        _ => n / d,
     }
 }
 
@@ -138,6 +158,42 @@ impl SampleRange {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shift-and-multiply paths are the plain (rounded) division.
+    #[test]
+    fn rounded_division_without_a_divider_is_exact() {
+        let plain = |v: i32, step: i32| {
+            if v >= 0 {
+                (v + step / 2) / step
+            } else {
+                -((-v + step / 2) / step)
+            }
+        };
+        let more = [
+            256,
+            384,
+            512,
+            768,
+            1024,
+            1536,
+            2048,
+            3072,
+            4096,
+            6144,
+            1 << 20,
+            3 << 20,
+        ];
+        for step in (1..=200).chain(more) {
+            for v in (-70_000..=70_000)
+                .step_by(7)
+                .chain([i32::MAX / 2, -(i32::MAX / 2)])
+            {
+                assert_eq!(div_round(v, step), plain(v, step), "{v} / {step}");
+                let n = v.unsigned_abs();
+                assert_eq!(div_floor(n, step as u32), n / step as u32, "{n} / {step}");
+            }
+        }
+    }
 
     /// Grey 0 is `low`, each grey level `step / 128` more, samples between rounded, samples
     /// outside clamped; the covering range reaches its top at grey 255 or just before.

@@ -59,7 +59,7 @@ pub trait SamplePrediction {
         }
         match count {
             0 => (128 * SAMPLE_ONE, false),
-            _ => ((sum / count) as i32, sides == 2),
+            _ => (crate::format::div_floor(sum, count) as i32, sides == 2),
         }
     }
 }
