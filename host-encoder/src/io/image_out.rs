@@ -9,6 +9,10 @@ use std::io::Write;
 use std::path::Path;
 use std::rc::Rc;
 
+/// How hard decoded images are compressed as PNG: fast (a decoded picture is smooth and
+/// compresses well anyway; see docs/decisions.md).
+const PNG_COMPRESSION: png::Compression = png::Compression::Fast;
+
 /// The formats decoded images are written in, chosen by the output's extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OutputFormat {
@@ -134,6 +138,7 @@ impl OutputFormat {
                 let mut encoder = png::Encoder::new(&mut out, width, height);
                 encoder.set_color(png::ColorType::Grayscale);
                 encoder.set_depth(png::BitDepth::Sixteen);
+                encoder.set_compression(PNG_COMPRESSION);
                 let be: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
                 encoder
                     .write_header()
@@ -264,6 +269,7 @@ impl<W: Write + 'static> ImageWriter<W> {
                     png::ColorType::Grayscale
                 });
                 encoder.set_depth(png::BitDepth::Eight);
+                encoder.set_compression(PNG_COMPRESSION);
                 let stream = encoder
                     .write_header()
                     .and_then(png::Writer::into_stream_writer)
