@@ -839,18 +839,11 @@ impl PixelSink for Buffer<'_> {
     type Error = Infallible;
 
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
-        let Rect { x, y, w, .. } = tile.area;
-        let ch = usize::from(tile.channels.max(1));
-        let (x, y, w) = (x as usize * ch, y as usize, w as usize * ch);
-        if w == 0 {
-            return Ok(());
-        }
-        for (row, src) in tile.pixels.chunks_exact(w).enumerate() {
-            let start = (y + row) * self.width * ch + x;
-            if let Some(dst) = self.out.get_mut(start..start + w) {
+        place_rows(self.out, self.width, &tile, |dst, at| {
+            if let Some(src) = tile.pixels.get(at) {
                 dst.copy_from_slice(src);
             }
-        }
+        });
         Ok(())
     }
 }
@@ -865,18 +858,7 @@ impl PixelSink for ValueBuffer<'_> {
     type Error = Infallible;
 
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
-        let Rect { x, y, w, .. } = tile.area;
-        let ch = usize::from(tile.channels.max(1));
-        let (x, y, w) = (x as usize * ch, y as usize, w as usize * ch);
-        if w == 0 {
-            return Ok(());
-        }
-        for row in 0..tile.area.h as usize {
-            let start = (y + row) * self.width * ch + x;
-            let Some(dst) = self.out.get_mut(start..start + w) else {
-                continue;
-            };
-            let at = row * w..row * w + w;
+        place_rows(self.out, self.width, &tile, |dst, at| {
             if let Some(values) = tile.values.get(at.clone()) {
                 dst.copy_from_slice(values);
             } else if let Some(pixels) = tile.pixels.get(at) {
@@ -884,8 +866,28 @@ impl PixelSink for ValueBuffer<'_> {
                     *d = u16::from(p);
                 }
             }
-        }
+        });
         Ok(())
+    }
+}
+
+/// Where each row of `tile` goes in a row-major image `width` pixels wide held in `out`:
+/// `fill(destination, range of the row in the tile's values)` for every row that lies in
+/// `out`.
+fn place_rows<T>(
+    out: &mut [T],
+    width: usize,
+    tile: &Tile<'_>,
+    mut fill: impl FnMut(&mut [T], core::ops::Range<usize>),
+) {
+    let Rect { x, y, w, h } = tile.area;
+    let ch = usize::from(tile.channels.max(1));
+    let (x, y, w) = (x as usize * ch, y as usize, w as usize * ch);
+    for row in 0..h as usize {
+        let start = (y + row) * width * ch + x;
+        if let Some(dst) = out.get_mut(start..start + w) {
+            fill(dst, row * w..row * w + w);
+        }
     }
 }
 
