@@ -24,7 +24,7 @@
 use crate::format::{CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
 use crate::model::{MAX_CONTROL, SAMPLE_BITS, SAMPLE_ONE};
-use crate::prediction::{beside_known, SamplePrediction};
+use crate::prediction::{beside_rule, SamplePrediction, StripeWidth};
 use crate::synthesis::{Scale, Stop, TileMut, TileOut, TILE};
 
 /// RGB of a YCbCr pixel (BT.601 full range, as JFIF), in 16-bit fixed point with rounding:
@@ -202,9 +202,7 @@ pub fn sample_row(plane: &ChromaPlane, log2: u8, j: u32, out: &mut [u8]) {
     let half = 1i32 << (shift - 1);
     if row.sh == 0 {
         // A pixel grid: each pixel is its control value.
-        let side = row.g as usize + 1;
-        let values = plane.control.iter().skip(row.b * side);
-        for (p, &v) in out.iter_mut().zip(values) {
+        for (p, &v) in out.iter_mut().zip(row.upper) {
             *p = ((i32::from(v) + half) >> shift).clamp(0, 255) as u8;
         }
         return;
@@ -237,8 +235,8 @@ pub struct ChromaFrontier<const STRIPE: usize = DEFAULT_STRIPE> {
     width: u32,
     /// Chroma plane height.
     height: u32,
-    /// Chroma stripe width (half the luma one).
-    stripe: u32,
+    /// The luma stripe width (a chroma stripe is half as wide).
+    stripe: StripeWidth,
 }
 
 impl<const STRIPE: usize> Default for ChromaFrontier<STRIPE> {
@@ -257,19 +255,29 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
         rows: [0; CODING_TILE as usize],
         width: 0,
         height: 0,
-        stripe: 0,
+        stripe: StripeWidth::NONE,
     };
 
     /// Starts a stream of a `width x height` (luma) image in stripes of `stripe` luma pixels;
     /// `false` when the stripe is wider than this frontier holds.
     pub fn start(&mut self, width: u32, height: u32, stripe: u32) -> bool {
-        if stripe < 2 || stripe as usize > STRIPE {
+        let Some(stripe_width) = StripeWidth::new(stripe) else {
+            return false;
+        };
+        if stripe as usize > STRIPE {
             return false;
         }
         self.width = chroma_len(width);
         self.height = chroma_len(height);
-        self.stripe = stripe / 2;
+        self.stripe = stripe_width;
         true
+    }
+
+    /// The column of chroma pixel column `cx` in its stripe: half the luma column of `2 cx`
+    /// (no division: [`StripeWidth`]).
+    #[inline]
+    fn column(&self, cx: u32) -> u32 {
+        self.stripe.column(2 * cx) / 2
     }
 
     /// Plane `p` (0: `Cb`, 1: `Cr`) as a [`SamplePrediction`] in chroma coordinates.
@@ -285,8 +293,7 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
     #[inline]
     pub fn stored(&self, p: usize, above: bool, cx: u32, cy: u32) -> u8 {
         let slot = if above {
-            self.columns
-                .get(2 * (cx % self.stripe.max(1)) as usize + (p & 1))
+            self.columns.get(2 * self.column(cx) as usize + (p & 1))
         } else {
             self.rows.get(2 * (cy % CHROMA_BAND) as usize + (p & 1))
         };
@@ -301,13 +308,13 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
         let n = &patch.node;
         let s = region.size();
         let (w, h) = (self.width, self.height);
-        let stripe = self.stripe.max(1);
         let last_row = region.y + s - 1;
         if last_row < h {
             for cx in region.x..(region.x + s).min(w) {
+                let column = 2 * self.column(cx) as usize;
                 for p in 0..2 {
                     let v = patch.value(p, cx - n.x, last_row - n.y);
-                    if let Some(slot) = self.columns.get_mut(2 * (cx % stripe) as usize + p) {
+                    if let Some(slot) = self.columns.get_mut(column + p) {
                         *slot = v;
                     }
                 }
@@ -338,7 +345,7 @@ impl<const STRIPE: usize> SamplePrediction for ChromaPrediction<'_, STRIPE> {
     #[inline]
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
         let f = self.frontier;
-        if !beside_known(above, x, y, f.width, f.height, f.stripe) {
+        if !beside_rule(above, (x, y), (f.width, f.height), || f.column(x)) {
             return None;
         }
         Some(i32::from(f.stored(self.plane, above, x, y)) * SAMPLE_ONE)
@@ -431,37 +438,37 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
     }
 
     /// The RGB pixels of a coded-size tile `area` (luma `luma`, row-major) that lies in the
-    /// leaf: [`ColourOut::chroma_row`]'s chroma, made row by row along the leaf's surfaces
-    /// and converted as it is made.
-    fn convert_inside(&self, area: Rect, luma: &[u8], rgb: &mut [u8; 3 * TILE * TILE]) {
+    /// leaf: each plane's surface under the tile ([`surface_tile`]) in the green and blue
+    /// places of its pixels, the chroma beside the leaf mixed in on the leaf's first column
+    /// and row, then the conversion in place (no buffer beside `rgb`).
+    #[inline(never)]
+    fn convert_inside(&mut self, area: Rect, luma: &[u8]) -> Result<(), Stop> {
+        // Zeroed as words (an array of triples would be zeroed byte by byte).
+        let mut tile = [0u8; 3 * TILE * TILE];
         let n = &self.patch.node;
         let (i0, j0) = (area.x - 2 * n.x, area.y - 2 * n.y);
-        let w = (area.w as usize).min(TILE);
-        let mut rows = luma.chunks_exact(w).zip(rgb.chunks_exact_mut(3 * w));
-        for j in j0..j0 + area.h {
-            let Some((luma, rgb)) = rows.next() else {
-                return;
-            };
-            // Each plane's row on its own (a short loop the registers hold), then the edges
-            // beside the leaf mixed in, then the conversion.
-            let mut chroma = [[0u8; TILE]; 2];
-            for (plane, row) in self.patch.planes.iter().zip(chroma.iter_mut()) {
-                SurfaceRow::new(plane, n.log2, 2, centre(j)).fill(i0, &mut row[..w]);
-            }
-            if i0 == 0 || j == 0 {
-                let (x, y) = (area.x, area.y + j - j0);
-                let last = if j == 0 { w } else { 1 };
-                for (k, i) in (i0..).take(last).enumerate() {
-                    for (p, row) in chroma.iter_mut().enumerate() {
-                        row[k] = self.beside_edges(p, row[k], (x + k as u32, y), (i, j));
+        let (w, h) = ((area.w as usize).min(TILE), (area.h as usize).min(TILE));
+        let pixels = &mut tile.as_chunks_mut::<3>().0[..w * h];
+        for (p, plane) in self.patch.planes.iter().enumerate() {
+            surface_tile(plane, n.log2, (i0, j0), w, pixels, 1 + p);
+        }
+        if i0 == 0 || j0 == 0 {
+            for r in 0..h {
+                let Some(row) = pixels.get_mut(r * w..(r + 1) * w) else {
+                    break;
+                };
+                let (x, y, j) = (area.x, area.y + r as u32, j0 + r as u32);
+                let last = if j == 0 { w } else { usize::from(i0 == 0) };
+                for (k, px) in row.iter_mut().take(last).enumerate() {
+                    let i = i0 + k as u32;
+                    for (p, c) in px[1..].iter_mut().enumerate() {
+                        *c = self.beside_edges(p, *c, (x + k as u32, y), (i, j));
                     }
                 }
             }
-            let [cb, cr] = &chroma;
-            for (((&l, px), &b), &r) in luma.iter().zip(rgb.chunks_exact_mut(3)).zip(cb).zip(cr) {
-                px.copy_from_slice(&ycbcr_to_rgb(l, b, r));
-            }
         }
+        convert(luma, pixels);
+        self.put_rgb(area, &mut tile)
     }
 
     /// Chroma `c` of plane `p` under luma pixel `(x, y)` (offset `(i, j)` in the leaf) with the
@@ -491,17 +498,127 @@ fn quarter(a: u8, b: u8) -> u8 {
     ((3 * u32::from(a) + u32::from(b) + 2) >> 2) as u8
 }
 
+/// The RGB pixels of `luma` and the chroma in `rgb` (each pixel's `Cb` and `Cr` in its
+/// second and third bytes), converted in place: [`ycbcr_to_rgb`] of each, its `- 128` and
+/// rounding folded into one constant per product sum.
+#[inline(never)]
+fn convert(luma: &[u8], rgb: &mut [[u8; 3]]) {
+    const R: i32 = 32768 - 128 * 91881;
+    const G: i32 = 32768 + 128 * (22554 + 46802);
+    const B: i32 = 32768 - 128 * 116130;
+    for (&l, px) in luma.iter().zip(rgb) {
+        let (l, b, r) = (i32::from(l), i32::from(px[1]), i32::from(px[2]));
+        *px = [
+            byte(l + ((91881 * r + R) >> 16)),
+            byte(l + ((G - 22554 * b - 46802 * r) >> 16)),
+            byte(l + ((116130 * b + B) >> 16)),
+        ];
+    }
+}
+
+/// The 8-bit value of a sample already shifted to pixel units: clamped to `0..=255`, with one
+/// comparison when it is in range.
+#[inline(always)]
+fn byte(v: i32) -> u8 {
+    if v as u32 <= 255 {
+        v as u8
+    } else if v < 0 {
+        0
+    } else {
+        255
+    }
+}
+
+/// The values of `plane` (a leaf of side `2^log2` chroma pixels) under the luma pixels of
+/// columns `i0..i0 + w` of the leaf, rows `j0, j0 + 1, ...`, into byte `p` of the pixels of
+/// `out` (row-major, `w` per row): [`ChromaPatch::value_under`] of each, the same integers as
+/// [`SurfaceRow`] makes.
+/// The columns fall in runs that share a grid cell (the same runs in every row); along a run
+/// the surface is a line, and from one row to the next (two units down, in one grid row) its
+/// start and slope move by fixed amounts, so a run is made column by column and row by row
+/// with additions.
+#[inline(never)]
+fn surface_tile(
+    plane: &ChromaPlane,
+    log2: u8,
+    (i0, j0): (u32, u32),
+    w: usize,
+    out: &mut [[u8; 3]],
+    p: usize,
+) {
+    let p = p.min(2);
+    let g = u32::from(plane.grid.max(1));
+    let sh = u32::from(log2).saturating_sub(g.trailing_zeros()) + 2;
+    let shift = 2 * sh + SAMPLE_BITS;
+    let half = 1i32 << (shift - 1);
+    let side = g as usize + 1;
+    let control = |at: usize| i32::from(plane.control.get(at).copied().unwrap_or(0));
+    // The runs, left to right. Column 0's centre is clamped to the leaf's edge (0, not a step
+    // of 2 before column 1), so it is a run of its own; so is row 0.
+    let mut i = i0;
+    while ((i - i0) as usize) < w {
+        let q = centre(i);
+        let cell = q >> sh;
+        let start = (i - i0) as usize;
+        let len = if i == 0 {
+            1
+        } else {
+            (((cell + 1) << sh) - q).div_ceil(2) as usize
+        };
+        let len = len.min(w - start);
+        i += len as u32;
+        let a = cell.min(g - 1);
+        let f = q.wrapping_sub(a << sh) as i32;
+        // The line's start (with the rounding half) and slope on the current row, and their
+        // changes from one row to the next within a grid row.
+        let (mut v0, mut slope, mut dv, mut dslope) = (0i32, 0i32, 0i32, 0i32);
+        let (mut grid_row, mut last_q) = (u32::MAX, u32::MAX);
+        for (row, j) in out.chunks_mut(w.max(1)).zip(j0..) {
+            let q = centre(j);
+            let b = (q >> sh).min(g - 1);
+            if b == grid_row && q == last_q.wrapping_add(2) {
+                v0 = v0.wrapping_add(dv);
+                slope = slope.wrapping_add(dslope);
+            } else {
+                grid_row = b;
+                let e = q.wrapping_sub(b << sh) as i32;
+                let upper = b as usize * side + a as usize;
+                let (u0, u1) = (control(upper), control(upper + 1));
+                let (d0, d1) = (control(upper + side) - u0, control(upper + side + 1) - u1);
+                let c0 = (u0 << sh).wrapping_add(e.wrapping_mul(d0));
+                let c1 = (u1 << sh).wrapping_add(e.wrapping_mul(d1));
+                slope = c1.wrapping_sub(c0);
+                v0 = (c0 << sh)
+                    .wrapping_add(f.wrapping_mul(slope))
+                    .wrapping_add(half);
+                dslope = 2 * (d1 - d0);
+                dv = ((d0 << sh).wrapping_add(f.wrapping_mul(d1 - d0))).wrapping_mul(2);
+            }
+            last_q = q;
+            let Some(now) = row.get_mut(start..start + len) else {
+                break;
+            };
+            let (mut v, step) = (v0, slope.wrapping_mul(2));
+            for px in now {
+                px[p] = byte(v >> shift);
+                v = v.wrapping_add(step);
+            }
+        }
+    }
+}
+
 /// One chroma plane's surface along one row (a luma row of the leaf, or a chroma row), stepped
 /// along it: the grid's vertical interpolation at the two grid columns around the current
 /// position is kept until the row leaves that cell (the same integers as [`sample_at`], summed
 /// in another order).
 struct SurfaceRow<'a> {
-    plane: &'a ChromaPlane,
+    /// The grid rows above and below the row (`b` and `b + 1`), `g + 1` values each.
+    upper: &'a [i16],
+    lower: &'a [i16],
     g: u32,
     /// Fraction bits of a position within a grid cell.
     sh: u32,
-    /// The row's grid row and its weight (`b`, `e`).
-    b: usize,
+    /// The row's weight between its grid rows (`e`).
     e: i32,
     /// The grid column whose interpolations the cell's line holds (`u32::MAX`: none yet).
     a: u32,
@@ -517,11 +634,14 @@ impl<'a> SurfaceRow<'a> {
     fn new(plane: &'a ChromaPlane, log2: u8, sub: u32, q: u32) -> Self {
         let g = u32::from(plane.grid.max(1));
         let sh = u32::from(log2).saturating_sub(g.trailing_zeros()) + sub;
+        let side = g as usize + 1;
+        let b = (q >> sh).min(g - 1) as usize;
+        let row = |r: usize| plane.control.get(r * side..).unwrap_or(&[]);
         SurfaceRow {
-            plane,
+            upper: row(b),
+            lower: row(b + 1),
             g,
             sh,
-            b: (q >> sh).min(g - 1) as usize,
             e: (q & ((1 << sh) - 1)) as i32,
             a: u32::MAX,
             base: 0,
@@ -529,38 +649,13 @@ impl<'a> SurfaceRow<'a> {
         }
     }
 
-    /// The values under consecutive luma columns `first, first + 1, ...` of the leaf (at
-    /// their centres, [`centre`]), one per entry of `out`: [`SurfaceRow::at`] at each,
-    /// stepped by twice the cell's slope while the columns stay in one grid cell.
-    #[inline(never)]
-    fn fill(&mut self, first: u32, out: &mut [u8]) {
-        let shift = 2 * self.sh + SAMPLE_BITS;
-        let half = 1i32 << (shift - 1);
-        let mut rest = out;
-        let mut i = first;
-        if i == 0 {
-            // Column 0's centre is clamped to the leaf's edge, not a step of 2 before column 1.
-            let Some((v, tail)) = rest.split_first_mut() else {
-                return;
-            };
-            *v = self.at(0);
-            (rest, i) = (tail, 1);
-        }
-        while !rest.is_empty() {
-            let q = centre(i);
-            // The columns whose centres `q + 2 k` lie in the cell of `q`.
-            let cell_end = ((q >> self.sh) + 1) << self.sh;
-            let run = ((cell_end - q).div_ceil(2) as usize).min(rest.len());
-            let (now, tail) = rest.split_at_mut(run);
-            // Wrapping: the same integers as `line` at each column.
-            let mut v = self.line(q);
-            let step = self.slope.wrapping_mul(2);
-            for p in now {
-                *p = (v.wrapping_add(half) >> shift).clamp(0, 255) as u8;
-                v = v.wrapping_add(step);
-            }
-            (rest, i) = (tail, i + run as u32);
-        }
+    /// The grid's vertical interpolation at grid column `c`, `2^sh` times the value:
+    /// `(one - e) * upper + e * lower`.
+    #[inline]
+    fn column(&self, c: usize) -> i32 {
+        let upper = i32::from(self.upper.get(c).copied().unwrap_or(0));
+        let lower = i32::from(self.lower.get(c).copied().unwrap_or(0));
+        (upper << self.sh) + self.e * (lower - upper)
     }
 
     /// The 8-bit value at position `q` along the row.
@@ -577,41 +672,44 @@ impl<'a> SurfaceRow<'a> {
     fn line(&mut self, q: u32) -> i32 {
         let a = (q >> self.sh).min(self.g - 1);
         let f = (q & ((1 << self.sh) - 1)) as i32;
-        let one = 1i32 << self.sh;
         if a != self.a {
             self.a = a;
-            let side = self.g as usize + 1;
-            let at = |r: usize, c: usize| {
-                i32::from(self.plane.control.get(r * side + c).copied().unwrap_or(0))
-            };
-            let (b, e, a) = (self.b, self.e, a as usize);
-            let c0 = (one - e) * at(b, a) + e * at(b + 1, a);
-            let c1 = (one - e) * at(b, a + 1) + e * at(b + 1, a + 1);
-            self.base = one * c0;
-            self.slope = c1 - c0;
+            let c0 = self.column(a as usize);
+            self.base = c0 << self.sh;
+            self.slope = self.column(a as usize + 1) - c0;
         }
         self.base + f * self.slope
     }
 }
 
 impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
+    /// Converts `tile` (luma) to RGB and puts it out; the two ways of converting are out of
+    /// line, so that the RGB tile and either's state are on the stack only while used.
     fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let Rect { x, y, w, h } = tile.area;
         let n = (w * h) as usize;
-        let mut rgb = [0u8; 3 * TILE * TILE];
         if n > TILE * TILE || w as usize > TILE || tile.pixels.len() < n || tile.channels != 1 {
             return Ok(());
         }
-        let k = self.scale.log2();
         let node = &self.patch.node;
-        if k == 0 && x >= 2 * node.x && y >= 2 * node.y {
-            self.convert_inside(tile.area, tile.pixels, &mut rgb);
-            return self.out.put(TileMut {
-                area: tile.area,
-                pixels: &mut rgb[..3 * n],
-                channels: 3,
-            });
+        if self.scale.log2() == 0 && x >= 2 * node.x && y >= 2 * node.y {
+            self.convert_inside(tile.area, tile.pixels)
+        } else {
+            self.convert_rows(tile.area, tile.pixels)
         }
+    }
+}
+
+impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
+    /// The RGB pixels of tile `area` (output coordinates, luma `luma`), row by row: the
+    /// chroma of each tile row ([`ColourOut::chroma_row`]), then the conversion. For tiles
+    /// of a scaled decode and tiles holding pixels of earlier leaves.
+    #[inline(never)]
+    fn convert_rows(&mut self, area: Rect, luma: &[u8]) -> Result<(), Stop> {
+        let Rect { x, y, w, h } = area;
+        let mut tile = [0u8; 3 * TILE * TILE];
+        let rgb = tile.as_chunks_mut::<3>().0;
+        let k = self.scale.log2();
         let coded = |v: u32| {
             if k >= 0 {
                 v >> k
@@ -632,13 +730,21 @@ impl<const STRIPE: usize> TileOut for ColourOut<'_, STRIPE> {
                 self.chroma_row(cy, columns, &mut row[..w as usize]);
             }
             for c in row.iter().take(w as usize) {
-                let px = ycbcr_to_rgb(tile.pixels[at], c.0, c.1);
-                rgb[3 * at..3 * at + 3].copy_from_slice(&px);
+                let (Some(&l), Some(px)) = (luma.get(at), rgb.get_mut(at)) else {
+                    return Ok(());
+                };
+                *px = ycbcr_to_rgb(l, c.0, c.1);
                 at += 1;
             }
         }
+        self.put_rgb(area, &mut tile)
+    }
+
+    /// Puts out the RGB tile `area`, its pixels at the start of `rgb`.
+    fn put_rgb(&mut self, area: Rect, rgb: &mut [u8; 3 * TILE * TILE]) -> Result<(), Stop> {
+        let n = ((area.w * area.h) as usize).min(TILE * TILE);
         self.out.put(TileMut {
-            area: tile.area,
+            area,
             pixels: &mut rgb[..3 * n],
             channels: 3,
         })
@@ -672,6 +778,22 @@ mod tests {
         // JFIF's primaries.
         assert_eq!(rgb_to_ycbcr(255, 0, 0), [76, 85, 255]);
         assert_eq!(rgb_to_ycbcr(0, 0, 255), [29, 255, 107]);
+    }
+
+    #[test]
+    fn a_converted_tile_is_the_conversion_of_its_pixels() {
+        let luma: [u8; 256] = core::array::from_fn(|k| (k * 5 % 256) as u8);
+        for cb in 0..=255u8 {
+            let mut rgb: [[u8; 3]; 256] = core::array::from_fn(|k| [0, cb, k as u8]);
+            convert(&luma, &mut rgb);
+            for (k, px) in rgb.iter().enumerate() {
+                assert_eq!(
+                    *px,
+                    ycbcr_to_rgb(luma[k], cb, k as u8),
+                    "cb {cb}, pixel {k}"
+                );
+            }
+        }
     }
 
     #[test]
@@ -783,26 +905,36 @@ mod tests {
                 let side = 2 << log2;
                 for j in 0..side {
                     let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, centre(j));
-                    let mut expected = [0u8; 128];
                     for i in 0..side {
-                        let v = patch.value_under(0, i, j);
-                        assert_eq!(row.at(centre(i)), v, "g {g} log2 {log2}");
-                        expected[i as usize] = v;
-                    }
-                    // Filled a tile's width at a time from any column, as a decode does.
-                    let t = crate::synthesis::TILE as u32;
-                    for first in [0, 1, 2, 3, side / 2 - 1, side.saturating_sub(3)] {
-                        let first = first.min(side - 1);
-                        let len = (side - first).min(t) as usize;
-                        let mut out = [0u8; crate::synthesis::TILE];
-                        let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, centre(j));
-                        row.fill(first, &mut out[..len]);
-                        let at = first as usize;
                         assert_eq!(
-                            out[..len],
-                            expected[at..at + len],
-                            "g {g} log2 {log2} {first}"
+                            row.at(centre(i)),
+                            patch.value_under(0, i, j),
+                            "g {g} log2 {log2}"
                         );
+                    }
+                }
+                // Made a tile at a time from any column and row, as a decode does.
+                let t = crate::synthesis::TILE as u32;
+                let corners = [0, 1, 2, 3, side / 2 - 1, side.saturating_sub(3)];
+                for (i0, j0) in corners.iter().flat_map(|&i| corners.map(|j| (i, j))) {
+                    let (i0, j0) = (i0.min(side - 1), j0.min(side - 1));
+                    let w = (side - i0).min(t);
+                    let h = (side - j0).min(t);
+                    let mut out = [[0u8; 3]; crate::synthesis::TILE * crate::synthesis::TILE];
+                    let n = (w * h) as usize;
+                    // Into the third byte of each pixel, as a colour tile holds `Cr`.
+                    surface_tile(
+                        &patch.planes[0],
+                        log2,
+                        (i0, j0),
+                        w as usize,
+                        &mut out[..n],
+                        2,
+                    );
+                    for (k, px) in out[..n].iter().enumerate() {
+                        let (i, j) = (i0 + k as u32 % w, j0 + k as u32 / w);
+                        let v = patch.value_under(0, i, j);
+                        assert_eq!(*px, [0, 0, v], "g {g} log2 {log2} ({i}, {j})");
                     }
                 }
                 for j in 0..side / 2 {

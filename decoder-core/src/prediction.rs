@@ -78,7 +78,7 @@ pub fn beside_known(above: bool, x: u32, y: u32, width: u32, height: u32, stripe
 /// [`beside_known`] with the stripe's column of `x` (`x mod stripe`, 0 for no stripe) made by
 /// `column`, only for a pixel to the left.
 #[inline(always)]
-fn beside_rule(
+pub(crate) fn beside_rule(
     above: bool,
     (x, y): (u32, u32),
     (width, height): (u32, u32),
@@ -143,7 +143,7 @@ pub fn edge_pixels<P: SamplePrediction + ?Sized>(
 /// below 2^16. One word: the tile count in the low [`TILE_COUNT_BITS`] bits, above them
 /// `ceil(2^RECIPROCAL_BITS / tiles)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct StripeWidth(u32);
+pub(crate) struct StripeWidth(u32);
 
 /// Precision of [`StripeWidth`]'s reciprocal: exact for quotients of numbers below
 /// `MAX_TILES` by divisors up to `MAX_TILES` (`tests::stripe_remainders_are_exact`).
@@ -155,7 +155,7 @@ const TILE_COUNT_BITS: u32 = 10;
 
 impl StripeWidth {
     /// A stripe of `pixels`, if that is a whole number of coding tiles, at most [`MAX_TILES`].
-    const fn new(pixels: u32) -> Option<StripeWidth> {
+    pub(crate) const fn new(pixels: u32) -> Option<StripeWidth> {
         let tiles = pixels / CODING_TILE;
         if !pixels.is_multiple_of(CODING_TILE) || tiles == 0 || tiles > MAX_TILES {
             return None;
@@ -165,13 +165,13 @@ impl StripeWidth {
     }
 
     /// The width of no stream (before [`Frontier::start`]).
-    const NONE: StripeWidth = StripeWidth(0);
+    pub(crate) const NONE: StripeWidth = StripeWidth(0);
 
     /// `x mod width`, for `x` below 2^16 (`x` for [`StripeWidth::NONE`]). Out of line: it is
     /// called from a few places per leaf, and inlined copies cost more flash than the call
     /// saves time.
     #[inline(never)]
-    fn column(self, x: u32) -> u32 {
+    pub(crate) fn column(self, x: u32) -> u32 {
         let tiles = self.0 & ((1 << TILE_COUNT_BITS) - 1);
         let reciprocal = self.0 >> TILE_COUNT_BITS;
         let tile = (x / CODING_TILE) & (MAX_TILES - 1);
