@@ -197,12 +197,12 @@ fn sample_at(plane: &ChromaPlane, log2: u8, sub: u32, i: u32, j: u32) -> u8 {
 /// [`sample`] along row `j` of a leaf of side `2^log2`, at its columns `0..out.len()`: the same
 /// values, stepped along each grid cell (an encoder measures a leaf's error with it).
 pub fn sample_row(plane: &ChromaPlane, log2: u8, j: u32, out: &mut [u8]) {
-    let mut row = SurfaceRow::new(plane, log2, 0, j);
+    let mut row = SurfaceLine::row(plane, log2, 0, j);
     let shift = 2 * row.sh + SAMPLE_BITS;
     let half = 1i32 << (shift - 1);
     if row.sh == 0 {
         // A pixel grid: each pixel is its control value.
-        for (p, &v) in out.iter_mut().zip(row.upper) {
+        for (p, &v) in out.iter_mut().zip(plane.control.iter().skip(row.first)) {
             *p = ((i32::from(v) + half) >> shift).clamp(0, 255) as u8;
         }
         return;
@@ -302,31 +302,37 @@ impl<const STRIPE: usize> ChromaFrontier<STRIPE> {
 
     /// Learns the last row and column of the chroma node `region` (those of its pixels in the
     /// plane), which `patch` covers: a leaf's own chroma, or a subtree's chroma over one of
-    /// its leaves.
+    /// its leaves; each line stepped along the leaf's surface. Out of line, so that its state
+    /// is not on the stack while the walk draws a leaf.
+    #[inline(never)]
     pub fn record(&mut self, patch: &ChromaPatch, region: &Node) {
         // The patch's node contains the region: offsets from it are never negative.
         let n = &patch.node;
         let s = region.size();
         let (w, h) = (self.width, self.height);
+        let planes = &patch.planes;
         let last_row = region.y + s - 1;
         if last_row < h {
+            let j = last_row - n.y;
+            let mut lines = [0, 1].map(|p| SurfaceLine::row(&planes[p], n.log2, 0, j));
             for cx in region.x..(region.x + s).min(w) {
                 let column = 2 * self.column(cx) as usize;
-                for p in 0..2 {
-                    let v = patch.value(p, cx - n.x, last_row - n.y);
+                for (p, line) in lines.iter_mut().enumerate() {
                     if let Some(slot) = self.columns.get_mut(column + p) {
-                        *slot = v;
+                        *slot = line.at(cx - n.x);
                     }
                 }
             }
         }
         let last_column = region.x + s - 1;
         if last_column < w {
+            let i = last_column - n.x;
+            let mut lines = [0, 1].map(|p| SurfaceLine::column(&planes[p], n.log2, 0, i));
             for cy in region.y..(region.y + s).min(h) {
-                for p in 0..2 {
-                    let v = patch.value(p, last_column - n.x, cy - n.y);
-                    if let Some(slot) = self.rows.get_mut(2 * (cy % CHROMA_BAND) as usize + p) {
-                        *slot = v;
+                let row = 2 * (cy % CHROMA_BAND) as usize;
+                for (p, line) in lines.iter_mut().enumerate() {
+                    if let Some(slot) = self.rows.get_mut(row + p) {
+                        *slot = line.at(cy - n.y);
                     }
                 }
             }
@@ -379,22 +385,21 @@ impl<const STRIPE: usize> core::fmt::Debug for ColourOut<'_, STRIPE> {
 impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
     /// The chroma (both planes) under coded luma pixel `(x, y)` of an earlier leaf, drawn with
     /// this one (it waited with the row above the leaf or the column left of it): the chroma
-    /// pixel the frontier holds, a quarter of the way to this leaf's chroma pixel beside it.
-    fn waiting_chroma(&self, x: u32, y: u32) -> (u8, u8) {
+    /// pixel the frontier holds, a quarter of the way to this leaf's chroma pixel beside it
+    /// (above the leaf, from `first_row`: the leaf's first chroma row, at chroma pixels).
+    fn waiting_chroma(&self, x: u32, y: u32, first_row: &mut [SurfaceLine<'_>; 2]) -> (u8, u8) {
         let (cx, cy) = (x / 2, y / 2);
         let n = &self.patch.node;
         let s = n.size();
         let above = cy < n.y;
-        let next = |p| {
-            if above {
-                (cx >= n.x && cx - n.x < s).then(|| self.patch.value(p, cx - n.x, 0))
+        let mut towards = |p: usize| {
+            let stored = self.frontier.stored(p, above, cx, cy);
+            let next = if above {
+                (cx >= n.x && cx - n.x < s).then(|| first_row[p & 1].at(cx - n.x))
             } else {
                 (cy >= n.y && cy - n.y < s).then(|| self.patch.value(p, 0, cy - n.y))
-            }
-        };
-        let towards = |p| {
-            let stored = self.frontier.stored(p, above, cx, cy);
-            match next(p) {
+            };
+            match next {
                 Some(next) => quarter(stored, next),
                 None => stored,
             }
@@ -409,15 +414,17 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
     fn chroma_row(&self, y: u32, columns: impl Iterator<Item = u32>, row: &mut [(u8, u8)]) {
         let n = &self.patch.node;
         let (left, top) = (2 * n.x, 2 * n.y);
-        let mut planes = (y >= top).then(|| {
-            [0, 1].map(|p| SurfaceRow::new(&self.patch.planes[p], n.log2, 2, centre(y - top)))
-        });
+        let inside = y >= top;
+        // In the leaf's rows, its surface under luma row `y`; above them, its first chroma row.
+        let (sub, q) = if inside { (2, centre(y - top)) } else { (0, 0) };
+        let mut lines = [0, 1].map(|p| SurfaceLine::row(&self.patch.planes[p], n.log2, sub, q));
         let mut last: Option<(u32, (u8, u8))> = None;
         for (slot, x) in row.iter_mut().zip(columns) {
-            *slot = match (last, planes.as_mut()) {
-                (Some((lx, c)), _) if lx == x => c,
-                (_, Some([cb, cr])) if x >= left => {
+            *slot = match last {
+                Some((lx, c)) if lx == x => c,
+                _ if inside && x >= left => {
                     let (i, j) = (x - left, y - top);
+                    let [cb, cr] = &mut lines;
                     let mut c = (cb.at(centre(i)), cr.at(centre(i)));
                     if i == 0 || j == 0 {
                         c = (
@@ -429,7 +436,7 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
                     c
                 }
                 _ => {
-                    let c = self.waiting_chroma(x, y);
+                    let c = self.waiting_chroma(x, y, &mut lines);
                     last = Some((x, c));
                     c
                 }
@@ -450,7 +457,7 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
         let (w, h) = ((area.w as usize).min(TILE), (area.h as usize).min(TILE));
         let pixels = &mut tile.as_chunks_mut::<3>().0[..w * h];
         for (p, plane) in self.patch.planes.iter().enumerate() {
-            surface_tile(plane, n.log2, (i0, j0), w, pixels, 1 + p);
+            surface_tile(plane, n.log2, (i0, j0), (w, h), pixels, 1 + p);
         }
         if i0 == 0 || j0 == 0 {
             for r in 0..h {
@@ -530,19 +537,18 @@ fn byte(v: i32) -> u8 {
 }
 
 /// The values of `plane` (a leaf of side `2^log2` chroma pixels) under the luma pixels of
-/// columns `i0..i0 + w` of the leaf, rows `j0, j0 + 1, ...`, into byte `p` of the pixels of
+/// columns `i0..i0 + w` and rows `j0..j0 + h` of the leaf, into byte `p` of the pixels of
 /// `out` (row-major, `w` per row): [`ChromaPatch::value_under`] of each, the same integers as
-/// [`SurfaceRow`] makes.
-/// The columns fall in runs that share a grid cell (the same runs in every row); along a run
-/// the surface is a line, and from one row to the next (two units down, in one grid row) its
-/// start and slope move by fixed amounts, so a run is made column by column and row by row
-/// with additions.
+/// [`SurfaceLine`] makes. The columns and the rows fall in runs whose centres share a grid
+/// cell ([`cell_run`]); over a run of columns by a run of rows the surface is bilinear, so
+/// each row of it is a line stepped by additions, and from one row to the next the line's
+/// start and slope step by fixed amounts.
 #[inline(never)]
 fn surface_tile(
     plane: &ChromaPlane,
     log2: u8,
     (i0, j0): (u32, u32),
-    w: usize,
+    (w, h): (usize, usize),
     out: &mut [[u8; 3]],
     p: usize,
 ) {
@@ -553,93 +559,110 @@ fn surface_tile(
     let half = 1i32 << (shift - 1);
     let side = g as usize + 1;
     let control = |at: usize| i32::from(plane.control.get(at).copied().unwrap_or(0));
-    // The runs, left to right. Column 0's centre is clamped to the leaf's edge (0, not a step
-    // of 2 before column 1), so it is a run of its own; so is row 0.
-    let mut i = i0;
-    while ((i - i0) as usize) < w {
-        let q = centre(i);
-        let cell = q >> sh;
-        let start = (i - i0) as usize;
-        let len = if i == 0 {
-            1
-        } else {
-            (((cell + 1) << sh) - q).div_ceil(2) as usize
-        };
-        let len = len.min(w - start);
-        i += len as u32;
+    let mut column = 0;
+    while column < w {
+        let (cell, len) = cell_run(i0 + column as u32, sh, w - column);
         let a = cell.min(g - 1);
-        let f = q.wrapping_sub(a << sh) as i32;
-        // The line's start (with the rounding half) and slope on the current row, and their
-        // changes from one row to the next within a grid row.
-        let (mut v0, mut slope, mut dv, mut dslope) = (0i32, 0i32, 0i32, 0i32);
-        let (mut grid_row, mut last_q) = (u32::MAX, u32::MAX);
-        for (row, j) in out.chunks_mut(w.max(1)).zip(j0..) {
-            let q = centre(j);
-            let b = (q >> sh).min(g - 1);
-            if b == grid_row && q == last_q.wrapping_add(2) {
+        let f = centre(i0 + column as u32).wrapping_sub(a << sh) as i32;
+        let mut row = 0;
+        while row < h {
+            let (cell, rows) = cell_run(j0 + row as u32, sh, h - row);
+            let b = cell.min(g - 1);
+            let e = centre(j0 + row as u32).wrapping_sub(b << sh) as i32;
+            // The line's start (with the rounding half) and slope on the run's first row,
+            // and their changes from one row to the next.
+            let upper = b as usize * side + a as usize;
+            let (u0, u1) = (control(upper), control(upper + 1));
+            let (d0, d1) = (control(upper + side) - u0, control(upper + side + 1) - u1);
+            let c0 = (u0 << sh).wrapping_add(e.wrapping_mul(d0));
+            let c1 = (u1 << sh).wrapping_add(e.wrapping_mul(d1));
+            let mut slope = c1.wrapping_sub(c0);
+            let mut v0 = (c0 << sh)
+                .wrapping_add(f.wrapping_mul(slope))
+                .wrapping_add(half);
+            let dslope = 2 * (d1 - d0);
+            let dv = ((d0 << sh).wrapping_add(f.wrapping_mul(d1 - d0))).wrapping_mul(2);
+            for r in row..row + rows {
+                let at = r * w + column;
+                let Some(now) = out.get_mut(at..at + len) else {
+                    return;
+                };
+                let (mut v, step) = (v0, slope.wrapping_mul(2));
+                for px in now {
+                    px[p] = byte(v >> shift);
+                    v = v.wrapping_add(step);
+                }
                 v0 = v0.wrapping_add(dv);
                 slope = slope.wrapping_add(dslope);
-            } else {
-                grid_row = b;
-                let e = q.wrapping_sub(b << sh) as i32;
-                let upper = b as usize * side + a as usize;
-                let (u0, u1) = (control(upper), control(upper + 1));
-                let (d0, d1) = (control(upper + side) - u0, control(upper + side + 1) - u1);
-                let c0 = (u0 << sh).wrapping_add(e.wrapping_mul(d0));
-                let c1 = (u1 << sh).wrapping_add(e.wrapping_mul(d1));
-                slope = c1.wrapping_sub(c0);
-                v0 = (c0 << sh)
-                    .wrapping_add(f.wrapping_mul(slope))
-                    .wrapping_add(half);
-                dslope = 2 * (d1 - d0);
-                dv = ((d0 << sh).wrapping_add(f.wrapping_mul(d1 - d0))).wrapping_mul(2);
             }
-            last_q = q;
-            let Some(now) = row.get_mut(start..start + len) else {
-                break;
-            };
-            let (mut v, step) = (v0, slope.wrapping_mul(2));
-            for px in now {
-                px[p] = byte(v >> shift);
-                v = v.wrapping_add(step);
-            }
+            row += rows;
         }
+        column += len;
     }
 }
 
-/// One chroma plane's surface along one row (a luma row of the leaf, or a chroma row), stepped
-/// along it: the grid's vertical interpolation at the two grid columns around the current
-/// position is kept until the row leaves that cell (the same integers as [`sample_at`], summed
-/// in another order).
-struct SurfaceRow<'a> {
-    /// The grid rows above and below the row (`b` and `b + 1`), `g + 1` values each.
-    upper: &'a [i16],
-    lower: &'a [i16],
+/// The run of luma columns (or rows) from offset `i` in a leaf whose centres ([`centre`]) lie
+/// in one grid cell of `2^sh` units: that cell and the run's length, at most `left`. The
+/// centres step by 2 units, but for offset 0's, clamped to the leaf's edge: a run of its own.
+#[inline(always)]
+fn cell_run(i: u32, sh: u32, left: usize) -> (u32, usize) {
+    let q = centre(i);
+    let cell = q >> sh;
+    let len = if i == 0 {
+        1
+    } else {
+        (((cell + 1) << sh) - q).div_ceil(2) as usize
+    };
+    (cell, len.min(left))
+}
+
+/// One chroma plane's surface along one line of a leaf, a row or a column, stepped along it:
+/// the grid's interpolation across the line at the two grid points around the current
+/// position is kept until the line leaves that cell (the same integers as [`sample_at`],
+/// summed in another order).
+struct SurfaceLine<'a> {
+    control: &'a [i16; MAX_CONTROL],
+    /// The index of the first grid value of the grid line before the line (grid row `b` for a
+    /// row, grid column `b` for a column), and the index steps along the line and to the next
+    /// grid line.
+    first: usize,
+    along: usize,
+    across: usize,
     g: u32,
     /// Fraction bits of a position within a grid cell.
     sh: u32,
-    /// The row's weight between its grid rows (`e`).
+    /// The line's weight between its two grid lines (`e`).
     e: i32,
-    /// The grid column whose interpolations the cell's line holds (`u32::MAX`: none yet).
+    /// The grid point whose interpolations the cell's segment holds (`u32::MAX`: none yet).
     a: u32,
-    /// The row's line across that cell: `one * c0 + f * (c1 - c0)` for the interpolations `c0`
-    /// and `c1` at its two grid columns.
+    /// The line across that cell: `one * c0 + f * (c1 - c0)` for the interpolations `c0` and
+    /// `c1` at its two grid points.
     base: i32,
     slope: i32,
 }
 
-impl<'a> SurfaceRow<'a> {
+impl<'a> SurfaceLine<'a> {
     /// The surface of `plane` (a leaf of side `2^log2` chroma pixels) along row `q`, positions
     /// in units of `2^-sub` chroma pixels ([`sample_at`]).
-    fn new(plane: &'a ChromaPlane, log2: u8, sub: u32, q: u32) -> Self {
+    fn row(plane: &'a ChromaPlane, log2: u8, sub: u32, q: u32) -> Self {
+        Self::new(plane, log2, sub, q, true)
+    }
+
+    /// The same along column `q`.
+    fn column(plane: &'a ChromaPlane, log2: u8, sub: u32, q: u32) -> Self {
+        Self::new(plane, log2, sub, q, false)
+    }
+
+    fn new(plane: &'a ChromaPlane, log2: u8, sub: u32, q: u32, row: bool) -> Self {
         let g = u32::from(plane.grid.max(1));
         let sh = u32::from(log2).saturating_sub(g.trailing_zeros()) + sub;
         let side = g as usize + 1;
-        let b = (q >> sh).min(g - 1) as usize;
-        let row = |r: usize| plane.control.get(r * side..).unwrap_or(&[]);
-        SurfaceRow {
-            upper: row(b),
-            lower: row(b + 1),
+        let (along, across) = if row { (1, side) } else { (side, 1) };
+        SurfaceLine {
+            control: &plane.control,
+            first: (q >> sh).min(g - 1) as usize * across,
+            along,
+            across,
             g,
             sh,
             e: (q & ((1 << sh) - 1)) as i32,
@@ -649,34 +672,36 @@ impl<'a> SurfaceRow<'a> {
         }
     }
 
-    /// The grid's vertical interpolation at grid column `c`, `2^sh` times the value:
-    /// `(one - e) * upper + e * lower`.
+    /// The grid's interpolation across the line at grid point `c` along it, `2^sh` times the
+    /// value: `(one - e) * near + e * far`.
     #[inline]
-    fn column(&self, c: usize) -> i32 {
-        let upper = i32::from(self.upper.get(c).copied().unwrap_or(0));
-        let lower = i32::from(self.lower.get(c).copied().unwrap_or(0));
-        (upper << self.sh) + self.e * (lower - upper)
+    fn grid(&self, c: usize) -> i32 {
+        let at = self.first + c * self.along;
+        let value = |at: usize| i32::from(self.control.get(at).copied().unwrap_or(0));
+        let (near, far) = (value(at), value(at + self.across));
+        (near << self.sh) + self.e * (far - near)
     }
 
-    /// The 8-bit value at position `q` along the row.
-    #[inline]
+    /// The 8-bit value at position `q` along the line. Out of line: a few copies of it would
+    /// cost more flash than the calls cost time.
+    #[inline(never)]
     fn at(&mut self, q: u32) -> u8 {
         let v = self.line(q);
         let shift = 2 * self.sh + SAMPLE_BITS;
         ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
     }
 
-    /// The row's line at position `q` (`2 sh + SAMPLE_BITS` fraction bits), the cell's line
-    /// made first when `q` is in another cell than the last.
+    /// The line at position `q` (`2 sh + SAMPLE_BITS` fraction bits), the cell's segment made
+    /// first when `q` is in another cell than the last.
     #[inline]
     fn line(&mut self, q: u32) -> i32 {
         let a = (q >> self.sh).min(self.g - 1);
         let f = (q & ((1 << self.sh) - 1)) as i32;
         if a != self.a {
             self.a = a;
-            let c0 = self.column(a as usize);
+            let c0 = self.grid(a as usize);
             self.base = c0 << self.sh;
-            self.slope = self.column(a as usize + 1) - c0;
+            self.slope = self.grid(a as usize + 1) - c0;
         }
         self.base + f * self.slope
     }
@@ -904,7 +929,7 @@ mod tests {
                 }
                 let side = 2 << log2;
                 for j in 0..side {
-                    let mut row = SurfaceRow::new(&patch.planes[0], log2, 2, centre(j));
+                    let mut row = SurfaceLine::row(&patch.planes[0], log2, 2, centre(j));
                     for i in 0..side {
                         assert_eq!(
                             row.at(centre(i)),
@@ -927,7 +952,7 @@ mod tests {
                         &patch.planes[0],
                         log2,
                         (i0, j0),
-                        w as usize,
+                        (w as usize, h as usize),
                         &mut out[..n],
                         2,
                     );
@@ -938,9 +963,11 @@ mod tests {
                     }
                 }
                 for j in 0..side / 2 {
-                    let mut row = SurfaceRow::new(&patch.planes[0], log2, 0, j);
+                    let mut row = SurfaceLine::row(&patch.planes[0], log2, 0, j);
+                    let mut column = SurfaceLine::column(&patch.planes[0], log2, 0, j);
                     for i in 0..side / 2 {
                         assert_eq!(row.at(i), patch.value(0, i, j), "g {g} log2 {log2}");
+                        assert_eq!(column.at(i), patch.value(0, j, i), "g {g} log2 {log2}");
                     }
                 }
             }
