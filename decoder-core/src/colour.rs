@@ -21,7 +21,7 @@
 //! the chroma frontier holds) is mixed in, on both sides of the edge. The pixel is converted to
 //! RGB with the integer BT.601 full-range conversion of [`ycbcr_to_rgb`].
 
-use crate::format::{CODING_TILE, DEFAULT_STRIPE};
+use crate::format::{byte, CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
 use crate::model::{MAX_CONTROL, SAMPLE_BITS, SAMPLE_ONE};
 use crate::prediction::{beside_rule, SamplePrediction, StripeWidth};
@@ -39,11 +39,7 @@ pub fn ycbcr_to_rgb(y: u8, cb: u8, cr: u8) -> [u8; 3] {
     let r = y + ((91881 * cr + 32768) >> 16);
     let g = y + ((-22554 * cb - 46802 * cr + 32768) >> 16);
     let b = y + ((116130 * cb + 32768) >> 16);
-    [
-        r.clamp(0, 255) as u8,
-        g.clamp(0, 255) as u8,
-        b.clamp(0, 255) as u8,
-    ]
+    [byte(r), byte(g), byte(b)]
 }
 
 /// YCbCr of an RGB pixel (BT.601 full range, as JFIF), the conversion the reference encoder
@@ -191,7 +187,7 @@ fn sample_at(plane: &ChromaPlane, log2: u8, sub: u32, i: u32, j: u32) -> u8 {
     let bottom = (one - f) * at(b + 1, a) + f * at(b + 1, a + 1);
     let v = (one - e) * top + e * bottom;
     let shift = 2 * sh + SAMPLE_BITS;
-    ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
+    byte((v + (1 << (shift - 1))) >> shift)
 }
 
 /// [`sample`] along row `j` of a leaf of side `2^log2`, at its columns `0..out.len()`: the same
@@ -203,7 +199,7 @@ pub fn sample_row(plane: &ChromaPlane, log2: u8, j: u32, out: &mut [u8]) {
     if row.sh == 0 {
         // A pixel grid: each pixel is its control value.
         for (p, &v) in out.iter_mut().zip(plane.control.iter().skip(row.first)) {
-            *p = ((i32::from(v) + half) >> shift).clamp(0, 255) as u8;
+            *p = byte((i32::from(v) + half) >> shift);
         }
         return;
     }
@@ -216,7 +212,7 @@ pub fn sample_row(plane: &ChromaPlane, log2: u8, j: u32, out: &mut [u8]) {
         // Wrapping: the same integers as `line` at each column.
         let mut v = row.line(i);
         for p in now {
-            *p = (v.wrapping_add(half) >> shift).clamp(0, 255) as u8;
+            *p = byte(v.wrapping_add(half) >> shift);
             v = v.wrapping_add(row.slope);
         }
         (rest, i) = (tail, i + run as u32);
@@ -523,19 +519,6 @@ fn convert(luma: &[u8], rgb: &mut [[u8; 3]]) {
     }
 }
 
-/// The 8-bit value of a sample already shifted to pixel units: clamped to `0..=255`, with one
-/// comparison when it is in range.
-#[inline(always)]
-fn byte(v: i32) -> u8 {
-    if v as u32 <= 255 {
-        v as u8
-    } else if v < 0 {
-        0
-    } else {
-        255
-    }
-}
-
 /// The values of `plane` (a leaf of side `2^log2` chroma pixels) under the luma pixels of
 /// columns `i0..i0 + w` and rows `j0..j0 + h` of the leaf, into byte `p` of the pixels of
 /// `out` (row-major, `w` per row): [`ChromaPatch::value_under`] of each, the same integers as
@@ -688,7 +671,7 @@ impl<'a> SurfaceLine<'a> {
     fn at(&mut self, q: u32) -> u8 {
         let v = self.line(q);
         let shift = 2 * self.sh + SAMPLE_BITS;
-        ((v + (1 << (shift - 1))) >> shift).clamp(0, 255) as u8
+        byte((v + (1 << (shift - 1))) >> shift)
     }
 
     /// The line at position `q` (`2 sh + SAMPLE_BITS` fraction bits), the cell's segment made

@@ -88,6 +88,35 @@ pub fn div_round(v: i32, step: i32) -> i32 {
     }
 }
 
+/// `v` clamped to `0..=255`, as a byte. Where the target has 32-bit atomics (ARMv7-M, hosts)
+/// a plain clamp, which a Cortex-M3 makes one saturating instruction; on the Cortex-M0
+/// (ARMv6-M: no atomics, no saturation) one unsigned compare while `v` is in range, as it
+/// nearly always is, where the clamp takes five instructions.
+#[inline(always)]
+pub fn byte(v: i32) -> u8 {
+    #[cfg(target_has_atomic = "32")]
+    {
+        v.clamp(0, 255) as u8
+    }
+    #[cfg(not(target_has_atomic = "32"))]
+    {
+        byte_compared(v)
+    }
+}
+
+/// [`byte`] for the Cortex-M0.
+#[cfg(any(test, not(target_has_atomic = "32")))]
+#[inline(always)]
+fn byte_compared(v: i32) -> u8 {
+    if v as u32 <= 255 {
+        v as u8
+    } else if v < 0 {
+        0
+    } else {
+        255
+    }
+}
+
 /// `floor(n / d)` for `d > 0`. The divisors a stream divides by are `2^k` or `3 * 2^k` (the
 /// control steps, the pixels beside a leaf): for those a shift and a multiply, as a
 /// Cortex-M0 has no divider (out of line: one copy for every caller).
@@ -158,6 +187,14 @@ impl SampleRange {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn both_ways_of_making_a_byte_clamp() {
+        for v in (-70_000..70_000).chain([i32::MIN, i32::MAX, i32::MIN + 1, i32::MAX - 1]) {
+            assert_eq!(byte(v), v.clamp(0, 255) as u8, "{v}");
+            assert_eq!(byte_compared(v), v.clamp(0, 255) as u8, "{v}");
+        }
+    }
 
     /// The shift-and-multiply paths are the plain (rounded) division.
     #[test]

@@ -15,7 +15,7 @@
 //! memory at one byte per column of the stripe and one per row of a band, whatever the image
 //! size.
 
-use crate::format::{div_round, med, CODING_TILE, DEFAULT_STRIPE};
+use crate::format::{byte, div_round, med, CODING_TILE, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
 use crate::model::SAMPLE_ONE;
 #[cfg(test)]
@@ -397,17 +397,14 @@ fn smooth(q: u8, p: u8, limit: i32) -> Option<(u8, u8)> {
         return None;
     };
     let c = if d >= 0 { c } else { -c };
-    Some((
-        (i32::from(q) - c).clamp(0, 255) as u8,
-        (i32::from(p) + c).clamp(0, 255) as u8,
-    ))
+    Some((byte(i32::from(q) - c), byte(i32::from(p) + c)))
 }
 
 /// `q` moved by what smoothing moved `q_before` to `q_new` (a pixel smoothed across both
 /// edges moves by both corrections).
 #[inline]
 fn moved(q: u8, q_before: u8, q_new: u8) -> u8 {
-    (i32::from(q) + i32::from(q_new) - i32::from(q_before)).clamp(0, 255) as u8
+    byte(i32::from(q) + i32::from(q_new) - i32::from(q_before))
 }
 
 impl Capture<'_> {

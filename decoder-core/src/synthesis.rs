@@ -354,7 +354,7 @@ pub struct Patch {
 /// Converts a sample value to an 8-bit pixel (round to nearest, saturate).
 #[inline]
 pub fn sample_to_pixel(v: i32) -> u8 {
-    ((v + (1 << (SAMPLE_BITS - 1))) >> SAMPLE_BITS).clamp(0, 255) as u8
+    crate::format::byte((v + (1 << (SAMPLE_BITS - 1))) >> SAMPLE_BITS)
 }
 
 /// How a rule's new point is made from the four values its taps weigh.
@@ -407,7 +407,7 @@ impl Rule for Taps {
             .wrapping_add(t[2].wrapping_mul(i32::from(c)))
             .wrapping_add(t[3].wrapping_mul(i32::from(d)));
         // floor((floor((acc + 2048) / 4096) + 8) / 16) = floor((acc + 2048 + 8 * 4096) / 65536)
-        (acc.wrapping_add(2048 + (8 << 12)) >> 16).clamp(0, 255) as u8
+        crate::format::byte(acc.wrapping_add(2048 + (8 << 12)) >> 16)
     }
 }
 
