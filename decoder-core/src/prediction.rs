@@ -413,18 +413,25 @@ impl Capture<'_> {
     /// would divide by `w`, a library call on a Cortex-M0).
     #[inline(always)]
     fn keep_edges(&mut self, x: u32, y: u32, (w, h): (usize, usize), buf: &[u8]) {
-        let on_right = x + w as u32 - 1 == self.right;
-        for j in 0..h {
-            let py = y + j as u32;
-            if on_right {
+        if x + w as u32 - 1 == self.right {
+            for j in 0..h {
+                let py = y + j as u32;
                 self.rows[(py % CODING_TILE) as usize] = buf[j * w + w - 1];
                 self.set_corner(py, py == self.bottom && self.defer_row);
             }
-            if py == self.bottom {
-                let first = self.stripe.column(x) as usize;
-                if let Some(slots) = self.columns.get_mut(first..first + w) {
-                    slots.copy_from_slice(&buf[j * w..(j + 1) * w]);
-                }
+        }
+        if (y..y + h as u32).contains(&self.bottom) {
+            // A byte loop: at most a tile's width, where a `memcpy` call costs more.
+            let j = (self.bottom - y) as usize;
+            let first = self.stripe.column(x) as usize;
+            let (Some(slots), Some(row)) = (
+                self.columns.get_mut(first..first + w),
+                buf.get(j * w..(j + 1) * w),
+            ) else {
+                return;
+            };
+            for (slot, &v) in slots.iter_mut().zip(row) {
+                *slot = v;
             }
         }
     }
@@ -488,33 +495,51 @@ impl Capture<'_> {
         corner: u8,
     ) -> Result<(), Stop> {
         let mut beside = [0u8; TILE];
-        let mut run_start = None;
-        for j in 0..=h {
+        // The waiting pixels are drawn in runs of rows: a corner pixel (waiting with its row)
+        // ends a run.
+        let mut start = 0;
+        for j in 0..h.min(TILE) {
             let r = y + j as u32;
-            let waiting = j < h && !self.is_corner(r);
-            if waiting {
-                let slot = &mut self.rows[(r % CODING_TILE) as usize];
-                let q_before = if j == 0 { corner } else { buf[j * w] };
-                if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
-                    buf[j * w] = moved(buf[j * w], q_before, q_new);
-                    *slot = p_new;
-                }
-                beside[j] = *slot;
-                run_start.get_or_insert(j);
-            } else if let Some(start) = run_start.take() {
-                self.out.put(TileMut {
-                    area: Rect {
-                        x: x - 1,
-                        y: y + start as u32,
-                        w: 1,
-                        h: (j - start) as u32,
-                    },
-                    pixels: &mut beside[start..j],
-                    channels: 1,
-                })?;
+            if self.is_corner(r) {
+                self.put_column(x - 1, (y, start, j), &mut beside)?;
+                start = j + 1;
+                continue;
             }
+            let slot = &mut self.rows[(r % CODING_TILE) as usize];
+            let at = j * w;
+            let Some(q) = buf.get_mut(at) else {
+                break;
+            };
+            let q_before = if j == 0 { corner } else { *q };
+            if let Some((q_new, p_new)) = smooth(q_before, *slot, self.limit) {
+                *q = moved(*q, q_before, q_new);
+                *slot = p_new;
+            }
+            beside[j] = *slot;
         }
-        Ok(())
+        self.put_column(x - 1, (y, start, h.min(TILE)), &mut beside)
+    }
+
+    /// Draws rows `start..end` of the column `x` of pixels `column` (row 0 at `y`), if any.
+    fn put_column(
+        &mut self,
+        x: u32,
+        (y, start, end): (u32, usize, usize),
+        column: &mut [u8; TILE],
+    ) -> Result<(), Stop> {
+        let Some(pixels) = column.get_mut(start..end).filter(|p| !p.is_empty()) else {
+            return Ok(());
+        };
+        self.out.put(TileMut {
+            area: Rect {
+                x,
+                y: y + start as u32,
+                w: 1,
+                h: pixels.len() as u32,
+            },
+            pixels,
+            channels: 1,
+        })
     }
 }
 
