@@ -782,7 +782,15 @@ impl Inside {
 impl ClipOut<'_> {
     /// Hands on the part of `tile` (and of its `samples`, a 16-bit stream's) inside the clip.
     fn cut(&mut self, tile: TileMut<'_>, samples: Option<&mut [i16]>) -> Result<(), Stop> {
-        let area = tile.area.intersect(&self.clip);
+        let t = tile.area;
+        let c = &self.clip;
+        // Most tiles lie inside the clip: no intersection to make.
+        let inside = t.x >= c.x && t.y >= c.y && {
+            // In 32 bits: no sum that could overflow.
+            let (dx, dy) = (t.x - c.x, t.y - c.y);
+            dx <= c.w && t.w <= c.w - dx && dy <= c.h && t.h <= c.h - dy
+        };
+        let area = if inside { t } else { t.intersect(c) };
         if area.is_empty() {
             return Ok(());
         }
