@@ -22,9 +22,9 @@
 use crate::format::SampleRange;
 use crate::format::MAX_LEAF_LOG2;
 use crate::geometry::{Node, Rect};
-use crate::model::{ModelType, Rules, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
+use crate::model::{ModelType, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
 #[cfg(doc)]
-use crate::model::{SAMPLE_ONE, WEIGHT_ONE};
+use crate::model::{Rules, SAMPLE_ONE, WEIGHT_ONE};
 
 /// Side of the tiles handed to a [`PixelSink`].
 pub const TILE: usize = 8;
@@ -367,47 +367,71 @@ trait Rule: Copy {
     fn pixel(self, a: i16, b: i16, c: i16, d: i16) -> u8;
 }
 
-/// A rule with any taps: `(sum of tap * value + 2048) >> 12`, clamped to the sample range.
-/// Wrapping arithmetic: it cannot overflow for a decoded patch (see the module
-/// documentation), and no hand-made patch can make it panic.
+/// A line rule of the models ([`Rules`]) with its taps as constants: `(A a + B b + C c + D d)`
+/// in units of `2^-SHIFT`, equal to the taps in 1/4096 divided by `2^(12 - SHIFT)`, so that
+/// `(sum + 2^(SHIFT-1)) >> SHIFT` is exactly `(sum of tap * value + 2048) >> 12`. Constant
+/// small taps compile to shifts and adds (or a multiply by an immediate), with no tap loads:
+/// the rules are fixed by the format (`line_rules_are_the_models`).
 #[derive(Clone, Copy)]
-struct Taps([i32; 4]);
+struct Line<const A: i32, const B: i32, const C: i32, const D: i32, const SHIFT: u32>;
 
-impl Taps {
-    /// A rule's taps, widened.
+/// The midpoint rule, `(-1, 5, 5, -1) / 8` (phase 1 of 2, phase 2 of 4).
+type Half = Line<{ -1 }, 5, 5, { -1 }, 3>;
+/// Phase 1 of 4: `(-7, 57, 19, -5) / 64`.
+type Quarter = Line<{ -7 }, 57, 19, { -5 }, 6>;
+/// Phase 3 of 4: `(-5, 19, 57, -7) / 64`.
+type ThreeQuarters = Line<{ -5 }, 19, 57, { -7 }, 6>;
+
+impl<const A: i32, const B: i32, const C: i32, const D: i32, const SHIFT: u32>
+    Line<A, B, C, D, SHIFT>
+{
+    /// The weighted sum of the four values (it cannot overflow: the taps' magnitudes sum to
+    /// at most 96 and values fit 16 bits).
     #[inline(always)]
-    fn of(taps: &[i16; 4]) -> Taps {
-        Taps([
-            i32::from(taps[0]),
-            i32::from(taps[1]),
-            i32::from(taps[2]),
-            i32::from(taps[3]),
-        ])
+    fn sum(a: i16, b: i16, c: i16, d: i16) -> i32 {
+        A * i32::from(a) + B * i32::from(b) + C * i32::from(c) + D * i32::from(d)
     }
 }
 
-impl Rule for Taps {
+impl<const A: i32, const B: i32, const C: i32, const D: i32, const SHIFT: u32> Rule
+    for Line<A, B, C, D, SHIFT>
+{
     #[inline(always)]
     fn apply(self, a: i16, b: i16, c: i16, d: i16) -> i16 {
-        let t = self.0;
-        let acc = t[0]
-            .wrapping_mul(i32::from(a))
-            .wrapping_add(t[1].wrapping_mul(i32::from(b)))
-            .wrapping_add(t[2].wrapping_mul(i32::from(c)))
-            .wrapping_add(t[3].wrapping_mul(i32::from(d)));
-        clamp_sample(acc.wrapping_add(2048) >> 12)
+        clamp_sample((Self::sum(a, b, c, d) + (1 << (SHIFT - 1))) >> SHIFT)
     }
 
     #[inline(always)]
     fn pixel(self, a: i16, b: i16, c: i16, d: i16) -> u8 {
-        let t = self.0;
-        let acc = t[0]
-            .wrapping_mul(i32::from(a))
-            .wrapping_add(t[1].wrapping_mul(i32::from(b)))
-            .wrapping_add(t[2].wrapping_mul(i32::from(c)))
-            .wrapping_add(t[3].wrapping_mul(i32::from(d)));
-        // floor((floor((acc + 2048) / 4096) + 8) / 16) = floor((acc + 2048 + 8 * 4096) / 65536)
-        crate::format::byte(acc.wrapping_add(2048 + (8 << 12)) >> 16)
+        // floor((floor((s + 2^(SHIFT-1)) / 2^SHIFT) + 8) / 16)
+        //   = floor((s + 2^(SHIFT-1) + 8 * 2^SHIFT) / 2^(SHIFT+4))
+        crate::format::byte(
+            (Self::sum(a, b, c, d) + (1 << (SHIFT - 1)) + (8 << SHIFT)) >> (SHIFT + 4),
+        )
+    }
+}
+
+/// Which line rule makes the new points at phase `r` (`1 ..= N - 1`) of a model of `N`
+/// transforms.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Phase {
+    /// [`Half`].
+    Half,
+    /// [`Quarter`].
+    Quarter,
+    /// [`ThreeQuarters`].
+    ThreeQuarters,
+}
+
+impl Phase {
+    /// The rule at phase `r` of a model whose `N` is `2^shift` (2 or 4).
+    #[inline(always)]
+    fn of(r: usize, shift: u32) -> Phase {
+        match (r << 2) >> shift {
+            1 => Phase::Quarter,
+            3 => Phase::ThreeQuarters,
+            _ => Phase::Half,
+        }
     }
 }
 
@@ -433,13 +457,24 @@ fn saturate(v: i32) -> i16 {
     }
 }
 
-/// Runs `$body` with `$rule` bound to the [`Rule`] of the taps `$taps` (one kind of rule for
-/// every tap set: a second, multiply-free kind for the default taps of two transforms saved
-/// 1-3% of the instructions for about 1 KiB of flash, see docs/decisions.md).
+/// Runs `$body` with `$rule` bound to the [`Rule`] of phase `$phase` ([`Phase`]): the body is
+/// compiled once per rule, so that its loop has the taps as constants.
 macro_rules! with_rule {
-    ($taps:expr, |$rule:ident| $body:expr) => {{
-        let $rule = Taps::of($taps);
-        $body
+    ($phase:expr, |$rule:ident| $body:expr) => {{
+        match $phase {
+            Phase::Half => {
+                let $rule: Half = Line;
+                $body
+            }
+            Phase::Quarter => {
+                let $rule: Quarter = Line;
+                $body
+            }
+            Phase::ThreeQuarters => {
+                let $rule: ThreeQuarters = Line;
+                $body
+            }
+        }
     }};
 }
 
@@ -618,6 +653,41 @@ fn along<R: Rule>(
         };
         row[x] = rule.apply(row[p0], row[p1], row[p2], row[p3]);
         y += step;
+    }
+}
+
+/// The points of a row refined by 4 (phases 0, 1, 2, 3 of each interval) into `out`, from
+/// `taps` (the padded old row from the first interval's first tap on).
+#[inline(never)]
+fn quarters(taps: &[i16], out: &mut [i16]) {
+    for (chunk, w) in out.chunks_mut(4).zip(taps.windows(4)) {
+        let &[p0, p1, p2, p3] = w else {
+            return;
+        };
+        let points = [
+            p1,
+            Quarter::apply(Line, p0, p1, p2, p3),
+            Half::apply(Line, p0, p1, p2, p3),
+            ThreeQuarters::apply(Line, p0, p1, p2, p3),
+        ];
+        copy_short(chunk, &points);
+    }
+}
+
+/// The points of a row refined by 2 (each interval's old point and midpoint) into `out`,
+/// from `taps` as [`quarters`].
+#[inline(never)]
+fn halves(taps: &[i16], out: &mut [i16]) {
+    let mut windows = taps.windows(4);
+    let mut chunks = out.chunks_exact_mut(2);
+    for (chunk, w) in (&mut chunks).zip(&mut windows) {
+        if let ([o0, o1], &[p0, p1, p2, p3]) = (chunk, w) {
+            *o0 = p1;
+            *o1 = Half::apply(Line, p0, p1, p2, p3);
+        }
+    }
+    if let (Some(&[_, p1, _, _]), [o]) = (windows.next(), chunks.into_remainder()) {
+        *o = p1;
     }
 }
 
@@ -1092,9 +1162,8 @@ impl Patch {
         cols: (usize, usize),
     ) {
         let m = usize::from(self.model.intervals);
-        let rules = Rules::of(self.model);
         let (shift_n, shift_d) = (self.model.transforms_log2(), d.trailing_zeros());
-        let phase = |offset: usize| ((offset << shift_n) >> shift_d).wrapping_sub(1).min(2);
+        let phase = |offset: usize| Phase::of((offset << shift_n) >> shift_d, shift_n);
         let intervals = (ext >> shift_d).min(TILE);
         let last = m - 1;
         // The lattice positions of the taps of interval k: points k - 1 ..= k + 2 of its child
@@ -1113,7 +1182,7 @@ impl Patch {
         let end = (((r_hi >> shift_d) + 2) << shift_d).min(ext);
         let mut offset = nd;
         while offset < d {
-            with_rule!(&rules.taps[phase(offset)], |rule| {
+            with_rule!(phase(offset), |rule| {
                 for k in 0..intervals {
                     let x = k * d + offset;
                     if (c_lo..=c_hi).contains(&x) {
@@ -1127,7 +1196,7 @@ impl Patch {
         // between them are one rule (a tensor product), which makes a whole row.
         let mut offset = nd;
         while offset < d {
-            let rule = &rules.taps[phase(offset)];
+            let rule = phase(offset);
             for k in 0..intervals {
                 let y = k * d + offset;
                 if !(r_lo..=r_hi).contains(&y) {
@@ -1232,13 +1301,21 @@ impl Patch {
     }
 
     /// The refined points of a padded old row `pad` (its points `1..=m+1`, mirrored end points
-    /// at 0 and `m + 2`) at columns `q2, q2 + stride, ...`, one per entry of `out`: one loop
-    /// over the entries, each choosing its phase's rule (rows here are short, a few points a
-    /// phase: a loop per phase cost more in calls than in points).
+    /// at 0 and `m + 2`) at columns `q2, q2 + stride, ...`, one per entry of `out`.
     fn row_points(&self, pad: &[i16; LATTICE + 3], q2: usize, stride: usize, out: &mut [i16]) {
         let shift = self.model.transforms_log2();
         let mask = (1usize << shift) - 1;
-        let rules = Rules::of(self.model);
+        // An old point first (every strip and child grid starts on one): whole intervals at
+        // a time, each from its four taps, the rules' taps constants.
+        if q2 & mask == 0 {
+            let taps = pad.get(q2 >> shift..).unwrap_or(&[]);
+            if shift == 2 && stride == 1 {
+                return quarters(taps, out);
+            }
+            if stride << 1 == mask + 1 {
+                return halves(taps, out);
+            }
+        }
         let mut q = q2;
         for v in out.iter_mut() {
             let Some(&[p0, p1, p2, p3]) = pad.get(q >> shift..(q >> shift) + 4) else {
@@ -1246,7 +1323,11 @@ impl Patch {
             };
             *v = match q & mask {
                 0 => p1,
-                r => Taps::of(&rules.taps[(r - 1).min(2)]).apply(p0, p1, p2, p3),
+                r => match Phase::of(r, shift) {
+                    Phase::Half => Half::apply(Line, p0, p1, p2, p3),
+                    Phase::Quarter => Quarter::apply(Line, p0, p1, p2, p3),
+                    Phase::ThreeQuarters => ThreeQuarters::apply(Line, p0, p1, p2, p3),
+                },
             };
             q += stride;
         }
@@ -1257,8 +1338,8 @@ impl Patch {
     /// column rule and the cell rules are the line rule of phase `r1`).
     #[inline(never)]
     fn new_row<P: Point>(&self, out: &mut [P], from: [&[i16; LATTICE]; 4], r1: usize) {
-        let rule = &Rules::of(self.model).taps[(r1 - 1).min(2)];
-        with_rule!(rule, |rule| P::across(rule, out, from));
+        let phase = Phase::of(r1, self.model.transforms_log2());
+        with_rule!(phase, |rule| P::across(rule, out, from));
     }
 
     /// Child grid `(i, j)` of grid `g` (one subdivision of the whole grid; `out` holds
@@ -1345,6 +1426,40 @@ mod tests {
     use core::convert::Infallible;
     use std::vec;
     use std::vec::Vec;
+
+    /// The line rules with constant taps are the models' rules: each tap times
+    /// `2^(12 - SHIFT)` is the model's tap at that phase, and the sums round alike.
+    #[test]
+    fn line_rules_are_the_models() {
+        fn taps<const A: i32, const B: i32, const C: i32, const D: i32, const S: u32>(
+            _: Line<A, B, C, D, S>,
+        ) -> [i32; 4] {
+            [A, B, C, D].map(|t| t << (12 - S))
+        }
+        for model in MODELS {
+            let n = usize::from(model.transforms);
+            let shift = model.transforms_log2();
+            for r in 1..n {
+                let want = crate::model::Rules::of(model).taps[r - 1].map(i32::from);
+                let got = match Phase::of(r, shift) {
+                    Phase::Half => {
+                        let rule: Half = Line;
+                        taps(rule)
+                    }
+                    Phase::Quarter => {
+                        let rule: Quarter = Line;
+                        taps(rule)
+                    }
+                    Phase::ThreeQuarters => {
+                        let rule: ThreeQuarters = Line;
+                        taps(rule)
+                    }
+                };
+                assert_eq!(got, want, "model {model:?}, phase {r}");
+                assert_eq!(want, default_line_taps(model.transforms, r));
+            }
+        }
+    }
 
     /// Counts the pixels a render delivers and checks each lies in its leaf.
     struct Count {
