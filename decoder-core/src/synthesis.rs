@@ -657,20 +657,28 @@ fn along<R: Rule>(
 }
 
 /// The points of a row refined by 4 (phases 0, 1, 2, 3 of each interval) into `out`, from
-/// `taps` (the padded old row from the first interval's first tap on).
+/// `taps` (the padded old row from the first interval's first tap on): whole intervals, then
+/// the first points of one more.
 #[inline(never)]
 fn quarters(taps: &[i16], out: &mut [i16]) {
-    for (chunk, w) in out.chunks_mut(4).zip(taps.windows(4)) {
-        let &[p0, p1, p2, p3] = w else {
-            return;
-        };
+    let mut windows = taps.windows(4);
+    let mut chunks = out.chunks_exact_mut(4);
+    for (chunk, w) in (&mut chunks).zip(&mut windows) {
+        if let ([o0, o1, o2, o3], &[p0, p1, p2, p3]) = (chunk, w) {
+            *o0 = p1;
+            *o1 = Quarter::apply(Line, p0, p1, p2, p3);
+            *o2 = Half::apply(Line, p0, p1, p2, p3);
+            *o3 = ThreeQuarters::apply(Line, p0, p1, p2, p3);
+        }
+    }
+    let rest = chunks.into_remainder();
+    if let (Some(&[p0, p1, p2, p3]), false) = (windows.next(), rest.is_empty()) {
         let points = [
             p1,
             Quarter::apply(Line, p0, p1, p2, p3),
             Half::apply(Line, p0, p1, p2, p3),
-            ThreeQuarters::apply(Line, p0, p1, p2, p3),
         ];
-        copy_short(chunk, &points);
+        copy_short(rest, &points);
     }
 }
 
