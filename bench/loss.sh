@@ -4,7 +4,17 @@
 # SSDV beside. Grayscale by default; --colour for RGB.
 #
 #   bash bench/loss.sh [--colour] [IMAGES...]
+#
+# Needs a python3 with numpy and Pillow (PYTHON names another one):
+#   python3 -m venv /tmp/venv && /tmp/venv/bin/pip install numpy pillow
+#   PYTHON=/tmp/venv/bin/python bash bench/loss.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
+python=${PYTHON:-python3}
+"$python" -c 'import numpy, PIL' 2>/dev/null || {
+    echo "bench/loss.sh needs numpy and pillow: python3 -m venv /tmp/venv &&" \
+        "/tmp/venv/bin/pip install numpy pillow, then PYTHON=/tmp/venv/bin/python bash bench/loss.sh" >&2
+    exit 1
+}
 cargo build --release -q -p host-encoder
-python3 bench/loss.py "$@"
+"$python" bench/loss.py "$@"
