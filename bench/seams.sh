@@ -5,14 +5,27 @@
 #
 #   bash bench/seams.sh [IMAGES...]      (default: ../shared/images/kodak/*.png)
 #
-# Needs python3 with numpy and Pillow, and opj_compress / opj_decompress (libopenjp2-tools).
+# Needs a python3 with numpy and Pillow (PYTHON names another one:
+#   python3 -m venv /tmp/venv && /tmp/venv/bin/pip install numpy pillow
+#   PYTHON=/tmp/venv/bin/python bash bench/seams.sh)
+# and opj_compress / opj_decompress (libopenjp2-tools).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+python=${PYTHON:-python3}
+"$python" -c 'import numpy, PIL' 2>/dev/null || {
+    echo "bench/seams.sh needs numpy and pillow: python3 -m venv /tmp/venv &&" \
+        "/tmp/venv/bin/pip install numpy pillow, then PYTHON=/tmp/venv/bin/python bash bench/seams.sh" >&2
+    exit 1
+}
+command -v opj_compress >/dev/null || {
+    echo "bench/seams.sh needs opj_compress and opj_decompress (libopenjp2-tools)" >&2
+    exit 1
+}
 images=("$@")
 [ ${#images[@]} -gt 0 ] || images=(../shared/images/kodak/kodim*.png)
 mkdir -p bench/results
 cargo build --release -q -p host-encoder
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-python3 bench/seams.py --work "$work" --pifs target/release/pifs --jobs 2 \
+"$python" bench/seams.py --work "$work" --pifs target/release/pifs --jobs 2 \
     --csv bench/results/seams.csv --md bench/results/seams.md "${images[@]}"
