@@ -423,7 +423,32 @@ enum Phase {
     ThreeQuarters,
 }
 
+/// The loops a rule is compiled into ([`with_rule!`]): the phase-3-of-4 rule is the
+/// phase-1 rule with its taps in reverse order ([`Phase::oriented`]), so it needs none of
+/// its own.
+#[derive(Clone, Copy)]
+enum Kind {
+    /// [`Half`].
+    Half,
+    /// [`Quarter`].
+    Quarter,
+}
+
 impl Phase {
+    /// The loop kind that makes this phase's points from the values `taps` weighs, and the
+    /// order to give them to it in.
+    #[inline(always)]
+    fn oriented<T>(self, taps: [T; 4]) -> (Kind, [T; 4]) {
+        match self {
+            Phase::Half => (Kind::Half, taps),
+            Phase::Quarter => (Kind::Quarter, taps),
+            Phase::ThreeQuarters => {
+                let [a, b, c, d] = taps;
+                (Kind::Quarter, [d, c, b, a])
+            }
+        }
+    }
+
     /// The rule at phase `r` of a model whose `N` is `2^shift` (2 or 4).
     #[inline(always)]
     fn of(r: usize, shift: u32) -> Phase {
@@ -457,21 +482,17 @@ fn saturate(v: i32) -> i16 {
     }
 }
 
-/// Runs `$body` with `$rule` bound to the [`Rule`] of phase `$phase` ([`Phase`]): the body is
-/// compiled once per rule, so that its loop has the taps as constants.
+/// Runs `$body` with `$rule` bound to the [`Rule`] of loop kind `$kind` ([`Kind`]): the body
+/// is compiled once per kind, so that its loop has the taps as constants.
 macro_rules! with_rule {
-    ($phase:expr, |$rule:ident| $body:expr) => {{
-        match $phase {
-            Phase::Half => {
+    ($kind:expr, |$rule:ident| $body:expr) => {{
+        match $kind {
+            Kind::Half => {
                 let $rule: Half = Line;
                 $body
             }
-            Phase::Quarter => {
+            Kind::Quarter => {
                 let $rule: Quarter = Line;
-                $body
-            }
-            Phase::ThreeQuarters => {
-                let $rule: ThreeQuarters = Line;
                 $body
             }
         }
@@ -1190,11 +1211,13 @@ impl Patch {
         let end = (((r_hi >> shift_d) + 2) << shift_d).min(ext);
         let mut offset = nd;
         while offset < d {
-            with_rule!(phase(offset), |rule| {
+            let (kind, _) = phase(offset).oriented([(); 4]);
+            with_rule!(kind, |rule| {
                 for k in 0..intervals {
                     let x = k * d + offset;
                     if (c_lo..=c_hi).contains(&x) {
-                        along(rule, lattice, x, taps_of(k), first, end, d);
+                        let (_, taps) = phase(offset).oriented(taps_of(k));
+                        along(rule, lattice, x, taps, first, end, d);
                     }
                 }
             });
@@ -1210,8 +1233,9 @@ impl Patch {
                 if !(r_lo..=r_hi).contains(&y) {
                     continue;
                 }
-                if let Some((new, from)) = split_rows(lattice, y, taps_of(k)) {
-                    with_rule!(rule, |rule| across(rule, new, from, c_lo, c_hi, nd));
+                let (kind, taps) = rule.oriented(taps_of(k));
+                if let Some((new, from)) = split_rows(lattice, y, taps) {
+                    with_rule!(kind, |rule| across(rule, new, from, c_lo, c_hi, nd));
                 }
             }
             offset += nd;
@@ -1346,8 +1370,8 @@ impl Patch {
     /// column rule and the cell rules are the line rule of phase `r1`).
     #[inline(never)]
     fn new_row<P: Point>(&self, out: &mut [P], from: [&[i16; LATTICE]; 4], r1: usize) {
-        let phase = Phase::of(r1, self.model.transforms_log2());
-        with_rule!(phase, |rule| P::across(rule, out, from));
+        let (kind, from) = Phase::of(r1, self.model.transforms_log2()).oriented(from);
+        with_rule!(kind, |rule| P::across(rule, out, from));
     }
 
     /// Child grid `(i, j)` of grid `g` (one subdivision of the whole grid; `out` holds
