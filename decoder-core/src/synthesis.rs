@@ -424,7 +424,7 @@ enum Phase {
 }
 
 /// The loops a rule is compiled into ([`with_rule!`]): the phase-3-of-4 rule is the
-/// phase-1 rule with its taps in reverse order ([`Phase::oriented`]), so it needs none of
+/// phase-1 rule with its taps in reverse order ([`Phase::orient`]), so it needs none of
 /// its own.
 #[derive(Clone, Copy)]
 enum Kind {
@@ -435,17 +435,25 @@ enum Kind {
 }
 
 impl Phase {
-    /// The loop kind that makes this phase's points from the values `taps` weighs, and the
-    /// order to give them to it in.
+    /// The loop kind that makes this phase's points.
     #[inline(always)]
-    fn oriented<T>(self, taps: [T; 4]) -> (Kind, [T; 4]) {
+    fn kind(self) -> Kind {
         match self {
-            Phase::Half => (Kind::Half, taps),
-            Phase::Quarter => (Kind::Quarter, taps),
+            Phase::Half => Kind::Half,
+            Phase::Quarter | Phase::ThreeQuarters => Kind::Quarter,
+        }
+    }
+
+    /// The values this phase's rule weighs (`taps`, in its order) in the order its
+    /// [`Phase::kind`] takes them: reversed for the phase-3-of-4 rule.
+    #[inline(always)]
+    fn orient<T>(self, taps: [T; 4]) -> [T; 4] {
+        match self {
             Phase::ThreeQuarters => {
                 let [a, b, c, d] = taps;
-                (Kind::Quarter, [d, c, b, a])
+                [d, c, b, a]
             }
+            Phase::Half | Phase::Quarter => taps,
         }
     }
 
@@ -1211,13 +1219,12 @@ impl Patch {
         let end = (((r_hi >> shift_d) + 2) << shift_d).min(ext);
         let mut offset = nd;
         while offset < d {
-            let (kind, _) = phase(offset).oriented([(); 4]);
-            with_rule!(kind, |rule| {
+            let phase = phase(offset);
+            with_rule!(phase.kind(), |rule| {
                 for k in 0..intervals {
                     let x = k * d + offset;
                     if (c_lo..=c_hi).contains(&x) {
-                        let (_, taps) = phase(offset).oriented(taps_of(k));
-                        along(rule, lattice, x, taps, first, end, d);
+                        along(rule, lattice, x, phase.orient(taps_of(k)), first, end, d);
                     }
                 }
             });
@@ -1227,15 +1234,14 @@ impl Patch {
         // between them are one rule (a tensor product), which makes a whole row.
         let mut offset = nd;
         while offset < d {
-            let rule = phase(offset);
+            let phase = phase(offset);
             for k in 0..intervals {
                 let y = k * d + offset;
                 if !(r_lo..=r_hi).contains(&y) {
                     continue;
                 }
-                let (kind, taps) = rule.oriented(taps_of(k));
-                if let Some((new, from)) = split_rows(lattice, y, taps) {
-                    with_rule!(kind, |rule| across(rule, new, from, c_lo, c_hi, nd));
+                if let Some((new, from)) = split_rows(lattice, y, phase.orient(taps_of(k))) {
+                    with_rule!(phase.kind(), |rule| across(rule, new, from, c_lo, c_hi, nd));
                 }
             }
             offset += nd;
@@ -1370,8 +1376,12 @@ impl Patch {
     /// column rule and the cell rules are the line rule of phase `r1`).
     #[inline(never)]
     fn new_row<P: Point>(&self, out: &mut [P], from: [&[i16; LATTICE]; 4], r1: usize) {
-        let (kind, from) = Phase::of(r1, self.model.transforms_log2()).oriented(from);
-        with_rule!(kind, |rule| P::across(rule, out, from));
+        let phase = Phase::of(r1, self.model.transforms_log2());
+        with_rule!(phase.kind(), |rule| P::across(
+            rule,
+            out,
+            phase.orient(from)
+        ));
     }
 
     /// Child grid `(i, j)` of grid `g` (one subdivision of the whole grid; `out` holds
@@ -1488,6 +1498,18 @@ mod tests {
                     }
                 };
                 assert_eq!(got, want, "model {model:?}, phase {r}");
+                // The loop its kind compiles makes the same sum from the oriented values.
+                let by_kind = match Phase::of(r, shift).kind() {
+                    Kind::Half => {
+                        let rule: Half = Line;
+                        taps(rule)
+                    }
+                    Kind::Quarter => {
+                        let rule: Quarter = Line;
+                        taps(rule)
+                    }
+                };
+                assert_eq!(Phase::of(r, shift).orient(by_kind), want, "phase {r}");
                 assert_eq!(want, default_line_taps(model.transforms, r));
             }
         }
