@@ -14,12 +14,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=target/bench-curves
 mkdir -p "$out"
-python=${PYTHON:-python3}
-"$python" -c 'import matplotlib, numpy' 2>/dev/null || {
-    echo "bench/curves.sh needs numpy and matplotlib: python3 -m venv /tmp/venv &&" \
-        "/tmp/venv/bin/pip install matplotlib, then PYTHON=/tmp/venv/bin/python bash bench/curves.sh" >&2
-    exit 1
-}
+. bench/need.sh
+need_python curves.sh numpy matplotlib
 "$python" bench/curves/extract.py "$out" >&2
 cargo run --release -q -p host-encoder --example curve_study -- \
     "$out/jacksboro-profile.csv" "$out/jacksboro-contour.csv" "$out/topobathy-coast.csv"

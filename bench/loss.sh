@@ -10,11 +10,7 @@
 #   PYTHON=/tmp/venv/bin/python bash bench/loss.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python=${PYTHON:-python3}
-"$python" -c 'import numpy, PIL' 2>/dev/null || {
-    echo "bench/loss.sh needs numpy and pillow: python3 -m venv /tmp/venv &&" \
-        "/tmp/venv/bin/pip install numpy pillow, then PYTHON=/tmp/venv/bin/python bash bench/loss.sh" >&2
-    exit 1
-}
+. bench/need.sh
+need_python loss.sh numpy pillow
 cargo build --release -q -p host-encoder
 "$python" bench/loss.py "$@"

@@ -11,16 +11,9 @@
 # and opj_compress / opj_decompress (libopenjp2-tools).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python=${PYTHON:-python3}
-"$python" -c 'import numpy, PIL' 2>/dev/null || {
-    echo "bench/seams.sh needs numpy and pillow: python3 -m venv /tmp/venv &&" \
-        "/tmp/venv/bin/pip install numpy pillow, then PYTHON=/tmp/venv/bin/python bash bench/seams.sh" >&2
-    exit 1
-}
-command -v opj_compress >/dev/null || {
-    echo "bench/seams.sh needs opj_compress and opj_decompress (libopenjp2-tools)" >&2
-    exit 1
-}
+. bench/need.sh
+need_python seams.sh numpy pillow
+need_openjpeg seams.sh
 images=("$@")
 [ ${#images[@]} -gt 0 ] || images=(../shared/images/kodak/kodim*.png)
 mkdir -p bench/results

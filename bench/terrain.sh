@@ -12,15 +12,8 @@
 # Writes bench/results/terrain.csv and target/bench-terrain/ (the hillshaded views).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python=${PYTHON:-python3}
-"$python" -c 'import matplotlib, numpy, PIL' 2>/dev/null || {
-    echo "bench/terrain.sh needs numpy, pillow and matplotlib: python3 -m venv /tmp/venv &&" \
-        "/tmp/venv/bin/pip install numpy pillow matplotlib, then PYTHON=/tmp/venv/bin/python bash bench/terrain.sh" >&2
-    exit 1
-}
-command -v opj_compress >/dev/null || {
-    echo "bench/terrain.sh needs OpenJPEG: apt-get install -y libopenjp2-tools" >&2
-    exit 1
-}
+. bench/need.sh
+need_python terrain.sh numpy pillow matplotlib
+need_openjpeg terrain.sh
 cargo build --release -q -p host-encoder
 "$python" bench/terrain.py --rates "${1:-0.1,0.25,0.5,1,2}"
