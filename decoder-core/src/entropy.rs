@@ -21,14 +21,15 @@ pub const RANGE_TOP: u32 = 1 << 24;
 
 /// An adaptive binary context: the probability that the next bit coded with it is `0`
 /// ([`PROB_BITS`] bits, the high ones) and how many bits it has coded (the low
-/// [`COUNT_BITS`] bits, saturating), which sets how fast it adapts ([`ADAPT_SHIFTS`]). The
-/// probability is stored exclusive-or'ed with one half, so that a fresh context (`p` one half,
-/// no bits coded) is all zero bits: a decoder then clears its contexts in place.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// [`COUNT_BITS`] bits, saturating), which sets how fast it adapts ([`ADAPT_SHIFTS`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Prob(u16);
 
-/// What a stored probability is exclusive-or'ed with.
-const HALF: u16 = PROB_ONE / 2;
+impl Default for Prob {
+    fn default() -> Self {
+        Prob::FRESH
+    }
+}
 
 /// Bits of a [`Prob`] that count the bits coded with it.
 pub const COUNT_BITS: u32 = 4;
@@ -39,11 +40,16 @@ pub const INITIAL_COUNT: u16 = 2;
 
 /// Adaptation speed by the number of bits a context has coded: after each bit, its
 /// probability moves by `1 / 2^shift` of the distance to the observed outcome.
-pub const ADAPT_SHIFTS: [u32; 1 << COUNT_BITS] = [2, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5];
+pub const ADAPT_SHIFTS: [u8; 1 << COUNT_BITS] = [2, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5];
 
 impl Prob {
     /// A fresh context: probability one half, no bits coded.
-    pub const FRESH: Prob = Prob(0);
+    pub const FRESH: Prob = Prob((PROB_ONE / 2) << COUNT_BITS);
+
+    /// A context not yet started: all zero bits (probability zero). Contexts are started from
+    /// their trained probabilities at the start of every stream; this is what they hold before,
+    /// so that a decoder clears them in place rather than copying a constant.
+    pub const UNSTARTED: Prob = Prob(0);
 
     /// A context that starts from probability `p8 / 256` of a `0` (at least 1/256 from either
     /// end) as if it had already coded [`INITIAL_COUNT`] bits, so that it adapts at that
@@ -52,7 +58,7 @@ impl Prob {
         let p8 = if p8 == 0 { 1 } else { p8 as u16 };
         // The middle of the 1/256 interval, in PROB_BITS bits.
         let p = (p8 << (PROB_BITS - 8)) | (1 << (PROB_BITS - 9));
-        Prob(((p ^ HALF) << COUNT_BITS) | INITIAL_COUNT)
+        Prob((p << COUNT_BITS) | INITIAL_COUNT)
     }
 
     /// How many bits the context has coded (saturating at `2^COUNT_BITS - 1`), counting from
@@ -64,7 +70,7 @@ impl Prob {
     /// `P(bit = 0) * PROB_ONE`.
     #[inline]
     pub fn probability(self) -> u16 {
-        (self.0 >> COUNT_BITS) ^ HALF
+        self.0 >> COUNT_BITS
     }
 
     /// The split point of `range` for this probability (the size of the `0` sub-interval).
@@ -84,7 +90,7 @@ impl Prob {
         } else {
             p += (PROB_ONE - p) >> shift;
         }
-        self.0 = ((p ^ HALF) << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
+        self.0 = (p << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
     }
 }
 
@@ -209,7 +215,7 @@ impl<S: ByteSource> RangeDecoder<S> {
     fn decision(&mut self, p: &mut Prob) -> Result<bool, DecodeError> {
         let stored = p.0;
         let n = stored & COUNT_MAX;
-        let mut prob = (stored >> COUNT_BITS) ^ HALF;
+        let mut prob = stored >> COUNT_BITS;
         let bound = (self.range >> PROB_BITS) * u32::from(prob);
         let bit = self.code >= bound;
         let shift = ADAPT_SHIFTS[usize::from(n)];
@@ -221,7 +227,7 @@ impl<S: ByteSource> RangeDecoder<S> {
             self.range = bound;
             prob += (PROB_ONE - prob) >> shift;
         }
-        p.0 = ((prob ^ HALF) << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
+        p.0 = (prob << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
         if self.range < RANGE_TOP {
             self.refill()?;
         }
@@ -322,6 +328,11 @@ impl IntContexts {
     /// Fresh contexts ([`Prob::FRESH`]).
     pub const FRESH: IntContexts = IntContexts {
         probs: [Prob::FRESH; IntContexts::COUNT],
+    };
+
+    /// Contexts not yet started ([`Prob::UNSTARTED`]).
+    pub const UNSTARTED: IntContexts = IntContexts {
+        probs: [Prob::UNSTARTED; IntContexts::COUNT],
     };
 
     /// Number of contexts ([`IntContexts::for_each_prob`]).

@@ -208,7 +208,7 @@ impl<const STRIPE: usize> Default for Frontier<STRIPE> {
 }
 
 impl<const STRIPE: usize> Frontier<STRIPE> {
-    /// Nothing decoded, for an empty image (all zero bits, like the syntax's fresh contexts):
+    /// Nothing decoded, for an empty image (all zero bits, like the syntax's contexts before they start):
     /// [`Frontier::start`] sets the size.
     pub const EMPTY: Frontier<STRIPE> = Frontier {
         columns: [0; STRIPE],

@@ -370,7 +370,7 @@ pub struct Contexts {
 impl Default for Contexts {
     /// The contexts at the start of every stream ([`Contexts::start`]).
     fn default() -> Self {
-        let mut contexts = Contexts::FRESH;
+        let mut contexts = Contexts::UNSTARTED;
         contexts.start();
         contexts
     }
@@ -382,15 +382,15 @@ pub const CONTEXT_COUNT: usize = (MAX_LEAF_LOG2 as usize + 1) * (1 + MODEL_COUNT
     + STEP_GROUPS * CONTROL_CLASSES * IntContexts::COUNT;
 
 impl Contexts {
-    /// Every context at probability one half with no bits coded: all zero bits, so that a
-    /// decoder clears its contexts in place (rather than building a copy on its stack) before
+    /// Every context not yet started ([`Prob::UNSTARTED`]): all zero bits, so that a decoder
+    /// clears its contexts in place (rather than copying a constant onto its stack) before
     /// [`Contexts::start`] sets them.
-    pub const FRESH: Contexts = Contexts {
-        split: [Prob::FRESH; MAX_LEAF_LOG2 as usize + 1],
-        model: [[Prob::FRESH; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
-        cquant: [[Prob::FRESH; 16]; MODEL_COUNT],
-        coding: [Prob::FRESH; MODEL_COUNT],
-        control: [[IntContexts::FRESH; CONTROL_CLASSES]; STEP_GROUPS],
+    pub const UNSTARTED: Contexts = Contexts {
+        split: [Prob::UNSTARTED; MAX_LEAF_LOG2 as usize + 1],
+        model: [[Prob::UNSTARTED; MODEL_COUNT]; MAX_LEAF_LOG2 as usize + 1],
+        cquant: [[Prob::UNSTARTED; 16]; MODEL_COUNT],
+        coding: [Prob::UNSTARTED; MODEL_COUNT],
+        control: [[IntContexts::UNSTARTED; CONTROL_CLASSES]; STEP_GROUPS],
     };
 
     /// The contexts of control residuals of class `class` (below [`CONTROL_CLASSES`]) in step
@@ -649,20 +649,21 @@ pub struct ChromaContexts {
 
 impl Default for ChromaContexts {
     fn default() -> Self {
-        let mut contexts = ChromaContexts::FRESH;
+        let mut contexts = ChromaContexts::UNSTARTED;
         contexts.start();
         contexts
     }
 }
 
 impl ChromaContexts {
-    /// Every context at one half, no bits coded (all zero bits).
-    pub const FRESH: ChromaContexts = ChromaContexts {
-        model: [[Prob::FRESH; CHROMA_GRIDS.len()]; MAX_LEAF_LOG2 as usize],
-        cquant: [[Prob::FRESH; CHROMA_CQUANT_NODES]; CHROMA_GRIDS.len()],
-        coding: [Prob::FRESH; CHROMA_GRIDS.len()],
-        control: [IntContexts::FRESH; CONTROL_CLASSES],
-        subtree: [Prob::FRESH; MAX_LEAF_LOG2 as usize + 1],
+    /// Every context not yet started ([`Prob::UNSTARTED`]; all zero bits), before
+    /// [`ChromaContexts::start`].
+    pub const UNSTARTED: ChromaContexts = ChromaContexts {
+        model: [[Prob::UNSTARTED; CHROMA_GRIDS.len()]; MAX_LEAF_LOG2 as usize],
+        cquant: [[Prob::UNSTARTED; CHROMA_CQUANT_NODES]; CHROMA_GRIDS.len()],
+        coding: [Prob::UNSTARTED; CHROMA_GRIDS.len()],
+        control: [IntContexts::UNSTARTED; CONTROL_CLASSES],
+        subtree: [Prob::UNSTARTED; MAX_LEAF_LOG2 as usize + 1],
     };
 
     /// The state at the start of a stream: the trained probability of
@@ -1231,7 +1232,7 @@ mod tests {
     /// [`Contexts::start`] reads it.
     #[test]
     fn every_context_starts_from_its_table_entry() {
-        let mut contexts = Contexts::FRESH;
+        let mut contexts = Contexts::UNSTARTED;
         let mut count = 0;
         contexts.for_each_prob(|_| count += 1);
         assert_eq!(count, CONTEXT_COUNT);
@@ -1249,7 +1250,7 @@ mod tests {
     /// The same for the chroma contexts and their table.
     #[test]
     fn every_chroma_context_starts_from_its_table_entry() {
-        let mut contexts = ChromaContexts::FRESH;
+        let mut contexts = ChromaContexts::UNSTARTED;
         let mut count = 0;
         contexts.for_each_prob(|_| count += 1);
         assert_eq!(count, CHROMA_CONTEXT_COUNT);

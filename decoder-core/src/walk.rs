@@ -148,11 +148,11 @@ pub struct WalkState<const STRIPE: usize = DEFAULT_STRIPE> {
 }
 
 impl<const STRIPE: usize> WalkState<STRIPE> {
-    /// Cleared state (fresh contexts, nothing decoded), all zero bits: a decoder clears its
+    /// Cleared state (contexts not started, nothing decoded), all zero bits: a decoder clears its
     /// state in place, then sets the contexts with [`Contexts::start`] ([`walk_with`] starts
     /// the frontier). The state at the start of a stream is [`WalkState::default`].
     pub const FRESH: WalkState<STRIPE> = WalkState {
-        contexts: Contexts::FRESH,
+        contexts: Contexts::UNSTARTED,
         frontier: Frontier::EMPTY,
     };
 }
@@ -186,7 +186,7 @@ pub fn walk_with<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     }
 }
 
-/// [`walk_with`] for a colour stream: holds the chroma state (fresh contexts) while the image
+/// [`walk_with`] for a colour stream: holds the chroma state (its contexts started) while the image
 /// is walked. Out of line, so that a grayscale decode's stack has no chroma state.
 #[cfg(feature = "colour")]
 #[inline(never)]
@@ -197,7 +197,7 @@ fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     state: &mut WalkState<STRIPE>,
 ) -> Result<(), V::Error> {
     let mut chroma = ChromaState::<STRIPE> {
-        contexts: ChromaContexts::FRESH,
+        contexts: ChromaContexts::UNSTARTED,
         frontier: ChromaFrontier::EMPTY,
         patch: ChromaPatch::EMPTY,
     };
