@@ -215,23 +215,28 @@ impl<S: ByteSource> RangeDecoder<S> {
     fn decision(&mut self, p: &mut Prob) -> Result<bool, DecodeError> {
         let stored = p.0;
         let n = stored & COUNT_MAX;
-        let mut prob = stored >> COUNT_BITS;
+        let prob = stored >> COUNT_BITS;
         let bound = (self.range >> PROB_BITS) * u32::from(prob);
-        let bit = self.code >= bound;
         let shift = ADAPT_SHIFTS[usize::from(n)];
-        if bit {
+        let count = n + u16::from(n < COUNT_MAX);
+        // Each outcome its own path to the end, so that the bit is a constant there rather
+        // than a value kept across the refill.
+        if self.code >= bound {
             self.code -= bound;
             self.range -= bound;
-            prob -= prob >> shift;
+            p.0 = ((prob - (prob >> shift)) << COUNT_BITS) | count;
+            if self.range < RANGE_TOP {
+                self.refill()?;
+            }
+            Ok(true)
         } else {
             self.range = bound;
-            prob += (PROB_ONE - prob) >> shift;
+            p.0 = ((prob + ((PROB_ONE - prob) >> shift)) << COUNT_BITS) | count;
+            if self.range < RANGE_TOP {
+                self.refill()?;
+            }
+            Ok(false)
         }
-        p.0 = (prob << COUNT_BITS) | (n + u16::from(n < COUNT_MAX));
-        if self.range < RANGE_TOP {
-            self.refill()?;
-        }
-        Ok(bit)
     }
 
     /// Decodes one equiprobable bit.
