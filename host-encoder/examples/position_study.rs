@@ -12,6 +12,10 @@
 //! - how many of the leaf's residuals so far were not zero (0, 1, 2+);
 //! - the magnitude of the leaf's first-value residual, for every residual of the leaf.
 //!
+//! And the signs: each with one shadow context (the stream's), and a DPCM first-row or
+//! first-column residual's also by the direction of the change between the pixels beside its
+//! point and beside the point before it (what its prediction was made from).
+//!
 //! Prints each alternative's saving as a share of the payload.
 //!
 //! `cargo run --release -p host-encoder --example position_study -- STREAM.pifs...`
@@ -86,6 +90,8 @@ struct Study {
     size: Shadow,
     so_far: Shadow,
     first: Shadow,
+    sign_base: Shadow,
+    sign_edge: Shadow,
     leaves: u64,
     transform_leaves: u64,
 }
@@ -133,6 +139,10 @@ fn parent(side: usize, r: usize, c: usize) -> (usize, usize) {
 struct Reader {
     log: Rc<RefCell<Vec<Coded>>>,
     study: Study,
+    /// The pixels above and left of the leaf being coded, by offset along its edge (`None`
+    /// where not known), recorded before it is coded.
+    above: Vec<Option<i32>>,
+    left: Vec<Option<i32>>,
 }
 
 impl Reader {
@@ -142,6 +152,7 @@ impl Reader {
         let side = model.coded_side(info.node.log2);
         let transform = info.coding == ControlCoding::Transform;
         let order = positions(side, transform);
+        let spacing = model.spacing(info.node.log2) as usize;
         if ints.len() != order.len() {
             // Not a luma leaf's control values alone (a colour stream): not priced.
             return;
@@ -173,6 +184,23 @@ impl Reader {
             s.so_far.price((key, ctx, nonzeros.min(2)), nz);
             s.first
                 .price((key, ctx, if k == 0 { 3 } else { first }), nz);
+            if nz {
+                let negative = coded.value < 0;
+                s.sign_base.price((key, 0, 0), negative);
+                // A DPCM first-row or first-column residual: the sign of the change between
+                // the pixels beside its point and beside the point before it.
+                let beside = |edge: &[Option<i32>], k: usize| {
+                    let a = edge.get(k * spacing).copied().flatten()?;
+                    let b = edge.get((k - 1) * spacing).copied().flatten()?;
+                    Some(1 + usize::from(a > b) + 2 * usize::from(a < b))
+                };
+                let change = match (transform, r, c) {
+                    (false, 0, c) if c > 0 => beside(&self.above, c).unwrap_or(0),
+                    (false, r, 0) if r > 0 => beside(&self.left, r).unwrap_or(0),
+                    _ => 0,
+                };
+                s.sign_edge.price((key, 0, change), negative);
+            }
             grid[r * side + c] = coded.value;
             nonzeros += usize::from(nz);
         }
@@ -184,7 +212,11 @@ impl TreeVisitor for Reader {
     fn split(&mut self, _node: &Node) -> bool {
         false
     }
-    fn prepare_leaf<P: SamplePrediction>(&mut self, _n: &Node, _p: &P, _l: &mut LeafSyntax) {}
+    fn prepare_leaf<P: SamplePrediction>(&mut self, n: &Node, p: &P, _l: &mut LeafSyntax) {
+        let s = n.size();
+        self.above = (0..s).map(|k| p.above(n.x + k, n.y)).collect();
+        self.left = (0..s).map(|k| p.left(n.x, n.y + k)).collect();
+    }
     fn leaf<const STRIPE: usize>(
         &mut self,
         info: &LeafInfo,
@@ -203,6 +235,8 @@ fn main() {
     let mut reader = Reader {
         log: log.clone(),
         study: Study::default(),
+        above: Vec::new(),
+        left: Vec::new(),
     };
     for path in std::env::args().skip(1) {
         let stream = std::fs::read(&path).expect("reads the stream");
@@ -226,6 +260,14 @@ fn main() {
     println!(
         "zero flags, shadow base: {:.2}% of the payload",
         pct(s.base.bits)
+    );
+    println!(
+        "signs, shadow base: {:.2}% of the payload",
+        pct(s.sign_base.bits)
+    );
+    println!(
+        "a DPCM edge residual's sign by the direction of the change beside it: {:+.2}%",
+        pct(s.sign_edge.bits - s.sign_base.bits)
     );
     for (name, alt) in [
         ("a detail's parent magnitude", &s.parent),
