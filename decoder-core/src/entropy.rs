@@ -79,8 +79,9 @@ impl Prob {
         (range >> PROB_BITS) * u32::from(self.probability())
     }
 
-    /// Moves the probability towards the bit just coded.
-    #[inline]
+    /// Moves the probability towards the bit just coded: the one adaptation rule of encoders
+    /// and decoders (the range decoder inlines it on each outcome's path).
+    #[inline(always)]
     pub fn update(&mut self, bit: bool) {
         let n = self.0 & COUNT_MAX;
         let shift = ADAPT_SHIFTS[usize::from(n)];
@@ -213,25 +214,20 @@ impl<S: ByteSource> RangeDecoder<S> {
     /// multiply, the adaptation a shift by a table entry.
     #[inline(always)]
     fn decision(&mut self, p: &mut Prob) -> Result<bool, DecodeError> {
-        let stored = p.0;
-        let n = stored & COUNT_MAX;
-        let prob = stored >> COUNT_BITS;
-        let bound = (self.range >> PROB_BITS) * u32::from(prob);
-        let shift = ADAPT_SHIFTS[usize::from(n)];
-        let count = n + u16::from(n < COUNT_MAX);
+        let bound = p.bound(self.range);
         // Each outcome its own path to the end, so that the bit is a constant there rather
         // than a value kept across the refill.
         if self.code >= bound {
             self.code -= bound;
             self.range -= bound;
-            p.0 = ((prob - (prob >> shift)) << COUNT_BITS) | count;
+            p.update(true);
             if self.range < RANGE_TOP {
                 self.refill()?;
             }
             Ok(true)
         } else {
             self.range = bound;
-            p.0 = ((prob + ((PROB_ONE - prob) >> shift)) << COUNT_BITS) | count;
+            p.update(false);
             if self.range < RANGE_TOP {
                 self.refill()?;
             }

@@ -208,8 +208,8 @@ impl<const STRIPE: usize> Default for Frontier<STRIPE> {
 }
 
 impl<const STRIPE: usize> Frontier<STRIPE> {
-    /// Nothing decoded, for an empty image (all zero bits, like the syntax's contexts before they start):
-    /// [`Frontier::start`] sets the size.
+    /// Nothing decoded, for an empty image (all zero bits, like the syntax's contexts before
+    /// they start): [`Frontier::start`] sets the size.
     pub const EMPTY: Frontier<STRIPE> = Frontier {
         columns: [0; STRIPE],
         rows: [0; CODING_TILE as usize],

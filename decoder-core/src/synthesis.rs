@@ -1499,16 +1499,7 @@ mod tests {
                 };
                 assert_eq!(got, want, "model {model:?}, phase {r}");
                 // The loop its kind compiles makes the same sum from the oriented values.
-                let by_kind = match Phase::of(r, shift).kind() {
-                    Kind::Half => {
-                        let rule: Half = Line;
-                        taps(rule)
-                    }
-                    Kind::Quarter => {
-                        let rule: Quarter = Line;
-                        taps(rule)
-                    }
-                };
+                let by_kind = with_rule!(Phase::of(r, shift).kind(), |rule| taps(rule));
                 assert_eq!(Phase::of(r, shift).orient(by_kind), want, "phase {r}");
                 assert_eq!(want, default_line_taps(model.transforms, r));
             }
