@@ -7,7 +7,9 @@
 
 For each image and rate: `pifs encode --packets` (whole packet bytes counted against the
 rate), then the receiver (`pifs decode` of a packet directory) after i.i.d. losses of 1, 5, 10
-and 20 % (five seeds each, `pifs packets drop --loss P --seed S`) and after bursty losses (10 %,
+and 20 % (five seeds each, `pifs packets drop --loss P --seed S`, S drawn from the image's
+name and the seed's number so that images cut into as many packets lose different packets) and
+after bursty losses (10 %,
 mean burst 4: `--burst 4`), and after the first 1, 2, 4, 8 packets and the first 10 / 25 / 50 %
 of them (the rest missing). PSNR against the original (gray: luma; --colour: RGB). Writes
 bench/results/loss[-colour].csv and prints the means, the cost of packetisation in BD-rate
@@ -24,6 +26,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import zlib
 
 import numpy as np
 from PIL import Image
@@ -36,6 +39,13 @@ SEEDS = [1, 2, 3, 4, 5]
 BURST = (0.1, 4.0)
 PREFIX_COUNTS = [1, 2, 4, 8]
 PREFIX_SHARES = [0.1, 0.25, 0.5]
+
+
+def image_seed(name, seed):
+    """The loss pattern's seed for `name`'s `seed`-th draw: one pattern per image and draw (with
+    the same seed for every image, images cut into as many packets would all lose the same
+    ones, and five draws would stand for the whole image set)."""
+    return zlib.crc32(name.encode()) % 1_000_000 * 10 + seed
 
 
 def run(pifs, *args):
@@ -93,7 +103,7 @@ def measure(pifs, image, rate, args, work):
         values = []
         for seed in SEEDS:
             shutil.rmtree(lossy, ignore_errors=True)
-            run(pifs, "packets", "drop", "--loss", str(loss), "--seed", str(seed),
+            run(pifs, "packets", "drop", "--loss", str(loss), "--seed", str(image_seed(name, seed)),
                 "--burst", str(burst), packets, lossy)
             if not os.listdir(lossy):
                 values.append(float("nan"))

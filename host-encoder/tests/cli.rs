@@ -854,6 +854,43 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
 /// `pifs curve fit`, `render` and `info` through files: CSV and SVG in, JSON, SVG and CSV
 /// out; bad input refused in one line with no output left behind.
 #[test]
+fn parity_is_sized_for_the_loss_a_link_expects() {
+    let dir = scratch("expect-loss");
+    let png = dir.join("in.png");
+    textured(96, 64).save(&png).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let encode = |name: &str, extra: &[&str]| {
+        let mut args = vec![
+            "encode".to_string(),
+            s(&png),
+            "--packets".into(),
+            s(&dir.join(name)),
+            "--packet-size".into(),
+            "64".into(),
+            "--bytes".into(),
+            "1920".into(),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        pifs(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let line = ok(&encode("lossy", &["--expect-loss", "0.2"]));
+    assert!(line.contains("parity for 20% loss"), "{line}");
+    let parity: usize = line
+        .split(" preview, ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|k| k.parse().ok())
+        .expect("a parity count");
+    assert!(parity > 0, "{line}");
+    let written = std::fs::read_dir(dir.join("lossy")).unwrap().count();
+    assert!(written > parity, "{written} packets, {parity} parity");
+    // A rate out of range, or with a parity count of its own: refused, nothing written.
+    assert!(refused(&encode("bad", &["--expect-loss", "0.7"])).contains("0.7"));
+    refused(&encode("both", &["--expect-loss", "0.1", "--parity", "2"]));
+    assert!(!dir.join("bad").exists() && !dir.join("both").exists());
+}
+
+#[test]
 fn curve_fit_render_info_round_trip() {
     let dir = scratch("curve");
     let path = |name: &str| dir.join(name).to_str().unwrap().to_string();

@@ -5,7 +5,9 @@
 mod common;
 
 use decoder_core::{Packet, PacketKind, Rect};
-use host_encoder::packets::{assemble, packetise, PacketOptions, Packetised};
+use host_encoder::packets::{
+    assemble, packetise, parity_for_loss, PacketError, PacketOptions, Packetised,
+};
 use host_encoder::{EncoderConfig, Target};
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -274,4 +276,46 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
     let image = assemble(kept, u64::MAX).unwrap();
     assert_eq!(image.missing, vec![0, 1, 2, 3]);
     assert!(image.recovered.is_empty());
+}
+
+#[test]
+fn parity_sized_for_a_link_grows_with_its_losses() {
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let analysis = common::analyse_with(plane, &config());
+    let options = PacketOptions {
+        size: SIZE,
+        image_id: 5,
+        preview: true,
+        repeat_preview: false,
+        parity: 0,
+    };
+    let target = Target::Bytes(40 * SIZE);
+    let sized = |loss| parity_for_loss(&analysis, target, &options, loss).unwrap();
+    // A link that loses nothing gets no parity packets, whose estimate is the full picture's.
+    let lossless = sized(0.0);
+    assert_eq!(lossless.parity, 0);
+    let counts = [0.02, 0.1, 0.2].map(|loss| sized(loss).parity);
+    assert!(counts.windows(2).all(|w| w[0] <= w[1]), "{counts:?}");
+    assert!(counts[2] > 0, "{counts:?}");
+    // More loss, a worse picture to expect.
+    assert!(sized(0.2).expected_psnr < lossless.expected_psnr);
+    // The count chosen is one packetise makes within the budget.
+    let made = packetise(
+        &analysis,
+        &config(),
+        target,
+        &PacketOptions {
+            parity: counts[2],
+            ..options
+        },
+    )
+    .unwrap();
+    assert_eq!(made.parity, counts[2]);
+    assert!(made.total_bytes() <= 40 * SIZE);
+    for loss in [-0.1, 0.6, f64::NAN] {
+        assert!(matches!(
+            parity_for_loss(&analysis, target, &options, loss),
+            Err(PacketError::BadLoss(_))
+        ));
+    }
 }

@@ -115,6 +115,8 @@ pub enum PacketError {
         /// Data and parity packets asked for.
         packets: usize,
     },
+    /// A link's loss rate outside `0..=0.5` ([`parity_for_loss`]).
+    BadLoss(f64),
     /// Encoding a packet's region failed.
     Encode(EncodeError),
 }
@@ -144,6 +146,9 @@ impl fmt::Display for PacketError {
                 f,
                 "{packets} packets with parity: a parity code covers at most {MAX_SHARDS} (use larger packets or fewer bytes)"
             ),
+            PacketError::BadLoss(p) => {
+                write!(f, "a loss rate of {p} is outside 0 to 0.5")
+            }
             PacketError::Encode(e) => write!(f, "{e}"),
         }
     }
@@ -176,13 +181,7 @@ pub fn packetise(
     if config.stripe == 0 || config.stripe > 4 {
         return Err(PacketError::StripeTooWide);
     }
-    let pixels = analysis.width() as usize * analysis.height() as usize;
-    let budget = match target {
-        Target::Bpp(b) if b.is_finite() && b > 0.0 => (b * pixels as f64 / 8.0).floor() as usize,
-        Target::Bytes(n) => n,
-        Target::Psnr(_) => return Err(PacketError::QualityTarget),
-        Target::Bpp(_) => return Err(PacketError::Encode(EncodeError::BadTarget(target))),
-    };
+    let budget = budget_of(analysis, target)?;
     let layout = Layout::of(budget, options)?;
     let base = PacketHeader {
         image_id: options.image_id,
@@ -234,6 +233,123 @@ pub fn packetise(
         reconstruction: assembled.pixels,
         packets,
     })
+}
+
+/// The bytes `target` allows an image of `analysis`, whole packets counted.
+fn budget_of(analysis: &Analysis, target: Target) -> Result<usize, PacketError> {
+    let pixels = analysis.width() as usize * analysis.height() as usize;
+    match target {
+        Target::Bpp(b) if b.is_finite() && b > 0.0 => {
+            Ok((b * pixels as f64 / 8.0).floor() as usize)
+        }
+        Target::Bytes(n) => Ok(n),
+        Target::Psnr(_) => Err(PacketError::QualityTarget),
+        Target::Bpp(_) => Err(PacketError::Encode(EncodeError::BadTarget(target))),
+    }
+}
+
+/// Parity packets sized for a link: how many, and the picture a receiver can expect.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParityChoice {
+    /// Parity packets to send ([`PacketOptions::parity`]).
+    pub parity: usize,
+    /// The mean PSNR (dB) a receiver shows over the link's losses, as estimated.
+    pub expected_psnr: f64,
+}
+
+/// The number of parity packets that gives the best picture on average over a link that loses
+/// each packet independently with probability `loss` (0 to 0.5), for `target` and `options`
+/// (whose own `parity` is ignored). Parity packets come out of the budget, so each one costs
+/// every receiver some quality and saves those that lose up to that many packets. Estimated
+/// from single streams of the analysis, without packetising: with `K` parity packets the
+/// full picture is the regions' share of the budget coded as one stream; when more packets
+/// are lost than `K` rebuild, the lost share of the regions shows the preview.
+pub fn parity_for_loss(
+    analysis: &Analysis,
+    target: Target,
+    options: &PacketOptions,
+    loss: f64,
+) -> Result<ParityChoice, PacketError> {
+    if !(0.0..=0.5).contains(&loss) {
+        return Err(PacketError::BadLoss(loss));
+    }
+    let budget = budget_of(analysis, target)?;
+    let plain = PacketOptions {
+        parity: 0,
+        ..*options
+    };
+    let base = Layout::of(budget, &plain)?;
+    // A region's header and checksum, about: the preview's fields and four more.
+    let header = 19;
+    let mse = |bytes: usize| -> Result<f64, PacketError> {
+        let encoded = analysis.encode_plain(bytes.max(64))?;
+        Ok(255.0 * 255.0 / 10f64.powf(encoded.psnr / 10.0))
+    };
+    let preview = if base.previews == 1 {
+        mse(base.data_size.saturating_sub(header))?
+    } else {
+        // Without a preview a lost region is interpolated from the ones around it: about
+        // as bad as a picture of a few dozen bytes.
+        mse(64)?
+    };
+    let layouts: Vec<(usize, Layout)> = (0..=usize::from(base.count) / 2)
+        .map_while(|k| {
+            let with = PacketOptions { parity: k, ..plain };
+            Layout::of(budget, &with).ok().map(|layout| (k, layout))
+        })
+        .collect();
+    if layouts.len() < 2 && loss > 0.0 {
+        // Not even one parity packet: the data packets alone fill what a code covers.
+        return Err(PacketError::TooManyForParity {
+            packets: usize::from(base.count) + 1,
+        });
+    }
+    let estimates: Vec<Result<ParityChoice, PacketError>> = layouts
+        .par_iter()
+        .map(|(k, layout)| {
+            let share = layout.regions().max(1) * layout.data_size.saturating_sub(header);
+            let full = mse(share)?;
+            let sent = usize::from(layout.count) + k;
+            Ok(ParityChoice {
+                parity: *k,
+                expected_psnr: expected_psnr(sent, *k, loss, full, preview.max(full)),
+            })
+        })
+        .collect();
+    let mut best: Option<ParityChoice> = None;
+    for estimate in estimates {
+        let estimate = estimate?;
+        if best.is_none_or(|b| estimate.expected_psnr > b.expected_psnr) {
+            best = Some(estimate);
+        }
+    }
+    best.ok_or(PacketError::BudgetTooSmall {
+        budget,
+        packet: options.size,
+    })
+}
+
+/// The mean PSNR over the ways a link losing each of `sent` packets with probability `loss`
+/// (below 1) can lose them, when any `sent - parity` of them rebuild the picture of squared
+/// error `full`, and otherwise the lost share of the packets shows a picture of error `lost`.
+fn expected_psnr(sent: usize, parity: usize, loss: f64, full: f64, lost: f64) -> f64 {
+    let psnr_of = |mse: f64| 10.0 * (255.0 * 255.0 / mse.max(1e-9)).log10();
+    // The binomial probabilities, term by term from none lost.
+    let mut probability = (1.0 - loss).powi(sent as i32);
+    let mut sum = 0.0;
+    for lost_count in 0..=sent {
+        let mse = if lost_count <= parity {
+            full
+        } else {
+            full + (lost - full) * lost_count as f64 / sent as f64
+        };
+        sum += probability * psnr_of(mse);
+        if loss < 1.0 {
+            probability *=
+                (sent - lost_count) as f64 / (lost_count + 1) as f64 * loss / (1.0 - loss);
+        }
+    }
+    sum
 }
 
 /// How a budget divides into packets.
@@ -896,6 +1012,25 @@ impl PixelSink for RegionBuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn expected_psnr_is_the_full_pictures_without_loss_or_beyond_the_parity() {
+        let psnr = |mse: f64| 10.0 * (255.0f64 * 255.0 / mse).log10();
+        let (full, lost) = (20.0, 200.0);
+        assert!((expected_psnr(50, 0, 0.0, full, lost) - psnr(full)).abs() < 1e-9);
+        assert!((expected_psnr(50, 50, 0.3, full, lost) - psnr(full)).abs() < 1e-9);
+        // More loss, less to expect; more parity, more (at the same full picture).
+        let by_loss: Vec<f64> = [0.05, 0.1, 0.2]
+            .iter()
+            .map(|&p| expected_psnr(50, 5, p, full, lost))
+            .collect();
+        assert!(by_loss.windows(2).all(|w| w[0] > w[1]), "{by_loss:?}");
+        let by_parity: Vec<f64> = [0, 5, 10]
+            .iter()
+            .map(|&k| expected_psnr(50, k, 0.1, full, lost))
+            .collect();
+        assert!(by_parity.windows(2).all(|w| w[0] < w[1]), "{by_parity:?}");
+    }
 
     #[test]
     fn frames_round_trip_and_a_cut_frame_stays_a_packet() {

@@ -12,7 +12,8 @@ use clap::Args;
 use decoder_core::{Packet, PacketKind};
 use host_encoder::io::{self, Content, Output, OutputFormat};
 use host_encoder::packets::{
-    assemble, frame, packetise, unframe, Assembled, PacketOptions, Packetised,
+    assemble, frame, packetise, parity_for_loss, unframe, Assembled, PacketOptions, Packetised,
+    ParityChoice,
 };
 use host_encoder::Target;
 use std::io::Write;
@@ -48,6 +49,10 @@ pub struct PacketArgs {
     /// `pifs decode`, rebuilds what was lost).
     #[arg(long, default_value_t = 0, value_name = "K")]
     pub parity: usize,
+    /// The share of packets the link loses (0 to 0.5; 0.1 for a tenth): as many parity
+    /// packets as give the best picture on average over such losses (instead of --parity)
+    #[arg(long, value_name = "SHARE", conflicts_with = "parity")]
+    pub expect_loss: Option<f64>,
 }
 
 impl PacketArgs {
@@ -82,10 +87,19 @@ pub fn encode(
         analysed.analysis.width() as usize * analysed.analysis.height() as usize,
         &[target],
     );
-    let options = args.options();
+    let mut options = args.options();
     let started = std::time::Instant::now();
-    let made = packetise(&analysed.analysis, &config, target, &options)
-        .map_err(|e| CliError::Refused(e.to_string()))?;
+    let refused = |e: host_encoder::packets::PacketError| CliError::Refused(e.to_string());
+    let sized = match args.expect_loss {
+        Some(loss) => {
+            let choice =
+                parity_for_loss(&analysed.analysis, target, &options, loss).map_err(refused)?;
+            options.parity = choice.parity;
+            Some((loss, choice))
+        }
+        None => None,
+    };
+    let made = packetise(&analysed.analysis, &config, target, &options).map_err(refused)?;
     let shown = match (&args.packets, output) {
         (Some(dir), _) => {
             let named: Vec<(String, &Vec<u8>)> = made
@@ -107,7 +121,11 @@ pub fn encode(
         }
         (None, None) => return Err(CliError::Refused("packets need --packets DIR or -o".into())),
     };
-    say!("{}", summary(&shown, analysed, &made, &options, started));
+    let mut line = summary(&shown, analysed, &made, &options, started);
+    if let Some((loss, choice)) = sized {
+        line += &sized_for(loss, &choice);
+    }
+    say!("{line}");
     Ok(())
 }
 
@@ -134,6 +152,16 @@ fn summary(
         made.psnr,
         analysed.seconds,
         started.elapsed().as_secs_f64(),
+    )
+}
+
+/// What the summary adds when the parity packets were sized for a loss rate.
+fn sized_for(loss: f64, choice: &ParityChoice) -> String {
+    format!(
+        "; {} parity for {:.0}% loss, about {:.2} dB expected",
+        choice.parity,
+        100.0 * loss,
+        choice.expected_psnr
     )
 }
 
