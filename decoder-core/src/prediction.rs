@@ -594,9 +594,14 @@ impl TileOut for Capture<'_> {
         if keep_w < wu {
             // Rows move left (never onto a later row's unread pixels), one byte at a time: a
             // `copy_within` would bring in a general memmove, over a kilobyte of flash.
+            // Row `j` moves `j` places left (`keep_w = wu - 1`): the span from its new start
+            // to its old end, each value put `j` places back.
             for j in 1..keep_h {
-                for k in 0..keep_w {
-                    buf[j * keep_w + k] = buf[j * wu + k];
+                let Some(span) = buf.get_mut(j * keep_w..j * wu + keep_w) else {
+                    break;
+                };
+                for k in j..span.len() {
+                    span[k - j] = span[k];
                 }
             }
         }
