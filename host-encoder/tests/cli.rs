@@ -888,6 +888,29 @@ fn parity_is_sized_for_the_loss_a_link_expects() {
     assert!(refused(&encode("bad", &["--expect-loss", "0.7"])).contains("0.7"));
     refused(&encode("both", &["--expect-loss", "0.1", "--parity", "2"]));
     assert!(!dir.join("bad").exists() && !dir.join("both").exists());
+    // Without a preview a lost region is interpolated: parity is sized all the same.
+    let line = ok(&encode(
+        "nopreview",
+        &["--no-preview", "--expect-loss", "0.2"],
+    ));
+    assert!(line.contains("(0 preview, "), "{line}");
+    // Packet options without packets are refused, not ignored.
+    let stream = dir.join("x.pifs");
+    for option in [
+        &["--expect-loss", "0.1"][..],
+        &["--parity", "2"],
+        &["--no-preview"],
+    ] {
+        let mut args = vec![
+            "encode",
+            png.to_str().unwrap(),
+            "-o",
+            stream.to_str().unwrap(),
+        ];
+        args.extend_from_slice(option);
+        assert!(refused(&pifs(&args)).contains(option[0]));
+        assert!(!stream.exists());
+    }
 }
 
 #[test]

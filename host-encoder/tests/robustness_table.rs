@@ -453,6 +453,32 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/o22.pifs"),
         ),
         refuse(
+            "a packet option without packets",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "-o",
+                "{dir}/o24.pifs",
+                "--parity",
+                "3",
+            ],
+            Some("{dir}/o24.pifs"),
+        ),
+        refuse(
+            "--expect-loss out of range",
+            &[
+                "encode",
+                "{dir}/good.png",
+                "--packets",
+                "{dir}/pk-loss",
+                "--bpp",
+                "1",
+                "--expect-loss",
+                "0.9",
+            ],
+            Some("{dir}/pk-loss"),
+        ),
+        refuse(
             "stream output named like an image",
             &["encode", "{dir}/good.png", "-o", "{dir}/o23.png"],
             Some("{dir}/o23.png"),

@@ -263,7 +263,8 @@ pub struct ParityChoice {
 /// every receiver some quality and saves those that lose up to that many packets. Estimated
 /// from single streams of the analysis, without packetising: with `K` parity packets the
 /// full picture is the regions' share of the budget coded as one stream; when more packets
-/// are lost than `K` rebuild, the lost share of the regions shows the preview.
+/// are lost than `K` rebuild, the lost share of the regions shows the preview (without one,
+/// a flat picture).
 pub fn parity_for_loss(
     analysis: &Analysis,
     target: Target,
@@ -281,16 +282,25 @@ pub fn parity_for_loss(
     let base = Layout::of(budget, &plain)?;
     // A region's header and checksum, about: the preview's fields and four more.
     let header = 19;
-    let mse = |bytes: usize| -> Result<f64, PacketError> {
-        let encoded = analysis.encode_plain(bytes.max(64))?;
-        Ok(255.0 * 255.0 / 10f64.powf(encoded.psnr / 10.0))
+    // The image as one flat grey (or colour): its squared error is the pixels' variance.
+    let source = analysis.source();
+    let mean = source.iter().map(|&v| f64::from(v)).sum::<f64>() / source.len().max(1) as f64;
+    let flat = source
+        .iter()
+        .map(|&v| (f64::from(v) - mean).powi(2))
+        .sum::<f64>()
+        / source.len().max(1) as f64;
+    // The squared error of the best stream of `bytes`; a flat picture's where no stream is
+    // that small.
+    let mse = |bytes: usize| match analysis.encode_plain(bytes) {
+        Ok(encoded) => 255.0 * 255.0 / 10f64.powf(encoded.psnr / 10.0),
+        Err(_) => flat,
     };
-    let preview = if base.previews == 1 {
-        mse(base.data_size.saturating_sub(header))?
-    } else {
-        // Without a preview a lost region is interpolated from the ones around it: about
-        // as bad as a picture of a few dozen bytes.
-        mse(64)?
+    // Without a preview a lost region is interpolated from the ones around it: counted as
+    // the flat picture.
+    let preview = match base.previews {
+        1 => mse(base.data_size.saturating_sub(header)),
+        _ => flat,
     };
     let layouts: Vec<(usize, Layout)> = (0..=usize::from(base.count) / 2)
         .map_while(|k| {
@@ -304,21 +314,20 @@ pub fn parity_for_loss(
             packets: usize::from(base.count) + 1,
         });
     }
-    let estimates: Vec<Result<ParityChoice, PacketError>> = layouts
+    let estimates: Vec<ParityChoice> = layouts
         .par_iter()
         .map(|(k, layout)| {
             let share = layout.regions().max(1) * layout.data_size.saturating_sub(header);
-            let full = mse(share)?;
+            let full = mse(share);
             let sent = usize::from(layout.count) + k;
-            Ok(ParityChoice {
+            ParityChoice {
                 parity: *k,
                 expected_psnr: expected_psnr(sent, *k, loss, full, preview.max(full)),
-            })
+            }
         })
         .collect();
     let mut best: Option<ParityChoice> = None;
     for estimate in estimates {
-        let estimate = estimate?;
         if best.is_none_or(|b| estimate.expected_psnr > b.expected_psnr) {
             best = Some(estimate);
         }

@@ -703,6 +703,11 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     if args.packets.wanted() {
         return encode_packets(args, job);
     }
+    if let Some(option) = args.packets.packet_only_option() {
+        return Err(CliError::Refused(format!(
+            "{option} is for packets: add --packets DIR (or --packet-size N with -o)"
+        )));
+    }
     match (&args.output, &args.out_dir, args.input.as_slice()) {
         (Some(output), None, [input]) => {
             output::check(output, Some(input), Kind::Stream)?;

@@ -61,6 +61,20 @@ impl PacketArgs {
         self.packets.is_some() || self.packet_size.is_some()
     }
 
+    /// The first option given that only packets use, if any (refused without packets rather
+    /// than ignored).
+    pub fn packet_only_option(&self) -> Option<&'static str> {
+        [
+            (self.parity > 0, "--parity"),
+            (self.expect_loss.is_some(), "--expect-loss"),
+            (self.no_preview, "--no-preview"),
+            (self.repeat_preview, "--repeat-preview"),
+            (self.image_id != 0, "--image-id"),
+        ]
+        .into_iter()
+        .find_map(|(given, name)| given.then_some(name))
+    }
+
     fn options(&self) -> PacketOptions {
         PacketOptions {
             size: self
