@@ -262,7 +262,8 @@ pub struct ParityChoice {
 /// (whose own `parity` is ignored). Parity packets come out of the budget, so each one costs
 /// every receiver some quality and saves those that lose up to that many packets. Estimated
 /// from single streams of the analysis, without packetising: with `K` parity packets the
-/// full picture is the regions' share of the budget coded as one stream; when more packets
+/// full picture is the regions' share of the budget coded as one stream (a few such streams,
+/// interpolated between); when more packets
 /// are lost than `K` rebuild, the lost share of the regions shows the preview (without one,
 /// a flat picture).
 pub fn parity_for_loss(
@@ -314,18 +315,30 @@ pub fn parity_for_loss(
             packets: usize::from(base.count) + 1,
         });
     }
-    let estimates: Vec<ParityChoice> = layouts
-        .par_iter()
-        .map(|(k, layout)| {
-            let share = layout.regions().max(1) * layout.data_size.saturating_sub(header);
-            let full = mse(share);
-            let sent = usize::from(layout.count) + k;
-            ParityChoice {
-                parity: *k,
-                expected_psnr: expected_psnr(sent, *k, loss, full, preview.max(full)),
-            }
-        })
+    // The full picture's error by the regions' share: single streams at a few of the shares,
+    // the rest interpolated in the logarithm of the share (where a rate/distortion curve is
+    // nearly straight, over a factor of two at most here).
+    let shares: Vec<usize> = layouts
+        .iter()
+        .map(|(_, layout)| layout.regions().max(1) * layout.data_size.saturating_sub(header))
         .collect();
+    let last = shares.len() - 1;
+    let mut picked: Vec<usize> = (0..=SIZING_STREAMS - 1)
+        .map(|i| shares[i * last / (SIZING_STREAMS - 1)])
+        .collect();
+    picked.dedup();
+    let curve: Vec<(f64, f64)> = picked
+        .par_iter()
+        .map(|&share| ((share.max(1) as f64).ln(), mse(share).ln()))
+        .collect();
+    let estimates = layouts.iter().zip(&shares).map(|((k, layout), &share)| {
+        let full = interpolate(&curve, (share.max(1) as f64).ln()).exp();
+        let sent = usize::from(layout.count) + k;
+        ParityChoice {
+            parity: *k,
+            expected_psnr: expected_psnr(sent, *k, loss, full, preview.max(full)),
+        }
+    });
     let mut best: Option<ParityChoice> = None;
     for estimate in estimates {
         if best.is_none_or(|b| estimate.expected_psnr > b.expected_psnr) {
@@ -336,6 +349,32 @@ pub fn parity_for_loss(
         budget,
         packet: options.size,
     })
+}
+
+/// Single streams [`parity_for_loss`] makes to know the full picture at every parity count.
+const SIZING_STREAMS: usize = 5;
+
+/// The piecewise-linear function through `points` (`(x, y)`, `x` falling or rising) at `x`,
+/// its end segments extended.
+fn interpolate(points: &[(f64, f64)], x: f64) -> f64 {
+    let mut sorted = points.to_vec();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    match sorted.as_slice() {
+        [] => 0.0,
+        [(_, y)] => *y,
+        _ => {
+            let i = sorted
+                .windows(2)
+                .position(|w| x <= w[1].0)
+                .unwrap_or(sorted.len() - 2);
+            let ((x0, y0), (x1, y1)) = (sorted[i], sorted[i + 1]);
+            if x1 == x0 {
+                y0
+            } else {
+                y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+            }
+        }
+    }
 }
 
 /// The mean PSNR over the ways a link losing each of `sent` packets with probability `loss`
@@ -1021,6 +1060,18 @@ impl PixelSink for RegionBuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn interpolation_goes_through_its_points_and_extends_its_ends() {
+        let points = [(3.0, 30.0), (1.0, 10.0), (2.0, 40.0)];
+        for (x, y) in points {
+            assert_eq!(interpolate(&points, x), y);
+        }
+        assert_eq!(interpolate(&points, 1.5), 25.0);
+        assert_eq!(interpolate(&points, 0.0), -20.0);
+        assert_eq!(interpolate(&points, 4.0), 20.0);
+        assert_eq!(interpolate(&[(1.0, 5.0)], 9.0), 5.0);
+    }
 
     #[test]
     fn expected_psnr_is_the_full_pictures_without_loss_or_beyond_the_parity() {
