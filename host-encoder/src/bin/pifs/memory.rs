@@ -257,8 +257,8 @@ mod tests {
     #[test]
     fn the_estimate_grows_with_the_pixels_and_the_settings() {
         let small = encode_bytes(size(1000, 1000), 1, 2);
-        // One band: 250 bytes a pixel for the analysis, 2 for the pixels, 64 MiB beside them.
-        assert_eq!(small, 252_000_000 + (64 << 20));
+        // One band: 250 bytes a pixel for the analysis, 2 for the pixels, the fixed part beside.
+        assert_eq!(small, 252_000_000 + FIXED_BYTES);
         assert!(encode_bytes(size(1000, 1000), 1, 1) > small);
         assert!(encode_bytes(size(1000, 1000), 1, 3) < small);
         // Colour: the RGB pixels and the nodes' chroma costs beside the luma analysis.
@@ -272,19 +272,19 @@ mod tests {
         // Past the first band (2^20 pixels and a row of 128 px nodes), 64 + 2 bytes a pixel.
         let first = (1 << 20) + 128 * 6000;
         let photo = encode_bytes(size(6000, 4000), 1, 2);
-        assert_eq!(photo, first * 252 + (24_000_000 - first) * 66 + (64 << 20));
+        assert_eq!(photo, first * 252 + (24_000_000 - first) * 66 + FIXED_BYTES);
         assert!(
             photo < 2_000_000_000,
             "a 24-megapixel photo in {photo} bytes"
         );
         assert_eq!(
             per_pixel(size(6000, 4000), 1, 2),
-            (photo - (64 << 20)).div_ceil(24_000_000)
+            (photo - FIXED_BYTES).div_ceil(24_000_000)
         );
         // 2 px leaves are priced as in the first band throughout.
         assert_eq!(
             encode_bytes(size(6000, 4000), 1, 1),
-            24_000_000 * 602 + (64 << 20)
+            24_000_000 * 602 + FIXED_BYTES
         );
     }
 
