@@ -263,9 +263,8 @@ pub struct ParityChoice {
 /// every receiver some quality and saves those that lose up to that many packets. Estimated
 /// from single streams of the analysis, without packetising: with `K` parity packets the
 /// full picture is the regions' share of the budget coded as one stream (a few such streams,
-/// interpolated between); when more packets
-/// are lost than `K` rebuild, the lost share of the regions shows the preview (without one,
-/// a flat picture).
+/// interpolated between); when more packets are lost than `K` rebuild, the lost share of the
+/// regions shows the preview (without one, a flat picture).
 pub fn parity_for_loss(
     analysis: &Analysis,
     target: Target,
@@ -323,7 +322,7 @@ pub fn parity_for_loss(
         .map(|(_, layout)| layout.regions().max(1) * layout.data_size.saturating_sub(header))
         .collect();
     let last = shares.len() - 1;
-    let mut picked: Vec<usize> = (0..=SIZING_STREAMS - 1)
+    let mut picked: Vec<usize> = (0..SIZING_STREAMS)
         .map(|i| shares[i * last / (SIZING_STREAMS - 1)])
         .collect();
     picked.dedup();
