@@ -9,8 +9,7 @@ For each image and rate: `pifs encode --packets` (whole packet bytes counted aga
 rate), then the receiver (`pifs decode` of a packet directory) after i.i.d. losses of 1, 5, 10
 and 20 % (five seeds each, `pifs packets drop --loss P --seed S`, S drawn from the image's
 name and the seed's number so that images cut into as many packets lose different packets) and
-after bursty losses (10 %,
-mean burst 4: `--burst 4`), and after the first 1, 2, 4, 8 packets and the first 10 / 25 / 50 %
+after bursty losses (10 %, mean burst 4: `--burst 4`), and after the first 1, 2, 4, 8 packets and the first 10 / 25 / 50 %
 of them (the rest missing). PSNR against the original (gray: luma; --colour: RGB). Writes
 bench/results/loss[-colour].csv and prints the means, the cost of packetisation in BD-rate
 against the single stream of the same encoder (gray: its points in bench/results/kodak-pifs.csv,

@@ -592,10 +592,10 @@ impl TileOut for Capture<'_> {
             return Ok(());
         }
         if keep_w < wu {
-            // Rows move left (never onto a later row's unread pixels), one byte at a time: a
-            // `copy_within` would bring in a general memmove, over a kilobyte of flash.
-            // Row `j` moves `j` places left (`keep_w = wu - 1`): the span from its new start
-            // to its old end, each value put `j` places back.
+            // Row `j` moves `j` places left (`keep_w = wu - 1`), never onto a later row's
+            // unread pixels: over the span from its new start to its old end, each byte put
+            // `j` places back (a `copy_within` would bring in a general memmove, over a
+            // kilobyte of flash).
             for j in 1..keep_h {
                 let Some(span) = buf.get_mut(j * keep_w..j * wu + keep_w) else {
                     break;

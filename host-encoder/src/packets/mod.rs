@@ -280,7 +280,7 @@ pub fn parity_for_loss(
         ..*options
     };
     let base = Layout::of(budget, &plain)?;
-    // A region's header and checksum, about: the preview's fields and four more.
+    // A region's header and checksum, about (what `data_packets` writes for a small image).
     let header = 19;
     // The image as one flat grey (or colour): its squared error is the pixels' variance.
     let source = analysis.source();
@@ -319,7 +319,7 @@ pub fn parity_for_loss(
     // nearly straight, over a factor of two at most here).
     let shares: Vec<usize> = layouts
         .iter()
-        .map(|(_, layout)| layout.regions().max(1) * layout.data_size.saturating_sub(header))
+        .map(|(_, layout)| layout.region_share(header))
         .collect();
     let last = shares.len() - 1;
     let mut picked: Vec<usize> = (0..SIZING_STREAMS)
@@ -450,6 +450,12 @@ impl Layout {
     fn regions(&self) -> usize {
         usize::from(self.count) - self.previews
     }
+
+    /// The regions' share of the budget: their packets' bytes but for headers of
+    /// `header_len` bytes (checksum included).
+    fn region_share(&self, header_len: usize) -> usize {
+        self.regions() * self.data_size.saturating_sub(header_len)
+    }
 }
 
 /// The preview (if any) and the region packets, by index: the image cut where a single stream
@@ -464,7 +470,7 @@ fn data_packets(
     let mut head = [0u8; MAX_PACKET_HEADER_LEN];
     // A region header is the preview's and four one- or two-byte fields; then the checksum.
     let typical_header = base.write(&mut head) + 4 * 2 + CRC_LEN;
-    let share = layout.regions() * size.saturating_sub(typical_header);
+    let share = layout.region_share(typical_header);
     let leaves = analysis.leaf_bits(share.max(64))?;
     let mass = BitMass::of(analysis.width(), analysis.height(), &leaves);
     let areas = spread(mass.cut(layout.regions()));

@@ -50,7 +50,7 @@ pub struct PacketArgs {
     #[arg(long, default_value_t = 0, value_name = "K")]
     pub parity: usize,
     /// The share of packets the link loses (0 to 0.5; 0.1 for a tenth): as many parity
-    /// packets as give the best picture on average over such losses (instead of --parity)
+    /// packets as give the best picture on average over such losses (instead of --parity).
     #[arg(long, value_name = "SHARE", conflicts_with = "parity")]
     pub expect_loss: Option<f64>,
 }
