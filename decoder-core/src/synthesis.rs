@@ -6,13 +6,14 @@
 //! clamped to `[SAMPLE_MIN, SAMPLE_MAX]`. The sum of tap magnitudes of a rule ([`Rules`]) is at
 //! most `6144`, and `6144 * 8192 < 2^31`, so the accumulation never overflows an `i32`.
 //!
-//! Evaluation is depth-first: a control grid is refined one child grid at a time and each child
-//! is refined recursively, so memory is one small grid per level (at most [`ARENA_LEN`] values),
-//! independent of the block size. A grid whose square fits an output tile ([`TILE`] x [`TILE`]
-//! pixels) is refined level by level in one lattice of the tile's points, its child grids side by
-//! side, each mirrored at its own ends (a child grid's points depend only on that child grid);
-//! a grid whose points are at most `N` pixels apart but whose square is larger than a tile is
-//! refined once, one tile's window of points at a time.
+//! The subdivision refines the control grid level by level: each level's points are the last
+//! one's refined by `N` along the rows (the line rule of each phase on the four points around
+//! an interval, mirrored at the ends of its block of `m` intervals: the child grids of the
+//! subdivision side by side), then across them (the same rule on four refined rows). A leaf
+//! is drawn in strips of a tile's width, each from top to bottom: a level's rows are made
+//! only as the level below needs them, and each level keeps its last four rows (refined
+//! along the row, over the strip's columns and the taps around them), so memory is four
+//! short rows a level, independent of the leaf's size ([`Pipeline`]).
 //!
 //! A patch can also be drawn at a [`Scale`] other than the coded size: smaller by stopping the
 //! subdivision earlier (pixel `(X, Y)` of a decode at `1/2^k` is pixel `(X 2^k, Y 2^k)` of the
@@ -22,20 +23,20 @@
 use crate::format::SampleRange;
 use crate::format::MAX_LEAF_LOG2;
 use crate::geometry::{Node, Rect};
-use crate::model::{ModelType, MAX_CONTROL, MODELS, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
+use crate::model::{ModelType, MAX_CONTROL, SAMPLE_BITS, SAMPLE_MAX, SAMPLE_MIN};
 #[cfg(doc)]
 use crate::model::{Rules, SAMPLE_ONE, WEIGHT_ONE};
 
 /// Side of the tiles handed to a [`PixelSink`].
 pub const TILE: usize = 8;
 
-/// Values of the per-level grid stack below a patch's control grid at the coded size: the most
-/// that any model needs at the largest leaf (four 5x5 grids for the 5x5/2x2 model).
-pub const ARENA_LEN: usize = arena_len(0);
+/// Refinement levels from a leaf's control grid to its pixels at the coded size, at most: a
+/// leaf of the largest size with one interval and two transforms (the bilinear model) has one
+/// per halving of its 128 px.
+const LEVELS: usize = MAX_LEAF_LOG2 as usize;
 
-/// The same for decodes at up to four times the coded size ([`Scale::Quadruple`]): two 9x9
-/// grids for the 9x9/4x4 model. Only an enlarged decode uses it.
-const ARENA_LARGE_LEN: usize = arena_len(2);
+/// The same for decodes at up to four times the coded size ([`Scale::Quadruple`]).
+const LEVELS_LARGE: usize = LEVELS + 2;
 
 /// What a rendering makes: 8-bit pixels, or the pixels and their samples (1/16 grey level,
 /// before rounding), which a 16-bit stream's values are made from.
@@ -118,34 +119,6 @@ impl Scale {
             (length >> k) + (length & ((1 << k) - 1) != 0) as u32
         }
     }
-}
-
-/// The stored grids below the control grid when `model` tabulates a leaf of side `2^log2`, in
-/// values: one grid per subdivision level whose square is larger than a tile and whose points
-/// are more than `N` pixels apart (see [`Patch::walk`]).
-const fn stored_values(model: ModelType, log2: u32) -> usize {
-    let n = model.transforms as u32;
-    let m = model.intervals as u32;
-    let mut sp = (1u32 << log2) / m;
-    let mut levels = 0;
-    while m * sp > TILE as u32 && sp > n {
-        sp /= n;
-        levels += 1;
-    }
-    levels * model.control_count()
-}
-
-const fn arena_len(enlarge_log2: u32) -> usize {
-    let mut max = 0;
-    let mut i = 0;
-    while i < MODELS.len() {
-        let v = stored_values(MODELS[i], MAX_LEAF_LOG2 as u32 + enlarge_log2);
-        if v > max {
-            max = v;
-        }
-        i += 1;
-    }
-    max
 }
 
 /// A rectangle of decoded pixels, handed to a [`PixelSink`].
@@ -372,7 +345,7 @@ trait Rule: Copy {
 /// `(sum + 2^(SHIFT-1)) >> SHIFT` is exactly `(sum of tap * value + 2048) >> 12`. Constant
 /// small taps compile to shifts and adds (or a multiply by an immediate), with no tap loads:
 /// the rules are fixed by the format (`line_rules_are_the_models`).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 struct Line<const A: i32, const B: i32, const C: i32, const D: i32, const SHIFT: u32>;
 
 /// The midpoint rule, `(-1, 5, 5, -1) / 8` (phase 1 of 2, phase 2 of 4).
@@ -411,63 +384,6 @@ impl<const A: i32, const B: i32, const C: i32, const D: i32, const SHIFT: u32> R
     }
 }
 
-/// Which line rule makes the new points at phase `r` (`1 ..= N - 1`) of a model of `N`
-/// transforms.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-enum Phase {
-    /// [`Half`].
-    Half,
-    /// [`Quarter`].
-    Quarter,
-    /// [`ThreeQuarters`].
-    ThreeQuarters,
-}
-
-/// The loops a rule is compiled into ([`with_rule!`]): the phase-3-of-4 rule is the
-/// phase-1 rule with its taps in reverse order ([`Phase::orient`]), so it needs none of
-/// its own.
-#[derive(Clone, Copy)]
-enum Kind {
-    /// [`Half`].
-    Half,
-    /// [`Quarter`].
-    Quarter,
-}
-
-impl Phase {
-    /// The loop kind that makes this phase's points.
-    #[inline(always)]
-    fn kind(self) -> Kind {
-        match self {
-            Phase::Half => Kind::Half,
-            Phase::Quarter | Phase::ThreeQuarters => Kind::Quarter,
-        }
-    }
-
-    /// The values this phase's rule weighs (`taps`, in its order) in the order its
-    /// [`Phase::kind`] takes them: reversed for the phase-3-of-4 rule.
-    #[inline(always)]
-    fn orient<T>(self, taps: [T; 4]) -> [T; 4] {
-        match self {
-            Phase::ThreeQuarters => {
-                let [a, b, c, d] = taps;
-                [d, c, b, a]
-            }
-            Phase::Half | Phase::Quarter => taps,
-        }
-    }
-
-    /// The rule at phase `r` of a model whose `N` is `2^shift` (2 or 4).
-    #[inline(always)]
-    fn of(r: usize, shift: u32) -> Phase {
-        match (r << 2) >> shift {
-            1 => Phase::Quarter,
-            3 => Phase::ThreeQuarters,
-            _ => Phase::Half,
-        }
-    }
-}
-
 /// `v` clamped to the sample range (which fits an `i16`): one unsigned compare when it is in
 /// range, as it nearly always is.
 #[inline(always)]
@@ -490,42 +406,6 @@ fn saturate(v: i32) -> i16 {
     }
 }
 
-/// Runs `$body` with `$rule` bound to the [`Rule`] of loop kind `$kind` ([`Kind`]): the body
-/// is compiled once per kind, so that its loop has the taps as constants.
-macro_rules! with_rule {
-    ($kind:expr, |$rule:ident| $body:expr) => {{
-        match $kind {
-            Kind::Half => {
-                let $rule: Half = Line;
-                $body
-            }
-            Kind::Quarter => {
-                let $rule: Quarter = Line;
-                $body
-            }
-        }
-    }};
-}
-
-/// `out[x] = rule(a[x], b[x], c[x], d[x])` for `x = start, start + step, ...` up to `end`
-/// (inclusive): a new row of a lattice from four old rows.
-#[inline(never)]
-fn across<R: Rule>(
-    rule: R,
-    out: &mut [i16; LATTICE],
-    [a, b, c, d]: [&[i16; LATTICE]; 4],
-    start: usize,
-    end: usize,
-    step: usize,
-) {
-    let end = end.min(TILE);
-    let mut x = start;
-    while x <= end {
-        out[x] = rule.apply(a[x], b[x], c[x], d[x]);
-        x += step;
-    }
-}
-
 /// What a tile's rows are made of: 8-bit pixels, or samples (a child grid's, or a 16-bit
 /// stream's tile, made pixels by [`Job::put`]). The choice is made once per tile
 /// ([`with_rows!`]), so that the loops over rows and pixels are the same as without it.
@@ -533,9 +413,9 @@ trait Point: Copy {
     /// The point a sample makes.
     fn of(v: i16) -> Self;
 
-    /// `out[i] = rule(a[i], b[i], c[i], d[i])` for every `i` of `out` (at most a row of the
-    /// lattice): a new row from four old rows.
-    fn across<R: Rule>(rule: R, out: &mut [Self], from: [&[i16; LATTICE]; 4]);
+    /// `out[i] = rule(a[i], b[i], c[i], d[i])` for every `i` of `out` (at most a [`Row`]): a
+    /// new row from four old rows.
+    fn across<R: Rule>(rule: R, out: &mut [Self], from: [&Row; 4]);
 
     /// `out[i]` = the point of `src[i]` for every `i` of `out`.
     fn take(out: &mut [Self], src: &[i16]);
@@ -548,9 +428,10 @@ impl Point for u8 {
     }
 
     #[inline(never)]
-    fn across<R: Rule>(rule: R, out: &mut [u8], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
-        for ((((p, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
-            *p = rule.pixel(a, b, c, d);
+    fn across<R: Rule>(rule: R, out: &mut [u8], [a, b, c, d]: [&Row; 4]) {
+        for (i, p) in out.iter_mut().enumerate() {
+            let i = i % STRIP;
+            *p = rule.pixel(a[i], b[i], c[i], d[i]);
         }
     }
 
@@ -567,9 +448,10 @@ impl Point for i16 {
     }
 
     #[inline(never)]
-    fn across<R: Rule>(rule: R, out: &mut [i16], [a, b, c, d]: [&[i16; LATTICE]; 4]) {
-        for ((((v, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
-            *v = rule.apply(a, b, c, d);
+    fn across<R: Rule>(rule: R, out: &mut [i16], [a, b, c, d]: [&Row; 4]) {
+        for (i, v) in out.iter_mut().enumerate() {
+            let i = i % STRIP;
+            *v = rule.apply(a[i], b[i], c[i], d[i]);
         }
     }
 
@@ -612,19 +494,6 @@ macro_rules! with_rows {
     }};
 }
 
-/// `pad` = the old row `row` (`m + 1` points, `m >= 1`) between its mirrored end points:
-/// `row[1], row[0], ..., row[m], row[m - 1]`, so that the taps of interval `a` are
-/// `pad[a..a + 4]`.
-#[inline(always)]
-fn fill_pad(pad: &mut [i16; LATTICE + 3], row: &[i16]) {
-    copy_short(&mut pad[1..], row);
-    let m = row.len().saturating_sub(1);
-    pad[0] = row.get(1).copied().unwrap_or(0);
-    if let (Some(p), Some(&v)) = (pad.get_mut(m + 2), row.get(m.wrapping_sub(1))) {
-        *p = v;
-    }
-}
-
 /// Copies `src` into `dst` (as much as both hold) one value at a time: for the short rows
 /// here a call to `memcpy` costs more than the copy (the compiler fence, which emits nothing,
 /// keeps the loop from becoming one).
@@ -636,122 +505,388 @@ fn copy_short(dst: &mut [i16], src: &[i16]) {
     }
 }
 
-/// Row `y` of `lattice` (mutable) and its rows `taps` (which must not include `y`).
+/// Output columns of a strip of [`Patch::strips`]: a tile's width.
+const STRIP: usize = TILE;
+
+/// A row of a strip at one level: at most [`STRIP`] points (a level's points under a strip
+/// of `STRIP` pixels, with the taps around them, are never more).
+type Row = [i16; STRIP];
+
+/// A level's last four rows: row `i` in slot `i % 4`.
+type Ring = [Row; 4];
+
+/// A line of a level refined by `2^rho` (a row or a column; blocks of `m` intervals): the
+/// interval `k` of its point `j` and `j`'s phase `o` in it (`0`: an old point).
 #[inline(always)]
-fn split_rows(
-    lattice: &mut Lattice,
-    y: usize,
-    taps: [usize; 4],
-) -> Option<(&mut [i16; LATTICE], [&[i16; LATTICE]; 4])> {
-    let (above, rest) = lattice.split_at_mut(y);
-    let (new, below) = rest.split_first_mut()?;
-    let pick = |t: usize| {
-        if t < y {
-            above.get(t)
-        } else {
-            below.get(t.wrapping_sub(y + 1))
-        }
-    };
-    let [t0, t1, t2, t3] = taps;
-    Some((new, [pick(t0)?, pick(t1)?, pick(t2)?, pick(t3)?]))
+fn interval(j: usize, rho: u32) -> (usize, usize) {
+    (j >> rho, j & ((1 << rho) - 1))
 }
 
-/// `row[x] = rule(row[p0], row[p1], row[p2], row[p3])` in the rows `first, first + step, ...`
-/// up to `last` (inclusive) of `lattice`: a new column of old rows.
-#[inline(never)]
-fn along<R: Rule>(
-    rule: R,
-    lattice: &mut Lattice,
-    x: usize,
-    [p0, p1, p2, p3]: [usize; 4],
-    first: usize,
-    last: usize,
-    step: usize,
+/// The last point of a line that point `j` of its refinement is made from.
+#[inline(always)]
+fn last_tap(j: usize, rho: u32, m: usize) -> usize {
+    let (k, o) = interval(j, rho);
+    if o == 0 {
+        k
+    } else if k & (m - 1) == m - 1 {
+        k + 1
+    } else {
+        k + 2
+    }
+}
+
+/// The row at phase `o` (`1 ..`) of interval `k` between the rows of `ring` (a line of rows
+/// refined by `2^rho`, in blocks of `m` intervals), into `out`: the line rule of the phase
+/// on the rows `k - 1 ..= k + 2`, mirrored at the ends of the block.
+#[inline(always)]
+fn new_row<P: Point>(out: &mut [P], ring: &Ring, (k, o): (usize, usize), rho: u32, m: usize) {
+    let last = m - 1;
+    let a = k & last;
+    let before = if a == 0 { k + 1 } else { k.wrapping_sub(1) };
+    let after = if a == last { k } else { k + 2 };
+    let rows = [
+        &ring[before % 4],
+        &ring[k % 4],
+        &ring[(k + 1) % 4],
+        &ring[after % 4],
+    ];
+    if rho == 1 || o == 2 {
+        P::across(Half::default(), out, rows)
+    } else if o == 1 {
+        P::across(Quarter::default(), out, rows)
+    } else {
+        let [r0, r1, r2, r3] = rows;
+        // The phase-3-of-4 rule is the phase-1 rule on the rows in reverse.
+        P::across(Quarter::default(), out, [r3, r2, r1, r0])
+    }
+}
+
+/// Points `lo1 .. lo1 + n` of a line refined by `2^rho` into `out`, from its points `lo0 ..`
+/// in `line`: the old points copied, the new ones made by the line rule of their phase from
+/// the four points around them, mirrored at the ends of their block of `m` intervals (as
+/// [`crate::model::tap_point`]). The points a strip needs are never more than a [`Row`], so
+/// an index into one is taken modulo its length (no bounds to check; a mirrored tap's
+/// unneeded neighbour may wrap, and is not used).
+#[inline(always)]
+fn refine_line(
+    line: &Row,
+    lo0: usize,
+    out: &mut Row,
+    (lo1, n): (usize, usize),
+    rho: u32,
+    m: usize,
 ) {
-    let (x, p0, p1, p2, p3) = (
-        x.min(TILE),
-        p0.min(TILE),
-        p1.min(TILE),
-        p2.min(TILE),
-        p3.min(TILE),
-    );
-    let mut y = first;
-    while y <= last {
-        let Some(row) = lattice.get_mut(y) else {
+    if rho == 1 {
+        halve_line(line, lo0, out, (lo1, n), m);
+    } else {
+        quarter_line(line, lo0, out, (lo1, n), m);
+    }
+}
+
+/// [`refine_line`] by 2: each interval's old point and midpoint, compiled for each block
+/// length `M` (so that the mirrored taps of the bilinear model's one-interval blocks, and
+/// the alternating ones of two-interval blocks, are constants).
+#[inline(always)]
+fn halve_line(line: &Row, lo0: usize, out: &mut Row, points: (usize, usize), m: usize) {
+    match m {
+        1 => halve_blocks::<1>(line, lo0, out, points),
+        2 => halve_blocks::<2>(line, lo0, out, points),
+        4 => halve_blocks::<4>(line, lo0, out, points),
+        _ => halve_blocks::<8>(line, lo0, out, points),
+    }
+}
+
+/// [`halve_line`] for blocks of `M` intervals: whole blocks (or four intervals of a longer
+/// block) at a time where the strip holds them, their taps and mirrors fixed; else an
+/// interval at a time.
+#[inline(never)]
+fn halve_blocks<const M: usize>(line: &Row, lo0: usize, out: &mut Row, (lo1, n): (usize, usize)) {
+    let at = |k: usize| line[k.wrapping_sub(lo0) % STRIP];
+    let half = |p0: i16, p1: i16, p2: i16, p3: i16| Half::default().apply(p0, p1, p2, p3);
+    // The midpoint of interval `k`, its taps mirrored at the ends of its block.
+    let midpoint = |k: usize| {
+        let a = k & (M - 1);
+        let (p1, p2) = (at(k), at(k + 1));
+        let p0 = if a == 0 { p2 } else { at(k.wrapping_sub(1)) };
+        let p3 = if a == M - 1 { p1 } else { at(k + 2) };
+        half(p0, p1, p2, p3)
+    };
+    let n = n.min(STRIP);
+    let mut i = 0;
+    if lo1 & 1 == 1 && n > 0 {
+        out[0] = midpoint(lo1 >> 1);
+        i = 1;
+    }
+    while i < n {
+        let b = (lo1 + i) >> 1;
+        if M <= 2 && b % M == 0 && i + 2 * M <= n {
+            // A whole block: points b ..= b + M of the line.
+            let (v0, v1) = (at(b), at(b + 1));
+            if M == 1 {
+                out[i % STRIP] = v0;
+                out[(i + 1) % STRIP] = ((i32::from(v0) + i32::from(v1) + 1) >> 1) as i16;
+            } else {
+                let v2 = at(b + 2);
+                out[i % STRIP] = v0;
+                out[(i + 1) % STRIP] = half(v1, v0, v1, v2);
+                out[(i + 2) % STRIP] = v1;
+                out[(i + 3) % STRIP] = half(v0, v1, v2, v1);
+            }
+            i += 2 * M;
+        } else if M >= 4 && b % 4 == 0 && i + 8 <= n {
+            // Four intervals of a block: points b - 1 ..= b + 5, mirrored at the block's ends.
+            let (v0, v1, v2, v3, v4) = (at(b), at(b + 1), at(b + 2), at(b + 3), at(b + 4));
+            let before = if b % M == 0 {
+                v1
+            } else {
+                at(b.wrapping_sub(1))
+            };
+            let after = if (b + 3) % M == M - 1 { v3 } else { at(b + 5) };
+            out[i % STRIP] = v0;
+            out[(i + 1) % STRIP] = half(before, v0, v1, v2);
+            out[(i + 2) % STRIP] = v1;
+            out[(i + 3) % STRIP] = half(v0, v1, v2, v3);
+            out[(i + 4) % STRIP] = v2;
+            out[(i + 5) % STRIP] = half(v1, v2, v3, v4);
+            out[(i + 6) % STRIP] = v3;
+            out[(i + 7) % STRIP] = half(v2, v3, v4, after);
+            i += 8;
+        } else {
+            out[i % STRIP] = at(b);
+            if i + 1 < n {
+                out[(i + 1) % STRIP] = midpoint(b);
+            }
+            i += 2;
+        }
+    }
+}
+
+/// [`refine_line`] by 4: each interval's old point and its points at a quarter, a half and
+/// three quarters (the rules' loop over a whole interval), the points around an interval
+/// sliding along the line, one read per interval.
+#[inline(never)]
+fn quarter_line(line: &Row, lo0: usize, out: &mut Row, (lo1, n): (usize, usize), m: usize) {
+    let last = m - 1;
+    let at = |j: usize| line[j % STRIP];
+    let k = lo1 >> 2;
+    let mut a = k & last;
+    let mut j = k.wrapping_sub(lo0);
+    let (mut w0, mut w1, mut w2) = (at(j.wrapping_sub(1)), at(j), at(j.wrapping_add(1)));
+    let mut out = out.iter_mut().take(n);
+    let mut o = lo1 & 3;
+    loop {
+        let w3 = at(j.wrapping_add(2));
+        let p0 = if a == 0 { w2 } else { w0 };
+        let p3 = if a == last { w1 } else { w3 };
+        let points = [
+            w1,
+            Quarter::apply(Line, p0, w1, w2, p3),
+            Half::apply(Line, p0, w1, w2, p3),
+            ThreeQuarters::apply(Line, p0, w1, w2, p3),
+        ];
+        for &p in points.get(o..).unwrap_or(&[]) {
+            let Some(v) = out.next() else {
+                return;
+            };
+            *v = p;
+        }
+        o = 0;
+        (w0, w1, w2) = (w1, w2, w3);
+        j = j.wrapping_add(1);
+        a = (a + 1) & last;
+    }
+}
+
+/// The rows of one strip of a leaf, made level by level from its control grid as the rows
+/// below need them: level `l + 1`'s points are level `l`'s refined by `N` (the last level
+/// by `N` or less, down to one pixel apart), each block of `m` intervals of a level refined
+/// on its own, mirrored at its ends (the child grids of the subdivision side by side). Each
+/// level keeps its last four rows, refined along the row to the next level's columns: a
+/// row of the next level is one of them, or the column (and cell) rule across four.
+struct Pipeline<'a> {
+    /// The control grid, row-major, `m + 1` values a row.
+    control: &'a [i16],
+    /// Intervals of a block (the model's).
+    m: usize,
+    /// Refinements from the control grid to the pixels (nothing to draw if 0).
+    levels: usize,
+    /// Per level (`0..=levels`, the last the pixels).
+    level: [Level; LEVELS_LARGE + 1],
+    /// Four rows a level: level `l`'s rows, refined along the row to level `l + 1`'s
+    /// columns.
+    rings: &'a mut [Ring],
+    /// A level's row before it is refined along the row.
+    scratch: Row,
+}
+
+/// What [`Pipeline`] keeps of one level for the strip being drawn.
+#[derive(Clone, Copy, Default)]
+struct Level {
+    /// `log2` of the refinement to the next level (`log2 N`, the last one `log2 N` or less).
+    rho: u8,
+    /// The first and last columns the strip needs, in the level's points.
+    lo: u16,
+    hi: u16,
+    /// The next row to make, and the last one wanted.
+    next: u16,
+    target: u16,
+}
+
+impl<'a> Pipeline<'a> {
+    /// The pipeline of `patch` with its control points `sp > 1` pixels apart; without levels
+    /// (nothing to draw) if `rings` cannot hold them.
+    #[inline(always)]
+    fn new(patch: &'a Patch, sp: u32, rings: &'a mut [Ring]) -> Pipeline<'a> {
+        let mut pipeline = Pipeline {
+            control: &patch.control[..patch.model.control_count()],
+            m: usize::from(patch.model.intervals),
+            levels: 0,
+            level: [Level::default(); LEVELS_LARGE + 1],
+            rings,
+            scratch: [0; STRIP],
+        };
+        let shift_n = patch.model.transforms_log2();
+        let mut d = sp;
+        for level in pipeline.level.iter_mut().take(LEVELS_LARGE) {
+            if d <= 1 {
+                break;
+            }
+            let rho = shift_n.min(d.trailing_zeros());
+            level.rho = rho as u8;
+            d >>= rho;
+            pipeline.levels += 1;
+        }
+        if d > 1 || pipeline.rings.len() < pipeline.levels {
+            pipeline.levels = 0;
+        }
+        pipeline
+    }
+
+    /// `log2` of the refinement from level `l` to level `l + 1`.
+    #[inline(always)]
+    fn rho(&self, l: usize) -> u32 {
+        self.level.get(l).map_or(1, |level| u32::from(level.rho))
+    }
+
+    /// Starts a strip: the pixels of columns `x .. x + w` of the leaf (`w <= STRIP`), from
+    /// row `y` down.
+    fn start(&mut self, x: usize, w: usize, y: usize) {
+        let top = self.levels.min(LEVELS_LARGE);
+        let (mut lo, mut hi, mut first) = (x, x + w - 1, y);
+        self.level[top].lo = lo as u16;
+        self.level[top].hi = hi as u16;
+        // Level l's last point: the grid's m, doubled or quadrupled by each level above.
+        let mut last = self.m;
+        for l in 0..top {
+            last <<= self.level[l].rho;
+        }
+        for level in self.level[..top].iter_mut().rev() {
+            let rho = u32::from(level.rho);
+            last >>= rho;
+            lo = (lo >> rho).saturating_sub(1);
+            hi = ((hi >> rho) + 2).min(last);
+            first = (first >> rho).saturating_sub(1);
+            (level.lo, level.hi, level.next) = (lo as u16, hi as u16, first as u16);
+        }
+    }
+
+    /// Rows `first .. first + rows` of the strip's pixels into `out`, `cols` a row.
+    #[inline(never)]
+    fn draw<P: Point>(&mut self, out: &mut [P], first: usize, rows: usize, cols: usize) {
+        let l = self.levels - 1;
+        let (rho, m) = (self.rho(l), self.m);
+        for (y, dst) in (first..first + rows).zip(out.chunks_exact_mut(cols.max(1))) {
+            let need = last_tap(y, rho, m);
+            if usize::from(self.level[l].next) <= need {
+                self.fill(l, need);
+            }
+            let Some(ring) = self.rings.get(l) else {
+                return;
+            };
+            match interval(y, rho) {
+                (k, 0) => P::take(dst, &ring[k % 4]),
+                at => new_row(dst, ring, at, rho, m),
+            }
+        }
+    }
+
+    /// Makes level `top`'s rows up to row `upto`, with the rows of the levels above that they
+    /// need, in order (a level's row waits for the rows of the level above it).
+    fn fill(&mut self, top: usize, upto: usize) {
+        let Some(t) = self.level.get_mut(top) else {
             return;
         };
-        row[x] = rule.apply(row[p0], row[p1], row[p2], row[p3]);
-        y += step;
-    }
-}
-
-/// The points of a row refined by 4 (phases 0, 1, 2, 3 of each interval) into `out`, from
-/// `taps` (the padded old row from the first interval's first tap on): whole intervals, then
-/// the first points of one more.
-#[inline(never)]
-fn quarters(taps: &[i16], out: &mut [i16]) {
-    let mut windows = taps.windows(4);
-    let mut chunks = out.chunks_exact_mut(4);
-    for (chunk, w) in (&mut chunks).zip(&mut windows) {
-        if let ([o0, o1, o2, o3], &[p0, p1, p2, p3]) = (chunk, w) {
-            *o0 = p1;
-            *o1 = Quarter::apply(Line, p0, p1, p2, p3);
-            *o2 = Half::apply(Line, p0, p1, p2, p3);
-            *o3 = ThreeQuarters::apply(Line, p0, p1, p2, p3);
+        t.target = upto as u16;
+        let mut l = top;
+        while let Some(&Level { next, target, .. }) = self.level.get(l) {
+            let i = usize::from(next);
+            if i > usize::from(target) {
+                if l >= top {
+                    return;
+                }
+                l += 1;
+                continue;
+            }
+            if let Some(above) = l.checked_sub(1).and_then(|a| self.level.get_mut(a)) {
+                let need = last_tap(i, u32::from(above.rho), self.m);
+                if usize::from(above.next) <= need {
+                    above.target = need as u16;
+                    l -= 1;
+                    continue;
+                }
+            }
+            self.make(l, i);
+            if let Some(level) = self.level.get_mut(l) {
+                level.next += 1;
+            }
         }
     }
-    let rest = chunks.into_remainder();
-    if let (Some(&[p0, p1, p2, p3]), false) = (windows.next(), rest.is_empty()) {
-        let points = [
-            p1,
-            Quarter::apply(Line, p0, p1, p2, p3),
-            Half::apply(Line, p0, p1, p2, p3),
-        ];
-        copy_short(rest, &points);
+
+    /// Level `l`'s row `i` over the strip's columns, refined along the row into its ring.
+    #[inline(never)]
+    fn make(&mut self, l: usize, i: usize) {
+        let m = self.m;
+        let rho = self.rho(l);
+        let rho_above = if l > 0 { self.rho(l - 1) } else { 0 };
+        let (lo, hi) = (usize::from(self.level[l].lo), usize::from(self.level[l].hi));
+        let Some(&below) = self.level.get(l + 1) else {
+            return;
+        };
+        let lo1 = usize::from(below.lo);
+        let n = usize::from(below.hi) + 1 - lo1;
+        let Pipeline {
+            control,
+            rings,
+            scratch,
+            ..
+        } = self;
+        let (above, rest) = rings.split_at_mut(l);
+        let Some(ring) = rest.first_mut() else {
+            return;
+        };
+        let out = &mut ring[i % 4];
+        let line = match above.last() {
+            None => {
+                // The control grid's row, the points the strip needs.
+                let side = m + 1;
+                copy_short(
+                    scratch,
+                    control.get(i * side + lo..=i * side + hi).unwrap_or(&[]),
+                );
+                &*scratch
+            }
+            Some(above) => match interval(i, rho_above) {
+                (k, 0) => &above[k % 4],
+                at => {
+                    let width = (hi + 1 - lo).min(STRIP);
+                    new_row(&mut scratch[..width], above, at, rho_above, m);
+                    &*scratch
+                }
+            },
+        };
+        refine_line(line, lo, out, (lo1, n), rho, m);
     }
 }
-
-/// The points of a row refined by 2 (each interval's old point and midpoint) into `out`,
-/// from `taps` as [`quarters`].
-#[inline(never)]
-fn halves(taps: &[i16], out: &mut [i16]) {
-    let mut windows = taps.windows(4);
-    let mut chunks = out.chunks_exact_mut(2);
-    for (chunk, w) in (&mut chunks).zip(&mut windows) {
-        if let ([o0, o1], &[p0, p1, p2, p3]) = (chunk, w) {
-            *o0 = p1;
-            *o1 = Half::apply(Line, p0, p1, p2, p3);
-        }
-    }
-    if let (Some(&[_, p1, _, _]), [o]) = (windows.next(), chunks.into_remainder()) {
-        *o = p1;
-    }
-}
-
-/// Deepest subdivision below a leaf's control grid that the walk stores (a leaf of the
-/// largest size drawn four times larger), plus one for the control grid.
-const MAX_DEPTH: usize = arena_len_levels(2) + 1;
-
-/// The most grids [`stored_values`] stores for any model at the largest leaf size enlarged
-/// `2^enlarge_log2` times.
-const fn arena_len_levels(enlarge_log2: u32) -> usize {
-    let (mut max, mut i) = (0, 0);
-    while i < MODELS.len() {
-        let levels = stored_values(MODELS[i], MAX_LEAF_LOG2 as u32 + enlarge_log2)
-            / MODELS[i].control_count();
-        if levels > max {
-            max = levels;
-        }
-        i += 1;
-    }
-    max
-}
-
-/// Side of the lattice of a tile's points: its pixels and the points on its far edges.
-const LATTICE: usize = TILE + 1;
-
-/// The points of a tile (or the row rule's points of a refinement window), by row.
-type Lattice = [[i16; LATTICE]; LATTICE];
 
 /// Where a grid lies in the output: its top-left point and the output pixels between its
 /// points (at least 1).
@@ -760,18 +895,6 @@ struct Square {
     x: u32,
     y: u32,
     sp: u32,
-}
-
-impl Square {
-    /// The square of child grid `(i, j)` of a grid with `m` intervals refined by `n`.
-    fn child(&self, m: u32, n: u32, i: u32, j: u32) -> Square {
-        let sp = self.sp >> n.trailing_zeros();
-        Square {
-            x: self.x + j * m * sp,
-            y: self.y + i * m * sp,
-            sp,
-        }
-    }
 }
 
 /// What one rendering of a patch draws into: the clip, the tile output, its pixels and, for
@@ -809,26 +932,6 @@ impl Job<'_> {
     }
 }
 
-/// Rows `r0 ..` and columns `c0 ..` of a refined `lattice` into `out` (`rows` rows of `cols`
-/// points): the last step of [`Patch::tile`].
-#[inline(always)]
-fn take_rows<P: Point>(
-    out: &mut [P],
-    lattice: &Lattice,
-    r0: usize,
-    c0: usize,
-    rows: usize,
-    cols: usize,
-) {
-    for j in 0..rows {
-        if let (Some(dst), Some(src)) =
-            (out.get_mut(j * cols..j * cols + cols), lattice.get(r0 + j))
-        {
-            P::take(dst, &src[c0.min(TILE)..]);
-        }
-    }
-}
-
 /// How far apart, in a grid's values, the points [`grid_points`] draws are: from one row to
 /// the next and from one column to the next.
 #[derive(Clone, Copy)]
@@ -863,17 +966,6 @@ fn grid_points<P: Point>(
             }
         }
     }
-}
-
-/// One tile of a strip of [`Patch::emit`]: its rows `first, first + stride, ...` (`rows`
-/// of them, in refined points of the grid), `cols` points a row, made from the old rows of
-/// the strip's store whose first is old row `k_lo`.
-struct Strip {
-    first: usize,
-    stride: usize,
-    k_lo: usize,
-    rows: usize,
-    cols: usize,
 }
 
 impl Patch {
@@ -990,439 +1082,75 @@ impl Patch {
             y,
             sp: 1 << sp_log2,
         };
-        let g = &self.control[..self.model.control_count()];
-        if at.sp * u32::from(m) > TILE as u32 {
-            if k > 0 {
-                self.walk_large(at, &mut job)
-            } else {
-                self.walk_root(at, &mut job)
-            }
-        } else if at.sp == 1 {
-            self.tile(g, &at, &mut job, None)
-        } else {
-            self.tile_root(g, &at, &mut job)
+        if at.sp == 1 {
+            // A pixel grid: its points are the pixels.
+            let g = &self.control[..self.model.control_count()];
+            return self.points(g, &at, u32::from(m), 1, &mut job);
+        }
+        // One level per refinement by N (the last may be by less) from `sp` pixels to one: a
+        // level per halving for N = 2, per two halvings (rounded up) for N = 4.
+        let shift_n = self.model.transforms_log2().clamp(1, 2);
+        match (at.sp.trailing_zeros() + shift_n - 1) >> (shift_n - 1) {
+            0..=2 => self.strips_in::<2>(at, &mut job),
+            3..=4 => self.strips_in::<4>(at, &mut job),
+            5..=7 => self.strips_in::<LEVELS>(at, &mut job),
+            _ => self.strips_in::<LEVELS_LARGE>(at, &mut job),
         }
     }
 
-    /// [`Patch::tile`] with a lattice of its own (out of line, so that the lattice is not on
-    /// the stack while a larger leaf is drawn).
+    /// [`Patch::strips`] with rows for `L` levels (out of line, so that the rows are on the
+    /// stack only while a leaf is drawn, and only as many as it needs are cleared).
     #[inline(never)]
-    fn tile_root(&self, g: &[i16], at: &Square, job: &mut Job<'_>) -> Result<(), Stop> {
-        let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
-        if at.sp <= u32::from(self.model.transforms) {
-            return self.emit(g, at, job, &mut lattice);
-        }
-        self.tile(g, at, job, Some(&mut lattice))
+    fn strips_in<const L: usize>(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
+        let mut rings = [[[0i16; STRIP]; 4]; L];
+        self.strips(at, job, &mut rings)
     }
 
-    /// [`Patch::walk`] from the control grid of a leaf larger than a tile, with the arena of
-    /// the coded size (out of line, so that a leaf that fits a tile clears neither).
+    /// Draws the pixels of the leaf whose control grid is at `at` (points `at.sp > 1` pixels
+    /// apart) inside the clip, in strips of [`STRIP`] columns, each from top to bottom a
+    /// tile at a time: the strip's rows are made level by level as the rows below need them
+    /// ([`Pipeline`]), four rows of each level kept in `rings`.
     #[inline(never)]
-    fn walk_root(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
-        let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
-        let mut arena = [0i16; ARENA_LEN];
-        let n2 = self.model.control_count();
-        self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
-    }
-
-    /// [`Patch::walk_root`] with the arena of a decode at up to four times the coded size
-    /// (out of line: only enlarged decodes need its extra stack).
-    #[inline(never)]
-    fn walk_large(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
-        let mut lattice: Lattice = [[0; LATTICE]; LATTICE];
-        let mut arena = [0i16; ARENA_LARGE_LEN];
-        let n2 = self.model.control_count();
-        self.walk(&self.control[..n2], &mut arena, at, job, &mut lattice)
-    }
-
-    /// Draws the pixels of grid `root` (its square `at`) inside the clip, depth first without
-    /// recursion: a square that fits a tile is refined whole ([`Patch::tile`]); a larger one
-    /// whose points are at most `N` pixels apart is refined once, tile by tile
-    /// ([`Patch::emit`]); any other is subdivided, the child grid of depth `d` stored in the
-    /// `d`-th grid of `arena` while it is drawn (a child grid is drawn before its next sibling
-    /// is made). `lattice` is scratch space.
-    fn walk(
-        &self,
-        root: &[i16],
-        arena: &mut [i16],
-        at: Square,
-        job: &mut Job<'_>,
-        lattice: &mut Lattice,
-    ) -> Result<(), Stop> {
+    fn strips(&self, at: Square, job: &mut Job<'_>, rings: &mut [Ring]) -> Result<(), Stop> {
         let m = u32::from(self.model.intervals);
-        let n = u32::from(self.model.transforms);
-        let shift = self.model.transforms_log2();
-        let n2 = self.model.control_count();
-        // Per depth: the grid's corner (as an offset from the root's: a leaf drawn at most four
-        // times larger is at most 2^9 pixels a side) and the next of its children to visit (N^2:
-        // done); its points are `at.sp >> (depth log2 N)` pixels apart.
-        let root_at = at;
-        let mut corners = [(0u16, 0u16); MAX_DEPTH];
-        let mut next = [0u8; MAX_DEPTH];
-        let done = (n * n) as u8;
-        let mut depth = 0;
-        let mut entering = true;
-        loop {
-            let (dx, dy) = corners[depth];
-            let at = Square {
-                x: root_at.x + u32::from(dx),
-                y: root_at.y + u32::from(dy),
-                sp: root_at.sp >> (shift * depth as u32),
-            };
-            let ext = m * at.sp;
-            if entering {
-                entering = false;
-                let grid = match depth {
-                    0 => root,
-                    d => arena.get((d - 1) * n2..d * n2).unwrap_or(&[]),
-                };
-                if !job.clip.overlaps_square(at.x, at.y, ext) {
-                    next[depth] = done;
-                } else if at.sp <= n {
-                    self.emit(grid, &at, job, lattice)?;
-                    next[depth] = done;
-                } else if ext <= TILE as u32 {
-                    self.tile(grid, &at, job, Some(lattice))?;
-                    next[depth] = done;
-                } else {
-                    next[depth] = 0;
-                }
-            }
-            if next[depth] >= done || depth + 1 >= MAX_DEPTH || arena.len() < (depth + 1) * n2 {
-                // This grid is done: back to its parent's next child.
-                if depth == 0 {
-                    return Ok(());
-                }
-                depth -= 1;
-                continue;
-            }
-            let c = u32::from(next[depth]);
-            next[depth] += 1;
-            let (i, j) = (c >> shift, c & (n - 1));
-            let child_at = at.child(m, n, i, j);
-            if !job
-                .clip
-                .overlaps_square(child_at.x, child_at.y, ext >> shift)
-            {
-                continue;
-            }
-            let (parents, children) = arena.split_at_mut(depth * n2);
-            let parent = match depth {
-                0 => root,
-                d => parents.get((d - 1) * n2..).unwrap_or(&[]),
-            };
-            let Some(child) = children.get_mut(..n2) else {
-                return Ok(());
-            };
-            self.child(parent, i as usize, j as usize, lattice, child);
-            depth += 1;
-            corners[depth] = (
-                (child_at.x - root_at.x) as u16,
-                (child_at.y - root_at.y) as u16,
-            );
-            entering = true;
-        }
-    }
-
-    /// Draws a square of grid `g` that fits a tile, as one tile: places the grid's points in
-    /// `lattice` (the tile's points) and refines them level by level ([`Patch::level`]) down
-    /// to one pixel apart, then hands on the part inside the clip. A grid whose points are one
-    /// pixel apart is its pixels (no lattice needed).
-    #[inline(never)]
-    fn tile(
-        &self,
-        g: &[i16],
-        at: &Square,
-        job: &mut Job<'_>,
-        lattice: Option<&mut Lattice>,
-    ) -> Result<(), Stop> {
-        let m = usize::from(self.model.intervals);
-        let n = usize::from(self.model.transforms);
-        let side = m + 1;
-        let sp = at.sp as usize;
-        let ext = m * sp;
+        let ext = m * at.sp;
         let square = Rect {
             x: at.x,
             y: at.y,
-            w: ext as u32,
-            h: ext as u32,
+            w: ext,
+            h: ext,
         };
         let area = square.intersect(&job.clip);
-        if area.is_empty() || ext > TILE || g.len() < side * side {
+        if area.is_empty() {
             return Ok(());
         }
-        let (c0, r0) = ((area.x - at.x) as usize, (area.y - at.y) as usize);
-        let (cols, rows) = (area.w as usize, area.h as usize);
-        let len = cols * rows;
-        let Some(lattice) = lattice.filter(|_| sp > 1) else {
-            // A pixel grid: its points are the pixels.
-            return self.points(g, at, ext as u32, 1, job);
-        };
-        for row in 0..side {
-            let dst = &mut lattice[(row * sp).min(TILE)];
-            for col in 0..side {
-                dst[(col * sp).min(TILE)] = g.get(row * side + col).copied().unwrap_or(0);
-            }
-        }
-        let mut d = sp;
-        while d > 1 {
-            let nd = if d >= n {
-                d >> self.model.transforms_log2()
-            } else {
-                1
-            };
-            if nd == 1 {
-                // The last level: only the pixels inside the clip.
-                let (last_row, last_col) = (r0 + rows - 1, c0 + cols - 1);
-                self.level(lattice, d, nd, ext, (r0, last_row), (c0, last_col));
-            } else {
-                self.level(lattice, d, nd, ext, (0, ext), (0, ext));
-            }
-            d = nd;
-        }
-        with_rows!(job, |out| take_rows(out, lattice, r0, c0, rows, cols));
-        job.put(area, len)
-    }
-
-    /// One subdivision level of a tile's lattice: its points `d` apart become points `nd`
-    /// apart (`nd = d / N`; or 1 when `d < N`, the points of phases that are multiples of
-    /// `N / d`), each child grid (`m` intervals, `m d` pixels) refined on its own, mirrored at
-    /// its ends. Only the points in rows `rows` and columns `cols` (inclusive bounds) are
-    /// made, with the row rule's points they are made from.
-    fn level(
-        &self,
-        lattice: &mut Lattice,
-        d: usize,
-        nd: usize,
-        ext: usize,
-        rows: (usize, usize),
-        cols: (usize, usize),
-    ) {
-        let m = usize::from(self.model.intervals);
-        let (shift_n, shift_d) = (self.model.transforms_log2(), d.trailing_zeros());
-        let phase = |offset: usize| Phase::of((offset << shift_n) >> shift_d, shift_n);
-        let intervals = (ext >> shift_d).min(TILE);
-        let last = m - 1;
-        // The lattice positions of the taps of interval k: points k - 1 ..= k + 2 of its child
-        // grid, mirrored at the child grid's ends.
-        let taps_of = |k: usize| {
-            let a = k & (m - 1);
-            let before = if a == 0 { k + 1 } else { k.wrapping_sub(1) };
-            let after = if a == last { k } else { k + 2 };
-            [before, k, k + 1, after].map(|t| (t * d).min(TILE))
-        };
-        let (c_lo, c_hi) = (cols.0, cols.1.min(TILE));
-        let (r_lo, r_hi) = (rows.0, rows.1.min(TILE));
-        // The row rule on the old rows the needed rows are made from, in place (it writes
-        // between the points it reads), one new column at a time.
-        let first = ((r_lo >> shift_d).saturating_sub(1)) << shift_d;
-        let end = (((r_hi >> shift_d) + 2) << shift_d).min(ext);
-        let mut offset = nd;
-        while offset < d {
-            let phase = phase(offset);
-            with_rule!(phase.kind(), |rule| {
-                for k in 0..intervals {
-                    let x = k * d + offset;
-                    if (c_lo..=c_hi).contains(&x) {
-                        along(rule, lattice, x, phase.orient(taps_of(k)), first, end, d);
-                    }
-                }
-            });
-            offset += nd;
-        }
-        // The new rows, across the old ones: the column rule on old columns and the cell rule
-        // between them are one rule (a tensor product), which makes a whole row.
-        let mut offset = nd;
-        while offset < d {
-            let phase = phase(offset);
-            for k in 0..intervals {
-                let y = k * d + offset;
-                if !(r_lo..=r_hi).contains(&y) {
-                    continue;
-                }
-                if let Some((new, from)) = split_rows(lattice, y, phase.orient(taps_of(k))) {
-                    with_rule!(phase.kind(), |rule| across(rule, new, from, c_lo, c_hi, nd));
-                }
-            }
-            offset += nd;
-        }
-    }
-
-    /// Draws the square of grid `g` (points at most `N` pixels apart, larger than a tile) in
-    /// strips of [`TILE`] columns, each cut into tiles: each pixel is the refined point of `g`
-    /// at stride `N / sp`. The row rule makes a strip's columns on every old row it needs, once
-    /// (into `h`); then each tile row is an old row's or, across four old rows, the column or
-    /// cell rule's, made straight into pixels.
-    #[inline(never)]
-    fn emit(&self, g: &[i16], at: &Square, job: &mut Job<'_>, h: &mut Lattice) -> Result<(), Stop> {
-        let m = usize::from(self.model.intervals);
-        let side = m + 1;
-        let shift = self.model.transforms_log2();
-        let (x, y, sp) = (at.x, at.y, at.sp);
-        let ext = u32::from(self.model.intervals) * sp;
-        let stride = (u32::from(self.model.transforms) >> sp.trailing_zeros()).max(1) as usize;
-        let clip = job.clip;
-        let x_lo = x.max(clip.x);
-        let y_lo = y.max(clip.y);
-        let x_hi = (u64::from(x) + u64::from(ext)).min(clip.right()) as u32;
-        let y_hi = (u64::from(y) + u64::from(ext)).min(clip.bottom()) as u32;
-        if x_lo >= x_hi || y_lo >= y_hi || g.len() < side * side {
+        let mut pipeline = Pipeline::new(self, at.sp, rings);
+        if pipeline.levels == 0 {
             return Ok(());
         }
-        // The old rows the strip's rows need: a - 1 ..= a + 2 around each row's.
-        let k_lo = (((y_lo - y) as usize * stride) >> shift).saturating_sub(1);
-        let k_hi = ((((y_hi - 1 - y) as usize * stride) >> shift) + 2).min(m);
-        let mut pad = [0i16; LATTICE + 3];
-        let mut tx = x_lo;
-        while tx < x_hi {
-            let tw = (x_hi - tx).min(TILE as u32);
-            let cols = tw as usize;
-            let q2 = (tx - x) as usize * stride;
-            for (k, dst) in (k_lo..=k_hi).zip(h.iter_mut()) {
-                let Some(row) = g.get(k * side..k * side + side) else {
-                    return Ok(());
-                };
-                fill_pad(&mut pad, row);
-                self.row_points(&pad, q2, stride, &mut dst[..cols]);
-            }
-            let mut ty = y_lo;
-            while ty < y_hi {
-                let th = (y_hi - ty).min(TILE as u32);
-                let strip = Strip {
-                    first: (ty - y) as usize * stride,
-                    stride,
-                    k_lo,
-                    rows: th as usize,
-                    cols,
-                };
-                with_rows!(job, |out| self.strip_rows(out, h, &strip));
-                let area = Rect {
-                    x: tx,
-                    y: ty,
+        let (x0, y0) = (area.x - at.x, area.y - at.y);
+        let mut tx = 0;
+        while tx < area.w {
+            let tw = (area.w - tx).min(STRIP as u32);
+            pipeline.start((x0 + tx) as usize, tw as usize, y0 as usize);
+            let mut ty = 0;
+            while ty < area.h {
+                let th = (area.h - ty).min(TILE as u32);
+                let first = (y0 + ty) as usize;
+                let (rows, cols) = (th as usize, tw as usize);
+                with_rows!(job, |out| pipeline.draw(out, first, rows, cols));
+                let tile = Rect {
+                    x: area.x + tx,
+                    y: area.y + ty,
                     w: tw,
                     h: th,
                 };
-                job.put(area, (tw * th) as usize)?;
+                job.put(tile, (tw * th) as usize)?;
                 ty += th;
             }
             tx += tw;
         }
         Ok(())
-    }
-
-    /// The rows of one tile of [`Patch::emit`]'s strip into `out` (`strip.cols` points a
-    /// row): each an old row of `h` or, across four of them, the column or cell rule's.
-    #[inline(always)]
-    fn strip_rows<P: Point>(&self, out: &mut [P], h: &Lattice, strip: &Strip) {
-        let m = usize::from(self.model.intervals);
-        let shift = self.model.transforms_log2();
-        let mask = (1usize << shift) - 1;
-        let (cols, k_lo) = (strip.cols, strip.k_lo);
-        for j in 0..strip.rows {
-            let Some(out) = out.get_mut(j * cols..j * cols + cols) else {
-                break;
-            };
-            let q1 = strip.first + j * strip.stride;
-            let (a1, r1) = ((q1 >> shift).min(m), q1 & mask);
-            if r1 == 0 {
-                if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
-                    P::take(out, row);
-                }
-                continue;
-            }
-            let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
-            let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
-                continue;
-            };
-            self.new_row(out, [v0, v1, v2, v3], r1);
-        }
-    }
-
-    /// The refined points of a padded old row `pad` (its points `1..=m+1`, mirrored end points
-    /// at 0 and `m + 2`) at columns `q2, q2 + stride, ...`, one per entry of `out`.
-    fn row_points(&self, pad: &[i16; LATTICE + 3], q2: usize, stride: usize, out: &mut [i16]) {
-        let shift = self.model.transforms_log2();
-        let mask = (1usize << shift) - 1;
-        // An old point first (every strip and child grid starts on one): whole intervals at
-        // a time, each from its four taps, the rules' taps constants.
-        if q2 & mask == 0 {
-            let taps = pad.get(q2 >> shift..).unwrap_or(&[]);
-            if shift == 2 && stride == 1 {
-                return quarters(taps, out);
-            }
-            if stride << 1 == mask + 1 {
-                return halves(taps, out);
-            }
-        }
-        let mut q = q2;
-        for v in out.iter_mut() {
-            let Some(&[p0, p1, p2, p3]) = pad.get(q >> shift..(q >> shift) + 4) else {
-                return;
-            };
-            *v = match q & mask {
-                0 => p1,
-                r => match Phase::of(r, shift) {
-                    Phase::Half => Half::apply(Line, p0, p1, p2, p3),
-                    Phase::Quarter => Quarter::apply(Line, p0, p1, p2, p3),
-                    Phase::ThreeQuarters => ThreeQuarters::apply(Line, p0, p1, p2, p3),
-                },
-            };
-            q += stride;
-        }
-    }
-
-    /// A new row at row phase `r1` (1 or more) from the old rows `from` (each holding the
-    /// columns `q2, q2 + stride, ...`), as pixels or samples: one rule for the whole row (the
-    /// column rule and the cell rules are the line rule of phase `r1`).
-    #[inline(never)]
-    fn new_row<P: Point>(&self, out: &mut [P], from: [&[i16; LATTICE]; 4], r1: usize) {
-        let phase = Phase::of(r1, self.model.transforms_log2());
-        with_rule!(phase.kind(), |rule| P::across(
-            rule,
-            out,
-            phase.orient(from)
-        ));
-    }
-
-    /// Child grid `(i, j)` of grid `g` (one subdivision of the whole grid; `out` holds
-    /// `(m + 1)^2` values, row-major): the row rule gives its columns on the old rows it needs
-    /// (into `h`), then each row is an old row's or the column or cell rule's across four old
-    /// rows.
-    #[inline(never)]
-    fn child(&self, g: &[i16], i: usize, j: usize, h: &mut Lattice, out: &mut [i16]) {
-        let m = usize::from(self.model.intervals);
-        let side = m + 1;
-        let shift = self.model.transforms_log2();
-        let mask = (1usize << shift) - 1;
-        let (q1, q2) = (i * m, j * m);
-        let k_lo = (q1 >> shift).saturating_sub(1);
-        let k_hi = (((q1 + m) >> shift) + 2).min(m);
-        let mut pad = [0i16; LATTICE + 3];
-        for (k, dst) in (k_lo..=k_hi).zip(h.iter_mut()) {
-            let Some(row) = g.get(k * side..k * side + side) else {
-                return;
-            };
-            fill_pad(&mut pad, row);
-            self.row_points(&pad, q2, 1, &mut dst[..side.min(LATTICE)]);
-        }
-        for r in 0..side {
-            let Some(dst) = out.get_mut(r * side..r * side + side) else {
-                break;
-            };
-            let q = q1 + r;
-            let (a1, r1) = ((q >> shift).min(m), q & mask);
-            if r1 == 0 {
-                if let Some(row) = h.get(a1.wrapping_sub(k_lo)) {
-                    copy_short(dst, row);
-                }
-                continue;
-            }
-            let at = |t| h.get(crate::model::tap_point(a1, t, m).wrapping_sub(k_lo));
-            let (Some(v0), Some(v1), Some(v2), Some(v3)) = (at(0), at(1), at(2), at(3)) else {
-                continue;
-            };
-            self.new_row(dst, [v0, v1, v2, v3], r1);
-        }
     }
 
     /// Draws grid `g`'s points as pixels, `step` points apart: the square of `side` pixels at
@@ -1464,13 +1192,15 @@ mod tests {
 
     use super::*;
     use crate::format::MIN_LEAF_LOG2;
-    use crate::model::{default_line_taps, tap_point, SAMPLE_ONE};
+    use crate::model::{default_line_taps, tap_point, MODELS, SAMPLE_ONE};
     use core::convert::Infallible;
     use std::vec;
     use std::vec::Vec;
 
     /// The line rules with constant taps are the models' rules: each tap times
-    /// `2^(12 - SHIFT)` is the model's tap at that phase, and the sums round alike.
+    /// `2^(12 - SHIFT)` is the model's tap at that phase, and the sums round alike. Phase `o`
+    /// of a refinement by `2^rho` is phase `o N / 2^rho` of the model's `N` (a last level
+    /// refined by less than `N` takes the phases that fall on its points).
     #[test]
     fn line_rules_are_the_models() {
         fn taps<const A: i32, const B: i32, const C: i32, const D: i32, const S: u32>(
@@ -1478,30 +1208,28 @@ mod tests {
         ) -> [i32; 4] {
             [A, B, C, D].map(|t| t << (12 - S))
         }
+        let half = taps(Half::default());
+        let quarter = taps(Quarter::default());
+        let three_quarters = taps(ThreeQuarters::default());
+        // The phase-3-of-4 rule is the phase-1 rule reversed (`new_row` uses it so).
+        let mut reversed = quarter;
+        reversed.reverse();
+        assert_eq!(three_quarters, reversed);
         for model in MODELS {
             let n = usize::from(model.transforms);
-            let shift = model.transforms_log2();
-            for r in 1..n {
-                let want = crate::model::Rules::of(model).taps[r - 1].map(i32::from);
-                let got = match Phase::of(r, shift) {
-                    Phase::Half => {
-                        let rule: Half = Line;
-                        taps(rule)
-                    }
-                    Phase::Quarter => {
-                        let rule: Quarter = Line;
-                        taps(rule)
-                    }
-                    Phase::ThreeQuarters => {
-                        let rule: ThreeQuarters = Line;
-                        taps(rule)
-                    }
-                };
-                assert_eq!(got, want, "model {model:?}, phase {r}");
-                // The loop its kind compiles makes the same sum from the oriented values.
-                let by_kind = with_rule!(Phase::of(r, shift).kind(), |rule| taps(rule));
-                assert_eq!(Phase::of(r, shift).orient(by_kind), want, "phase {r}");
-                assert_eq!(want, default_line_taps(model.transforms, r));
+            let rules = crate::model::Rules::of(model);
+            for rho in 1..=model.transforms_log2() {
+                for o in 1..1usize << rho {
+                    let r = (o * n) >> rho;
+                    let want = rules.taps[r - 1].map(i32::from);
+                    let got = match (rho, o) {
+                        (1, _) | (_, 2) => half,
+                        (_, 1) => quarter,
+                        _ => three_quarters,
+                    };
+                    assert_eq!(got, want, "model {model:?}, phase {o} of {}", 1 << rho);
+                    assert_eq!(want, default_line_taps(model.transforms, r));
+                }
             }
         }
     }
@@ -1925,10 +1653,10 @@ mod tests {
         assert_eq!(pixel_grids, 3);
     }
 
-    /// The arena is sized by a formula: every model at every leaf size it may code must still
-    /// deliver every pixel (a short arena would silently skip sub-grids).
+    /// The rings are sized by the levels a leaf needs: every model at every leaf size it may
+    /// code delivers every pixel (too few rings would draw nothing).
     #[test]
-    fn arena_covers_every_model_and_leaf_size() {
+    fn rings_cover_every_model_and_leaf_size() {
         for model in MODELS {
             for log2 in MIN_LEAF_LOG2..=MAX_LEAF_LOG2 {
                 if !model.fits_block(log2) {
