@@ -515,6 +515,9 @@ type Row = [i16; STRIP];
 /// A level's last four rows: row `i` in slot `i % 4`.
 type Ring = [Row; 4];
 
+/// Samples of a [`Ring`].
+const RING: usize = 4 * STRIP;
+
 /// A line of a level refined by `2^rho` (a row or a column; blocks of `m` intervals): the
 /// interval `k` of its point `j` and `j`'s phase `o` in it (`0`: an old point).
 #[inline(always)]
@@ -708,10 +711,17 @@ struct Pipeline<'a> {
     control: &'a [i16],
     /// Intervals of a block (the model's).
     m: usize,
-    /// Refinements from the control grid to the pixels (nothing to draw if 0).
+    /// Refinements from the control grid to the pixels.
     levels: usize,
-    /// Per level (`0..=levels`, the last the pixels).
-    level: [Level; LEVELS_LARGE + 1],
+    /// Per level (`0..=levels`, the last the pixels): `log2` of the refinement to the next
+    /// level (`log2 N`, the last one `log2 N` or less).
+    rho: [u8; LEVELS_LARGE + 1],
+    /// Per level: the first and last columns the strip needs, in the level's points.
+    lo: [u16; LEVELS_LARGE + 1],
+    hi: [u16; LEVELS_LARGE + 1],
+    /// Per level: the next row to make, and the last one wanted.
+    next: [u16; LEVELS_LARGE + 1],
+    target: [u16; LEVELS_LARGE + 1],
     /// Four rows a level: level `l`'s rows, refined along the row to level `l + 1`'s
     /// columns.
     rings: &'a mut [Ring],
@@ -719,53 +729,45 @@ struct Pipeline<'a> {
     scratch: Row,
 }
 
-/// What [`Pipeline`] keeps of one level for the strip being drawn.
-#[derive(Clone, Copy, Default)]
-struct Level {
-    /// `log2` of the refinement to the next level (`log2 N`, the last one `log2 N` or less).
-    rho: u8,
-    /// The first and last columns the strip needs, in the level's points.
-    lo: u16,
-    hi: u16,
-    /// The next row to make, and the last one wanted.
-    next: u16,
-    target: u16,
-}
-
 impl<'a> Pipeline<'a> {
-    /// The pipeline of `patch` with its control points `sp > 1` pixels apart; without levels
-    /// (nothing to draw) if `rings` cannot hold them.
+    /// An empty pipeline of `patch` (no levels yet: [`Pipeline::set_levels`]).
     #[inline(always)]
-    fn new(patch: &'a Patch, sp: u32, rings: &'a mut [Ring]) -> Pipeline<'a> {
-        let mut pipeline = Pipeline {
+    fn new(patch: &'a Patch, rings: &'a mut [Ring]) -> Pipeline<'a> {
+        Pipeline {
             control: &patch.control[..patch.model.control_count()],
             m: usize::from(patch.model.intervals),
             levels: 0,
-            level: [Level::default(); LEVELS_LARGE + 1],
+            rho: [0; LEVELS_LARGE + 1],
+            lo: [0; LEVELS_LARGE + 1],
+            hi: [0; LEVELS_LARGE + 1],
+            next: [0; LEVELS_LARGE + 1],
+            target: [0; LEVELS_LARGE + 1],
             rings,
             scratch: [0; STRIP],
-        };
-        let shift_n = patch.model.transforms_log2();
+        }
+    }
+
+    /// The levels from control points `sp > 1` pixels apart to the pixels, refined by `N`
+    /// (`2^shift_n`) but the last; whether `rings` holds them.
+    #[inline(always)]
+    fn set_levels(&mut self, shift_n: u32, sp: u32) -> bool {
         let mut d = sp;
-        for level in pipeline.level.iter_mut().take(LEVELS_LARGE) {
+        for level_rho in self.rho.iter_mut().take(LEVELS_LARGE) {
             if d <= 1 {
                 break;
             }
             let rho = shift_n.min(d.trailing_zeros());
-            level.rho = rho as u8;
+            *level_rho = rho as u8;
             d >>= rho;
-            pipeline.levels += 1;
+            self.levels += 1;
         }
-        if d > 1 || pipeline.rings.len() < pipeline.levels {
-            pipeline.levels = 0;
-        }
-        pipeline
+        d <= 1 && self.levels > 0 && self.rings.len() >= self.levels
     }
 
     /// `log2` of the refinement from level `l` to level `l + 1`.
     #[inline(always)]
     fn rho(&self, l: usize) -> u32 {
-        self.level.get(l).map_or(1, |level| u32::from(level.rho))
+        self.rho.get(l).map_or(1, |&rho| u32::from(rho))
     }
 
     /// Starts a strip: the pixels of columns `x .. x + w` of the leaf (`w <= STRIP`), from
@@ -773,20 +775,20 @@ impl<'a> Pipeline<'a> {
     fn start(&mut self, x: usize, w: usize, y: usize) {
         let top = self.levels.min(LEVELS_LARGE);
         let (mut lo, mut hi, mut first) = (x, x + w - 1, y);
-        self.level[top].lo = lo as u16;
-        self.level[top].hi = hi as u16;
+        self.lo[top] = lo as u16;
+        self.hi[top] = hi as u16;
         // Level l's last point: the grid's m, doubled or quadrupled by each level above.
         let mut last = self.m;
-        for l in 0..top {
-            last <<= self.level[l].rho;
+        for &rho in &self.rho[..top] {
+            last <<= rho;
         }
-        for level in self.level[..top].iter_mut().rev() {
-            let rho = u32::from(level.rho);
+        for l in (0..top).rev() {
+            let rho = u32::from(self.rho[l]);
             last >>= rho;
             lo = (lo >> rho).saturating_sub(1);
             hi = ((hi >> rho) + 2).min(last);
             first = (first >> rho).saturating_sub(1);
-            (level.lo, level.hi, level.next) = (lo as u16, hi as u16, first as u16);
+            (self.lo[l], self.hi[l], self.next[l]) = (lo as u16, hi as u16, first as u16);
         }
     }
 
@@ -797,7 +799,7 @@ impl<'a> Pipeline<'a> {
         let (rho, m) = (self.rho(l), self.m);
         for (y, dst) in (first..first + rows).zip(out.chunks_exact_mut(cols.max(1))) {
             let need = last_tap(y, rho, m);
-            if usize::from(self.level[l].next) <= need {
+            if usize::from(self.next[l]) <= need {
                 self.fill(l, need);
             }
             let Some(ring) = self.rings.get(l) else {
@@ -813,12 +815,12 @@ impl<'a> Pipeline<'a> {
     /// Makes level `top`'s rows up to row `upto`, with the rows of the levels above that they
     /// need, in order (a level's row waits for the rows of the level above it).
     fn fill(&mut self, top: usize, upto: usize) {
-        let Some(t) = self.level.get_mut(top) else {
+        let Some(t) = self.target.get_mut(top) else {
             return;
         };
-        t.target = upto as u16;
+        *t = upto as u16;
         let mut l = top;
-        while let Some(&Level { next, target, .. }) = self.level.get(l) {
+        while let (Some(&next), Some(&target)) = (self.next.get(l), self.target.get(l)) {
             let i = usize::from(next);
             if i > usize::from(target) {
                 if l >= top {
@@ -827,18 +829,16 @@ impl<'a> Pipeline<'a> {
                 l += 1;
                 continue;
             }
-            if let Some(above) = l.checked_sub(1).and_then(|a| self.level.get_mut(a)) {
-                let need = last_tap(i, u32::from(above.rho), self.m);
-                if usize::from(above.next) <= need {
-                    above.target = need as u16;
+            if l > 0 {
+                let need = last_tap(i, self.rho(l - 1), self.m);
+                if usize::from(self.next[l - 1]) <= need {
+                    self.target[l - 1] = need as u16;
                     l -= 1;
                     continue;
                 }
             }
             self.make(l, i);
-            if let Some(level) = self.level.get_mut(l) {
-                level.next += 1;
-            }
+            self.next[l] += 1;
         }
     }
 
@@ -848,12 +848,12 @@ impl<'a> Pipeline<'a> {
         let m = self.m;
         let rho = self.rho(l);
         let rho_above = if l > 0 { self.rho(l - 1) } else { 0 };
-        let (lo, hi) = (usize::from(self.level[l].lo), usize::from(self.level[l].hi));
-        let Some(&below) = self.level.get(l + 1) else {
+        let (lo, hi) = (usize::from(self.lo[l]), usize::from(self.hi[l]));
+        let (Some(&lo1), Some(&hi1)) = (self.lo.get(l + 1), self.hi.get(l + 1)) else {
             return;
         };
-        let lo1 = usize::from(below.lo);
-        let n = usize::from(below.hi) + 1 - lo1;
+        let lo1 = usize::from(lo1);
+        let n = usize::from(hi1) + 1 - lo1;
         let Pipeline {
             control,
             rings,
@@ -1091,19 +1091,22 @@ impl Patch {
         // level per halving for N = 2, per two halvings (rounded up) for N = 4.
         let shift_n = self.model.transforms_log2().clamp(1, 2);
         match (at.sp.trailing_zeros() + shift_n - 1) >> (shift_n - 1) {
-            0..=2 => self.strips_in::<2>(at, &mut job),
-            3..=4 => self.strips_in::<4>(at, &mut job),
-            5..=7 => self.strips_in::<LEVELS>(at, &mut job),
-            _ => self.strips_in::<LEVELS_LARGE>(at, &mut job),
+            0..=2 => self.strips_in::<{ 2 * RING }>(at, &mut job),
+            3..=4 => self.strips_in::<{ 4 * RING }>(at, &mut job),
+            5..=7 => self.strips_in::<{ LEVELS * RING }>(at, &mut job),
+            _ => self.strips_in::<{ LEVELS_LARGE * RING }>(at, &mut job),
         }
     }
 
-    /// [`Patch::strips`] with rows for `L` levels (out of line, so that the rows are on the
-    /// stack only while a leaf is drawn, and only as many as it needs are cleared).
+    /// [`Patch::strips`] with `SAMPLES / (4 STRIP)` levels of rings (out of line, so that the
+    /// rows are on the stack only while a leaf is drawn, and only as many as it needs are
+    /// cleared; one flat array, so that clearing it is one call).
     #[inline(never)]
-    fn strips_in<const L: usize>(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
-        let mut rings = [[[0i16; STRIP]; 4]; L];
-        self.strips(at, job, &mut rings)
+    fn strips_in<const SAMPLES: usize>(&self, at: Square, job: &mut Job<'_>) -> Result<(), Stop> {
+        let mut samples = [0i16; SAMPLES];
+        let (rows, _) = samples.as_chunks_mut::<STRIP>();
+        let (rings, _) = rows.as_chunks_mut::<4>();
+        self.strips(at, job, rings)
     }
 
     /// Draws the pixels of the leaf whose control grid is at `at` (points `at.sp > 1` pixels
@@ -1124,8 +1127,8 @@ impl Patch {
         if area.is_empty() {
             return Ok(());
         }
-        let mut pipeline = Pipeline::new(self, at.sp, rings);
-        if pipeline.levels == 0 {
+        let mut pipeline = Pipeline::new(self, rings);
+        if !pipeline.set_levels(self.model.transforms_log2(), at.sp) {
             return Ok(());
         }
         let (x0, y0) = (area.x - at.x, area.y - at.y);
