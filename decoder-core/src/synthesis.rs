@@ -797,7 +797,13 @@ impl<'a> Pipeline<'a> {
     fn draw<P: Point>(&mut self, out: &mut [P], first: usize, rows: usize, cols: usize) {
         let l = self.levels - 1;
         let (rho, m) = (self.rho(l), self.m);
-        for (y, dst) in (first..first + rows).zip(out.chunks_exact_mut(cols.max(1))) {
+        for r in 0..rows {
+            // Rows by offset: cutting `out` into rows would divide by `cols`, a library call
+            // on a Cortex-M0.
+            let Some(dst) = out.get_mut(r * cols..r * cols + cols) else {
+                return;
+            };
+            let y = first + r;
             let need = last_tap(y, rho, m);
             if usize::from(self.next[l]) <= need {
                 self.fill(l, need);
