@@ -983,8 +983,9 @@ impl Patch {
 
     /// Renders the pixels of the leaf `node` that fall inside `clip`, tile by tile, into
     /// `sink`, stopping at the sink's first error. The leaf must be at least as wide as the
-    /// grid has intervals, and at most 2^15 px (otherwise nothing is drawn); a decoded leaf
-    /// satisfies [`ModelType::fits_block`].
+    /// grid has intervals, and at most as large as a coded leaf can be (128 px, drawn at most
+    /// four times larger; otherwise nothing is drawn); a decoded leaf satisfies
+    /// [`ModelType::fits_block`].
     pub fn render<S: PixelSink + ?Sized>(
         &self,
         node: &Node,
