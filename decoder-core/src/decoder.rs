@@ -430,7 +430,7 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
         };
         let mut coder = match RangeDecoder::start(self.input) {
             Ok(coder) => coder,
-            Err((input, e)) => return Err(input.after_error(header, e).into()),
+            Err((input, e)) => return Err(input.after_error(header, e.into()).into()),
         };
         match run_walk::<_, _, STRIPE>(header, &mut coder, &mut drawer) {
             Ok(()) => coder.into_source().finish(header)?,

@@ -10,7 +10,9 @@
 //! probabilities, adaptation by a shift that grows with the number of bits a context has coded
 //! ([`ADAPT_SHIFTS`]): fast while a context learns, steadier once it has.
 
-use crate::error::{DecodeError, SyntaxElement};
+/// What the coder's methods fail with (re-exported for the host encoder's coders).
+pub use crate::error::PayloadError;
+use crate::error::SyntaxElement;
 
 /// Number of bits of a probability.
 pub const PROB_BITS: u32 = 12;
@@ -99,15 +101,15 @@ impl Prob {
 /// value it is given, a decoder replaces it with the value it read.
 pub trait Coder {
     /// Codes one bit with an adaptive context (and updates the context).
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError>;
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError>;
     /// Codes one equiprobable bit (no context).
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError>;
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError>;
 
     /// Codes a signed integer with the contexts `ints` ([`IntContexts::code`], which calls
     /// this): by default bit by bit through [`Coder::bit`] and [`Coder::bypass`]; a decoder
     /// overrides it with a path where one inlined binary decision serves every context-coded
     /// bit.
-    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError>
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), PayloadError>
     where
         Self: Sized,
     {
@@ -172,17 +174,17 @@ pub struct RangeDecoder<S: ByteSource> {
 
 impl<S: ByteSource> RangeDecoder<S> {
     /// Starts decoding: reads the first four payload bytes.
-    pub fn new(source: S) -> Result<Self, DecodeError> {
+    pub fn new(source: S) -> Result<Self, PayloadError> {
         Self::start(source).map_err(|(_, e)| e)
     }
 
     /// Like [`RangeDecoder::new`], but gives the source back on failure.
-    pub fn start(mut source: S) -> Result<Self, (S, DecodeError)> {
+    pub fn start(mut source: S) -> Result<Self, (S, PayloadError)> {
         let mut code = 0u32;
         for _ in 0..4 {
             match source.next_byte() {
                 Some(b) => code = (code << 8) | u32::from(b),
-                None => return Err((source, DecodeError::Truncated)),
+                None => return Err((source, PayloadError::Truncated)),
             }
         }
         Ok(RangeDecoder {
@@ -198,9 +200,9 @@ impl<S: ByteSource> RangeDecoder<S> {
     }
 
     #[inline]
-    fn normalize(&mut self) -> Result<(), DecodeError> {
+    fn normalize(&mut self) -> Result<(), PayloadError> {
         while self.range < RANGE_TOP {
-            let b = self.source.next_byte().ok_or(DecodeError::Truncated)?;
+            let b = self.source.next_byte().ok_or(PayloadError::Truncated)?;
             self.range <<= 8;
             self.code = (self.code << 8) | u32::from(b);
         }
@@ -213,7 +215,7 @@ impl<S: ByteSource> RangeDecoder<S> {
     /// of the decoder, inlined where it is used. No division: the split is a shift and a
     /// multiply, the adaptation a shift by a table entry.
     #[inline(always)]
-    fn decision(&mut self, p: &mut Prob) -> Result<bool, DecodeError> {
+    fn decision(&mut self, p: &mut Prob) -> Result<bool, PayloadError> {
         let bound = p.bound(self.range);
         // Each outcome its own path to the end, so that the bit is a constant there rather
         // than a value kept across the refill.
@@ -237,7 +239,7 @@ impl<S: ByteSource> RangeDecoder<S> {
 
     /// Decodes one equiprobable bit.
     #[inline(always)]
-    fn even(&mut self) -> Result<bool, DecodeError> {
+    fn even(&mut self) -> Result<bool, PayloadError> {
         self.range >>= 1;
         let bit = self.code >= self.range;
         if bit {
@@ -252,20 +254,20 @@ impl<S: ByteSource> RangeDecoder<S> {
     /// Shifts payload bytes in until the range is at least [`RANGE_TOP`] again (out of line:
     /// about one decision in eight needs it).
     #[inline(never)]
-    fn refill(&mut self) -> Result<(), DecodeError> {
+    fn refill(&mut self) -> Result<(), PayloadError> {
         self.normalize()
     }
 }
 
 impl<S: ByteSource> Coder for RangeDecoder<S> {
     #[inline]
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         *bit = self.decision(p)?;
         Ok(())
     }
 
     #[inline]
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
         *bit = self.even()?;
         Ok(())
     }
@@ -273,7 +275,7 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
     /// The zero flag first, on its own (a zero, the commonest value, costs one decision and
     /// nothing more), then the sign and the prefix bits.
     #[inline(never)]
-    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), PayloadError> {
         let probs = &mut ints.probs;
         if !self.decision(&mut probs[ctx.min(ZERO_CONTEXTS - 1)])? {
             *v = 0;
@@ -285,7 +287,7 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
         while self.decision(&mut probs[PREFIX + k.min(PREFIX_CONTEXTS - 1)])? {
             k += 1;
             if k >= MAX_PREFIX {
-                return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
+                return Err(PayloadError::InvalidData(SyntaxElement::IntegerMagnitude));
             }
         }
         let mut mag: u32 = 1;
@@ -353,7 +355,7 @@ impl IntContexts {
         c: &mut C,
         ctx: usize,
         v: &mut i32,
-    ) -> Result<(), DecodeError> {
+    ) -> Result<(), PayloadError> {
         c.int(self, ctx, v)
     }
 
@@ -363,7 +365,7 @@ impl IntContexts {
         c: &mut C,
         ctx: usize,
         v: &mut i32,
-    ) -> Result<(), DecodeError> {
+    ) -> Result<(), PayloadError> {
         let ctx = ctx.min(ZERO_CONTEXTS - 1);
         let mut nonzero = *v != 0;
         c.bit(&mut self.probs[ctx], &mut nonzero)?;
@@ -379,7 +381,7 @@ impl IntContexts {
         let mut k = 0usize;
         loop {
             if k >= MAX_PREFIX {
-                return Err(DecodeError::InvalidData(SyntaxElement::IntegerMagnitude));
+                return Err(PayloadError::InvalidData(SyntaxElement::IntegerMagnitude));
             }
             let mut more = k < k_in;
             c.bit(
@@ -410,7 +412,7 @@ pub fn code_tree<C: Coder, const N: usize>(
     ctx: &mut [Prob; N],
     bits: u32,
     v: &mut u32,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let mut node = 1usize;
     let mut out = 0u32;
     for i in (0..bits).rev() {
@@ -430,7 +432,7 @@ pub fn code_unary<C: Coder, const N: usize>(
     ctx: &mut [Prob; N],
     count: u32,
     v: &mut u32,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let mut i = 0u32;
     while i + 1 < count {
         let mut more = *v > i;

@@ -11,7 +11,7 @@ pub mod initial_contexts;
 use crate::checksum::Crc32;
 use crate::colour::{chroma_models, ChromaPlane, CHROMA_GRIDS};
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
-use crate::error::{DecodeError, HeaderField, SyntaxElement};
+use crate::error::{DecodeError, HeaderField, PayloadError, SyntaxElement};
 use crate::format::{div_round, med, read_leb128, write_leb128, Leb128Error, CODING_TILE};
 pub use crate::format::{SampleRange, MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
@@ -431,11 +431,11 @@ pub fn code_split<C: Coder>(
     ctx: &mut Contexts,
     log2: u8,
     split: &mut bool,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let p = ctx
         .split
         .get_mut(usize::from(log2))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::NodeSize))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::NodeSize))?;
     c.bit(p, split)
 }
 
@@ -475,11 +475,11 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     node: &Node,
     prediction: &P,
     leaf: &mut LeafSyntax,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let log2 = node.log2;
     let (models, count) = models_for_block(log2);
     if count == 0 {
-        return Err(DecodeError::InvalidData(SyntaxElement::LeafSize));
+        return Err(PayloadError::InvalidData(SyntaxElement::LeafSize));
     }
     // Model type: truncated unary over the models this block size allows.
     let mut pos = models[..count]
@@ -489,7 +489,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     let model_ctx = ctx
         .model
         .get_mut(usize::from(log2))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::LeafSize))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::LeafSize))?;
     code_unary(c, model_ctx, count as u32, &mut pos)?;
     leaf.model = models[pos as usize];
     let mi = usize::from(leaf.model);
@@ -498,7 +498,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
     if cq as usize >= CONTROL_QUANTISERS {
-        return Err(DecodeError::InvalidData(SyntaxElement::ControlQuantiser));
+        return Err(PayloadError::InvalidData(SyntaxElement::ControlQuantiser));
     }
     leaf.cquant = cq as u8;
 
@@ -515,7 +515,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     };
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::ControlQuantiser))?;
     let grid = ControlGrid {
         step,
         side: model.coded_side(log2),
@@ -705,11 +705,11 @@ pub fn code_chroma_subtree<C: Coder>(
     ctx: &mut ChromaContexts,
     node: &Node,
     subtree: &mut bool,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let p = ctx
         .subtree
         .get_mut(usize::from(node.log2))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::NodeSize))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::NodeSize))?;
     c.bit(p, subtree)
 }
 
@@ -725,12 +725,12 @@ pub fn code_chroma<C: Coder, P: SamplePrediction>(
     node: &Node,
     prediction: &P,
     leaf: &mut ChromaSyntax,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let count = chroma_models(node.log2);
     let model_ctx = ctx
         .model
         .get_mut(usize::from(node.log2))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::LeafSize))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::LeafSize))?;
     let mut pos = u32::from(leaf.model).min(count as u32 - 1);
     code_unary(c, model_ctx, count as u32, &mut pos)?;
     leaf.model = pos as u8;
@@ -738,7 +738,7 @@ pub fn code_chroma<C: Coder, P: SamplePrediction>(
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
     if cq as usize >= CONTROL_QUANTISERS {
-        return Err(DecodeError::InvalidData(SyntaxElement::ControlQuantiser));
+        return Err(PayloadError::InvalidData(SyntaxElement::ControlQuantiser));
     }
     leaf.cquant = cq as u8;
     let g = usize::from(CHROMA_GRIDS[mi].0);
@@ -782,13 +782,13 @@ pub fn reconstruct_chroma(
     leaf: &ChromaSyntax,
     log2: u8,
     plane: &mut ChromaPlane,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     if usize::from(leaf.cquant) >= CONTROL_QUANTISERS {
-        return Err(DecodeError::InvalidData(SyntaxElement::ControlQuantiser));
+        return Err(PayloadError::InvalidData(SyntaxElement::ControlQuantiser));
     }
     let (g, _) = *CHROMA_GRIDS
         .get(usize::from(leaf.model))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::ModelType))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::ModelType))?;
     let grid = chroma_grid(leaf, log2);
     plane.grid = g;
     fill_control(
@@ -843,7 +843,7 @@ fn code_control<C: Coder>(
     node: &Node,
     prediction: &dyn SamplePrediction,
     control: &mut [i16; MAX_CONTROL],
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let ControlGrid {
         step,
         side,
@@ -889,8 +889,8 @@ fn magnitude(index: i16) -> usize {
 
 /// A control index, which a stream must keep within 16 bits.
 #[inline]
-fn control_index(index: i32) -> Result<i16, DecodeError> {
-    i16::try_from(index).map_err(|_| DecodeError::InvalidData(SyntaxElement::ControlValue))
+fn control_index(index: i32) -> Result<i16, PayloadError> {
+    i16::try_from(index).map_err(|_| PayloadError::InvalidData(SyntaxElement::ControlValue))
 }
 
 /// The grid transform's detail coefficients, after the low band: coded as they are, class by
@@ -901,7 +901,7 @@ fn code_details<C: Coder>(
     side: usize,
     first_magnitude: usize,
     control: &mut [i16; MAX_CONTROL],
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let levels = band_level_table(side);
     for &i in transform_order(side).iter().skip(1) {
         let i = usize::from(i);
@@ -936,7 +936,7 @@ impl DpcmEdges<'_> {
         (row, k): (bool, usize),
         (base, ctx): (i32, usize),
         index: &mut i16,
-    ) -> Result<i32, DecodeError> {
+    ) -> Result<i32, PayloadError> {
         let step = self.step;
         let (predicted, ctx) = match edge_pixels(self.prediction, self.node, self.spacing, row, k) {
             Some((a, b)) => (edge_offset(base, a, b, step), edge_context(ctx, a, b, step)),
@@ -960,7 +960,7 @@ fn code_dpcm<C: Coder>(
     first_magnitude: usize,
     edges: &DpcmEdges<'_>,
     control: &mut [i16; MAX_CONTROL],
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let first_value = i32::from(dequantise_control(0, edges.step, i32::from(control[0])));
     let mut value = first_value;
     let mut before = first_magnitude;
@@ -1025,26 +1025,30 @@ pub fn zero_context(
 
 /// Reconstructs the patch a leaf of side `2^log2` describes. Fails on a model or control
 /// quantiser out of range.
-pub fn reconstruct(leaf: &LeafSyntax, log2: u8) -> Result<Patch, DecodeError> {
+pub fn reconstruct(leaf: &LeafSyntax, log2: u8) -> Result<Patch, PayloadError> {
     let mut patch = Patch::EMPTY;
     reconstruct_into(leaf, log2, &mut patch)?;
     Ok(patch)
 }
 
 /// The model type a leaf names.
-fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, DecodeError> {
+fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, PayloadError> {
     MODELS
         .get(usize::from(leaf.model))
         .copied()
-        .ok_or(DecodeError::InvalidData(SyntaxElement::ModelType))
+        .ok_or(PayloadError::InvalidData(SyntaxElement::ModelType))
 }
 
 /// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack).
-pub fn reconstruct_into(leaf: &LeafSyntax, log2: u8, patch: &mut Patch) -> Result<(), DecodeError> {
+pub fn reconstruct_into(
+    leaf: &LeafSyntax,
+    log2: u8,
+    patch: &mut Patch,
+) -> Result<(), PayloadError> {
     let model = leaf_model(leaf)?;
     let step = *CONTROL_STEPS
         .get(usize::from(leaf.cquant))
-        .ok_or(DecodeError::InvalidData(SyntaxElement::ControlQuantiser))?;
+        .ok_or(PayloadError::InvalidData(SyntaxElement::ControlQuantiser))?;
     let side = model.coded_side(log2);
     fill_control(
         &leaf.control,
@@ -1125,14 +1129,14 @@ mod tests {
     }
 
     impl Coder for Tape {
-        fn bit(&mut self, _p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+        fn bit(&mut self, _p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
             self.bypass(bit)
         }
 
-        fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+        fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
             match &mut self.read {
                 Some(at) => {
-                    *bit = *self.bits.get(*at).ok_or(DecodeError::Truncated)?;
+                    *bit = *self.bits.get(*at).ok_or(PayloadError::Truncated)?;
                     *at += 1;
                 }
                 None => {

@@ -13,7 +13,7 @@
 
 use crate::colour::{chroma_node, ChromaFrontier, ChromaPatch};
 use crate::entropy::Coder;
-use crate::error::{DecodeError, SyntaxElement};
+use crate::error::{DecodeError, PayloadError, SyntaxElement};
 use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
 pub use crate::geometry::Node;
 use crate::prediction::{Frontier, SamplePrediction};
@@ -270,7 +270,7 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
             NodeKind::ForcedLeaf => false,
             NodeKind::Flagged => {
                 let mut split = visitor.split(&node);
-                code_split(coder, &mut state.contexts, node.log2, &mut split)?;
+                code_split(coder, &mut state.contexts, node.log2, &mut split).map_err(lift)?;
                 split
             }
         };
@@ -281,9 +281,9 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
         } else if kind == NodeKind::Flagged && own_chroma {
             if let Some(c) = chroma.as_deref_mut() {
                 let mut here = visitor.chroma_subtree(&node);
-                code_chroma_subtree(coder, &mut c.contexts, &node, &mut here)?;
+                code_chroma_subtree(coder, &mut c.contexts, &node, &mut here).map_err(lift)?;
                 if here {
-                    code_chroma_patch(coder, visitor, c, &node)?;
+                    code_chroma_patch(coder, visitor, c, &node).map_err(lift)?;
                     subtree = Some(depth);
                 }
             }
@@ -324,6 +324,12 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     }
 }
 
+/// A payload error as the visitor's error (out of the payload's hot path, where errors are
+/// one byte).
+fn lift<E: From<DecodeError>>(e: PayloadError) -> E {
+    DecodeError::from(e).into()
+}
+
 /// A leaf's reconstruction and drawing: out of line, so that the patch is not part of the walk's
 /// own frame. A colour stream's leaf codes its own chroma when `own_chroma` (it is not in a
 /// subtree whose chroma is coded).
@@ -336,8 +342,17 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     own_chroma: bool,
     node: Node,
 ) -> Result<(), V::Error> {
-    let mut patch = Patch::EMPTY;
-    let info = code_leaf_patch(coder, visitor, state, node, &mut patch)?;
+    let mut patch = Patch {
+        model: crate::model::MODELS[0],
+        control: [0; crate::model::MAX_CONTROL],
+    };
+    let mut info = LeafInfo {
+        node,
+        model: 0,
+        cquant: 0,
+        coding: ControlCoding::Dpcm,
+    };
+    code_leaf_patch(coder, visitor, state, &mut info, &mut patch).map_err(lift)?;
     match chroma {
         None => visitor.leaf(&info, &patch, &mut state.frontier),
         Some(chroma) => colour_leaf(
@@ -366,7 +381,7 @@ fn colour_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     frontier: &mut Frontier<STRIPE>,
 ) -> Result<(), V::Error> {
     if own_chroma {
-        code_chroma_patch(coder, visitor, chroma, &info.node)?;
+        code_chroma_patch(coder, visitor, chroma, &info.node).map_err(lift)?;
     }
     visitor.leaf_colour(info, patch, &chroma.patch, frontier, &chroma.frontier)?;
     chroma
@@ -384,7 +399,7 @@ fn code_chroma_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     visitor: &mut V,
     chroma: &mut ChromaState<STRIPE>,
     node: &Node,
-) -> Result<(), DecodeError> {
+) -> Result<(), PayloadError> {
     let cnode = chroma_node(node);
     let ChromaState {
         contexts,
@@ -402,16 +417,18 @@ fn code_chroma_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     Ok(())
 }
 
-/// A leaf's syntax, coded and reconstructed into `patch`. Out of line, so that the syntax
-/// elements are gone from the stack while the patch is drawn.
+/// A leaf's syntax, coded and reconstructed into `patch`, and what the walk reports about it
+/// into `info` (whose node is the leaf's). Out of line, so that the syntax elements are gone
+/// from the stack while the patch is drawn.
 #[inline(never)]
 fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     coder: &mut C,
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
-    node: Node,
+    info: &mut LeafInfo,
     patch: &mut Patch,
-) -> Result<LeafInfo, DecodeError> {
+) -> Result<(), PayloadError> {
+    let node = info.node;
     let mut leaf = LeafSyntax::default();
     visitor.prepare_leaf(&node, &state.frontier, &mut leaf);
     code_leaf(
@@ -422,10 +439,8 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
         &mut leaf,
     )?;
     reconstruct_into(&leaf, node.log2, patch)?;
-    Ok(LeafInfo {
-        node,
-        model: leaf.model,
-        cquant: leaf.cquant,
-        coding: leaf.coding,
-    })
+    info.model = leaf.model;
+    info.cquant = leaf.cquant;
+    info.coding = leaf.coding;
+    Ok(())
 }

@@ -8,7 +8,9 @@
 //!
 //! `cargo run --release -p host-encoder --example bit_budget -- STREAM.pifs...`
 
-use decoder_core::internal::entropy::{Coder, IntContexts, Prob, RangeDecoder, PROB_ONE};
+use decoder_core::internal::entropy::{
+    Coder, IntContexts, PayloadError, Prob, RangeDecoder, PROB_ONE,
+};
 use decoder_core::internal::format::MAX_LEAF_LOG2;
 use decoder_core::internal::model::MODEL_COUNT;
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
@@ -130,7 +132,7 @@ struct Pricing<'a> {
 }
 
 impl Coder for Pricing<'_> {
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         let zero = f64::from(p.probability()) / f64::from(PROB_ONE);
         let at = p as *mut Prob as usize;
         self.inner.bit(p, bit)?;
@@ -145,7 +147,7 @@ impl Coder for Pricing<'_> {
         Ok(())
     }
 
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
         self.inner.bypass(bit)?;
         let class = self.class.expect("bypass bits only in integers");
         *self
@@ -155,7 +157,7 @@ impl Coder for Pricing<'_> {
         Ok(())
     }
 
-    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), PayloadError> {
         let mut first = 0;
         ints.for_each_prob(|p| {
             if first == 0 {

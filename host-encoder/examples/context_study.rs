@@ -9,7 +9,9 @@
 //!
 //! `cargo run --release -p host-encoder --example context_study -- STREAM.pifs...`
 
-use decoder_core::internal::entropy::{Coder, IntContexts, Prob, RangeDecoder, PROB_ONE};
+use decoder_core::internal::entropy::{
+    Coder, IntContexts, PayloadError, Prob, RangeDecoder, PROB_ONE,
+};
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
 use decoder_core::internal::syntax::{control_step, Header, LeafSyntax};
 use decoder_core::internal::synthesis::{Discard, Patch};
@@ -61,18 +63,18 @@ struct Pricing<'a> {
 }
 
 impl Coder for Pricing<'_> {
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         let zero = f64::from(p.probability()) / f64::from(PROB_ONE);
         self.inner.bit(p, bit)?;
         self.other += -(if *bit { 1.0 - zero } else { zero }).log2();
         Ok(())
     }
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
         self.inner.bypass(bit)?;
         self.other += 1.0;
         Ok(())
     }
-    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), PayloadError> {
         let key = ints as *mut IntContexts as usize;
         ints.code_bits(&mut self.inner, ctx, v)?;
         let ctx = ctx.min(4);

@@ -20,7 +20,9 @@
 //!
 //! `cargo run --release -p host-encoder --example position_study -- STREAM.pifs...`
 
-use decoder_core::internal::entropy::{Coder, IntContexts, Prob, RangeDecoder, PROB_ONE};
+use decoder_core::internal::entropy::{
+    Coder, IntContexts, PayloadError, Prob, RangeDecoder, PROB_ONE,
+};
 use decoder_core::internal::model::MODELS;
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::prediction::SamplePrediction;
@@ -49,13 +51,13 @@ struct Logging<'a> {
 }
 
 impl Coder for Logging<'_> {
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         self.inner.bit(p, bit)
     }
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
         self.inner.bypass(bit)
     }
-    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), DecodeError> {
+    fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), PayloadError> {
         let key = ints as *mut IntContexts as usize;
         ints.code_bits(&mut self.inner, ctx, v)?;
         self.log.borrow_mut().push(Coded {

@@ -2,8 +2,7 @@
 //! counting coder the rate optimiser uses. Both implement decoder-core's
 //! [`decoder_core::internal::entropy::Coder`], so they run the very syntax code the decoder runs.
 
-use decoder_core::internal::entropy::{Coder, Prob, PROB_BITS, RANGE_TOP};
-use decoder_core::DecodeError;
+use decoder_core::internal::entropy::{Coder, PayloadError, Prob, PROB_BITS, RANGE_TOP};
 
 /// Binary range encoder (mirror of `decoder_core::internal::entropy::RangeDecoder`).
 #[derive(Debug, Clone)]
@@ -72,7 +71,7 @@ impl RangeEncoder {
 }
 
 impl Coder for RangeEncoder {
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         let bound = p.bound(self.range);
         if *bit {
             self.low += u64::from(bound);
@@ -85,7 +84,7 @@ impl Coder for RangeEncoder {
         Ok(())
     }
 
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
         self.range >>= 1;
         if *bit {
             self.low += u64::from(self.range);
@@ -153,7 +152,7 @@ impl BitCounter {
 }
 
 impl Coder for BitCounter {
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         let p0 = u32::from(p.probability()) >> (PROB_BITS - 8);
         let idx = if *bit { 255 - p0.min(255) } else { p0.min(255) };
         self.cost += u64::from(self.table[idx as usize]);
@@ -163,7 +162,7 @@ impl Coder for BitCounter {
         Ok(())
     }
 
-    fn bypass(&mut self, _bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, _bit: &mut bool) -> Result<(), PayloadError> {
         self.cost += COST_SCALE as u64;
         Ok(())
     }

@@ -10,7 +10,7 @@ use super::error::EncodeError;
 use super::plane::ImagePrediction;
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
-use decoder_core::internal::entropy::{Coder, Prob, PROB_ONE};
+use decoder_core::internal::entropy::{Coder, PayloadError, Prob, PROB_ONE};
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::{
@@ -193,14 +193,14 @@ struct MeteredEncoder<'a> {
 }
 
 impl Coder for MeteredEncoder<'_> {
-    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bit(&mut self, p: &mut Prob, bit: &mut bool) -> Result<(), PayloadError> {
         let zero = f64::from(p.probability()) / f64::from(PROB_ONE);
         let chance = if *bit { 1.0 - zero } else { zero };
         self.total.set(self.total.get() - chance.log2());
         self.inner.bit(p, bit)
     }
 
-    fn bypass(&mut self, bit: &mut bool) -> Result<(), DecodeError> {
+    fn bypass(&mut self, bit: &mut bool) -> Result<(), PayloadError> {
         self.total.set(self.total.get() + 1.0);
         self.inner.bypass(bit)
     }
