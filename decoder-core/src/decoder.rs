@@ -697,12 +697,17 @@ impl Subsample<'_> {
             let mut n = 0;
             for i in (first_x..x + w).step_by(unit as usize) {
                 let at = ((j - y) * w + (i - x)) as usize;
-                if let (Some(&p), Some(slot)) = (tile.pixels.get(at), row.get_mut(n)) {
+                if let (Some(&p), Some(slot), Some(sample)) =
+                    (tile.pixels.get(at), row.get_mut(n), picked.get_mut(n))
+                {
                     *slot = p;
-                    picked[n] = samples.and_then(|s| s.get(at)).copied().unwrap_or(0);
+                    *sample = samples.and_then(|s| s.get(at)).copied().unwrap_or(0);
                     n += 1;
                 }
             }
+            let (Some(pixels), Some(picked)) = (row.get_mut(..n), picked.get_mut(..n)) else {
+                continue;
+            };
             let tile = TileMut {
                 area: Rect {
                     x: first_x >> self.shift,
@@ -710,11 +715,11 @@ impl Subsample<'_> {
                     w: n as u32,
                     h: 1,
                 },
-                pixels: &mut row[..n],
+                pixels,
                 channels: 1,
             };
             match samples {
-                Some(_) => self.out.put_samples(tile, &mut picked[..n])?,
+                Some(_) => self.out.put_samples(tile, picked)?,
                 None => self.out.put(tile)?,
             }
         }
@@ -772,7 +777,11 @@ impl Inside {
         for j in 0..h {
             let from = (dy + j) * tw + dx;
             for k in 0..w {
-                values[j * w + k] = values[from + k];
+                if let Some(&v) = values.get(from + k) {
+                    if let Some(to) = values.get_mut(j * w + k) {
+                        *to = v;
+                    }
+                }
             }
         }
         values.get_mut(..w * h)

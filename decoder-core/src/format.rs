@@ -74,17 +74,35 @@ pub fn med(left: i32, up: i32, up_left: i32) -> i32 {
 }
 
 /// Rounded division of a sample value by a quantiser step (ties away from zero); used for
-/// prediction in the index domain.
+/// prediction in the index domain. Steps are positive; one below 1 counts as 1.
 pub fn div_round(v: i32, step: i32) -> i32 {
-    if step > 0 {
-        // |v| + step / 2 < 3 * 2^30: no overflow.
-        let q = div_floor(v.unsigned_abs() + (step as u32 >> 1), step as u32) as i32;
-        return if v >= 0 { q } else { -q };
-    }
+    let step = step.max(1) as u32;
+    // |v| + step / 2 < 3 * 2^30: no overflow.
+    let q = div_floor(v.unsigned_abs() + (step >> 1), step) as i32;
     if v >= 0 {
-        (v + step / 2) / step
+        q
     } else {
-        -((-v + step / 2) / step)
+        -q
+    }
+}
+
+/// `values[i]`, or 0 past the end. For indices that are in range by construction where the
+/// compiler cannot see it: the check costs what a bounds check costs, but there is no panic
+/// behind it, and the decoder links no panic path.
+#[inline(always)]
+pub const fn load(values: &[i16], i: usize) -> i16 {
+    if i < values.len() {
+        values[i]
+    } else {
+        0
+    }
+}
+
+/// Stores `v` at `values[i]`, and nothing past the end (see [`load`]).
+#[inline(always)]
+pub const fn store(values: &mut [i16], i: usize, v: i16) {
+    if i < values.len() {
+        values[i] = v;
     }
 }
 
@@ -117,7 +135,7 @@ fn byte_compared(v: i32) -> u8 {
     }
 }
 
-/// `floor(n / d)` for `d > 0`. The divisors a stream divides by are `2^k` or `3 * 2^k` (the
+/// `floor(n / d)` for `d > 0` (0 counts as 1). The divisors a stream divides by are `2^k` or `3 * 2^k` (the
 /// control steps, the pixels beside a leaf): for those a shift and a multiply, as a
 /// Cortex-M0 has no divider (out of line: one copy for every caller).
 #[inline(never)]
@@ -128,7 +146,7 @@ pub fn div_floor(n: u32, d: u32) -> u32 {
         // floor(n / (3 * 2^k)) = floor(floor(n / 2^k) / 3); floor(m / 3) = (m * 43691) >> 17
         // exactly for m < 2^16 (43691 = ceil(2^17 / 3), one over).
         3 if n >> k < 1 << 16 => ((n >> k) * 43_691) >> 17,
-        _ => n / d,
+        _ => n / d.max(1),
     }
 }
 

@@ -65,12 +65,14 @@ pub const MODELS: [ModelType; MODEL_COUNT] = [
     },
 ];
 
-// [`ModelType::spacing`] divides by a model's interval count with a shift, and
-// [`ModelType::fits_block`] needs every model's control grid to be its own.
+// [`ModelType::spacing`] divides by a model's interval count with a shift,
+// [`ModelType::fits_block`] needs every model's control grid to be its own, and every grid fits
+// the control arrays ([`ModelType::control_count`]).
 const _: () = {
     let mut i = 0;
     while i < MODELS.len() {
         assert!(MODELS[i].intervals.is_power_of_two());
+        assert!(MODELS[i].grid() <= MAX_GRID);
         let mut j = 0;
         while j < i {
             assert!(MODELS[j].intervals != MODELS[i].intervals);
@@ -88,7 +90,14 @@ impl ModelType {
 
     /// Number of control values.
     pub const fn control_count(self) -> usize {
-        self.grid() * self.grid()
+        let count = self.grid() * self.grid();
+        // Every model's grid fits (a `const` check above); the bound lets the compiler see
+        // that the control arrays are indexed within it.
+        if count < MAX_CONTROL {
+            count
+        } else {
+            MAX_CONTROL
+        }
     }
 
     /// Whether leaves of this model choose their control coding (the 'transform' flag): all

@@ -332,7 +332,7 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
 /// the smoothed values, which later leaves are predicted from.
 pub struct Capture<'a> {
     columns: &'a mut [u8],
-    rows: &'a mut [u8],
+    rows: &'a mut [u8; CODING_TILE as usize],
     corners: &'a mut [u8; CORNER_BYTES],
     stripe: StripeWidth,
     out: &'a mut dyn TileOut,
@@ -416,7 +416,10 @@ impl Capture<'_> {
         if x + w as u32 - 1 == self.right {
             for j in 0..h {
                 let py = y + j as u32;
-                self.rows[(py % CODING_TILE) as usize] = buf[j * w + w - 1];
+                let Some(&q) = buf.get(j * w + w - 1) else {
+                    break;
+                };
+                self.rows[(py % CODING_TILE) as usize] = q;
                 self.set_corner(py, py == self.bottom && self.defer_row);
             }
         }
@@ -459,7 +462,7 @@ impl Capture<'_> {
         let mut above = [0u8; TILE];
         // A tile lies inside one stripe (stripes are whole coding tiles).
         let first = self.stripe.column(x) as usize;
-        for (i, q) in row.iter_mut().enumerate() {
+        for (i, (q, kept)) in row.iter_mut().zip(&mut above).enumerate() {
             let Some(slot) = self.columns.get_mut(first + i) else {
                 continue;
             };
@@ -467,7 +470,7 @@ impl Capture<'_> {
                 *q = q_new;
                 *slot = p_new;
             }
-            above[i] = *slot;
+            *kept = *slot;
         }
         let w = row.len();
         self.out.put(TileMut {
@@ -579,7 +582,9 @@ impl TileOut for Capture<'_> {
         };
         let corner = buf[0];
         if self.above_known && y == self.top {
-            self.top_edge(x, y, &mut buf[..wu])?;
+            if let Some(row) = buf.get_mut(..wu) {
+                self.top_edge(x, y, row)?;
+            }
         }
         if self.left_known && x == self.left {
             self.left_edge(x, y, (wu, hu), buf, corner)?;
@@ -601,10 +606,16 @@ impl TileOut for Capture<'_> {
                     break;
                 };
                 for k in j..span.len() {
-                    span[k - j] = span[k];
+                    let q = span[k];
+                    if let Some(to) = span.get_mut(k - j) {
+                        *to = q;
+                    }
                 }
             }
         }
+        let Some(pixels) = buf.get_mut(..keep_w * keep_h) else {
+            return Ok(());
+        };
         self.out.put(TileMut {
             area: Rect {
                 x,
@@ -612,7 +623,7 @@ impl TileOut for Capture<'_> {
                 w: keep_w as u32,
                 h: keep_h as u32,
             },
-            pixels: &mut buf[..keep_w * keep_h],
+            pixels,
             channels: 1,
         })
     }

@@ -12,7 +12,9 @@ use crate::checksum::Crc32;
 use crate::colour::{chroma_models, ChromaPlane, CHROMA_GRIDS};
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::{DecodeError, HeaderField, PayloadError, SyntaxElement};
-use crate::format::{div_round, med, read_leb128, write_leb128, Leb128Error, CODING_TILE};
+use crate::format::{
+    div_round, load, med, read_leb128, store, write_leb128, Leb128Error, CODING_TILE,
+};
 pub use crate::format::{SampleRange, MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
 use crate::geometry::Node;
 use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN};
@@ -482,8 +484,9 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
         return Err(PayloadError::InvalidData(SyntaxElement::LeafSize));
     }
     // Model type: truncated unary over the models this block size allows.
-    let mut pos = models[..count]
+    let mut pos = models
         .iter()
+        .take(count)
         .position(|&m| m == leaf.model)
         .unwrap_or(0) as u32;
     let model_ctx = ctx
@@ -491,9 +494,9 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
         .get_mut(usize::from(log2))
         .ok_or(PayloadError::InvalidData(SyntaxElement::LeafSize))?;
     code_unary(c, model_ctx, count as u32, &mut pos)?;
-    leaf.model = models[pos as usize];
+    leaf.model = models.get(pos as usize).copied().unwrap_or(0);
+    let model = leaf_model(leaf)?;
     let mi = usize::from(leaf.model);
-    let model = MODELS[mi];
 
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
@@ -538,7 +541,7 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
 #[inline]
 pub fn intra_prediction(values: &[i16], side: usize, r: usize, c: usize) -> i32 {
     let i = r * side + c;
-    let at = |k: usize| i32::from(values[k]);
+    let at = |k: usize| i32::from(load(values, k));
     match (r, c) {
         (0, 0) => 0,
         (0, _) => at(i - 1),
@@ -821,7 +824,7 @@ fn fill_control(
         transform_control_values(side, step, indices, out)
     } else {
         *out = [0; MAX_CONTROL];
-        for i in 0..side * side {
+        for i in 0..(side * side).min(MAX_CONTROL) {
             let index = i32::from(indices[i]);
             out[i] = control_value(out, side, i, step, index);
         }
@@ -908,10 +911,10 @@ fn code_details<C: Coder>(
         let (r, col) = grid_position(i, side);
         let class = detail_class(usize::from(levels.get(i).copied().unwrap_or(0)));
         let ctx = zero_context(control, first_magnitude, side, r, col);
-        let mut index = i32::from(control[i]);
+        let mut index = i32::from(load(control, i));
         contexts[class].code(c, ctx, &mut index)?;
         // A coded integer has fewer than 16 bits.
-        control[i] = index as i16;
+        store(control, i, index as i16);
     }
     Ok(())
 }
@@ -984,11 +987,11 @@ fn code_dpcm<C: Coder>(
         above = magnitude(*at);
         let interior = &mut contexts[CLASS_INTERIOR];
         for i in row + 1..row + side {
-            let ctx = magnitude(control[i - 1]) + magnitude(control[i - side]);
-            let mut index = i32::from(control[i]);
+            let ctx = magnitude(load(control, i - 1)) + magnitude(load(control, i - side));
+            let mut index = i32::from(load(control, i));
             interior.code(c, ctx, &mut index)?;
             // A coded integer has fewer than 16 bits.
-            control[i] = index as i16;
+            store(control, i, index as i16);
         }
     }
     Ok(())
@@ -1011,7 +1014,7 @@ pub fn zero_context(
         if p == 0 {
             first_magnitude
         } else {
-            usize::from(indices[p].unsigned_abs().min(2))
+            usize::from(load(indices, p).unsigned_abs().min(2))
         }
     };
     let i = r * side + c;

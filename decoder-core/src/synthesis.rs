@@ -795,7 +795,7 @@ impl<'a> Pipeline<'a> {
     /// Rows `first .. first + rows` of the strip's pixels into `out`, `cols` a row.
     #[inline(never)]
     fn draw<P: Point>(&mut self, out: &mut [P], first: usize, rows: usize, cols: usize) {
-        let l = self.levels - 1;
+        let l = self.levels.saturating_sub(1).min(LEVELS_LARGE);
         let (rho, m) = (self.rho(l), self.m);
         for r in 0..rows {
             // Rows by offset: cutting `out` into rows would divide by `cols`, a library call
@@ -866,7 +866,9 @@ impl<'a> Pipeline<'a> {
             scratch,
             ..
         } = self;
-        let (above, rest) = rings.split_at_mut(l);
+        let Some((above, rest)) = rings.split_at_mut_checked(l) else {
+            return;
+        };
         let Some(ring) = rest.first_mut() else {
             return;
         };

@@ -290,7 +290,7 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
         }
         if split {
             // Split nodes are larger than the smallest leaf, so log2 >= 1 here.
-            if depth == MAX_DEPTH || node.log2 == 0 {
+            if depth >= MAX_DEPTH || node.log2 == 0 {
                 return Err(DecodeError::InvalidData(SyntaxElement::QuadtreeDepth).into());
             }
             path[depth] = 0;
@@ -303,7 +303,9 @@ fn walk_tile<C: Coder, V: TreeVisitor, const STRIPE: usize>(
             let Some(last) = depth.checked_sub(1) else {
                 return Ok(());
             };
-            let c = path[last];
+            let Some(&c) = path.get(last) else {
+                return Ok(());
+            };
             let size = node.size();
             let parent = Node {
                 x: node.x - u32::from(c & 1) * size,

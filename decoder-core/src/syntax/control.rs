@@ -2,6 +2,7 @@
 //! control grid ("grid transform") with its coding order and per-band steps, the pixel-grid
 //! layout. What the syntax reads is turned into control values here.
 
+use crate::format::{load, store};
 #[cfg(doc)]
 use crate::model::ModelType;
 #[cfg(doc)]
@@ -150,7 +151,10 @@ const fn grid_slots() -> [u8; MAX_GRID + 1] {
 /// The entries of side `side` in a per-side table (the largest grid's for any other side).
 fn grid_entries(table: &[u8; GRID_TABLE_LEN], side: usize) -> &[u8] {
     let k = usize::from(GRID_SLOTS[side.min(MAX_GRID)]);
-    &table[usize::from(GRID_OFFSETS[k])..usize::from(GRID_OFFSETS[k + 1])]
+    let (start, end) = (GRID_OFFSETS[k], GRID_OFFSETS[k + 1]);
+    table
+        .get(usize::from(start)..usize::from(end))
+        .unwrap_or_default()
 }
 
 /// What a per-side table holds.
@@ -205,12 +209,21 @@ pub fn expand_pixel_grid(values: &mut [i16; MAX_CONTROL], m: usize) {
     // Backwards: every value moves to an index at least as large, past the ones still to move.
     for r in (0..m).rev() {
         for c in (0..m).rev() {
-            values[r * side + c] = values[r * m + c];
+            {
+                let v = load(values, r * m + c);
+                store(values, r * side + c, v);
+            }
         }
-        values[r * side + m] = values[r * side + m - 1];
+        {
+            let v = load(values, r * side + m - 1);
+            store(values, r * side + m, v);
+        }
     }
     for c in 0..side {
-        values[m * side + c] = values[(m - 1) * side + c];
+        {
+            let v = load(values, (m - 1) * side + c);
+            store(values, m * side + c, v);
+        }
     }
 }
 
@@ -235,7 +248,10 @@ const fn inverse_line(
     let mut i = 0;
     let mut at = start;
     while i < m {
-        y[i] = g[at];
+        {
+            let v = load(g, at);
+            store(y, i, v);
+        }
         at += stride;
         i += 1;
     }
@@ -243,16 +259,16 @@ const fn inverse_line(
     // ends: d[-1] = d[0], d[nh] = d[nh - 1]); odd samples: detail plus the prediction from the
     // neighbouring even samples (the one to the right is made first; past the end, the one to
     // the left). The last pair, where the mirrors are, is made after the loop.
-    let mut detail = y[nl] as i32;
+    let mut detail = load(y, nl) as i32;
     let mut left = y[0] as i32 - ((detail + 1) >> 1);
-    g[start] = narrow(left);
+    store(g, start, narrow(left));
     let mut at = start + stride;
     i = 0;
     while i + 1 < nh {
-        let next = y[nl + i + 1] as i32;
-        let right = y[i + 1] as i32 - ((detail + next + 2) >> 2);
-        g[at] = narrow(detail + ((left + right + 1) >> 1));
-        g[at + stride] = narrow(right);
+        let next = load(y, nl + i + 1) as i32;
+        let right = load(y, i + 1) as i32 - ((detail + next + 2) >> 2);
+        store(g, at, narrow(detail + ((left + right + 1) >> 1)));
+        store(g, at + stride, narrow(right));
         at += 2 * stride;
         left = right;
         detail = next;
@@ -260,11 +276,11 @@ const fn inverse_line(
     }
     if 2 * nh < m {
         // An odd line ends on an even sample, whose detail to the right is mirrored.
-        let right = y[nh] as i32 - ((detail + 1) >> 1);
-        g[at] = narrow(detail + ((left + right + 1) >> 1));
-        g[at + stride] = narrow(right);
+        let right = load(y, nh) as i32 - ((detail + 1) >> 1);
+        store(g, at, narrow(detail + ((left + right + 1) >> 1)));
+        store(g, at + stride, narrow(right));
     } else {
-        g[at] = narrow(detail + left);
+        store(g, at, narrow(detail + left));
     }
 }
 
