@@ -735,7 +735,10 @@ impl<const STRIPE: usize> ColourOut<'_, STRIPE> {
             if row_of != Some(cy) {
                 row_of = Some(cy);
                 let columns = (0..w).map(|i| coded(x + i));
-                self.chroma_row(cy, columns, &mut row[..w as usize]);
+                let Some(row) = row.get_mut(..w as usize) else {
+                    return Ok(());
+                };
+                self.chroma_row(cy, columns, row);
             }
             for c in row.iter().take(w as usize) {
                 let (Some(&l), Some(px)) = (luma.get(at), rgb.get_mut(at)) else {

@@ -575,7 +575,7 @@ pub fn dequantise_control(base: i32, step: i32, index: i32) -> i16 {
 /// The control values of a leaf from its coefficient indices (row-major, side `side`) and its
 /// control step, into `out`: every index times its coefficient's step ([`coefficient_step`],
 /// saturated to 16 bits), through the inverse grid transform ([`inverse_grid_transform`]),
-/// clamped to the sample range.
+/// clamped to the sample range. Only the first `side * side` values are written.
 #[inline(never)]
 pub fn transform_control_values(
     side: usize,
@@ -583,7 +583,6 @@ pub fn transform_control_values(
     indices: &[i16],
     out: &mut [i16; MAX_CONTROL],
 ) {
-    *out = [0; MAX_CONTROL];
     let multipliers = band_multiplier_table(side);
     for ((v, &k), &b) in out.iter_mut().zip(indices).zip(multipliers) {
         // A 16-bit index times a step below 2^14: no overflow.
@@ -737,7 +736,8 @@ pub fn code_chroma<C: Coder, P: SamplePrediction>(
     let mut pos = u32::from(leaf.model).min(count as u32 - 1);
     code_unary(c, model_ctx, count as u32, &mut pos)?;
     leaf.model = pos as u8;
-    let mi = pos as usize;
+    // `pos < count`, at most the number of chroma grids.
+    let mi = (pos as usize).min(CHROMA_GRIDS.len() - 1);
     let mut cq = u32::from(leaf.cquant);
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
     if cq as usize >= CONTROL_QUANTISERS {
@@ -823,7 +823,6 @@ fn fill_control(
     if transform {
         transform_control_values(side, step, indices, out)
     } else {
-        *out = [0; MAX_CONTROL];
         for i in 0..(side * side).min(MAX_CONTROL) {
             let index = i32::from(indices[i]);
             out[i] = control_value(out, side, i, step, index);
@@ -1042,7 +1041,8 @@ fn leaf_model(leaf: &LeafSyntax) -> Result<ModelType, PayloadError> {
         .ok_or(PayloadError::InvalidData(SyntaxElement::ModelType))
 }
 
-/// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack).
+/// [`reconstruct`] into a caller's patch (no patch-sized temporary on the stack). The control
+/// values past the model's grid keep what they held: nothing reads them.
 pub fn reconstruct_into(
     leaf: &LeafSyntax,
     log2: u8,
