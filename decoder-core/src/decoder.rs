@@ -505,11 +505,13 @@ fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeE
         }
     }
     loop {
-        match Header::parse(&buf[..len]) {
+        // `len <= MAX_HEADER_LEN`: the slices below are whole.
+        let read = buf.get(..len).unwrap_or_default();
+        match Header::parse(read) {
             Ok((header, _)) => {
                 let mut crc = Crc32::default();
-                crc.update(&buf[..CHECKSUM_BYTES.start]);
-                crc.update(&buf[CHECKSUM_BYTES.end..len]);
+                crc.update(read.get(..CHECKSUM_BYTES.start).unwrap_or_default());
+                crc.update(read.get(CHECKSUM_BYTES.end..).unwrap_or_default());
                 return Ok((header, crc));
             }
             Err(DecodeError::Truncated) if (FIXED_HEADER_LEN..MAX_HEADER_LEN).contains(&len) => {

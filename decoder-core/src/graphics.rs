@@ -157,7 +157,8 @@ impl<'a, C> PifsImage<'a, C> {
     pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
         let header = *Decoder::new(data)?.header();
         Ok(PifsImage {
-            payload: &data[header.encoded_len()..],
+            // `Decoder::new` checked that the stream holds its header and payload.
+            payload: data.get(header.encoded_len()..).unwrap_or_default(),
             header,
             scale: Scale::One,
             color: PhantomData,

@@ -128,7 +128,7 @@ impl<'a> Packet<'a> {
         };
         let deblock = flags >> DEBLOCK_SHIFT;
         let (min_leaf_log2, max_leaf_log2) = check_coding_fields(leaf_sizes, deblock)?;
-        let payload = &body[reader.pos..];
+        let payload = body.get(reader.pos..).unwrap_or_default();
         let stream = Header {
             // The region lies in the image, so its sides fit 16 bits.
             width: region.w as u16,
@@ -251,9 +251,12 @@ impl<S: PixelSink + ?Sized> PixelSink for Around<'_, '_, S> {
                     w: stop - x,
                     h: 1,
                 };
+                let Some(pixels) = row.get(from..to) else {
+                    return Ok(());
+                };
                 self.sink.tile(Tile {
                     area: run,
-                    pixels: &row[from..to],
+                    pixels,
                     ..tile
                 })?;
                 x = stop;

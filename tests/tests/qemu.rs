@@ -20,6 +20,10 @@
 //! pixel's RGB565 value (u16 little-endian) instead of the luma byte, which the host computes
 //! from its RGB decode by embedded-graphics' conversion.
 //!
+//! Before running it, each test checks that the firmware holds no decoder panic path (no
+//! decoder-core source location in its loaded data): the decoder answers any bytes with a
+//! value, never a panic.
+//!
 //! QEMU is required: without `qemu-system-arm` these tests fail (CI installs it with
 //! `apt-get install -y --no-install-recommends qemu-system-arm`).
 
@@ -100,6 +104,51 @@ fn build_firmware(target: &str) -> PathBuf {
         .join("release/pifs-firmware-example");
     assert!(elf.is_file(), "{} missing after the build", elf.display());
     elf
+}
+
+/// The decoder-core source paths in the loaded sections of the firmware `elf` (a 32-bit
+/// little-endian ELF). A panic path carries its source location, file name included, into the
+/// firmware's read-only data, and nothing else in decoder-core does: none there means the
+/// decoder cannot panic, whatever the bytes it is given (the debug sections, which are not
+/// loaded, are skipped).
+fn decoder_panic_sites(elf: &Path) -> Vec<String> {
+    const NEEDLE: &[u8] = b"decoder-core/src/";
+    const SHF_ALLOC: u32 = 2;
+    let data = std::fs::read(elf).expect("read the firmware");
+    let u16_at = |at: usize| u16::from_le_bytes([data[at], data[at + 1]]) as usize;
+    let u32_at = |at: usize| u32::from_le_bytes(data[at..at + 4].try_into().unwrap());
+    assert_eq!(
+        &data[..5],
+        b"\x7fELF\x01",
+        "{}: not a 32-bit ELF",
+        elf.display()
+    );
+    let (shoff, shentsize, shnum) = (u32_at(0x20) as usize, u16_at(0x2E), u16_at(0x30));
+    let mut sites = Vec::new();
+    for k in 0..shnum {
+        let header = shoff + k * shentsize;
+        let (kind, flags) = (u32_at(header + 4), u32_at(header + 8));
+        // Sections with contents (not NOBITS) that are loaded.
+        if kind == 8 || flags & SHF_ALLOC == 0 {
+            continue;
+        }
+        let (offset, size) = (
+            u32_at(header + 0x10) as usize,
+            u32_at(header + 0x14) as usize,
+        );
+        let bytes = &data[offset..offset + size];
+        let mut at = 0;
+        while let Some(found) = bytes[at..].windows(NEEDLE.len()).position(|w| w == NEEDLE) {
+            let start = at + found;
+            let end = bytes[start..]
+                .iter()
+                .position(|&b| b == 0 || !b.is_ascii_graphic())
+                .map_or(bytes.len(), |n| start + n);
+            sites.push(String::from_utf8_lossy(&bytes[start..end]).into_owned());
+            at = end;
+        }
+    }
+    sites
 }
 
 /// Runs `elf` on `board`; returns (exit code, stdout bytes, stderr text).
@@ -255,6 +304,12 @@ fn check_board(board: &Board) {
     require_qemu();
     let expected = host_hashes();
     let elf = build_firmware(board.target);
+    let sites = decoder_panic_sites(&elf);
+    assert!(
+        sites.is_empty(),
+        "{}: the decoder has panic paths (their source files are in the firmware's data): {sites:?}",
+        board.target
+    );
     let (code, _defmt_frames, stderr) = run_qemu(board, &elf);
     let context = format!(
         "{} on QEMU {} ({}, {} RAM)",
