@@ -97,11 +97,14 @@ pub fn chroma_len(n: u32) -> u32 {
 /// (row-major, sample units; a pixel grid's row and column past the block repeat the last
 /// ones).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+// The control values first, word-aligned, as in a luma `Patch`: cleared by the word-aligned
+// routine.
+#[repr(C, align(4))]
 pub struct ChromaPlane {
-    /// Grid intervals (1, 2, 4 or 8).
-    pub grid: u8,
     /// Control values, row-major, `grid + 1` per row.
     pub control: [i16; MAX_CONTROL],
+    /// Grid intervals (1, 2, 4 or 8).
+    pub grid: u8,
 }
 
 impl ChromaPlane {

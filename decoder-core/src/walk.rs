@@ -16,6 +16,7 @@ use crate::entropy::Coder;
 use crate::error::{DecodeError, PayloadError, SyntaxElement};
 use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
 pub use crate::geometry::Node;
+use crate::model::{MAX_CONTROL, MODELS};
 use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
     code_chroma, code_chroma_subtree, code_leaf, code_split, reconstruct_chroma, reconstruct_into,
@@ -196,10 +197,28 @@ fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
 ) -> Result<(), V::Error> {
+    // The patch is coded before any leaf reads it: cleared, not copied from a neutral
+    // constant (a copy pulls a general `memcpy` into the decoder).
     let mut chroma = ChromaState::<STRIPE> {
         contexts: ChromaContexts::UNSTARTED,
         frontier: ChromaFrontier::EMPTY,
-        patch: ChromaPatch::EMPTY,
+        patch: ChromaPatch {
+            node: Node {
+                x: 0,
+                y: 0,
+                log2: 0,
+            },
+            planes: [
+                crate::colour::ChromaPlane {
+                    control: [0; MAX_CONTROL],
+                    grid: 1,
+                },
+                crate::colour::ChromaPlane {
+                    control: [0; MAX_CONTROL],
+                    grid: 1,
+                },
+            ],
+        },
     };
     chroma.contexts.start();
     walk_planes(header, coder, visitor, state, Some(&mut chroma))
@@ -345,8 +364,8 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     node: Node,
 ) -> Result<(), V::Error> {
     let mut patch = Patch {
-        model: crate::model::MODELS[0],
-        control: [0; crate::model::MAX_CONTROL],
+        model: MODELS[0],
+        control: [0; MAX_CONTROL],
     };
     let mut info = LeafInfo {
         node,
