@@ -135,9 +135,9 @@ fn byte_compared(v: i32) -> u8 {
     }
 }
 
-/// `floor(n / d)` for `d > 0` (0 counts as 1). The divisors a stream divides by are `2^k` or `3 * 2^k` (the
-/// control steps, the pixels beside a leaf): for those a shift and a multiply, as a
-/// Cortex-M0 has no divider (out of line: one copy for every caller).
+/// `floor(n / d)` for `d > 0` (0 counts as 1). The divisors a stream divides by are `2^k` or
+/// `3 * 2^k` (the control steps, the pixels beside a leaf): for those a shift and a multiply,
+/// as a Cortex-M0 has no divider (out of line: one copy for every caller).
 #[inline(never)]
 pub fn div_floor(n: u32, d: u32) -> u32 {
     let k = d.trailing_zeros();

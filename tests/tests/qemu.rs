@@ -307,7 +307,7 @@ fn check_board(board: &Board) {
     let sites = decoder_panic_sites(&elf);
     assert!(
         sites.is_empty(),
-        "{}: the decoder has panic paths (their source files are in the firmware's data): {sites:?}",
+        "{}: the decoder has panic paths (their files are in the firmware's data): {sites:?}",
         board.target
     );
     let (code, _defmt_frames, stderr) = run_qemu(board, &elf);
