@@ -4,8 +4,8 @@
 //! patches (E. Guérin's thesis, 2002) coded with an adaptive binary arithmetic coder. Memory is
 //! fixed at compile time (a few KiB of stack, no frame buffer), reconstruction is integer and
 //! bit-exact on every platform, and no input makes it panic: every malformed stream is a
-//! [`DecodeError`], and the decoder has no panic path at all (a Cortex-M build links no panic
-//! location of this crate, which the QEMU tests check).
+//! [`DecodeError`], and a release build has no panic path at all (a Cortex-M firmware links no
+//! panic location of this crate, which the QEMU tests check).
 //!
 //! ```
 //! # fn demo(stream: &[u8]) -> Result<(), decoder_core::DecodeError> {
