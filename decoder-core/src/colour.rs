@@ -113,6 +113,17 @@ impl ChromaPlane {
         grid: 1,
         control: [128 * SAMPLE_ONE as i16; MAX_CONTROL],
     };
+
+    /// A plane of zeros, for storage a leaf's chroma is coded into before it is read: made by
+    /// clearing, where a copy of [`ChromaPlane::NEUTRAL`] pulls a general `memcpy` into the
+    /// decoder.
+    #[inline(always)]
+    pub const fn cleared() -> ChromaPlane {
+        ChromaPlane {
+            control: [0; MAX_CONTROL],
+            grid: 1,
+        }
+    }
 }
 
 /// The two chroma planes of one leaf, at the leaf's chroma node ([`chroma_node`]).

@@ -197,8 +197,7 @@ fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
 ) -> Result<(), V::Error> {
-    // The patch is coded before any leaf reads it: cleared, not copied from a neutral
-    // constant (a copy pulls a general `memcpy` into the decoder).
+    // The patch is coded before any leaf reads it.
     let mut chroma = ChromaState::<STRIPE> {
         contexts: ChromaContexts::UNSTARTED,
         frontier: ChromaFrontier::EMPTY,
@@ -209,14 +208,8 @@ fn walk_colour<C: Coder, V: TreeVisitor, const STRIPE: usize>(
                 log2: 0,
             },
             planes: [
-                crate::colour::ChromaPlane {
-                    control: [0; MAX_CONTROL],
-                    grid: 1,
-                },
-                crate::colour::ChromaPlane {
-                    control: [0; MAX_CONTROL],
-                    grid: 1,
-                },
+                crate::colour::ChromaPlane::cleared(),
+                crate::colour::ChromaPlane::cleared(),
             ],
         },
     };

@@ -209,21 +209,15 @@ pub fn expand_pixel_grid(values: &mut [i16; MAX_CONTROL], m: usize) {
     // Backwards: every value moves to an index at least as large, past the ones still to move.
     for r in (0..m).rev() {
         for c in (0..m).rev() {
-            {
-                let v = load(values, r * m + c);
-                store(values, r * side + c, v);
-            }
+            let v = load(values, r * m + c);
+            store(values, r * side + c, v);
         }
-        {
-            let v = load(values, r * side + m - 1);
-            store(values, r * side + m, v);
-        }
+        let v = load(values, r * side + m - 1);
+        store(values, r * side + m, v);
     }
     for c in 0..side {
-        {
-            let v = load(values, (m - 1) * side + c);
-            store(values, m * side + c, v);
-        }
+        let v = load(values, (m - 1) * side + c);
+        store(values, m * side + c, v);
     }
 }
 
@@ -248,10 +242,7 @@ const fn inverse_line(
     let mut i = 0;
     let mut at = start;
     while i < m {
-        {
-            let v = load(g, at);
-            store(y, i, v);
-        }
+        store(y, i, load(g, at));
         at += stride;
         i += 1;
     }
