@@ -10,8 +10,9 @@
 #           `-icount shift=0`, from decode entry to return), and the instructions of decodes at
 #           1/2, 1/4 and 1/8 of the size as a share of the full decode's.
 # Images: kodim23 as 128x128, 320x240 and 768x512, grayscale and colour (format 13, decoded to
-# RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder; and the
-# 320x240 grayscale image as a 16-bit surface (its samples times 257), a 16-bit stream beside
+# RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder in
+# stripes of 512 pixels (what decoder-core's default decoder holds; the encoder's default is
+# one stripe as wide as the image); and the 320x240 grayscale image as a 16-bit surface (its samples times 257), a 16-bit stream beside
 # its 8-bit twin (the same stream with an 8-bit header: same payload, same pixels), for what
 # making values costs. The 8-bit streams are also decoded by a decoder without the `deep`
 # feature (16-bit streams), for what supporting them costs 8-bit streams. Generated files go to target/bench-embedded/. Prints markdown tables
@@ -47,7 +48,8 @@ for kind in kodim23 kodim23c; do
         for bpp in 0.1 0.5; do
             s=$out/${kind}_${size}_${bpp}bpp.pifs
             if [ ! -s "$s" ] || [ "$out/${kind}_$size.$ext" -nt "$s" ] || [ target/release/pifs -nt "$s" ]; then
-                ./target/release/pifs encode "$out/${kind}_$size.$ext" -o "$s" --bpp "$bpp" >/dev/null
+                ./target/release/pifs encode "$out/${kind}_$size.$ext" -o "$s" --bpp "$bpp" \
+                    --stripe-width 512 >/dev/null
             fi
             streams+=("$s")
         done
@@ -73,7 +75,7 @@ with open(sys.argv[2], "wb") as f:
 PY
 for bpp in 0.1 0.5; do
     d=$out/kodim23d_320x240_${bpp}bpp.pifs
-    ./target/release/pifs encode "$out/kodim23d_320x240.pgm" -o "$d" --bpp "$bpp" >/dev/null
+    ./target/release/pifs encode "$out/kodim23d_320x240.pgm" -o "$d" --bpp "$bpp" --stripe-width 512 >/dev/null
     # The twin: the header made 8-bit (depth 8, no range), the payload as it is.
     python3 - "$d" "$out/kodim23s_320x240_${bpp}bpp.pifs" <<'PY'
 import sys, zlib

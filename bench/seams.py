@@ -6,13 +6,17 @@ B_g: the mean absolute difference between neighbouring pixels across the lines o
 grid (between columns x-1 and x with x = 0 mod g, and the same for rows), divided by the same
 mean over every other pair of neighbouring pixels. A natural image has B_g near 1; a codec whose
 blocks do not meet has B_g > 1. The quadtree's leaves start on multiples of 4, 8, 16, ..., so
-B_4, B_8 and B_16 together see every leaf edge.
+B_4, B_8 and B_16 together see every leaf edge. S_512: the same across the columns x = 0 mod
+512 only (x > 0; over every pair but those), where a stream coded in stripes of 512 pixels
+starts a stripe (images wider than 512 pixels; the mean is over those).
 
 SSIM: Wang, Bovik, Sheikh, Simoncelli (2004), 11x11 Gaussian window (sigma 1.5), K1 = 0.01,
 K2 = 0.03, L = 255, mean over the window positions inside the image.
 
     python3 bench/seams.py --work DIR [--pifs target/release/pifs] [--rates 0.05 0.1 0.25 0.5]
-        [--csv OUT.csv] [--md OUT.md] [--no-j2k] IMAGE...
+        [--csv OUT.csv] [--md OUT.md] [--no-j2k] [--pifs-args "ARGS"] IMAGE...
+
+--pifs-args: more options for `pifs encode` (such as "--stripe-width 512").
 
 Needs numpy and Pillow, and opj_compress / opj_decompress (libopenjp2-tools) for JPEG 2000.
 """
@@ -88,10 +92,23 @@ def grid_measure(img, g):
     return float(across.mean() / other.mean())
 
 
+def stripe_measure(img, g=512):
+    """S_512 of a grayscale image (see the module docstring); NaN when no column qualifies."""
+    a = img.astype(np.float64)
+    dx = np.abs(a[:, 1:] - a[:, :-1])
+    dy = np.abs(a[1:, :] - a[:-1, :])
+    on_x = (np.arange(1, a.shape[1]) % g) == 0
+    if not on_x.any():
+        return float("nan")
+    other = np.concatenate([dx[:, ~on_x].ravel(), dy.ravel()])
+    return float(dx[:, on_x].mean() / other.mean()) if other.mean() > 0 else float("nan")
+
+
 def metrics(orig, rec):
     out = {"psnr": psnr(orig, rec), "ssim": ssim(orig, rec)}
     for g in GRIDS:
         out["b%d" % g] = grid_measure(rec, g)
+    out["s512"] = stripe_measure(rec)
     return out
 
 
@@ -99,11 +116,12 @@ def run(cmd):
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
-def j2k_at_bytes(pgm, budget, tdir):
-    """Largest JPEG 2000 codestream (opj_compress -I -r R) of at most `budget` bytes, decoded;
-    bisection on log2 of the compression ratio. Returns (bytes, decoded array) or None."""
+def j2k_at_bytes(pgm, budget, tdir, read=read_gray):
+    """Largest JPEG 2000 codestream (opj_compress -I -r R) of at most `budget` bytes, decoded
+    (by `read`; a PPM input decodes to a PPM); bisection on log2 of the compression ratio.
+    Returns (bytes, decoded array) or None."""
     h, w = read_gray(pgm).shape
-    raw_bits = 8.0 * w * h
+    raw_bits = 8.0 * w * h * (3 if pgm.endswith(".ppm") else 1)
     lo, hi = math.log2(raw_bits / (8.0 * budget)) - 1.0, math.log2(raw_bits / (8.0 * budget)) + 6.0
     # lo: a smaller ratio (bigger file) than the budget allows; hi: a bigger ratio (smaller).
     best = None
@@ -115,9 +133,9 @@ def j2k_at_bytes(pgm, budget, tdir):
         if size <= budget:
             hi = mid
             if best is None or size > best[0]:
-                dec = os.path.join(tdir, "j2k.pgm")
+                dec = os.path.join(tdir, "j2k" + os.path.splitext(pgm)[1])
                 run(["opj_decompress", "-i", out, "-o", dec])
-                best = (size, read_gray(dec))
+                best = (size, read(dec))
         else:
             lo = mid
         if best is not None and best[0] >= budget * 0.998:
@@ -126,7 +144,7 @@ def j2k_at_bytes(pgm, budget, tdir):
 
 
 def bench_image(job):
-    path, rates, work, pifs, with_j2k = job
+    path, rates, work, pifs, with_j2k, pifs_args = job
     name = os.path.splitext(os.path.basename(path))[0]
     tdir = os.path.join(work, name)
     os.makedirs(tdir, exist_ok=True)
@@ -139,7 +157,7 @@ def bench_image(job):
     for rate in rates:
         stream = os.path.join(tdir, "pifs_%g.pifs" % rate)
         dec = os.path.join(tdir, "pifs_%g.pgm" % rate)
-        run([pifs, "encode", pgm, "-o", stream, "--bpp", str(rate)])
+        run([pifs, "encode", pgm, "-o", stream, "--bpp", str(rate)] + pifs_args)
         run([pifs, "decode", stream, "-o", dec])
         size = os.path.getsize(stream)
         rec = read_gray(dec)
@@ -159,9 +177,9 @@ def mean(values):
 
 
 def markdown(rows, rates):
-    keys = ["psnr", "ssim"] + ["b%d" % g for g in GRIDS]
-    out = ["| codec | bpp | n | PSNR dB | SSIM | B_4 | B_8 | B_16 |",
-           "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    keys = ["psnr", "ssim"] + ["b%d" % g for g in GRIDS] + ["s512"]
+    out = ["| codec | bpp | n | PSNR dB | SSIM | B_4 | B_8 | B_16 | S_512 |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     orig = [r for r in rows if r["codec"] == "original"]
     out.append("| original | | %d | | | %s |" % (
         len(orig), " | ".join("%.3f" % mean([r[k] for r in orig]) for k in keys[2:])))
@@ -187,17 +205,18 @@ def main():
     ap.add_argument("--md")
     ap.add_argument("--no-j2k", action="store_true")
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--pifs-args", default="", help="more options for `pifs encode`")
     args = ap.parse_args()
     os.makedirs(args.work, exist_ok=True)
-    jobs = [(p, args.rates, args.work, os.path.abspath(args.pifs), not args.no_j2k)
-            for p in args.images]
+    jobs = [(p, args.rates, args.work, os.path.abspath(args.pifs), not args.no_j2k,
+             args.pifs_args.split()) for p in args.images]
     rows = []
     with cf.ProcessPoolExecutor(max_workers=args.jobs) as ex:
         for r in ex.map(bench_image, jobs):
             rows.extend(r)
             print("%s done" % r[0]["image"], file=sys.stderr)
     fields = ["image", "codec", "target_bpp", "bytes", "bpp", "psnr", "ssim"] + [
-        "b%d" % g for g in GRIDS]
+        "b%d" % g for g in GRIDS] + ["s512"]
     if args.csv:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=fields)

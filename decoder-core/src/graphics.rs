@@ -68,6 +68,7 @@ use crate::colour::rgb_to_luma;
 use crate::decoder::{Decoder, Input};
 use crate::entropy::ByteSource;
 use crate::error::{DecodeError, DrawError};
+use crate::format::DEFAULT_STRIPE;
 use crate::geometry::Rect;
 use crate::syntax::Header;
 use crate::synthesis::{PixelSink, Scale, Tile};
@@ -153,9 +154,15 @@ pub struct PifsImage<'a, C = Gray8> {
 
 impl<'a, C> PifsImage<'a, C> {
     /// Wraps the stream `data`, after checking its header, its length and its checksum (so a
-    /// damaged stream is refused here, before anything is drawn).
+    /// damaged stream is refused here, before anything is drawn), and that its stripes fit the
+    /// default frontier the drawing decodes with ([`DecodeError::StripeTooWide`], where the
+    /// drawing would have stopped before its first pixel).
     pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
         let header = *Decoder::new(data)?.header();
+        let (stripe, capacity) = (header.stripe_width(), DEFAULT_STRIPE as u32);
+        if stripe > capacity {
+            return Err(DecodeError::StripeTooWide { stripe, capacity });
+        }
         Ok(PifsImage {
             // `Decoder::new` checked that the stream holds its header and payload.
             payload: data.get(header.encoded_len()..).unwrap_or_default(),

@@ -22,7 +22,10 @@
 //! - [`Decoder`]: the one entry point, over a stream in memory ([`Decoder::new`]) or a
 //!   sequential [`ByteSource`] ([`Decoder::from_source`]), optionally cut to a [`Rect`]
 //!   ([`Decoder::clip`]) or bounded by [`Limits`]; decodes into a [`PixelSink`] (tile by tile,
-//!   no frame buffer) or a buffer.
+//!   no frame buffer) or a buffer. It keeps a byte per column of the stream's stripes (two
+//!   in colour), for stripes of up to 512 pixels unless [`Decoder::stripe_capacity`] gives
+//!   more: a stream coded as one stripe wider than that (the reference encoder's default for
+//!   wider images) is refused with [`DecodeError::StripeTooWide`]; a host gives 65536.
 //! - [`PixelSink`] receives [`Tile`]s of at most [`TILE`] x [`TILE`] pixels and may fail; its
 //!   error ends the decode as [`DrawError::Sink`].
 //! - [`Header`]: the image's size and format fields; [`LeafInfo`] (with [`Node`] and

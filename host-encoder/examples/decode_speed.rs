@@ -9,6 +9,7 @@
 //! `SCALE=1/4` (or any `pifs decode --scale` value) decodes at that scale.
 
 use decoder_core::{Decoder, Scale};
+use host_encoder::io::HOST_STRIPE;
 use std::time::Instant;
 
 fn main() {
@@ -27,7 +28,9 @@ fn main() {
     let mut medians = Vec::new();
     for path in std::env::args().skip(1) {
         let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-        let decoder = Decoder::new(&data).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let decoder = Decoder::new(&data)
+            .unwrap_or_else(|e| panic!("{path}: {e}"))
+            .stripe_capacity::<HOST_STRIPE>();
         let channels = usize::from(decoder.header().channels);
         let (w, h) = decoder.scale(scale).output_size();
         let mut out = vec![0u8; (w * h) as usize * channels];
@@ -35,7 +38,11 @@ fn main() {
         for _ in 0..repeats {
             let start = Instant::now();
             Decoder::new(&data)
-                .and_then(|d| d.scale(scale).decode_into(&mut out))
+                .and_then(|d| {
+                    d.stripe_capacity::<HOST_STRIPE>()
+                        .scale(scale)
+                        .decode_into(&mut out)
+                })
                 .unwrap_or_else(|e| panic!("{path}: {e}"));
             times.push(start.elapsed().as_secs_f64() * 1e3);
         }

@@ -78,7 +78,10 @@ fn sweep_one(analysis: &Analysis, name: &str, original: &[u8], bpp: f64, analysi
             let t = Instant::now();
             let mut pixels = vec![0u8; original.len()];
             decoder_core::Decoder::new(&e.bytes)
-                .and_then(|d| d.decode_into(&mut pixels))
+                .and_then(|d| {
+                    d.stripe_capacity::<{ io::HOST_STRIPE }>()
+                        .decode_into(&mut pixels)
+                })
                 .expect("own stream decodes");
             let decode_ms = t.elapsed().as_secs_f64() * 1e3;
             let sse_rgb: f64 = pixels

@@ -62,5 +62,5 @@ pub mod relief;
 pub use encoder::{
     analyse, analyse_colour, analysis_steps, psnr, Analysis, AnalysisStage, AnalysisSteps,
     AnalysisTiming, ColourPlanes, EncodeError, Encoded, EncoderConfig, Plane, Target, Tune,
-    CHROMA_WEIGHTS, FINE_STEP_MARGIN, MIN_TRIAL_BPP,
+    CHROMA_WEIGHTS, DEFAULT_STRIPE_TILES, FINE_STEP_MARGIN, MIN_TRIAL_BPP, WHOLE_WIDTH,
 };

@@ -118,10 +118,13 @@ fn refused(out: &Output) -> String {
     stderr.trim_end().to_string()
 }
 
-/// The pixels the decoder makes of the stream at `path`.
+/// The pixels the decoder makes of the stream at `path` (as a host decodes: stripes of any
+/// width).
 fn decoded(path: &Path) -> (u32, u32, Vec<u8>) {
     let bytes = std::fs::read(path).unwrap();
-    let decoder = decoder_core::Decoder::new(&bytes).unwrap();
+    let decoder = decoder_core::Decoder::new(&bytes)
+        .unwrap()
+        .stripe_capacity::<65536>();
     let (w, h) = (decoder.header().width, decoder.header().height);
     let channels = usize::from(decoder.header().channels);
     let mut px = vec![0u8; decoder.header().pixel_count() * channels];
@@ -1346,4 +1349,73 @@ fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     ]));
     assert!(line.contains("--depth 8"), "{line}");
     assert!(!packets.exists());
+}
+
+/// An image wider than decoder-core's default frontier is coded as one stripe unless told
+/// otherwise: the default decoder refuses it (a host's decodes it), `pifs info` says what a
+/// decoder needs, `--stripe-width 512` makes a stream the default decoder takes, and packets
+/// keep stripes of 512 (wider ones refused).
+#[test]
+fn wide_images_are_one_stripe_unless_told_and_packets_keep_512() {
+    let dir = scratch("stripes");
+    let png = dir.join("wide.png");
+    textured(640, 48).save(&png).unwrap();
+    let (whole, narrow) = (dir.join("whole.pifs"), dir.join("narrow.pifs"));
+    let encode = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["encode", png.to_str().unwrap(), "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        ok(&pifs(&args));
+        std::fs::read(out).unwrap()
+    };
+    let bytes = encode(&whole, &["--bytes", "900"]);
+    let header = decoder_core::Header::read(&bytes).unwrap();
+    assert_eq!((header.stripe, header.stripe_width()), (0, 640));
+    let mut px = vec![0u8; header.pixel_count()];
+    assert_eq!(
+        decoder_core::Decoder::new(&bytes).and_then(|d| d.decode_into(&mut px)),
+        Err(decoder_core::DecodeError::StripeTooWide {
+            stripe: 640,
+            capacity: 512
+        })
+    );
+    assert_eq!(decoded(&whole).2.len(), 640 * 48);
+    let info = ok(&pifs(&["info", whole.to_str().unwrap()]));
+    assert!(
+        info.contains("stripes of 640 px (a decoder needs 640 columns"),
+        "{info}"
+    );
+
+    let bytes = encode(&narrow, &["--bytes", "900", "--stripe-width", "512"]);
+    let header = decoder_core::Header::read(&bytes).unwrap();
+    assert_eq!((header.stripe, header.stripe_width()), (4, 512));
+    decoder_core::Decoder::new(&bytes)
+        .and_then(|d| d.decode_into(&mut px))
+        .unwrap();
+    let info = ok(&pifs(&["info", narrow.to_str().unwrap()]));
+    assert!(!info.contains("a decoder needs"), "{info}");
+
+    let packets = dir.join("packets");
+    let p = packets.to_str().unwrap();
+    ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--packets",
+        p,
+        "--bytes",
+        "1500",
+    ]));
+    let first = std::fs::read(packets.join("0000.pkt")).unwrap();
+    let packet = decoder_core::Packet::parse(&first).unwrap();
+    assert_eq!(packet.stream_header().stripe_width(), 512);
+    let refused = refused(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--packets",
+        dir.join("more").to_str().unwrap(),
+        "--bytes",
+        "1500",
+        "--stripe-width",
+        "full",
+    ]));
+    assert!(refused.contains("stripes of at most 512"), "{refused}");
 }

@@ -848,8 +848,10 @@ fn run(case: &Case, dir: &Path) -> String {
             let path = case.output.as_ref().unwrap();
             let bytes = std::fs::read(path).unwrap();
             if path.extension().is_some_and(|e| e == "pifs") {
-                let decoder =
-                    decoder_core::Decoder::new(&bytes).unwrap_or_else(|e| panic!("{label}: {e}"));
+                // As a host decodes: stripes of any width.
+                let decoder = decoder_core::Decoder::new(&bytes)
+                    .unwrap_or_else(|e| panic!("{label}: {e}"))
+                    .stripe_capacity::<65536>();
                 let mut px = vec![
                     0u8;
                     decoder.header().pixel_count()

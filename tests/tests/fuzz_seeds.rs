@@ -83,10 +83,12 @@ impl Image {
     }
 }
 
+/// The seeds' settings: stripes of 512 pixels, as the committed seeds were made.
 fn config(min_leaf_log2: u8, max_leaf_log2: u8) -> EncoderConfig {
     EncoderConfig {
         min_leaf_log2,
         max_leaf_log2,
+        stripe: host_encoder::DEFAULT_STRIPE_TILES,
         ..EncoderConfig::default()
     }
 }
@@ -602,7 +604,10 @@ struct PacketSeed {
 /// missing.
 fn packet_seeds() -> Files {
     use host_encoder::packets::{frame, packetise, PacketOptions};
-    let config = EncoderConfig::default();
+    let config = EncoderConfig {
+        stripe: host_encoder::DEFAULT_STRIPE_TILES,
+        ..EncoderConfig::default()
+    };
     let mut out = Files::new();
     let seed = |name, w, h, colour, size, count, preview, parity| PacketSeed {
         name,

@@ -638,3 +638,34 @@ fn streamed_drawing_equals_in_memory_drawing() {
         }
     }
 }
+
+/// A stream coded as one stripe wider than the default frontier (the encoder's default for an
+/// image wider than 512 pixels) is refused when wrapped, not left undrawn; in stripes of 512 the
+/// same image draws.
+#[test]
+fn a_stripe_wider_than_the_frontier_is_refused_before_drawing() {
+    let plane = common::synthetic(640, 16, 7, 4);
+    let encode = |stripe| {
+        let config = host_encoder::EncoderConfig {
+            stripe,
+            ..common::small_config()
+        };
+        common::analyse_with(plane.clone(), &config)
+            .encode(host_encoder::Target::Bytes(400))
+            .unwrap()
+            .bytes
+    };
+    let whole = encode(host_encoder::WHOLE_WIDTH);
+    assert_eq!(
+        PifsImage::<Gray8>::new(&whole).err(),
+        Some(DecodeError::StripeTooWide {
+            stripe: 640,
+            capacity: 512
+        })
+    );
+    let narrow = encode(host_encoder::DEFAULT_STRIPE_TILES);
+    let img = PifsImage::<Gray8>::new(&narrow).unwrap();
+    let mut t = Recorder::new(640, 16);
+    Image::new(&img, Point::zero()).draw(&mut t).unwrap();
+    assert!(t.pixels.iter().all(Option::is_some));
+}

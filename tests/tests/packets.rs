@@ -16,8 +16,10 @@ const WIDTH: u32 = 96;
 const HEIGHT: u32 = 64;
 const SIZE: usize = 48;
 
+/// Packets' settings: stripes of at most 512 pixels.
 fn config() -> EncoderConfig {
     EncoderConfig {
+        stripe: host_encoder::DEFAULT_STRIPE_TILES,
         ..EncoderConfig::default()
     }
 }

@@ -8,11 +8,14 @@ use common::{analyse_with, decode_all, small_config, synthetic, CoverageSink};
 use decoder_core::DecodeError;
 use host_encoder::{EncoderConfig, Target};
 
-/// Leaf settings for the large images: 8x8 leaves only, which keeps the analysis fast.
+/// Settings for the large images: 8x8 leaves only, which keeps the analysis fast, and stripes
+/// of 512 pixels, so that the widest images are coded in many stripes and decoded with
+/// decoder-core's default frontier.
 fn large_config() -> EncoderConfig {
     EncoderConfig {
         min_leaf_log2: 3,
         max_leaf_log2: 3,
+        stripe: host_encoder::DEFAULT_STRIPE_TILES,
         ..EncoderConfig::default()
     }
 }
@@ -120,10 +123,11 @@ fn large_601x401() {
 #[test]
 fn widest_strip_65535x2() {
     // The largest side the format allows: the quadtree root is 2^16 (larger than any leaf).
-    // 4x4 leaves only: the cheapest analysis of a strip this long.
+    // 4x4 leaves only: the cheapest analysis of a strip this long; 128 stripes of 512.
     let config = EncoderConfig {
         min_leaf_log2: 2,
         max_leaf_log2: 2,
+        stripe: host_encoder::DEFAULT_STRIPE_TILES,
         ..EncoderConfig::default()
     };
     check_size(65535, 2, &config, Target::Psnr(25.0));

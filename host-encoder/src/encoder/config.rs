@@ -20,10 +20,12 @@ pub struct EncoderConfig {
     /// Bit rate of the trial encode whose final contexts train the rate estimates: the closer
     /// to the targets to come, the closer the estimates (see docs/decisions.md).
     pub trial_bpp: f64,
-    /// Width of the stripes the image is coded in, in coding tiles of 128 pixels (0: one
-    /// stripe as wide as the image). Prediction does not cross a stripe's left edge, and a
-    /// decoder holds one byte per column of a stripe: the default, 4 (512 pixels), is what
-    /// decoder-core holds unless told otherwise.
+    /// Width of the stripes the image is coded in, in coding tiles of 128 pixels (0, the
+    /// default: one stripe as wide as the image). Prediction and edge smoothing do not cross a
+    /// stripe's left edge, where a seam shows at low rates; a decoder holds one byte per
+    /// column of a stripe (two in colour), and decoder-core's default decoder holds
+    /// [`DEFAULT_STRIPE_TILES`] (512 pixels): code wider images for it with that, as packets
+    /// are (see docs/decisions.md).
     pub stripe: u8,
     /// Strength of the smoothing of leaf edges every stream gets (0: none; at most
     /// decoder-core's `MAX_DEBLOCK`), or `None` to choose it per stream: the strongest that
@@ -56,9 +58,13 @@ pub enum Tune {
     Ssim,
 }
 
-/// The default stripe width, in coding tiles: decoder-core's default stripe capacity.
+/// Decoder-core's default stripe capacity, in coding tiles (512 pixels): the stripes of
+/// packets, and of streams for decoders that hold no more.
 pub const DEFAULT_STRIPE_TILES: u8 =
     (decoder_core::internal::format::DEFAULT_STRIPE as u32 / CODING_TILE) as u8;
+
+/// [`EncoderConfig::stripe`] for one stripe as wide as the image.
+pub const WHOLE_WIDTH: u8 = 0;
 
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
@@ -81,7 +87,7 @@ impl Default for EncoderConfig {
             min_leaf_log2: 2,
             max_leaf_log2: 7,
             trial_bpp: MIN_TRIAL_BPP,
-            stripe: DEFAULT_STRIPE_TILES,
+            stripe: WHOLE_WIDTH,
             deblock: None,
             fine_steps: None,
             tune: Tune::default(),

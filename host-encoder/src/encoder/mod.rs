@@ -32,7 +32,9 @@ mod layering;
 
 pub use analysis::{analysis_steps, Analysis, AnalysisStage, AnalysisSteps, AnalysisTiming};
 pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
-pub use config::{EncoderConfig, Target, Tune, FINE_STEP_MARGIN, MIN_TRIAL_BPP};
+pub use config::{
+    EncoderConfig, Target, Tune, DEFAULT_STRIPE_TILES, FINE_STEP_MARGIN, MIN_TRIAL_BPP, WHOLE_WIDTH,
+};
 pub use error::EncodeError;
 pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;

@@ -106,7 +106,10 @@ pub enum PacketError {
     },
     /// Quality targets are not supported for packets (their count must be known first).
     QualityTarget,
-    /// The image is coded in stripes wider than 512 pixels, which packets do not carry.
+    /// The image was analysed in stripes wider than 512 pixels (or as one stripe, the
+    /// default), which packets do not carry: packets are for receivers with decoder-core's
+    /// default frontier, so their image is analysed in stripes of at most
+    /// [`crate::DEFAULT_STRIPE_TILES`].
     StripeTooWide,
     /// The image has more than 65535 packets' worth of data.
     TooManyPackets,
@@ -139,7 +142,10 @@ impl fmt::Display for PacketError {
                 )
             }
             PacketError::StripeTooWide => {
-                write!(f, "packets carry stripes of at most 512 pixels")
+                write!(
+                    f,
+                    "packets carry stripes of at most 512 pixels (--stripe-width 512 or less)"
+                )
             }
             PacketError::TooManyPackets => write!(f, "more than 65535 packets"),
             PacketError::TooManyForParity { packets } => write!(
@@ -171,14 +177,15 @@ impl From<EncodeError> for PacketError {
 
 /// Cuts the image of `analysis` into packets of at most `options.size` bytes whose total is
 /// at most `target` (a rate or a size, whole packets counted). Regions are analysed with
-/// `config`.
+/// `config`, whose stripes, like those of `analysis`, are at most 512 pixels
+/// ([`crate::DEFAULT_STRIPE_TILES`], not the default whole width).
 pub fn packetise(
     analysis: &Analysis,
     config: &EncoderConfig,
     target: Target,
     options: &PacketOptions,
 ) -> Result<Packetised, PacketError> {
-    if config.stripe == 0 || config.stripe > 4 {
+    if config.stripe == crate::WHOLE_WIDTH || config.stripe > crate::DEFAULT_STRIPE_TILES {
         return Err(PacketError::StripeTooWide);
     }
     let budget = budget_of(analysis, target)?;

@@ -239,12 +239,13 @@ pub struct AnalysisArgs {
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub max_leaf_log2: u8,
-    /// Width of the stripes the image is coded in, in pixels (a multiple of 128), or `full` for
-    /// one stripe as wide as the image. A decoder holds one byte per column of a stripe:
-    /// decoder-core holds 512 unless told otherwise, so wider stripes are for decoders that
-    /// hold more (prediction and edge smoothing stop at a stripe's left edge).
-    #[arg(long, default_value = "512", value_parser = parse_stripe)]
-    pub stripe_width: u8,
+    /// Width of the stripes the image is coded in, in pixels (a multiple of 128), or `full`
+    /// for one stripe as wide as the image [default: full; packets: 512]. Prediction and edge
+    /// smoothing stop at a stripe's left edge, which shows at low rates; a decoder holds one
+    /// byte per column of a stripe (two in colour) and decoder-core's default one holds 512:
+    /// give 512 for it when the image is wider.
+    #[arg(long, value_parser = parse_stripe)]
+    pub stripe_width: Option<u8>,
     /// Strength of the smoothing of leaf edges: `auto` (the strongest that does not add to
     /// the error), or 0 (none) to 16.
     #[arg(long, default_value = "auto", value_parser = parse_deblock)]
@@ -317,7 +318,7 @@ impl Default for AnalysisArgs {
         AnalysisArgs {
             min_leaf_log2: d.min_leaf_log2,
             max_leaf_log2: d.max_leaf_log2,
-            stripe_width: d.stripe,
+            stripe_width: None,
             deblock: Deblock(d.deblock),
             tune: d.tune,
             depth: io::Depth::Auto,
@@ -326,13 +327,25 @@ impl Default for AnalysisArgs {
 }
 
 impl AnalysisArgs {
+    /// These settings for packets: stripes of 512 pixels unless chosen (packets are for
+    /// decoders with decoder-core's default frontier).
+    pub fn for_packets(&self) -> AnalysisArgs {
+        AnalysisArgs {
+            stripe_width: Some(
+                self.stripe_width
+                    .unwrap_or(host_encoder::DEFAULT_STRIPE_TILES),
+            ),
+            ..self.clone()
+        }
+    }
+
     /// The analysis's settings for `targets` on an image of `pixels` pixels.
     pub fn config(&self, pixels: usize, targets: &[Target]) -> EncoderConfig {
         let chosen = EncoderConfig::for_targets(targets, pixels);
         EncoderConfig {
             min_leaf_log2: self.min_leaf_log2,
             max_leaf_log2: self.max_leaf_log2.max(self.min_leaf_log2),
-            stripe: self.stripe_width,
+            stripe: self.stripe_width.unwrap_or(chosen.stripe),
             deblock: self.deblock.0,
             tune: self.tune,
             ..chosen
@@ -546,7 +559,10 @@ fn write_encoded(
 fn surface_error(surface: &io::Surface, stream: &[u8]) -> Result<io::SurfaceError> {
     let mut values = vec![0u16; surface.values.len()];
     decoder_core::Decoder::new(stream)
-        .and_then(|d| d.decode_values_into(&mut values))
+        .and_then(|d| {
+            d.stripe_capacity::<{ io::HOST_STRIPE }>()
+                .decode_values_into(&mut values)
+        })
         .map_err(|_| CliError::Encode(EncodeError::Internal("a 16-bit stream did not decode")))?;
     Ok(surface.error(&values))
 }
@@ -749,10 +765,11 @@ fn encode_packets(args: &EncodeArgs, job: Job) -> Result<()> {
             input.display()
         )));
     }
-    let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
+    let analysis = args.analysis.for_packets();
+    let analysed = analyse_loaded(&image, &analysis, &[job.target])?;
     crate::packets::encode(
         &analysed,
-        &args.analysis,
+        &analysis,
         &args.packets,
         job.target,
         args.output.as_deref(),

@@ -83,9 +83,17 @@ impl Stats {
             1 << header.min_leaf_log2,
             1 << header.max_leaf_log2
         );
+        let stripe = header.stripe_width();
+        let capacity = decoder_core::internal::format::DEFAULT_STRIPE as u32;
         println!(
-            "  coding           stripes of {} px, edge smoothing {}",
-            header.stripe_width(),
+            "  coding           stripes of {stripe} px{}, edge smoothing {}",
+            if stripe > capacity {
+                format!(
+                    " (a decoder needs {stripe} columns; decoder-core's default holds {capacity})"
+                )
+            } else {
+                String::new()
+            },
             match header.deblock {
                 0 => "off".to_string(),
                 d => format!(
