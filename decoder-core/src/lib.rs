@@ -39,7 +39,7 @@
 //!   region, in image coordinates, into the same [`PixelSink`]s; a preview packet that arrives
 //!   after some regions is drawn around them ([`Packet::decode_around`]). A receiver needs one
 //!   packet's buffer and the decoder's usual fixed memory.
-//! - [`graphics`] (cargo feature `embedded-graphics`): a stream as an embedded-graphics
+//! - `graphics` (cargo feature `embedded-graphics`): a stream as an embedded-graphics
 //!   `ImageDrawable` in any colour type.
 //!
 //! ## Scaled decoding
@@ -47,7 +47,7 @@
 //! [`Decoder::scale`] decodes at 1/8, 1/4 or 1/2 of the coded size by stopping the subdivision
 //! early (pixel `(X, Y)` is pixel `(X 2^k, Y 2^k)` of the full decode), or at 2 or 4 times it by
 //! letting the subdivision continue below the pixel ([`Scale`]); the embedded-graphics image
-//! has [`graphics::PifsImage::with_scale`].
+//! has `graphics::PifsImage::with_scale`.
 //!
 //! ## The patches are IFS attractors
 //!
