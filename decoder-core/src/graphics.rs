@@ -72,6 +72,7 @@ use crate::format::DEFAULT_STRIPE;
 use crate::geometry::Rect;
 use crate::syntax::Header;
 use crate::synthesis::{PixelSink, Scale, Tile};
+use crate::walk::LeafInfo;
 
 /// A colour type that decoded 8-bit luma (and RGB) can be drawn as.
 pub trait FromGray: PixelColor {
@@ -143,9 +144,12 @@ from_gray8_rgb888!(Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888, Bgr88
 ///
 /// Creating one parses and validates the header; every draw decodes the stream again, tile by
 /// tile, without a frame buffer (the decoder's state lives on the stack only while drawing).
-/// `C` is usually inferred from the draw target.
+/// `C` is usually inferred from the draw target. `STRIPE` is the widest stripe the drawing
+/// holds (a byte per column, two in colour, on the stack while drawing): 512 from
+/// [`PifsImage::new`], more from [`PifsImage::with_stripe_capacity`] for a stream of a wider
+/// image coded as one stripe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct PifsImage<'a, C = Gray8> {
+pub struct PifsImage<'a, C = Gray8, const STRIPE: usize = DEFAULT_STRIPE> {
     payload: &'a [u8],
     header: Header,
     scale: Scale,
@@ -155,11 +159,27 @@ pub struct PifsImage<'a, C = Gray8> {
 impl<'a, C> PifsImage<'a, C> {
     /// Wraps the stream `data`, after checking its header, its length and its checksum (so a
     /// damaged stream is refused here, before anything is drawn), and that its stripes fit the
-    /// default frontier the drawing decodes with ([`DecodeError::StripeTooWide`], where the
-    /// drawing would have stopped before its first pixel).
+    /// 512 columns the drawing holds ([`DecodeError::StripeTooWide`], where the drawing would
+    /// have stopped before its first pixel).
     pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
+        Self::wrap(data)
+    }
+
+    /// [`PifsImage::new`] for a drawing that holds stripes of up to `N` pixels (`N` bytes of
+    /// stack while drawing, `2 N` in colour): `PifsImage::with_stripe_capacity::<1024>(data)`
+    /// draws a stream of an image up to 1024 pixels wide coded as one stripe.
+    pub fn with_stripe_capacity<const N: usize>(
+        data: &'a [u8],
+    ) -> Result<PifsImage<'a, C, N>, DecodeError> {
+        PifsImage::wrap(data)
+    }
+}
+
+impl<'a, C, const STRIPE: usize> PifsImage<'a, C, STRIPE> {
+    /// [`PifsImage::new`] for stripes of up to `STRIPE` pixels.
+    fn wrap(data: &'a [u8]) -> Result<Self, DecodeError> {
         let header = *Decoder::new(data)?.header();
-        let (stripe, capacity) = (header.stripe_width(), DEFAULT_STRIPE as u32);
+        let (stripe, capacity) = (header.stripe_width(), STRIPE as u32);
         if stripe > capacity {
             return Err(DecodeError::StripeTooWide { stripe, capacity });
         }
@@ -186,12 +206,14 @@ impl<'a, C> PifsImage<'a, C> {
 
     /// A decoder of the stream (already checked: this does not check it again), for decoding
     /// into a sink or a buffer rather than a draw target.
-    pub fn decoder(&self) -> Decoder<crate::decoder::InMemory<'a>> {
-        Decoder::verified(self.header, self.payload).scale(self.scale)
+    pub fn decoder(&self) -> Decoder<crate::decoder::InMemory<'a>, fn(&LeafInfo), STRIPE> {
+        Decoder::verified(self.header, self.payload)
+            .stripe_capacity::<STRIPE>()
+            .scale(self.scale)
     }
 }
 
-impl<C: FromGray> PifsImage<'_, C> {
+impl<C: FromGray, const STRIPE: usize> PifsImage<'_, C, STRIPE> {
     /// Draws the image with its top-left corner at the target's origin, like
     /// [`ImageDrawable::draw`], but reports decoding errors.
     pub fn draw_checked<D>(&self, target: &mut D) -> Result<(), DrawError<D::Error>>
@@ -217,11 +239,11 @@ impl<C: FromGray> PifsImage<'_, C> {
     }
 }
 
-impl<'a> PifsImage<'a> {
+impl<'a, const STRIPE: usize> PifsImage<'a, Gray8, STRIPE> {
     /// The image drawn through `map`, from each pixel's value to a colour (see the
     /// [module documentation](self#16-bit-streams)): a 16-bit stream's values
     /// ([`Tile::values`]), an 8-bit stream's pixels (0 to 255, the luma of a colour stream).
-    pub fn with_values<C, F>(self, map: F) -> ValueImage<'a, F>
+    pub fn with_values<C, F>(self, map: F) -> ValueImage<'a, F, STRIPE>
     where
         C: PixelColor,
         F: Fn(u16) -> C,
@@ -232,12 +254,12 @@ impl<'a> PifsImage<'a> {
 
 /// A PIFS stream drawn through a mapping from values to colours ([`PifsImage::with_values`]).
 #[derive(Debug, Clone, Copy)]
-pub struct ValueImage<'a, F> {
-    image: PifsImage<'a>,
+pub struct ValueImage<'a, F, const STRIPE: usize = DEFAULT_STRIPE> {
+    image: PifsImage<'a, Gray8, STRIPE>,
     map: F,
 }
 
-impl<F> ValueImage<'_, F> {
+impl<F, const STRIPE: usize> ValueImage<'_, F, STRIPE> {
     /// Draws the part `area` of the image at the target's origin, reporting decoding errors
     /// (see [`PifsImage::draw_sub_image_checked`]).
     pub fn draw_sub_image_checked<C, D>(
@@ -264,13 +286,15 @@ impl<F> ValueImage<'_, F> {
     }
 }
 
-impl<F> OriginDimensions for ValueImage<'_, F> {
+impl<F, const STRIPE: usize> OriginDimensions for ValueImage<'_, F, STRIPE> {
     fn size(&self) -> Size {
         self.image.size()
     }
 }
 
-impl<C: PixelColor, F: Fn(u16) -> C> ImageDrawable for ValueImage<'_, F> {
+impl<C: PixelColor, F: Fn(u16) -> C, const STRIPE: usize> ImageDrawable
+    for ValueImage<'_, F, STRIPE>
+{
     type Color = C;
 
     /// Draws the image; a decoding error stops the drawing silently.
@@ -326,7 +350,7 @@ where
     }
 }
 
-impl<C> OriginDimensions for PifsImage<'_, C> {
+impl<C, const STRIPE: usize> OriginDimensions for PifsImage<'_, C, STRIPE> {
     fn size(&self) -> Size {
         Size::new(
             self.scale.apply(self.header.width.into()),
@@ -335,7 +359,7 @@ impl<C> OriginDimensions for PifsImage<'_, C> {
     }
 }
 
-impl<C: FromGray> ImageDrawable for PifsImage<'_, C> {
+impl<C: FromGray, const STRIPE: usize> ImageDrawable for PifsImage<'_, C, STRIPE> {
     type Color = C;
 
     /// Draws the image; a decoding error stops the drawing silently (see the
@@ -385,8 +409,8 @@ where
 /// Draws `area` (image coordinates) of the image `decoder` decodes, with `area`'s top-left
 /// corner at the target's origin. A payload whose checksum is still to be verified is read to
 /// its end even when nothing of it is visible.
-fn draw_area<I, D>(
-    decoder: Decoder<I>,
+fn draw_area<I, D, const STRIPE: usize>(
+    decoder: Decoder<I, fn(&LeafInfo), STRIPE>,
     target: &mut D,
     area: &Rectangle,
 ) -> Result<(), DrawError<D::Error>>
@@ -407,8 +431,8 @@ where
 /// The part of `area` (image coordinates) of `decoder`'s image that `target` shows, with
 /// `area`'s top-left corner at the target's origin; `None` when nothing is and the stream
 /// need not be read (an empty clip when its checksum is still to be verified).
-fn visible_clip<I: Input, D: Dimensions>(
-    decoder: &Decoder<I>,
+fn visible_clip<I: Input, D: Dimensions, const STRIPE: usize>(
+    decoder: &Decoder<I, fn(&LeafInfo), STRIPE>,
     target: &D,
     area: &Rectangle,
 ) -> Option<Rect> {

@@ -640,8 +640,8 @@ fn streamed_drawing_equals_in_memory_drawing() {
 }
 
 /// A stream coded as one stripe wider than the default frontier (the encoder's default for an
-/// image wider than 512 pixels) is refused when wrapped, not left undrawn; in stripes of 512 the
-/// same image draws.
+/// image wider than 512 pixels) is refused when wrapped, not left undrawn; an image holding
+/// wider stripes draws it, as the same image in stripes of 512 draws with the default.
 #[test]
 fn a_stripe_wider_than_the_frontier_is_refused_before_drawing() {
     let plane = common::synthetic(640, 16, 7, 4);
@@ -663,9 +663,26 @@ fn a_stripe_wider_than_the_frontier_is_refused_before_drawing() {
             capacity: 512
         })
     );
+    let (_, pixels) = decode_all_host(&whole);
+    let wide = PifsImage::<Gray8>::with_stripe_capacity::<1024>(&whole).unwrap();
+    let mut t = Recorder::new(640, 16);
+    Image::new(&wide, Point::zero()).draw(&mut t).unwrap();
+    assert!(t.pixels.iter().zip(&pixels).all(|(p, &v)| *p == Some(v)));
+
     let narrow = encode(host_encoder::DEFAULT_STRIPE_TILES);
     let img = PifsImage::<Gray8>::new(&narrow).unwrap();
     let mut t = Recorder::new(640, 16);
     Image::new(&img, Point::zero()).draw(&mut t).unwrap();
     assert!(t.pixels.iter().all(Option::is_some));
+}
+
+/// A stream's pixels as a host decodes them (stripes of any width).
+fn decode_all_host(stream: &[u8]) -> (decoder_core::Header, Vec<u8>) {
+    let decoder = decoder_core::Decoder::new(stream)
+        .unwrap()
+        .stripe_capacity::<65536>();
+    let header = *decoder.header();
+    let mut pixels = vec![0u8; header.pixel_count()];
+    decoder.decode_into(&mut pixels).unwrap();
+    (header, pixels)
 }
