@@ -663,7 +663,7 @@ fn a_stripe_wider_than_the_frontier_is_refused_before_drawing() {
             capacity: 512
         })
     );
-    let (_, pixels) = decode_all_host(&whole);
+    let pixels = host_pixels(&whole);
     let wide = PifsImage::<Gray8>::with_stripe_capacity::<1024>(&whole).unwrap();
     let mut t = Recorder::new(640, 16);
     Image::new(&wide, Point::zero()).draw(&mut t).unwrap();
@@ -676,13 +676,12 @@ fn a_stripe_wider_than_the_frontier_is_refused_before_drawing() {
     assert!(t.pixels.iter().all(Option::is_some));
 }
 
-/// A stream's pixels as a host decodes them (stripes of any width).
-fn decode_all_host(stream: &[u8]) -> (decoder_core::Header, Vec<u8>) {
+/// A grayscale stream's pixels as a host decodes them (stripes of any width).
+fn host_pixels(stream: &[u8]) -> Vec<u8> {
     let decoder = decoder_core::Decoder::new(stream)
         .unwrap()
         .stripe_capacity::<65536>();
-    let header = *decoder.header();
-    let mut pixels = vec![0u8; header.pixel_count()];
+    let mut pixels = vec![0u8; decoder.header().pixel_count()];
     decoder.decode_into(&mut pixels).unwrap();
-    (header, pixels)
+    pixels
 }
