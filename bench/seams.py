@@ -10,6 +10,11 @@ B_4, B_8 and B_16 together see every leaf edge. S_512: the same across the colum
 512 only (x > 0; over every pair but those), where a stream coded in stripes of 512 pixels
 starts a stripe (images wider than 512 pixels; the mean is over those).
 
+B_16s: B_16 over the smooth parts of the image only, where the eye sees a step best: both
+pixels of a pair (on the grid lines and off them) must lie where the original is smooth, its
+mean absolute difference between neighbouring pixels over the 9 x 9 pixels around them below
+2 grey levels (NaN for an image with fewer than 500 such pairs on the grid lines).
+
 SSIM: Wang, Bovik, Sheikh, Simoncelli (2004), 11x11 Gaussian window (sigma 1.5), K1 = 0.01,
 K2 = 0.03, L = 255, mean over the window positions inside the image.
 
@@ -104,10 +109,45 @@ def stripe_measure(img, g=512):
     return float(dx[:, on_x].mean() / other.mean()) if other.mean() > 0 else float("nan")
 
 
+def box_mean(a, r):
+    """The mean of `a` over the (2r + 1)^2 pixels around each pixel (edges repeated)."""
+    n = 2 * r + 1
+    c = np.pad(np.pad(a, r, mode="edge").cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    return (c[n:, n:] - c[:-n, n:] - c[n:, :-n] + c[:-n, :-n]) / (n * n)
+
+
+def smooth_mask(orig, radius=4, limit=2.0):
+    """Where the original is smooth: the mean absolute difference between neighbouring pixels
+    (half the sum of the horizontal and vertical ones) over the pixels around, below `limit`."""
+    a = orig.astype(np.float64)
+    d = np.zeros_like(a)
+    d[:, 1:] += np.abs(a[:, 1:] - a[:, :-1])
+    d[1:, :] += np.abs(a[1:, :] - a[:-1, :])
+    return box_mean(d / 2, radius) < limit
+
+
+def smooth_grid_measure(orig, img, g=16, least=500):
+    """B_16s (see the module docstring): B_g over the pairs whose pixels are both smooth."""
+    smooth = smooth_mask(orig)
+    a = img.astype(np.float64)
+    dx = np.abs(a[:, 1:] - a[:, :-1])
+    dy = np.abs(a[1:, :] - a[:-1, :])
+    mx = smooth[:, 1:] & smooth[:, :-1]
+    my = smooth[1:, :] & smooth[:-1, :]
+    on_x = (np.arange(1, a.shape[1]) % g) == 0
+    on_y = (np.arange(1, a.shape[0]) % g) == 0
+    across = np.concatenate([dx[:, on_x][mx[:, on_x]], dy[on_y, :][my[on_y, :]]])
+    other = np.concatenate([dx[:, ~on_x][mx[:, ~on_x]], dy[~on_y, :][my[~on_y, :]]])
+    if across.size < least or other.mean() == 0:
+        return float("nan")
+    return float(across.mean() / other.mean())
+
+
 def metrics(orig, rec):
     out = {"psnr": psnr(orig, rec), "ssim": ssim(orig, rec)}
     for g in GRIDS:
         out["b%d" % g] = grid_measure(rec, g)
+    out["b16s"] = smooth_grid_measure(orig, rec)
     out["s512"] = stripe_measure(rec)
     return out
 
@@ -177,9 +217,9 @@ def mean(values):
 
 
 def markdown(rows, rates):
-    keys = ["psnr", "ssim"] + ["b%d" % g for g in GRIDS] + ["s512"]
-    out = ["| codec | bpp | n | PSNR dB | SSIM | B_4 | B_8 | B_16 | S_512 |",
-           "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    keys = ["psnr", "ssim"] + ["b%d" % g for g in GRIDS] + ["b16s", "s512"]
+    out = ["| codec | bpp | n | PSNR dB | SSIM | B_4 | B_8 | B_16 | B_16s | S_512 |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     orig = [r for r in rows if r["codec"] == "original"]
     out.append("| original | | %d | | | %s |" % (
         len(orig), " | ".join("%.3f" % mean([r[k] for r in orig]) for k in keys[2:])))
@@ -216,7 +256,7 @@ def main():
             rows.extend(r)
             print("%s done" % r[0]["image"], file=sys.stderr)
     fields = ["image", "codec", "target_bpp", "bytes", "bpp", "psnr", "ssim"] + [
-        "b%d" % g for g in GRIDS] + ["s512"]
+        "b%d" % g for g in GRIDS] + ["b16s", "s512"]
     if args.csv:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=fields)
