@@ -18,13 +18,15 @@ leaf, q0 its first row or column, q1... the next) with step D = q0 - p, |D| <= T
   s8   a linear ramp over L = max(1, size/8) rows of the leaf: p += D/(L+2),
        q_j -= D (L-j)/(L+2);
   s4   the same with L = max(1, min(8, size/4));
+  s8c  as s8 with L at most 8 (a ramp inside the leaf's first tile row or column);
+  s4u  as s4 without the cap of 8;
   h... (hs8, hs4) p and q0 move by D/3 as in `one`, then q_j by D/3 (L-j)/L for j < L.
-Prints PSNR, SSIM and [B_4, B_8, B_16] per rule and threshold T (second list); with OUT, writes
-OUT_<rule>_<T>.png.
+Prints PSNR, SSIM, [B_4, B_8, B_16] and B_16s (bench/seams.py: B_16 over the original's smooth
+parts) per rule and threshold T (second list); with OUT, writes OUT_<rule>_<T>.png.
 """
-import sys, re, numpy as np
-sys.path.insert(0, '/work/main/bench')
-from seams import ssim, grid_measure, psnr
+import os, sys, re, numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
+from seams import ssim, grid_measure, psnr, smooth_grid_measure
 from PIL import Image
 
 def leaves(svg):
@@ -38,6 +40,7 @@ def rampfn(rule, s):
     if rule == 's8': return max(1, s // 8)
     if rule == 's4': return max(1, min(8, s // 4))
     if rule == 's4u': return max(1, s // 4)
+    if rule == 's8c': return max(1, min(8, s // 8))
 
 def filt(rec, lv, T, rule):
     HYB = rule.startswith('h')
@@ -71,10 +74,12 @@ if __name__ == '__main__':
     orig = np.asarray(Image.open(sys.argv[1]).convert('L')).astype(float)
     rec = np.asarray(Image.open(sys.argv[2]).convert('L')).astype(float)
     lv = leaves(sys.argv[3])
-    print('none', round(psnr(orig, rec), 3), round(ssim(orig, rec), 4), [round(grid_measure(rec, g), 3) for g in (4, 8, 16)])
+    print('none', round(psnr(orig, rec), 3), round(ssim(orig, rec), 4), [round(grid_measure(rec, g), 3) for g in (4, 8, 16)],
+          round(smooth_grid_measure(orig, rec), 3))
     for rule in sys.argv[4].split(','):
         for T in [float(t) for t in sys.argv[5].split(',')]:
             f = filt(rec, lv, T, rule)
-            print(rule, T, round(psnr(orig, f), 3), round(ssim(orig, f), 4), [round(grid_measure(f, g), 3) for g in (4, 8, 16)])
+            print(rule, T, round(psnr(orig, f), 3), round(ssim(orig, f), 4), [round(grid_measure(f, g), 3) for g in (4, 8, 16)],
+                  round(smooth_grid_measure(orig, f), 3))
             if len(sys.argv) > 6:
                 Image.fromarray(f.astype(np.uint8)).save(f'{sys.argv[6]}_{rule}_{T}.png')
