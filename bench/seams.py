@@ -83,16 +83,22 @@ def ssim(a, b):
     return float(np.mean(num / den))
 
 
-def grid_measure(img, g):
-    """B_g of a grayscale image (see the module docstring)."""
+def grid_measure(img, g, smooth=None, least=1):
+    """B_g of a grayscale image (see the module docstring); with `smooth` (a mask of the
+    image's pixels), over the pairs whose pixels both lie in it. NaN with fewer than `least`
+    pairs on the grid lines."""
     a = img.astype(np.float64)
     dx = np.abs(a[:, 1:] - a[:, :-1])  # pair (x-1, x) at column index x-1
     dy = np.abs(a[1:, :] - a[:-1, :])
+    if smooth is None:
+        smooth = np.ones(a.shape, dtype=bool)
+    mx = smooth[:, 1:] & smooth[:, :-1]
+    my = smooth[1:, :] & smooth[:-1, :]
     on_x = (np.arange(1, a.shape[1]) % g) == 0
     on_y = (np.arange(1, a.shape[0]) % g) == 0
-    across = np.concatenate([dx[:, on_x].ravel(), dy[on_y, :].ravel()])
-    other = np.concatenate([dx[:, ~on_x].ravel(), dy[~on_y, :].ravel()])
-    if across.size == 0 or other.size == 0 or other.mean() == 0:
+    across = np.concatenate([dx[:, on_x][mx[:, on_x]], dy[on_y, :][my[on_y, :]]])
+    other = np.concatenate([dx[:, ~on_x][mx[:, ~on_x]], dy[~on_y, :][my[~on_y, :]]])
+    if across.size < max(least, 1) or other.size == 0 or other.mean() == 0:
         return float("nan")
     return float(across.mean() / other.mean())
 
@@ -126,21 +132,9 @@ def smooth_mask(orig, radius=4, limit=2.0):
     return box_mean(d / 2, radius) < limit
 
 
-def smooth_grid_measure(orig, img, g=16, least=500):
+def smooth_grid_measure(orig, img, g=16):
     """B_16s (see the module docstring): B_g over the pairs whose pixels are both smooth."""
-    smooth = smooth_mask(orig)
-    a = img.astype(np.float64)
-    dx = np.abs(a[:, 1:] - a[:, :-1])
-    dy = np.abs(a[1:, :] - a[:-1, :])
-    mx = smooth[:, 1:] & smooth[:, :-1]
-    my = smooth[1:, :] & smooth[:-1, :]
-    on_x = (np.arange(1, a.shape[1]) % g) == 0
-    on_y = (np.arange(1, a.shape[0]) % g) == 0
-    across = np.concatenate([dx[:, on_x][mx[:, on_x]], dy[on_y, :][my[on_y, :]]])
-    other = np.concatenate([dx[:, ~on_x][mx[:, ~on_x]], dy[~on_y, :][my[~on_y, :]]])
-    if across.size < least or other.mean() == 0:
-        return float("nan")
-    return float(across.mean() / other.mean())
+    return grid_measure(img, g, smooth_mask(orig), least=500)
 
 
 def metrics(orig, rec):

@@ -21,38 +21,16 @@ levels (12). Prints the leaves redrawn and PSNR and B_16 before and after.
 Needs numpy and Pillow.
 """
 
-import re
+import os
 import sys
 
 import numpy as np
 from PIL import Image
 
-
-def psnr(a, b):
-    return 10 * np.log10(255**2 / np.mean((a - b) ** 2))
-
-
-def grid_measure(img, g=16):
-    """B_g: the mean absolute step across the lines of a g-pixel grid over the mean elsewhere."""
-    h, w = img.shape
-    across = np.abs(np.diff(img, axis=1))
-    down = np.abs(np.diff(img, axis=0))
-    cols = np.arange(1, w) % g == 0
-    rows = np.arange(1, h) % g == 0
-    on = (across[:, cols].sum() + down[rows, :].sum()) / (across[:, cols].size + down[rows, :].size)
-    off = (across[:, ~cols].sum() + down[~rows, :].sum()) / (
-        across[:, ~cols].size + down[~rows, :].size
-    )
-    return on / off
-
-
-def leaves(svg):
-    """(x, y, size) of every leaf of `pifs info --svg`, in coding order."""
-    pattern = r'class="leaf"[^>]*x="([\d.]+)" y="([\d.]+)" width="(\d+)"'
-    return [
-        (int(float(m.group(1))), int(float(m.group(2))), int(m.group(3)) + 1)
-        for m in re.finditer(pattern, open(svg).read())
-    ]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from seam_ramps import leaves  # noqa: E402
+from seams import grid_measure, psnr  # noqa: E402
 
 
 def main():
@@ -86,8 +64,8 @@ def main():
     out = np.clip(np.round(out), 0, 255)
     print(
         f"{sys.argv[2]}: {redrawn} of {len(all_leaves)} leaves redrawn, "
-        f"PSNR {psnr(decoded, original):.3f} -> {psnr(out, original):.3f} dB, "
-        f"B_16 {grid_measure(decoded):.3f} -> {grid_measure(out):.3f}"
+        f"PSNR {psnr(original, decoded):.3f} -> {psnr(original, out):.3f} dB, "
+        f"B_16 {grid_measure(decoded, 16):.3f} -> {grid_measure(out, 16):.3f}"
     )
     Image.fromarray(out.astype(np.uint8)).save(sys.argv[4])
 
