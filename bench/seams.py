@@ -15,6 +15,10 @@ pixels of a pair (on the grid lines and off them) must lie where the original is
 mean absolute difference between neighbouring pixels over the 9 x 9 pixels around them below
 2 grey levels (NaN for an image with fewer than 500 such pairs on the grid lines).
 
+A_16s: the numerator of B_16s alone, the mean absolute step across the 16-pixel grid lines in
+the smooth parts, in grey levels. A ratio also falls when the pixels between the lines vary
+more (noise added to a decode lowers B_16s without moving a step); A_16s sees only the steps.
+
 SSIM: Wang, Bovik, Sheikh, Simoncelli (2004), 11x11 Gaussian window (sigma 1.5), K1 = 0.01,
 K2 = 0.03, L = 255, mean over the window positions inside the image.
 
@@ -83,10 +87,10 @@ def ssim(a, b):
     return float(np.mean(num / den))
 
 
-def grid_measure(img, g, smooth=None, least=1):
-    """B_g of a grayscale image (see the module docstring); with `smooth` (a mask of the
-    image's pixels), over the pairs whose pixels both lie in it. NaN with fewer than `least`
-    pairs on the grid lines."""
+def grid_pairs(img, g, smooth=None):
+    """The absolute differences between neighbouring pixels across the lines of a `g`-pixel grid
+    and between every other pair, as two arrays; with `smooth` (a mask of the image's pixels),
+    only the pairs whose pixels both lie in it."""
     a = img.astype(np.float64)
     dx = np.abs(a[:, 1:] - a[:, :-1])  # pair (x-1, x) at column index x-1
     dy = np.abs(a[1:, :] - a[:-1, :])
@@ -98,6 +102,14 @@ def grid_measure(img, g, smooth=None, least=1):
     on_y = (np.arange(1, a.shape[0]) % g) == 0
     across = np.concatenate([dx[:, on_x][mx[:, on_x]], dy[on_y, :][my[on_y, :]]])
     other = np.concatenate([dx[:, ~on_x][mx[:, ~on_x]], dy[~on_y, :][my[~on_y, :]]])
+    return across, other
+
+
+def grid_measure(img, g, smooth=None, least=1):
+    """B_g of a grayscale image (see the module docstring); with `smooth` (a mask of the
+    image's pixels), over the pairs whose pixels both lie in it. NaN with fewer than `least`
+    pairs on the grid lines."""
+    across, other = grid_pairs(img, g, smooth)
     if across.size < max(least, 1) or other.size == 0 or other.mean() == 0:
         return float("nan")
     return float(across.mean() / other.mean())
@@ -137,11 +149,19 @@ def smooth_grid_measure(orig, img, g=16):
     return grid_measure(img, g, smooth_mask(orig), least=500)
 
 
+def smooth_grid_step(orig, img, g=16):
+    """A_16s (see the module docstring): the mean step across the grid lines, in grey levels,
+    over the pairs whose pixels are both smooth (NaN with fewer than 500)."""
+    across, _ = grid_pairs(img, g, smooth_mask(orig))
+    return float(across.mean()) if across.size >= 500 else float("nan")
+
+
 def metrics(orig, rec):
     out = {"psnr": psnr(orig, rec), "ssim": ssim(orig, rec)}
     for g in GRIDS:
         out["b%d" % g] = grid_measure(rec, g)
     out["b16s"] = smooth_grid_measure(orig, rec)
+    out["a16s"] = smooth_grid_step(orig, rec)
     out["s512"] = stripe_measure(rec)
     return out
 
@@ -211,9 +231,9 @@ def mean(values):
 
 
 def markdown(rows, rates):
-    keys = ["psnr", "ssim"] + ["b%d" % g for g in GRIDS] + ["b16s", "s512"]
-    out = ["| codec | bpp | n | PSNR dB | SSIM | B_4 | B_8 | B_16 | B_16s | S_512 |",
-           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    keys = ["psnr", "ssim"] + ["b%d" % g for g in GRIDS] + ["b16s", "a16s", "s512"]
+    out = ["| codec | bpp | n | PSNR dB | SSIM | B_4 | B_8 | B_16 | B_16s | A_16s | S_512 |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     orig = [r for r in rows if r["codec"] == "original"]
     out.append("| original | | %d | | | %s |" % (
         len(orig), " | ".join("%.3f" % mean([r[k] for r in orig]) for k in keys[2:])))
@@ -250,7 +270,7 @@ def main():
             rows.extend(r)
             print("%s done" % r[0]["image"], file=sys.stderr)
     fields = ["image", "codec", "target_bpp", "bytes", "bpp", "psnr", "ssim"] + [
-        "b%d" % g for g in GRIDS] + ["b16s", "s512"]
+        "b%d" % g for g in GRIDS] + ["b16s", "a16s", "s512"]
     if args.csv:
         with open(args.csv, "w", newline="") as f:
             wr = csv.DictWriter(f, fieldnames=fields)

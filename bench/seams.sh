@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Does the block grid show? PSNR, SSIM and the grid measure B_4, B_8, B_16 of PIFS decodes on
 # the 24 grayscale Kodak images at 0.05, 0.1, 0.25 and 0.5 bpp (and B_16s, B_16 over the
-# smooth parts alone), beside JPEG 2000 (OpenJPEG) at the same bytes and the originals' own
-# measures. Writes bench/results/seams.csv and seams.md.
+# smooth parts alone, and A_16s, its mean step across the lines there in grey levels), beside
+# JPEG 2000 (OpenJPEG) at the same bytes and the originals' own measures. Writes
+# bench/results/seams.csv and seams.md.
 #
 #   bash bench/seams.sh [IMAGES...]      (default: ../shared/images/kodak/*.png)
 #
