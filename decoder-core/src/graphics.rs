@@ -41,10 +41,18 @@
 //!
 //! A grayscale stream decodes to 8-bit luma, a colour stream to 8-bit RGB (converted from
 //! YCbCr as it is drawn, integer BT.601). [`FromGray`] turns either into the colour type of the
-//! display: it is implemented for every colour type of embedded-graphics (grays and RGB/BGR use
-//! the embedded-graphics conversion from [`Gray8`] for luma and from [`Rgb888`] for RGB;
-//! a colour stream on a gray display is drawn as its luma; [`BinaryColor`] is `On` for luma
-//! `>= 128`). Everything is integer arithmetic.
+//! display: it is implemented for every colour type of embedded-graphics, and a colour stream
+//! on a gray display is drawn as its luma. Everything is integer arithmetic.
+//!
+//! Where the display has fewer than 8 bits a channel (a 1-bit OLED as [`BinaryColor`], a
+//! 4-grey e-paper as [`Gray2`], an RGB565 panel), the pixels are **dithered** by default
+//! ([`Dither::Ordered`]: a 4 x 4 Bayer matrix anchored at the image's top-left pixel, see
+//! [`Threshold`]): each channel takes the level below or above it in proportion, so a photo
+//! stays a photo on a 1-bit display and a smooth sky keeps its shade instead of breaking into
+//! bands on RGB565. [`PifsImage::with_dither`]`(`[`Dither::Nearest`]`)` draws the nearest level
+//! instead (the same levels as embedded-graphics' conversions from [`Gray8`] and [`Rgb888`];
+//! [`BinaryColor`] `On` for luma `>= 128`). Displays of 8 bits a channel ([`Gray8`],
+//! [`Rgb888`], [`Bgr888`]) take the pixels as they are either way.
 //!
 //! # 16-bit streams
 //!
@@ -60,7 +68,7 @@ use embedded_graphics_core::geometry::{Dimensions, OriginDimensions, Point, Size
 use embedded_graphics_core::image::ImageDrawable;
 use embedded_graphics_core::pixelcolor::{
     Bgr555, Bgr565, Bgr666, Bgr888, BinaryColor, Gray2, Gray4, Gray8, PixelColor, Rgb555, Rgb565,
-    Rgb666, Rgb888,
+    Rgb666, Rgb888, RgbColor,
 };
 use embedded_graphics_core::primitives::Rectangle;
 
@@ -75,15 +83,97 @@ use crate::synthesis::{PixelSink, Scale, Tile};
 use crate::walk::LeafInfo;
 
 /// A colour type that decoded 8-bit luma (and RGB) can be drawn as.
+///
+/// A colour of fewer than 8 bits a channel reaches its levels through a [`Threshold`]: the
+/// nearest level ([`Threshold::NEAREST`], what [`FromGray::from_gray`] and
+/// [`FromGray::from_rgb`] give) or the level an ordered dither gives at the pixel's position
+/// ([`Threshold::ordered`]).
 pub trait FromGray: PixelColor {
-    /// The colour of luma `luma` (0 black, 255 white).
+    /// Whether the colour has fewer than 8 bits a channel, so that the threshold of
+    /// [`FromGray::from_gray_with`] matters (a drawing skips the pixels' positions otherwise).
+    const DITHERED: bool = false;
+
+    /// The nearest colour to luma `luma` (0 black, 255 white).
     fn from_gray(luma: u8) -> Self;
 
-    /// The colour of an RGB pixel of a colour stream; by default, that of its luma (BT.601,
-    /// as the stream's conversion).
+    /// The nearest colour to an RGB pixel of a colour stream; by default, that of its luma
+    /// (BT.601, as the stream's conversion).
     #[inline]
     fn from_rgb(r: u8, g: u8, b: u8) -> Self {
         Self::from_gray(rgb_to_luma(r, g, b))
+    }
+
+    /// The colour of luma `luma` with each channel at the level `threshold` gives
+    /// ([`Threshold::level`]); by default [`FromGray::from_gray`].
+    #[inline]
+    fn from_gray_with(luma: u8, threshold: Threshold) -> Self {
+        let _ = threshold;
+        Self::from_gray(luma)
+    }
+
+    /// The colour of an RGB pixel with each channel at the level `threshold` gives; by default
+    /// [`FromGray::from_rgb`].
+    #[inline]
+    fn from_rgb_with(r: u8, g: u8, b: u8, threshold: Threshold) -> Self {
+        let _ = threshold;
+        Self::from_rgb(r, g, b)
+    }
+}
+
+/// How decoded 8-bit pixels become a colour of fewer bits a channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Dither {
+    /// Ordered dithering ([`Threshold::ordered`]): each channel takes the level below or above
+    /// it in proportion, so a ramp keeps its shade on a display with few levels. The default.
+    #[default]
+    Ordered,
+    /// The nearest level ([`Threshold::NEAREST`]).
+    Nearest,
+}
+
+/// Where a channel value falls to one of the levels `0..=max` of a colour of few levels:
+/// `floor(value max / 255 + t)`, `t` between 0 and 1 in units of `2^-16` (see
+/// [`Threshold::level`]): a half for the nearest level, the pixel's rank in a 4 x 4 Bayer
+/// matrix for ordered dithering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Threshold(u16);
+
+/// A 4 x 4 Bayer matrix of thresholds, `(2 k + 1) / 32` for the rank `k` by row and column
+/// modulo 4.
+const ORDERED: [[Threshold; 4]; 4] = {
+    const RANKS: [[u16; 4]; 4] = [[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]];
+    let mut table = [[Threshold(0); 4]; 4];
+    let mut i = 0;
+    while i < 16 {
+        table[i / 4][i % 4] = Threshold(2048 * (2 * RANKS[i / 4][i % 4] + 1));
+        i += 1;
+    }
+    table
+};
+
+/// [`ORDERED`]'s shape with every threshold a half: the nearest level everywhere.
+const NEAREST: [[Threshold; 4]; 4] = [[Threshold::NEAREST; 4]; 4];
+
+impl Threshold {
+    /// A half: the nearest level (rounded as embedded-graphics' conversions round; a
+    /// [`BinaryColor`] is `On` from luma 128).
+    pub const NEAREST: Threshold = Threshold(32768);
+
+    /// The ordered-dither threshold of pixel `(x, y)` of the image: `(2 k + 1) / 32`, `k` its
+    /// rank in a 4 x 4 Bayer matrix. Over every 4 x 4 block of pixels the mean level of a
+    /// value is its exact level `value max / 255` to within 1/32 of a level.
+    #[inline]
+    pub fn ordered(x: u32, y: u32) -> Threshold {
+        ORDERED[(y & 3) as usize][(x & 3) as usize]
+    }
+
+    /// The level of channel value `value` (0 to 255) on a scale of `0..=max`:
+    /// `(257 value max + t) >> 16`, `t` this threshold in units of `2^-16` (`257 / 2^16` stands
+    /// for `1 / 255`); 0 and 255 stay the ends.
+    #[inline]
+    pub fn level(self, value: u8, max: u8) -> u8 {
+        // At most 257 * 255 * 255 + 65535, within u32; the result is at most `max`.
+        ((257 * u32::from(value) * u32::from(max) + u32::from(self.0)) >> 16) as u8
     }
 }
 
@@ -95,50 +185,109 @@ impl FromGray for Gray8 {
 }
 
 impl FromGray for BinaryColor {
+    const DITHERED: bool = true;
+
     /// `On` for luma `>= 128`, `Off` below.
     #[inline]
     fn from_gray(luma: u8) -> Self {
-        if luma >= 128 {
+        Self::from_gray_with(luma, Threshold::NEAREST)
+    }
+
+    /// `On` at level 1 of 0 and 1.
+    #[inline]
+    fn from_gray_with(luma: u8, threshold: Threshold) -> Self {
+        if threshold.level(luma, 1) == 1 {
             BinaryColor::On
         } else {
             BinaryColor::Off
         }
     }
+
+    #[inline]
+    fn from_rgb_with(r: u8, g: u8, b: u8, threshold: Threshold) -> Self {
+        Self::from_gray_with(rgb_to_luma(r, g, b), threshold)
+    }
 }
 
-macro_rules! from_gray8 {
-    ($($color:ty),*) => {
+macro_rules! from_gray_levels {
+    ($($color:ty: $max:expr),*) => {
         $(impl FromGray for $color {
-            /// The embedded-graphics conversion of [`Gray8`] (rounded, integer).
+            const DITHERED: bool = true;
+
+            /// The nearest level, as the embedded-graphics conversion of [`Gray8`].
             #[inline]
             fn from_gray(luma: u8) -> Self {
-                <$color>::from(Gray8::new(luma))
+                Self::from_gray_with(luma, Threshold::NEAREST)
+            }
+
+            #[inline]
+            fn from_gray_with(luma: u8, threshold: Threshold) -> Self {
+                <$color>::new(threshold.level(luma, $max))
+            }
+
+            #[inline]
+            fn from_rgb_with(r: u8, g: u8, b: u8, threshold: Threshold) -> Self {
+                Self::from_gray_with(rgb_to_luma(r, g, b), threshold)
             }
         })*
     };
 }
 
-from_gray8!(Gray2, Gray4);
+from_gray_levels!(Gray2: 3, Gray4: 15);
 
-macro_rules! from_gray8_rgb888 {
+macro_rules! from_rgb_levels {
     ($($color:ty),*) => {
         $(impl FromGray for $color {
-            /// The embedded-graphics conversion of [`Gray8`] (rounded, integer).
+            const DITHERED: bool = true;
+
+            /// The nearest levels, as the embedded-graphics conversion of [`Gray8`].
             #[inline]
             fn from_gray(luma: u8) -> Self {
-                <$color>::from(Gray8::new(luma))
+                Self::from_rgb_with(luma, luma, luma, Threshold::NEAREST)
             }
 
-            /// The embedded-graphics conversion of [`Rgb888`] (integer).
+            /// The nearest levels, as the embedded-graphics conversion of [`Rgb888`].
             #[inline]
             fn from_rgb(r: u8, g: u8, b: u8) -> Self {
-                <$color>::from(Rgb888::new(r, g, b))
+                Self::from_rgb_with(r, g, b, Threshold::NEAREST)
+            }
+
+            #[inline]
+            fn from_gray_with(luma: u8, threshold: Threshold) -> Self {
+                Self::from_rgb_with(luma, luma, luma, threshold)
+            }
+
+            #[inline]
+            fn from_rgb_with(r: u8, g: u8, b: u8, threshold: Threshold) -> Self {
+                <$color>::new(
+                    threshold.level(r, <$color>::MAX_R),
+                    threshold.level(g, <$color>::MAX_G),
+                    threshold.level(b, <$color>::MAX_B),
+                )
             }
         })*
     };
 }
 
-from_gray8_rgb888!(Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666, Rgb888, Bgr888);
+from_rgb_levels!(Rgb555, Bgr555, Rgb565, Bgr565, Rgb666, Bgr666);
+
+macro_rules! from_rgb_exact {
+    ($($color:ty),*) => {
+        $(impl FromGray for $color {
+            #[inline]
+            fn from_gray(luma: u8) -> Self {
+                <$color>::new(luma, luma, luma)
+            }
+
+            #[inline]
+            fn from_rgb(r: u8, g: u8, b: u8) -> Self {
+                <$color>::new(r, g, b)
+            }
+        })*
+    };
+}
+
+from_rgb_exact!(Rgb888, Bgr888);
 
 /// A PIFS stream held in memory (flash or RAM), drawable with embedded-graphics in colour `C`.
 ///
@@ -153,6 +302,7 @@ pub struct PifsImage<'a, C = Gray8, const STRIPE: usize = DEFAULT_STRIPE> {
     payload: &'a [u8],
     header: Header,
     scale: Scale,
+    dither: Dither,
     color: PhantomData<C>,
 }
 
@@ -188,6 +338,7 @@ impl<'a, C, const STRIPE: usize> PifsImage<'a, C, STRIPE> {
             payload: data.get(header.encoded_len()..).unwrap_or_default(),
             header,
             scale: Scale::One,
+            dither: Dither::Ordered,
             color: PhantomData,
         })
     }
@@ -197,6 +348,11 @@ impl<'a, C, const STRIPE: usize> PifsImage<'a, C, STRIPE> {
     /// thumbnail at [`Scale::Quarter`] costs a fraction of the full decode.
     pub fn with_scale(self, scale: Scale) -> Self {
         PifsImage { scale, ..self }
+    }
+
+    /// The same image drawn with `dither` (see [`Dither`]; [`Dither::Ordered`] unless told).
+    pub fn with_dither(self, dither: Dither) -> Self {
+        PifsImage { dither, ..self }
     }
 
     /// The stream's header.
@@ -221,7 +377,7 @@ impl<C: FromGray, const STRIPE: usize> PifsImage<'_, C, STRIPE> {
         D: DrawTarget<Color = C>,
     {
         let all = Rectangle::new(Point::zero(), self.size());
-        draw_area(self.decoder(), target, &all)
+        draw_area(self.decoder(), target, &all, self.dither)
     }
 
     /// Draws the part `area` (image coordinates) of the image with `area`'s top-left corner at
@@ -235,7 +391,7 @@ impl<C: FromGray, const STRIPE: usize> PifsImage<'_, C, STRIPE> {
     where
         D: DrawTarget<Color = C>,
     {
-        draw_area(self.decoder(), target, area)
+        draw_area(self.decoder(), target, area, self.dither)
     }
 }
 
@@ -389,7 +545,8 @@ fn ignore_decode_errors<E>(r: Result<(), DrawError<E>>) -> Result<(), E> {
 }
 
 /// Decodes a stream read sequentially from `source` (see [`Decoder::from_source`]) straight
-/// onto `target`, with the image's top-left corner at the target's origin. Returns the header.
+/// onto `target`, with the image's top-left corner at the target's origin, dithered
+/// ([`Dither::Ordered`]). Returns the header.
 ///
 /// Unlike [`PifsImage`], the stream cannot be replayed, so everything is read even when only a
 /// part of the image is visible, and the checksum is checked at the end, after drawing.
@@ -399,10 +556,29 @@ where
     D: DrawTarget,
     D::Color: FromGray,
 {
+    draw_stream_with(source, target, Dither::Ordered)
+}
+
+/// [`draw_stream`] with `dither` (see [`Dither`]).
+pub fn draw_stream_with<B, D>(
+    source: B,
+    target: &mut D,
+    dither: Dither,
+) -> Result<Header, DrawError<D::Error>>
+where
+    B: ByteSource,
+    D: DrawTarget,
+    D::Color: FromGray,
+{
     let decoder = Decoder::from_source(source)?;
     let header = *decoder.header();
     let size = Size::new(header.width.into(), header.height.into());
-    draw_area(decoder, target, &Rectangle::new(Point::zero(), size))?;
+    draw_area(
+        decoder,
+        target,
+        &Rectangle::new(Point::zero(), size),
+        dither,
+    )?;
     Ok(header)
 }
 
@@ -413,6 +589,7 @@ fn draw_area<I, D, const STRIPE: usize>(
     decoder: Decoder<I, fn(&LeafInfo), STRIPE>,
     target: &mut D,
     area: &Rectangle,
+    dither: Dither,
 ) -> Result<(), DrawError<D::Error>>
 where
     I: Input,
@@ -423,7 +600,11 @@ where
     let Some(clip) = visible_clip(&decoder, target, area) else {
         return Ok(());
     };
-    let mut sink = TargetSink { target, offset };
+    let mut sink = TargetSink {
+        target,
+        offset,
+        dither,
+    };
     decoder.clip(clip).decode(&mut sink)?;
     Ok(())
 }
@@ -453,10 +634,36 @@ fn visible_clip<I: Input, D: Dimensions, const STRIPE: usize>(
     })
 }
 
-/// Forwards decoded tiles to a draw target, translated by `-offset`.
+/// The image coordinates of a tile's pixels, row by row from `(x, y)`, columns `left..right`
+/// (the dither's positions).
+struct Positions {
+    left: u32,
+    right: u32,
+    x: u32,
+    y: u32,
+}
+
+impl Iterator for Positions {
+    type Item = (u32, u32);
+
+    #[inline]
+    fn next(&mut self) -> Option<(u32, u32)> {
+        if self.x == self.right {
+            self.x = self.left;
+            self.y += 1;
+        }
+        let at = (self.x, self.y);
+        self.x += 1;
+        Some(at)
+    }
+}
+
+/// Forwards decoded tiles to a draw target, translated by `-offset`, in its colours by
+/// `dither`.
 struct TargetSink<'t, D: DrawTarget> {
     target: &'t mut D,
     offset: Point,
+    dither: Dither,
 }
 
 impl<D> PixelSink for TargetSink<'_, D>
@@ -471,14 +678,42 @@ where
         // Tile coordinates are below 2^16 (image coordinates), so they fit in i32.
         let at = Point::new(x as i32, y as i32) - self.offset;
         let area = Rectangle::new(at, Size::new(w, h));
+        if !D::Color::DITHERED {
+            // Eight bits a channel: the pixels as they are, whatever the dither.
+            return if tile.channels == 3 {
+                let colors = tile
+                    .pixels
+                    .chunks_exact(3)
+                    .map(|p| D::Color::from_rgb(p[0], p[1], p[2]));
+                self.target.fill_contiguous(&area, colors)
+            } else {
+                let colors = tile.pixels.iter().map(|&l| D::Color::from_gray(l));
+                self.target.fill_contiguous(&area, colors)
+            };
+        }
+        // One way for both dithers: the nearest level is the threshold of a half everywhere.
+        let table = match self.dither {
+            Dither::Ordered => &ORDERED,
+            Dither::Nearest => &NEAREST,
+        };
+        let mut positions = Positions {
+            left: x,
+            right: x + w,
+            x,
+            y,
+        }
+        .map(|(px, py)| table[(py & 3) as usize][(px & 3) as usize]);
         if tile.channels == 3 {
-            let colors = tile
-                .pixels
-                .chunks_exact(3)
-                .map(|p| D::Color::from_rgb(p[0], p[1], p[2]));
+            let colors = tile.pixels.chunks_exact(3).map(|p| {
+                let t = positions.next().unwrap_or(Threshold::NEAREST);
+                D::Color::from_rgb_with(p[0], p[1], p[2], t)
+            });
             self.target.fill_contiguous(&area, colors)
         } else {
-            let colors = tile.pixels.iter().map(|&l| D::Color::from_gray(l));
+            let colors = tile.pixels.iter().map(|&l| {
+                let t = positions.next().unwrap_or(Threshold::NEAREST);
+                D::Color::from_gray_with(l, t)
+            });
             self.target.fill_contiguous(&area, colors)
         }
     }

@@ -1419,3 +1419,158 @@ fn wide_images_are_one_stripe_unless_told_and_packets_keep_512() {
     ]));
     assert!(refused.contains("stripes of at most 512"), "{refused}");
 }
+
+/// `decode --display PANEL` writes the picture as the panel shows it, drawn by decoder-core's
+/// embedded-graphics adapter as on the device: each pixel the level `FromGray::from_gray_with`
+/// / `from_rgb_with` give at `Threshold::ordered` of its position (the default) or `from_gray` /
+/// `from_rgb` gives (`--dither nearest`), written back as 8-bit samples; at a scale too (the
+/// positions are the scaled image's). An unknown panel, `--dither` alone and a 16-bit surface
+/// are refused in one line, with no output left behind.
+#[test]
+fn decode_shows_the_picture_as_a_panel_would() {
+    use decoder_core::graphics::{FromGray, Threshold};
+    use decoder_core::internal::colour::rgb_to_luma;
+    use embedded_graphics_core::pixelcolor::{BinaryColor, Rgb565, Rgb888, RgbColor};
+    let dir = scratch("display");
+    let gray = dir.join("gray.png");
+    textured(40, 24).save(&gray).unwrap();
+    let colour = dir.join("colour.png");
+    colour_gradient().save(&colour).unwrap();
+    for input in [&gray, &colour] {
+        let stream = input.with_extension("pifs");
+        ok(&pifs(&[
+            "encode",
+            input.to_str().unwrap(),
+            "-o",
+            stream.to_str().unwrap(),
+        ]));
+        for (scale, factor) in [
+            ("1", decoder_core::Scale::One),
+            ("1/2", decoder_core::Scale::Half),
+        ] {
+            let bytes = std::fs::read(&stream).unwrap();
+            let decoder = decoder_core::Decoder::new(&bytes).unwrap().scale(factor);
+            let (w, h) = decoder.output_size();
+            let channels = usize::from(decoder.header().channels);
+            let mut px = vec![0u8; (w * h) as usize * channels];
+            decoder.decode_into(&mut px).unwrap();
+            let pixel = |x: u32, y: u32| {
+                let at = (y * w + x) as usize * channels;
+                match channels {
+                    3 => (px[at], px[at + 1], px[at + 2]),
+                    _ => (px[at], px[at], px[at]),
+                }
+            };
+            for (dither, ordered) in [("ordered", true), ("nearest", false)] {
+                let mono = dir.join("mono.png");
+                let said = ok(&pifs(&[
+                    "decode",
+                    stream.to_str().unwrap(),
+                    "-o",
+                    mono.to_str().unwrap(),
+                    "--display",
+                    "mono",
+                    "--dither",
+                    dither,
+                    "--scale",
+                    scale,
+                ]));
+                assert!(said.contains("mono panel"), "{said}");
+                let shown = image::open(&mono).unwrap().to_luma8();
+                assert_eq!(shown.dimensions(), (w, h));
+                let rgb565 = dir.join("rgb565.png");
+                ok(&pifs(&[
+                    "decode",
+                    stream.to_str().unwrap(),
+                    "-o",
+                    rgb565.to_str().unwrap(),
+                    "--display",
+                    "rgb565",
+                    "--dither",
+                    dither,
+                    "--scale",
+                    scale,
+                ]));
+                let shown565 = image::open(&rgb565).unwrap().to_rgb8();
+                for y in 0..h {
+                    for x in 0..w {
+                        let (r, g, b) = pixel(x, y);
+                        let luma = if channels == 3 {
+                            rgb_to_luma(r, g, b)
+                        } else {
+                            r
+                        };
+                        let (on, c) = if ordered {
+                            (
+                                BinaryColor::from_gray_with(luma, Threshold::ordered(x, y)),
+                                match channels {
+                                    3 => Rgb565::from_rgb_with(r, g, b, Threshold::ordered(x, y)),
+                                    _ => Rgb565::from_gray_with(luma, Threshold::ordered(x, y)),
+                                },
+                            )
+                        } else {
+                            (
+                                BinaryColor::from_gray(luma),
+                                match channels {
+                                    3 => Rgb565::from_rgb(r, g, b),
+                                    _ => Rgb565::from_gray(luma),
+                                },
+                            )
+                        };
+                        let level = if on.is_on() { 255 } else { 0 };
+                        assert_eq!(shown.get_pixel(x, y).0, [level], "{x},{y} {dither}");
+                        let c = Rgb888::from(c);
+                        assert_eq!(
+                            shown565.get_pixel(x, y).0,
+                            [c.r(), c.g(), c.b()],
+                            "{x},{y} {dither}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    let stream = gray.with_extension("pifs");
+    let out = dir.join("refused.png");
+    let line = refused(&pifs(&[
+        "decode",
+        stream.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--display",
+        "cga",
+    ]));
+    assert!(line.contains("not a panel"), "{line}");
+    let line = refused(&pifs(&[
+        "decode",
+        stream.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--dither",
+        "nearest",
+    ]));
+    assert!(line.contains("--display"), "{line}");
+    let heights = dir.join("heights.png");
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(32, 16, |x, y| {
+        image::Luma([(x * 1000 + y * 300) as u16])
+    })
+    .save(&heights)
+    .unwrap();
+    let surface = dir.join("heights.pifs");
+    ok(&pifs(&[
+        "encode",
+        heights.to_str().unwrap(),
+        "-o",
+        surface.to_str().unwrap(),
+    ]));
+    let line = refused(&pifs(&[
+        "decode",
+        surface.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--display",
+        "mono",
+    ]));
+    assert!(line.contains("16-bit surface"), "{line}");
+    assert!(!out.exists());
+}

@@ -8,8 +8,12 @@
 //!   synthesises tiles that intersect it;
 //! - pixels arrive through `fill_contiguous` in tiles of at most 16x16, never through
 //!   `draw_iter`;
-//! - colour conversion to Gray8, Rgb565, Rgb888, BinaryColor (luma >= 128 is On), and a
-//!   caller's mapping of values (`PifsImage::with_values`: a 16-bit stream's values);
+//! - colour conversion to Gray8, Rgb565, Rgb888, BinaryColor: ordered dithering by default
+//!   where the colour has fewer than 8 bits a channel (each pixel `from_gray_with` /
+//!   `from_rgb_with` at `Threshold::ordered` of its image position, the shade kept over every
+//!   4x4 block), the nearest
+//!   level with `Dither::Nearest` (luma >= 128 is On), and a caller's mapping of values
+//!   (`PifsImage::with_values`: a 16-bit stream's values);
 //! - damaged streams never panic, `draw_checked` reports them, target errors stop the drawing;
 //! - `draw_stream` from a byte-at-a-time source draws what the in-memory image draws.
 //!
@@ -18,7 +22,7 @@
 mod common;
 
 use common::{decode_all, golden_dir, golden_list};
-use decoder_core::graphics::{draw_stream, FromGray, PifsImage};
+use decoder_core::graphics::{draw_stream, Dither, FromGray, PifsImage, Threshold};
 use decoder_core::DecodeError;
 use decoder_core::DrawError;
 use decoder_core::TILE;
@@ -95,8 +99,9 @@ fn colour() -> Vec<Decoded> {
     v
 }
 
-/// A colour stream draws its RGB pixels on RGB displays (Rgb888 exactly, Rgb565 and Bgr565 by
-/// the embedded-graphics conversion of them) and its luma on gray ones.
+/// A colour stream draws its RGB pixels on RGB displays (Rgb888 exactly, Rgb565 and Bgr565
+/// dithered, or by the embedded-graphics conversion of them with `Dither::Nearest`) and its
+/// luma on gray ones.
 #[test]
 fn colour_streams_draw_rgb_on_colour_displays_and_luma_on_gray_ones() {
     use decoder_core::internal::colour::rgb_to_luma;
@@ -114,6 +119,13 @@ fn colour_streams_draw_rgb_on_colour_displays_and_luma_on_gray_ones() {
         Image::new(&d.image::<Rgb565>(), Point::zero())
             .draw(&mut display565)
             .unwrap();
+        let mut nearest565 = MockDisplay::<Rgb565>::new();
+        Image::new(
+            &d.image::<Rgb565>().with_dither(Dither::Nearest),
+            Point::zero(),
+        )
+        .draw(&mut nearest565)
+        .unwrap();
         let mut display_bgr = MockDisplay::<Bgr565>::new();
         Image::new(&d.image::<Bgr565>(), Point::zero())
             .draw(&mut display_bgr)
@@ -130,10 +142,17 @@ fn colour_streams_draw_rgb_on_colour_displays_and_luma_on_gray_ones() {
                 colourful += usize::from(r != g || g != b);
                 let c = Rgb888::new(r, g, b);
                 assert_eq!(display.get_pixel(p), Some(c), "{}: {p:?}", d.name);
-                assert_eq!(display565.get_pixel(p), Some(Rgb565::from(c)), "{}", d.name);
+                let (px, py) = (x as u32, y as u32);
+                assert_eq!(
+                    display565.get_pixel(p),
+                    Some(Rgb565::from_rgb_with(r, g, b, Threshold::ordered(px, py))),
+                    "{}",
+                    d.name
+                );
+                assert_eq!(nearest565.get_pixel(p), Some(Rgb565::from(c)), "{}", d.name);
                 assert_eq!(
                     display_bgr.get_pixel(p),
-                    Some(Bgr565::from(c)),
+                    Some(Bgr565::from_rgb_with(r, g, b, Threshold::ordered(px, py))),
                     "{}",
                     d.name
                 );
@@ -169,13 +188,30 @@ fn small() -> Vec<Decoded> {
 /// What a 64x64 display shows when `d` is drawn with the top-left of `area` (image
 /// coordinates) at `at`, in colour `C`.
 fn expected<C: FromGray>(d: &Decoded, area: Rectangle, at: Point) -> MockDisplay<C> {
+    expected_with(d, area, at, Dither::Ordered)
+}
+
+/// The display `area` of `d` drawn at `at` gives with `dither`: each pixel's colour at its
+/// position in the image.
+fn expected_with<C: FromGray>(
+    d: &Decoded,
+    area: Rectangle,
+    at: Point,
+    dither: Dither,
+) -> MockDisplay<C> {
     let mut display = MockDisplay::new();
     for y in 0..64 {
         for x in 0..64 {
             let p = Point::new(x, y) - at + area.top_left;
             if area.contains(p) {
                 if let Some(l) = d.luma(p.x, p.y) {
-                    display.set_pixel(Point::new(x, y), Some(C::from_gray(l)));
+                    let c = match dither {
+                        Dither::Ordered => {
+                            C::from_gray_with(l, Threshold::ordered(p.x as u32, p.y as u32))
+                        }
+                        Dither::Nearest => C::from_gray(l),
+                    };
+                    display.set_pixel(Point::new(x, y), Some(c));
                 }
             }
         }
@@ -305,19 +341,32 @@ fn colour_types_follow_the_conversion_rules() {
     assert_eq!(Rgb565::from_gray(0), Rgb565::BLACK);
     assert_eq!(Rgb565::from_gray(255), Rgb565::WHITE);
     assert_eq!(Rgb565::from_gray(130), Rgb565::from(Gray8::new(130)));
+    // The nearest levels are embedded-graphics' conversions, for every value.
+    for v in 0..=255u8 {
+        let c = Rgb888::new(v, 255 - v, v / 3);
+        assert_eq!(Rgb565::from_rgb(v, 255 - v, v / 3), Rgb565::from(c), "{v}");
+        assert_eq!(Rgb565::from_gray(v), Rgb565::from(Gray8::new(v)), "{v}");
+        assert_eq!(
+            embedded_graphics::pixelcolor::Gray4::from_gray(v),
+            embedded_graphics::pixelcolor::Gray4::from(Gray8::new(v)),
+            "{v}"
+        );
+    }
     for d in small() {
         let at = Point::new(-1, 2);
-        let mut display = MockDisplay::<BinaryColor>::new();
-        Image::new(&d.image::<BinaryColor>(), at)
-            .draw(&mut display)
-            .unwrap();
-        display.assert_eq(&expected(&d, whole(&d), at));
-
         let mut display = MockDisplay::<Rgb565>::new();
         Image::new(&d.image::<Rgb565>(), at)
             .draw(&mut display)
             .unwrap();
         display.assert_eq(&expected(&d, whole(&d), at));
+
+        for dither in [Dither::Ordered, Dither::Nearest] {
+            let mut display = MockDisplay::<BinaryColor>::new();
+            Image::new(&d.image::<BinaryColor>().with_dither(dither), at)
+                .draw(&mut display)
+                .unwrap();
+            display.assert_eq(&expected_with(&d, whole(&d), at, dither));
+        }
 
         let mut display = MockDisplay::<Rgb888>::new();
         Image::new(&d.image::<Rgb888>(), at)
@@ -334,6 +383,64 @@ fn colour_types_follow_the_conversion_rules() {
                 }
             }
         }
+    }
+}
+
+/// Ordered dithering keeps a shade: over every 4x4 block the mean dithered level of a value is
+/// its exact level to within 1/32 of a level, the ends stay the ends; a picture on a 1-bit
+/// display lights the share of pixels its luma says; and a sub-image is dithered as the same
+/// pixels of the whole image are (the pattern belongs to the image, not to the draw).
+#[test]
+fn dithering_keeps_the_shade() {
+    for max in [1u8, 3, 15, 31, 63] {
+        for v in 0..=255u8 {
+            for (ox, oy) in [(0u32, 0u32), (5, 2)] {
+                let levels: Vec<u8> = (0..16)
+                    .map(|k| Threshold::ordered(ox + k % 4, oy + k / 4).level(v, max))
+                    .collect();
+                let mean = levels.iter().map(|&l| f64::from(l)).sum::<f64>() / 16.0;
+                let exact = f64::from(v) * f64::from(max) / 255.0;
+                assert!(
+                    (mean - exact).abs() <= 1.0 / 32.0 + 1e-3,
+                    "value {v} on {max}: mean {mean}, exact {exact}"
+                );
+                let ends = match v {
+                    0 => Some(0),
+                    255 => Some(max),
+                    _ => None,
+                };
+                if let Some(end) = ends {
+                    assert!(levels.iter().all(|&l| l == end), "value {v} on {max}");
+                }
+            }
+        }
+    }
+    for d in small() {
+        let mut display = MockDisplay::<BinaryColor>::new();
+        Image::new(&d.image::<BinaryColor>(), Point::zero())
+            .draw(&mut display)
+            .unwrap();
+        let n = (d.width * d.height) as usize;
+        let lit = (0..d.height as i32)
+            .flat_map(|y| (0..d.width as i32).map(move |x| Point::new(x, y)))
+            .filter(|&p| display.get_pixel(p) == Some(BinaryColor::On))
+            .count();
+        let shade = (0..d.height as i32)
+            .flat_map(|y| (0..d.width as i32).map(move |x| (x, y)))
+            .filter_map(|(x, y)| d.luma(x, y))
+            .map(|l| f64::from(l) / 255.0)
+            .sum::<f64>();
+        assert!(
+            (lit as f64 - shade).abs() <= 0.02 * n as f64,
+            "{}: {lit} of {n} lit for a shade of {shade:.1}",
+            d.name
+        );
+        let area = Rectangle::new(Point::new(3, 5), Size::new(10, 7));
+        let mut part = MockDisplay::<BinaryColor>::new();
+        d.image::<BinaryColor>()
+            .draw_sub_image(&mut part, &area)
+            .unwrap();
+        part.assert_eq(&expected(&d, area, Point::zero()));
     }
 }
 

@@ -18,7 +18,8 @@
 //!
 //! Colour vectors are drawn by the firmware on an `Rgb565` display: their hashes are of each
 //! pixel's RGB565 value (u16 little-endian) instead of the luma byte, which the host computes
-//! from its RGB decode by embedded-graphics' conversion.
+//! from its RGB decode as `PifsImage` draws it by default: ordered-dithered at the pixel's
+//! position in the (scaled) image (`FromGray::from_rgb_with`, `Threshold::ordered`).
 //!
 //! Before running it, each test checks that the firmware holds no decoder panic path (no
 //! decoder-core source location in its loaded data): the decoder answers any bytes with a
@@ -207,18 +208,23 @@ fn fields(line: &str) -> BTreeMap<&str, &str> {
         .collect()
 }
 
-/// The bytes the firmware hashes of decoded pixels: luma bytes as they are; RGB (three bytes
-/// a pixel) as the RGB565 value embedded-graphics converts it to, u16 little-endian.
-fn display_bytes(pixels: &[u8], channels: u8) -> Vec<u8> {
+/// The bytes the firmware hashes of decoded pixels `area` (row-major, in image coordinates):
+/// luma bytes as they are; RGB (three bytes a pixel) as the RGB565 value the firmware's
+/// display gets, dithered at the pixel's position, u16 little-endian.
+fn display_bytes(pixels: &[u8], channels: u8, area: decoder_core::Rect) -> Vec<u8> {
+    use decoder_core::graphics::{FromGray, Threshold};
     use embedded_graphics::pixelcolor::raw::{RawData, RawU16};
-    use embedded_graphics::pixelcolor::{Rgb565, Rgb888};
+    use embedded_graphics::pixelcolor::Rgb565;
     if channels != 3 {
         return pixels.to_vec();
     }
+    let w = area.w.max(1) as usize;
     pixels
         .chunks_exact(3)
-        .flat_map(|p| {
-            let c = Rgb565::from(Rgb888::new(p[0], p[1], p[2]));
+        .enumerate()
+        .flat_map(|(i, p)| {
+            let (x, y) = (area.x + (i % w) as u32, area.y + (i / w) as u32);
+            let c = Rgb565::from_rgb_with(p[0], p[1], p[2], Threshold::ordered(x, y));
             RawU16::from(c).into_inner().to_le_bytes()
         })
         .collect()
@@ -235,7 +241,8 @@ impl decoder_core::PixelSink for TileHash {
         for v in [x, y, w, h] {
             self.0.update(v.to_le_bytes());
         }
-        self.0.update(display_bytes(tile.pixels, tile.channels));
+        self.0
+            .update(display_bytes(tile.pixels, tile.channels, tile.area));
         Ok(())
     }
 }
@@ -255,7 +262,8 @@ fn host_hashes() -> BTreeMap<String, (u16, u16, String, String)> {
                 "{}: the host decoder disagrees with golden.txt",
                 g.file
             );
-            let sha = sha256_hex(&display_bytes(&pixels, header.channels));
+            let whole = decoder_core::Rect::of_size(header.width.into(), header.height.into());
+            let sha = sha256_hex(&display_bytes(&pixels, header.channels, whole));
             assert_eq!(
                 (header.width, header.height),
                 (g.width, g.height),
@@ -293,7 +301,15 @@ fn host_scaled_hashes() -> BTreeMap<String, (u32, u32, String)> {
             decoder.decode_into(&mut pixels).unwrap();
             out.insert(
                 format!("{} {}", g.file, scale.log2()),
-                (w, h, sha256_hex(&display_bytes(&pixels, channels))),
+                (
+                    w,
+                    h,
+                    sha256_hex(&display_bytes(
+                        &pixels,
+                        channels,
+                        decoder_core::Rect::of_size(w, h),
+                    )),
+                ),
             );
         }
     }

@@ -5,9 +5,11 @@
 //! row band by row band ([`io::decode_to_image`]), so memory follows the width, not the image.
 //! A 16-bit stream is decoded whole to its values and written as a 16-bit image.
 
+use crate::display::{self, Panel};
 use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
 use crate::say;
+use decoder_core::graphics::Dither;
 use decoder_core::{Header, LeafInfo, Limits, Scale};
 use host_encoder::io::{self, Content, Output, OutputFormat, StreamInput};
 use std::io::Write;
@@ -112,8 +114,8 @@ pub fn parse_z_factor(text: &str) -> std::result::Result<ZFactor, String> {
     }
 }
 
-/// How `pifs decode` draws: at which scale, from packets or a stream, as the image or as a
-/// hillshaded relief.
+/// How `pifs decode` draws: at which scale, from packets or a stream, as the image, as a
+/// hillshaded relief or as a panel shows it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Drawing {
     /// The output's scale of the coded size.
@@ -122,6 +124,8 @@ pub struct Drawing {
     pub packets: bool,
     /// Draw the heights as a hillshaded relief, with this vertical exaggeration.
     pub hillshade: Option<ZFactor>,
+    /// Draw the picture as this panel shows it, dithered so.
+    pub display: Option<(Panel, Dither)>,
 }
 
 /// `pifs decode`: refuses a bad output name before reading anything, a bad stream on its
@@ -137,6 +141,7 @@ pub fn run(
         scale,
         packets,
         hillshade,
+        display,
     } = drawing;
     let input = inputs.first().map_or(Path::new("-"), |p| p.as_path());
     let start = Instant::now();
@@ -154,6 +159,14 @@ pub fn run(
         say::stdout_is_data();
     }
     let from_packets = packets || inputs.len() > 1 || crate::packets::is_packet_input(input);
+    if let Some((panel, dither)) = display {
+        if from_packets || hillshade.is_some() {
+            return Err(CliError::Refused(
+                "--display draws one stream (not packets, not with --hillshade)".into(),
+            ));
+        }
+        return on_panel(input, output, format, limits, (panel, dither, scale), start);
+    }
     if let Some(ZFactor(z_factor)) = hillshade {
         if from_packets || scale != Scale::One {
             return Err(CliError::Refused(
@@ -187,6 +200,56 @@ pub fn run(
             "colour"
         } else {
             "gray"
+        },
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(())
+}
+
+/// `pifs decode --display`: the stream `input` as `panel` shows it, dithered by `dither`, at
+/// `scale`.
+fn on_panel(
+    input: &Path,
+    output: &Path,
+    format: OutputFormat,
+    limits: &Limits,
+    (panel, dither, scale): (Panel, Dither, Scale),
+    start: Instant,
+) -> Result<()> {
+    let stream = open_stream(input, limits)?;
+    if stream.header().range.is_some() {
+        return Err(CliError::Refused(format!(
+            "--display draws pictures; {} is a 16-bit surface",
+            stream.name().display()
+        )));
+    }
+    let bytes = stream.bytes()?;
+    let shown = display::show(&bytes, panel, dither, scale).map_err(|source| {
+        CliError::from(io::FileError::Stream {
+            path: stream.name().to_path_buf(),
+            source,
+        })
+    })?;
+    let encoded = format.encode(
+        output,
+        shown.width,
+        shown.height,
+        shown.channels,
+        &shown.pixels,
+    )?;
+    let mut out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    out.write_all(&encoded).map_err(|e| out.error(e))?;
+    out.commit()?;
+    say!(
+        "{}: {}x{} as a {} panel shows it ({}) in {:.1} ms",
+        name.display(),
+        shown.width,
+        shown.height,
+        display::panel_name(panel),
+        match dither {
+            Dither::Ordered => "ordered dither",
+            Dither::Nearest => "nearest levels",
         },
         start.elapsed().as_secs_f64() * 1e3
     );

@@ -52,6 +52,7 @@ pub fn run() -> Result<()> {
                 scale: decoder_core::Scale::One,
                 packets: false,
                 hillshade: None,
+                display: None,
             },
         )?;
     }

@@ -8,6 +8,7 @@ mod compare;
 mod curve;
 mod decode;
 mod demo;
+mod display;
 mod encode;
 mod error;
 mod info;
@@ -89,6 +90,17 @@ enum Command {
         #[arg(long, value_name = "Z", num_args = 0..=1, default_missing_value = "auto",
               value_parser = decode::parse_z_factor)]
         hillshade: Option<decode::ZFactor>,
+        /// Write the picture as a small display of fewer levels shows it, drawn by the
+        /// decoder's embedded-graphics adapter as on the device: rgb565 (ST7789, ILI9341,
+        /// SSD1351), rgb666 (ILI9488), gray4 (16-grey OLEDs), gray2 (4-grey e-paper) or mono
+        /// (SSD1306/SH1106 OLEDs, memory LCDs); with --scale for a thumbnail.
+        #[arg(long, value_name = "PANEL", value_parser = display::parse_panel)]
+        display: Option<display::Panel>,
+        /// How --display reaches the panel's levels: ordered (a 4x4 Bayer dither, the device's
+        /// default: shades kept, no bands) or nearest (each pixel to its nearest level).
+        #[arg(long, requires = "display", default_value = "ordered",
+              value_parser = display::parse_dither)]
+        dither: decoder_core::graphics::Dither,
     },
     /// Describe a PIFS stream; with --svg, draw its quadtree over the decoded image.
     ///
@@ -181,6 +193,8 @@ fn main() -> ExitCode {
             scale,
             packets,
             hillshade,
+            display,
+            dither,
         }) => decode::run(
             &input,
             &output,
@@ -190,6 +204,7 @@ fn main() -> ExitCode {
                 scale,
                 packets,
                 hillshade,
+                display: display.map(|panel| (panel, dither)),
             },
         ),
         Some(Command::Info {

@@ -1,0 +1,199 @@
+//! `pifs decode --display PANEL`: the picture as a small display of fewer levels shows it. The
+//! stream is drawn by decoder-core's embedded-graphics adapter, the device's own code with its
+//! dithering, onto a panel held in memory, whose colours are then written as an 8-bit image.
+
+use std::marker::PhantomData;
+
+use decoder_core::graphics::{Dither, FromGray, PifsImage};
+use decoder_core::{DecodeError, DrawError, Scale};
+use embedded_graphics_core::draw_target::DrawTarget;
+use embedded_graphics_core::geometry::{OriginDimensions, Size};
+use embedded_graphics_core::pixelcolor::{
+    BinaryColor, Gray2, Gray4, Gray8, GrayColor, Rgb565, Rgb666, Rgb888, RgbColor,
+};
+use embedded_graphics_core::Pixel;
+
+/// A kind of panel `pifs decode --display` shows the picture on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Panel {
+    /// 16-bit colour (ST7789, ILI9341, SSD1351, ...).
+    Rgb565,
+    /// 18-bit colour (ILI9488, ...).
+    Rgb666,
+    /// 16 greys (SSD1322, SSD1327 OLEDs).
+    Gray4,
+    /// 4 greys (grey e-paper).
+    Gray2,
+    /// Black and white (SSD1306, SH1106 OLEDs, memory LCDs, e-paper).
+    Mono,
+}
+
+/// The panels by name, for `--display`.
+const PANELS: [(&str, Panel); 5] = [
+    ("rgb565", Panel::Rgb565),
+    ("rgb666", Panel::Rgb666),
+    ("gray4", Panel::Gray4),
+    ("gray2", Panel::Gray2),
+    ("mono", Panel::Mono),
+];
+
+/// A panel's name, as `--display` takes it.
+pub fn panel_name(panel: Panel) -> &'static str {
+    PANELS
+        .iter()
+        .find(|&&(_, p)| p == panel)
+        .map_or("", |&(name, _)| name)
+}
+
+/// Parses a `--display` value.
+pub fn parse_panel(text: &str) -> Result<Panel, String> {
+    PANELS
+        .iter()
+        .find(|(name, _)| name.eq_ignore_ascii_case(text))
+        .map(|&(_, panel)| panel)
+        .ok_or_else(|| {
+            let names: Vec<&str> = PANELS.iter().map(|(name, _)| *name).collect();
+            format!("not a panel: {text} (one of {})", names.join(", "))
+        })
+}
+
+/// Parses a `--dither` value: `ordered` or `nearest`.
+pub fn parse_dither(text: &str) -> Result<Dither, String> {
+    match text.to_ascii_lowercase().as_str() {
+        "ordered" => Ok(Dither::Ordered),
+        "nearest" => Ok(Dither::Nearest),
+        _ => Err(format!("not a dithering: {text} (ordered or nearest)")),
+    }
+}
+
+/// What a panel shows: `width x height` pixels of `channels` 8-bit samples, row-major.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Shown {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// 1 (grey) or 3 (RGB).
+    pub channels: u8,
+    /// The samples.
+    pub pixels: Vec<u8>,
+}
+
+/// The picture `stream` (a whole stream) as `panel` shows it, drawn at `scale` with `dither`.
+pub fn show(
+    stream: &[u8],
+    panel: Panel,
+    dither: Dither,
+    scale: Scale,
+) -> Result<Shown, DecodeError> {
+    match panel {
+        Panel::Rgb565 => draw::<Rgb565>(stream, dither, scale),
+        Panel::Rgb666 => draw::<Rgb666>(stream, dither, scale),
+        Panel::Gray4 => draw::<Gray4>(stream, dither, scale),
+        Panel::Gray2 => draw::<Gray2>(stream, dither, scale),
+        Panel::Mono => draw::<BinaryColor>(stream, dither, scale),
+    }
+}
+
+/// A panel colour written back as 8-bit samples.
+trait Shade: FromGray {
+    /// Samples a pixel.
+    const CHANNELS: u8;
+    /// The colour's samples, into `out[..CHANNELS]`.
+    fn put(self, out: &mut [u8]);
+}
+
+impl Shade for Rgb565 {
+    const CHANNELS: u8 = 3;
+    fn put(self, out: &mut [u8]) {
+        let c = Rgb888::from(self);
+        out.copy_from_slice(&[c.r(), c.g(), c.b()]);
+    }
+}
+
+impl Shade for Rgb666 {
+    const CHANNELS: u8 = 3;
+    fn put(self, out: &mut [u8]) {
+        let c = Rgb888::from(self);
+        out.copy_from_slice(&[c.r(), c.g(), c.b()]);
+    }
+}
+
+impl Shade for Gray4 {
+    const CHANNELS: u8 = 1;
+    fn put(self, out: &mut [u8]) {
+        out[0] = Gray8::from(self).luma();
+    }
+}
+
+impl Shade for Gray2 {
+    const CHANNELS: u8 = 1;
+    fn put(self, out: &mut [u8]) {
+        out[0] = Gray8::from(self).luma();
+    }
+}
+
+impl Shade for BinaryColor {
+    const CHANNELS: u8 = 1;
+    fn put(self, out: &mut [u8]) {
+        out[0] = if self.is_on() { 255 } else { 0 };
+    }
+}
+
+/// A panel in memory.
+struct Canvas<C> {
+    size: Size,
+    pixels: Vec<u8>,
+    colour: PhantomData<C>,
+}
+
+impl<C> OriginDimensions for Canvas<C> {
+    fn size(&self) -> Size {
+        self.size
+    }
+}
+
+impl<C: Shade> DrawTarget for Canvas<C> {
+    type Color = C;
+    type Error = std::convert::Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<C>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Self::Error> {
+        let n = usize::from(C::CHANNELS);
+        for Pixel(p, c) in pixels {
+            let (Ok(x), Ok(y)) = (u32::try_from(p.x), u32::try_from(p.y)) else {
+                continue;
+            };
+            if x < self.size.width && y < self.size.height {
+                let at = (y as usize * self.size.width as usize + x as usize) * n;
+                c.put(&mut self.pixels[at..at + n]);
+            }
+        }
+        Ok(())
+    }
+}
+
+fn draw<C: Shade>(stream: &[u8], dither: Dither, scale: Scale) -> Result<Shown, DecodeError> {
+    let image = PifsImage::<C>::with_stripe_capacity::<{ host_encoder::io::HOST_STRIPE }>(stream)?
+        .with_scale(scale)
+        .with_dither(dither);
+    let size = image.size();
+    let samples = size.width as usize * size.height as usize * usize::from(C::CHANNELS);
+    let mut canvas = Canvas {
+        size,
+        pixels: vec![0; samples],
+        colour: PhantomData::<C>,
+    };
+    match image.draw_checked(&mut canvas) {
+        Ok(()) => Ok(Shown {
+            width: size.width,
+            height: size.height,
+            channels: C::CHANNELS,
+            pixels: canvas.pixels,
+        }),
+        Err(DrawError::Decode(e)) => Err(e),
+        Err(DrawError::Sink(never)) => match never {},
+    }
+}
