@@ -600,7 +600,7 @@ where
     let Some(clip) = visible_clip(&decoder, target, area) else {
         return Ok(());
     };
-    let mut sink = TargetSink {
+    let mut sink = DrawSink {
         target,
         offset,
         dither,
@@ -658,15 +658,44 @@ impl Iterator for Positions {
     }
 }
 
-/// Forwards decoded tiles to a draw target, translated by `-offset`, in its colours by
-/// `dither`.
-struct TargetSink<'t, D: DrawTarget> {
+/// A [`PixelSink`] that draws decoded tiles onto an embedded-graphics target in its colours,
+/// dithered ([`Dither`]) by the pixels' image coordinates: what [`PifsImage`] draws through,
+/// for decodes of one's own, such as packets as they arrive (`packet.decode(&mut
+/// DrawSink::new(&mut display))`, a region drawn where it lies in the image, dithered as the
+/// whole image would be) or a [`Decoder`] with a clip or a scale.
+pub struct DrawSink<'t, D: DrawTarget> {
     target: &'t mut D,
+    /// Subtracted from image coordinates to give the target's.
     offset: Point,
     dither: Dither,
 }
 
-impl<D> PixelSink for TargetSink<'_, D>
+impl<D: DrawTarget> core::fmt::Debug for DrawSink<'_, D> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("DrawSink")
+            .field("offset", &self.offset)
+            .field("dither", &self.dither)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'t, D: DrawTarget> DrawSink<'t, D> {
+    /// Draws image pixel `(x, y)` at `(x, y)` of `target`, ordered-dithered.
+    pub fn new(target: &'t mut D) -> Self {
+        DrawSink {
+            target,
+            offset: Point::zero(),
+            dither: Dither::Ordered,
+        }
+    }
+
+    /// The same sink with `dither`.
+    pub fn with_dither(self, dither: Dither) -> Self {
+        DrawSink { dither, ..self }
+    }
+}
+
+impl<D> PixelSink for DrawSink<'_, D>
 where
     D: DrawTarget,
     D::Color: FromGray,

@@ -792,3 +792,77 @@ fn host_pixels(stream: &[u8]) -> Vec<u8> {
     decoder.decode_into(&mut pixels).unwrap();
     pixels
 }
+
+/// Packets drawn as they arrive through `DrawSink`: each region where it lies in the image,
+/// every pixel the colour its decoded value has at its image position (dithered as the whole
+/// image would be), on a colour and on a 1-bit display; the preview likewise.
+#[test]
+fn packets_draw_onto_a_display_through_draw_sink() {
+    use decoder_core::graphics::DrawSink;
+    use decoder_core::{Packet, Tile};
+    /// Every decoded pixel of a packet by image position, as `(x, y, [r, g, b])`.
+    struct Pixels(Vec<(u32, u32, [u8; 3])>);
+    impl decoder_core::PixelSink for Pixels {
+        type Error = std::convert::Infallible;
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Self::Error> {
+            let ch = usize::from(tile.channels);
+            for (i, p) in tile.pixels.chunks_exact(ch).enumerate() {
+                let (x, y) = (i as u32 % tile.area.w, i as u32 / tile.area.w);
+                let rgb = if ch == 3 {
+                    [p[0], p[1], p[2]]
+                } else {
+                    [p[0]; 3]
+                };
+                self.0.push((tile.area.x + x, tile.area.y + y, rgb));
+            }
+            Ok(())
+        }
+    }
+    for (file, colour) in [
+        ("packets_colour_40x32.pifsp", true),
+        ("packets_gray_64x48.pifsp", false),
+    ] {
+        let framed = std::fs::read(golden_dir().join(file)).unwrap();
+        let mut at = 0;
+        let mut packets = 0;
+        while at + 2 <= framed.len() {
+            let len = usize::from(u16::from_le_bytes([framed[at], framed[at + 1]]));
+            let packet = Packet::parse(&framed[at + 2..at + 2 + len]).unwrap();
+            at += 2 + len;
+            packets += 1;
+            let mut pixels = Pixels(Vec::new());
+            packet.decode(&mut pixels).unwrap();
+            assert!(
+                !pixels.0.is_empty(),
+                "{file}: packet {packets} draws nothing"
+            );
+            let mut rgb = MockDisplay::<Rgb565>::new();
+            packet.decode(&mut DrawSink::new(&mut rgb)).unwrap();
+            let mut mono = MockDisplay::<BinaryColor>::new();
+            packet
+                .decode(&mut DrawSink::new(&mut mono).with_dither(Dither::Ordered))
+                .unwrap();
+            for &(x, y, [r, g, b]) in &pixels.0 {
+                let p = Point::new(x as i32, y as i32);
+                let t = Threshold::ordered(x, y);
+                let luma = if colour {
+                    decoder_core::internal::colour::rgb_to_luma(r, g, b)
+                } else {
+                    r
+                };
+                let expected = if colour {
+                    Rgb565::from_rgb_with(r, g, b, t)
+                } else {
+                    Rgb565::from_gray_with(luma, t)
+                };
+                assert_eq!(rgb.get_pixel(p), Some(expected), "{file} {x},{y}");
+                assert_eq!(
+                    mono.get_pixel(p),
+                    Some(BinaryColor::from_gray_with(luma, t)),
+                    "{file} {x},{y}"
+                );
+            }
+        }
+        assert!(packets > 2, "{file}: {packets} packets");
+    }
+}
