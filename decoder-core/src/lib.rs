@@ -40,7 +40,9 @@
 //!   after some regions is drawn around them ([`Packet::decode_around`]). A receiver needs one
 //!   packet's buffer and the decoder's usual fixed memory.
 //! - `graphics` (cargo feature `embedded-graphics`): a stream as an embedded-graphics
-//!   `ImageDrawable` in any colour type.
+//!   `ImageDrawable` in any colour type, ordered-dithered by default where the colour has
+//!   fewer than 8 bits a channel (a 1-bit OLED, RGB565); `graphics::DrawSink`, the same
+//!   drawing as a [`PixelSink`], draws packets as they arrive.
 //!
 //! ## Scaled decoding
 //!
