@@ -19,16 +19,15 @@ use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 use crate::format::DEFAULT_STRIPE;
 use crate::geometry::Rect;
-use crate::prediction::{Frontier, SamplePrediction, RECORD_WHOLE};
+use crate::prediction::{Frontier, RECORD_WHOLE};
 use crate::syntax::control_step;
 use crate::syntax::{
-    stream_checksum, Header, LeafSyntax, SampleRange, CHECKSUM_BYTES, FIXED_HEADER_LEN,
-    MAX_HEADER_LEN,
+    stream_checksum, Header, SampleRange, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
 };
 use crate::synthesis::{
     Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE,
 };
-use crate::walk::{self, LeafInfo, Node, TreeVisitor, WalkState};
+use crate::walk::{self, LeafInfo, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
 /// is drawn or allocated (a host decoding into a buffer it allocates should always set them:
@@ -553,19 +552,6 @@ struct Drawer<'s, S: PixelSink + ?Sized, O> {
 
 impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O> {
     type Error = DrawError<S::Error>;
-
-    fn split(&mut self, _node: &Node) -> bool {
-        false
-    }
-
-    fn prepare_leaf<P: SamplePrediction>(
-        &mut self,
-        _node: &Node,
-        _prediction: &P,
-        _leaf: &mut LeafSyntax,
-    ) {
-    }
-
     /// Every leaf goes through the prediction frontier, which smooths its edges with the
     /// leaves before it and draws the pixels that were waiting for it (see
     /// [`crate::prediction::Capture`]). At the coded size the whole leaf is drawn through it (or

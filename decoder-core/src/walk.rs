@@ -55,17 +55,20 @@ pub trait TreeVisitor {
     /// Why a visit can fail: the stream's errors, and whatever else the visitor adds (a pixel
     /// sink's).
     type Error: From<DecodeError>;
-    /// Encoder: whether `node` is split (called before its flag is coded). Decoders may return
-    /// anything: the flag read from the stream replaces it.
-    fn split(&mut self, node: &Node) -> bool;
+    /// Encoder: whether `node` is split (called before its flag is coded). Decoders need not
+    /// implement it: the flag read from the stream replaces the answer.
+    fn split(&mut self, _node: &Node) -> bool {
+        false
+    }
     /// Encoder: fills in the leaf's syntax elements before they are coded, knowing the pixels
     /// earlier leaves drew (`prediction`). Decoders do nothing.
     fn prepare_leaf<P: SamplePrediction>(
         &mut self,
-        node: &Node,
-        prediction: &P,
-        leaf: &mut LeafSyntax,
-    );
+        _node: &Node,
+        _prediction: &P,
+        _leaf: &mut LeafSyntax,
+    ) {
+    }
     /// Called once the leaf is coded, with its reconstruction. The frontier must learn the
     /// leaf's bottom row and right column before the next leaf: [`Frontier::record`] renders
     /// them, or a visitor that draws the whole leaf anyway draws it through

@@ -13,13 +13,11 @@ use decoder_core::internal::entropy::{
 };
 use decoder_core::internal::format::MAX_LEAF_LOG2;
 use decoder_core::internal::model::MODEL_COUNT;
-use decoder_core::internal::prediction::{Frontier, SamplePrediction};
-use decoder_core::internal::syntax::{
-    control_step, Header, LeafSyntax, CONTROL_CLASSES, STEP_GROUPS,
-};
+use decoder_core::internal::prediction::Frontier;
+use decoder_core::internal::syntax::{control_step, Header, CONTROL_CLASSES, STEP_GROUPS};
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
-use decoder_core::{DecodeError, Node, SliceSource};
+use decoder_core::{DecodeError, SliceSource};
 use std::collections::{BTreeMap, HashMap};
 
 /// The syntax element a context codes.
@@ -191,19 +189,6 @@ struct Reader(Vec<Choice>);
 
 impl TreeVisitor for Reader {
     type Error = DecodeError;
-
-    fn split(&mut self, _node: &Node) -> bool {
-        false
-    }
-
-    fn prepare_leaf<P: SamplePrediction>(
-        &mut self,
-        _node: &Node,
-        _prediction: &P,
-        _leaf: &mut LeafSyntax,
-    ) {
-    }
-
     fn leaf<const STRIPE: usize>(
         &mut self,
         info: &LeafInfo,

@@ -14,13 +14,12 @@ mod common;
 
 use decoder_core::internal::entropy::RangeDecoder;
 use decoder_core::internal::model::MODELS;
-use decoder_core::internal::prediction::{Frontier, SamplePrediction};
+use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::syntax::control::CONTROL_STEPS;
-use decoder_core::internal::syntax::{control_step, Header, LeafSyntax};
+use decoder_core::internal::syntax::{control_step, Header};
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk, LeafInfo, TreeVisitor};
 use decoder_core::DecodeError;
-use decoder_core::Node;
 use decoder_core::SliceSource;
 use host_encoder::{analyse, io, EncoderConfig, Target};
 use std::collections::HashMap;
@@ -41,19 +40,6 @@ struct ControlPoints {
 
 impl TreeVisitor for ControlPoints {
     type Error = DecodeError;
-
-    fn split(&mut self, _node: &Node) -> bool {
-        false
-    }
-
-    fn prepare_leaf<P: SamplePrediction>(
-        &mut self,
-        _node: &Node,
-        _prediction: &P,
-        _leaf: &mut LeafSyntax,
-    ) {
-    }
-
     fn leaf<const STRIPE: usize>(
         &mut self,
         info: &LeafInfo,

@@ -123,9 +123,6 @@ struct Reader;
 
 impl TreeVisitor for Reader {
     type Error = DecodeError;
-    fn split(&mut self, _node: &Node) -> bool {
-        false
-    }
     fn prepare_leaf<P: SamplePrediction>(&mut self, _n: &Node, _p: &P, _l: &mut LeafSyntax) {}
     fn leaf<const STRIPE: usize>(
         &mut self,

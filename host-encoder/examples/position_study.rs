@@ -211,9 +211,6 @@ impl Reader {
 
 impl TreeVisitor for Reader {
     type Error = DecodeError;
-    fn split(&mut self, _node: &Node) -> bool {
-        false
-    }
     fn prepare_leaf<P: SamplePrediction>(&mut self, n: &Node, p: &P, _l: &mut LeafSyntax) {
         let s = n.size();
         self.above = (0..s).map(|k| p.above(n.x + k, n.y)).collect();

@@ -18,7 +18,7 @@ use decoder_core::internal::entropy::{Prob, RangeDecoder, INITIAL_COUNT, PROB_ON
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
 use decoder_core::internal::syntax::initial_contexts::INITIAL_PROBABILITIES;
 use decoder_core::internal::syntax::{
-    control_step, ChromaContexts, ChromaSyntax, Contexts, Header, LeafSyntax, CHROMA_CONTEXT_COUNT,
+    control_step, ChromaContexts, ChromaSyntax, Contexts, Header, CHROMA_CONTEXT_COUNT,
     CONTEXT_COUNT,
 };
 use decoder_core::internal::synthesis::{Discard, Patch};
@@ -195,17 +195,6 @@ fn final_contexts(stream: &[u8]) -> Result<(Contexts, Option<ChromaContexts>), D
     struct Reader(Option<ChromaContexts>);
     impl TreeVisitor for Reader {
         type Error = DecodeError;
-
-        fn split(&mut self, _node: &Node) -> bool {
-            false
-        }
-        fn prepare_leaf<P: SamplePrediction>(
-            &mut self,
-            _node: &Node,
-            _prediction: &P,
-            _leaf: &mut LeafSyntax,
-        ) {
-        }
         fn prepare_chroma<P: SamplePrediction>(
             &mut self,
             _node: &Node,
