@@ -1574,3 +1574,61 @@ fn decode_shows_the_picture_as_a_panel_would() {
     assert!(line.contains("16-bit surface"), "{line}");
     assert!(!out.exists());
 }
+
+/// `--resize WxH` scales the image to fit the box, keeping its shape, before `encode` (and
+/// `rd`) code it: gray, colour and 16-bit images alike, smaller or larger; the encode says so
+/// and `--bpp` counts the scaled pixels. A size that is not `WxH` is refused in one line.
+#[test]
+fn resize_fits_the_image_to_a_display() {
+    let dir = scratch("resize");
+    let gray = dir.join("gray.png");
+    textured(40, 24).save(&gray).unwrap();
+    let colour = dir.join("colour.png");
+    colour_gradient().save(&colour).unwrap();
+    let heights = dir.join("heights.png");
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(32, 16, |x, y| {
+        image::Luma([(x * 1000 + y * 300) as u16])
+    })
+    .save(&heights)
+    .unwrap();
+    for (input, fit, size, channels) in [
+        (&gray, "20x20", (20, 12), 1),
+        (&colour, "24x100", (24, 16), 3),
+        (&colour, "96x96", (96, 64), 3),
+        (&heights, "16x16", (16, 8), 1),
+    ] {
+        let stream = dir.join("out.pifs");
+        let said = ok(&pifs(&[
+            "encode",
+            input.to_str().unwrap(),
+            "-o",
+            stream.to_str().unwrap(),
+            "--resize",
+            fit,
+            "--bpp",
+            "2",
+        ]));
+        assert!(
+            said.contains(&format!("resized to {}x{}", size.0, size.1)),
+            "{said}"
+        );
+        let bytes = std::fs::read(&stream).unwrap();
+        let header = decoder_core::Decoder::new(&bytes).unwrap();
+        let header = header.header();
+        assert_eq!((u32::from(header.width), u32::from(header.height)), size);
+        assert_eq!(header.channels, channels);
+        assert_eq!(header.range.is_some(), input == &heights);
+        assert!(bytes.len() * 8 <= 2 * (size.0 * size.1) as usize, "{fit}");
+    }
+    let out = dir.join("refused.pifs");
+    let line = refused(&pifs(&[
+        "encode",
+        gray.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--resize",
+        "240",
+    ]));
+    assert!(line.contains("not a size"), "{line}");
+    assert!(!out.exists());
+}

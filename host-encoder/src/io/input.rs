@@ -296,6 +296,43 @@ impl Surface {
     }
 }
 
+/// A box an image is scaled to fit in, keeping its shape: the size of the display it is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Fit {
+    /// Width of the box in pixels.
+    pub width: u32,
+    /// Height of the box in pixels.
+    pub height: u32,
+}
+
+impl Fit {
+    /// The size an image of `width x height` takes in the box: scaled by the larger factor that
+    /// keeps both sides within it (enlarging too), each side rounded, at least 1.
+    pub fn size_of(self, width: u32, height: u32) -> (u32, u32) {
+        let scale = (f64::from(self.width) / f64::from(width.max(1)))
+            .min(f64::from(self.height) / f64::from(height.max(1)));
+        let side = |v: u32, most: u32| ((f64::from(v) * scale).round() as u32).clamp(1, most);
+        (side(width, self.width), side(height, self.height))
+    }
+
+    /// Parses `WxH` (both from 1 to 65535).
+    pub fn parse(text: &str) -> Result<Fit, String> {
+        let bad = || format!("not a size: {text} (WIDTHxHEIGHT, such as 240x240)");
+        let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+        let side = |v: &str| {
+            v.trim()
+                .parse::<u16>()
+                .ok()
+                .filter(|&v| v > 0)
+                .ok_or_else(bad)
+        };
+        Ok(Fit {
+            width: u32::from(side(w)?),
+            height: u32::from(side(h)?),
+        })
+    }
+}
+
 impl DecodedImage {
     /// Decodes the image `bytes` (`path` names it in errors) within `limits`: more pixels
     /// than `limits.max_pixels` are refused on the header
@@ -304,6 +341,17 @@ impl DecodedImage {
     /// ([`image::error::LimitErrorKind::InsufficientMemory`]); both come back as
     /// [`FileError::Decode`] with an [`image::ImageError::Limits`] source.
     pub fn decode(bytes: &[u8], path: &Path, limits: &ImageLimits) -> Result<Self, FileError> {
+        Self::decode_fitted(bytes, path, limits, None)
+    }
+
+    /// [`DecodedImage::decode`], then the image scaled to fit `fit` (orientation applied first;
+    /// Catmull-Rom resampling, on the image's own samples: 16-bit ones stay 16-bit).
+    pub fn decode_fitted(
+        bytes: &[u8],
+        path: &Path,
+        limits: &ImageLimits,
+        fit: Option<Fit>,
+    ) -> Result<Self, FileError> {
         let probe = ImageProbe::read(bytes, path)?;
         let failed = |source| FileError::Decode {
             path: path.to_path_buf(),
@@ -328,6 +376,12 @@ impl DecodedImage {
         let decoder = reader.into_decoder().map_err(failed)?;
         let mut img = DynamicImage::from_decoder(decoder).map_err(failed)?;
         img.apply_orientation(probe.orientation);
+        if let Some(fit) = fit {
+            let (w, h) = fit.size_of(img.width(), img.height());
+            if (w, h) != (img.width(), img.height()) {
+                img = img.resize_exact(w, h, image::imageops::FilterType::CatmullRom);
+            }
+        }
         let rgb = img
             .color()
             .has_color()
@@ -474,6 +528,19 @@ pub fn has_image_extension(path: &Path) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fit_keeps_the_shape_within_the_box() {
+        let fit = Fit::parse("240x240").unwrap();
+        assert_eq!(fit.size_of(768, 512), (240, 160));
+        assert_eq!(fit.size_of(512, 768), (160, 240));
+        assert_eq!(fit.size_of(60, 40), (240, 160));
+        assert_eq!(Fit::parse("10X10").unwrap().size_of(1, 1000), (1, 10));
+        assert_eq!(Fit::parse("128x64").unwrap().size_of(768, 512), (96, 64));
+        for bad in ["240", "0x5", "5x0", "x5", "65536x1", "ax2", ""] {
+            assert!(Fit::parse(bad).is_err(), "{bad}");
+        }
+    }
 
     /// A 16-bit gray image is a surface whose range starts at its smallest sample and reaches
     /// its largest at (or just before) grey 255; a flat one steps by 1/128; an 8-bit image is

@@ -21,7 +21,7 @@ pub mod stream;
 pub use image_out::{encode_gray, encode_rgb, ImageWriter, OutputFormat};
 pub use input::{
     decode_luma, has_image_extension, load_image, load_luma, read_input, to_luma, to_rgb,
-    DecodedImage, Depth, ImageLimits, ImageProbe, Loaded, Surface, SurfaceError,
+    DecodedImage, Depth, Fit, ImageLimits, ImageProbe, Loaded, Surface, SurfaceError,
 };
 pub use output::{
     remove_temporary_files, use_unnamed_temporary_files, write_atomic, Content, Output,

@@ -110,6 +110,7 @@ fn share_of(limits: &InputLimits, workers: usize) -> InputLimits {
     InputLimits {
         max_pixels: limits.max_pixels,
         max_memory: budget.map(|b| b / workers as u64),
+        resize: limits.resize,
     }
 }
 
@@ -170,6 +171,7 @@ mod tests {
         let limits = InputLimits {
             max_pixels: Some(10),
             max_memory: Some(1000),
+            resize: None,
         };
         let shared = share_of(&limits, 4);
         assert_eq!(shared.max_memory, Some(250));

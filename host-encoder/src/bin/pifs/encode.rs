@@ -81,10 +81,15 @@ pub struct EncodeArgs {
     pub limits: InputLimits,
 }
 
-/// The bounds on the images `encode` and `rd` accept, checked on the image's header before its
-/// pixels are decoded.
+/// How `encode` and `rd` take an image: bounds checked on its header before its pixels are
+/// decoded, and the size it is scaled to.
 #[derive(Args, Debug, Clone, Default)]
 pub struct InputLimits {
+    /// Scale the image to fit within WxH pixels, keeping its shape (enlarging too), before it
+    /// is encoded: the size of the display it is for, such as 240x240 or 128x64. --bpp then
+    /// counts the scaled pixels.
+    #[arg(long, value_name = "WxH", value_parser = io::Fit::parse)]
+    pub resize: Option<io::Fit>,
     /// Refuse images of more pixels than this [default: 33554432, 2^25].
     #[arg(long, value_name = "PIXELS")]
     pub max_pixels: Option<u64>,
@@ -120,6 +125,8 @@ pub struct Checked {
     pub probe: ImageProbe,
     /// What the image decoder may allocate.
     max_alloc: u64,
+    /// The box the image is scaled to fit, if any.
+    fit: Option<io::Fit>,
 }
 
 /// Reads the image at `path` (`-`: standard input) and checks its header against `limits` and
@@ -144,13 +151,15 @@ pub fn check_image(
         }
         .into());
     }
+    // The encoder sees the image at its fitted size; the image decoder at its own.
+    let (fw, fh) = limits.resize.map_or((w, h), |fit| fit.size_of(w, h));
     let pixels = probe.pixels();
     // Priced in colour on the header's word: a colour type whose pixels are all gray is
     // encoded in grayscale, for less.
     let channels = if probe.colour && !gray { 3 } else { 1 };
     let size = memory::ImageSize {
-        width: u64::from(w),
-        height: u64::from(h),
+        width: u64::from(fw),
+        height: u64::from(fh),
         decoded_bytes: probe.decoded_bytes,
     };
     let per_pixel = memory::per_pixel(size, channels, analysis.min_leaf_log2);
@@ -167,7 +176,7 @@ pub fn check_image(
     if let Some((budget, source)) = budget {
         if need > budget {
             return Err(CliError::Refused(format!(
-                "{}: encoding {w}x{h} needs about {} ({per_pixel} bytes per pixel), more than {} allowed by {source}",
+                "{}: encoding {fw}x{fh} needs about {} ({per_pixel} bytes per pixel), more than {} allowed by {source}",
                 name.display(),
                 memory::human(need),
                 memory::human(budget),
@@ -179,6 +188,7 @@ pub fn check_image(
         bytes,
         probe,
         max_alloc: budget.map_or(u64::MAX, |(b, _)| b),
+        fit: limits.resize,
     })
 }
 
@@ -196,14 +206,23 @@ impl Checked {
             max_pixels: u64::MAX,
             max_alloc: self.max_alloc,
         };
-        let decoded =
-            io::DecodedImage::decode(&self.bytes, &self.path, &limits).map_err(|e| match e {
-                io::FileError::Decode {
-                    source: image::ImageError::Limits(_),
-                    ..
-                } => CliError::Refused(format!("{e} (see --max-memory)")),
-                other => other.into(),
-            })?;
+        let decoded = io::DecodedImage::decode_fitted(&self.bytes, &self.path, &limits, self.fit)
+            .map_err(|e| match e {
+            io::FileError::Decode {
+                source: image::ImageError::Limits(_),
+                ..
+            } => CliError::Refused(format!("{e} (see --max-memory)")),
+            other => other.into(),
+        })?;
+        let (width, height) = (decoded.plane.width, decoded.plane.height);
+        if (width, height) != (self.probe.width, self.probe.height) {
+            say!(
+                "{}: {}x{} resized to {width}x{height}",
+                self.path.display(),
+                self.probe.width,
+                self.probe.height
+            );
+        }
         if decoded.pages > 1 {
             say!(
                 "{}: note: {} pages; encoding the first",
