@@ -1424,8 +1424,9 @@ fn wide_images_are_one_stripe_unless_told_and_packets_keep_512() {
 /// embedded-graphics adapter as on the device: each pixel the level `FromGray::from_gray_with`
 /// / `from_rgb_with` give at `Threshold::ordered` of its position (the default) or `from_gray` /
 /// `from_rgb` gives (`--dither nearest`), written back as 8-bit samples; at a scale too (the
-/// positions are the scaled image's). An unknown panel, `--dither` alone and a 16-bit surface
-/// are refused in one line, with no output left behind.
+/// positions are the scaled image's); a packet set as the host assembles it, each pixel so
+/// converted. An unknown panel, `--dither` alone, `--display` with `--hillshade` and a 16-bit
+/// surface are refused in one line, with no output left behind.
 #[test]
 fn decode_shows_the_picture_as_a_panel_would() {
     use decoder_core::graphics::{FromGray, Threshold};
@@ -1530,8 +1531,55 @@ fn decode_shows_the_picture_as_a_panel_would() {
             }
         }
     }
+    // A packet set: the picture the host assembles, each pixel converted as on the device.
+    let packets = dir.join("packets");
+    ok(&pifs(&[
+        "encode",
+        colour.to_str().unwrap(),
+        "--packets",
+        packets.to_str().unwrap(),
+        "--bytes",
+        "1200",
+        "--packet-size",
+        "128",
+    ]));
+    let plain = dir.join("packets.png");
+    ok(&pifs(&[
+        "decode",
+        packets.to_str().unwrap(),
+        "-o",
+        plain.to_str().unwrap(),
+    ]));
+    let shown = dir.join("packets-565.png");
+    ok(&pifs(&[
+        "decode",
+        packets.to_str().unwrap(),
+        "-o",
+        shown.to_str().unwrap(),
+        "--display",
+        "rgb565",
+    ]));
+    let plain = image::open(&plain).unwrap().to_rgb8();
+    let shown = image::open(&shown).unwrap().to_rgb8();
+    assert_eq!(plain.dimensions(), shown.dimensions());
+    for (x, y, p) in plain.enumerate_pixels() {
+        let [r, g, b] = p.0;
+        let c = Rgb888::from(Rgb565::from_rgb_with(r, g, b, Threshold::ordered(x, y)));
+        assert_eq!(shown.get_pixel(x, y).0, [c.r(), c.g(), c.b()], "{x},{y}");
+    }
+
     let stream = gray.with_extension("pifs");
     let out = dir.join("refused.png");
+    let line = refused(&pifs(&[
+        "decode",
+        stream.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--display",
+        "mono",
+        "--hillshade",
+    ]));
+    assert!(line.contains("one at a time"), "{line}");
     let line = refused(&pifs(&[
         "decode",
         stream.to_str().unwrap(),

@@ -160,12 +160,14 @@ pub fn run(
     }
     let from_packets = packets || inputs.len() > 1 || crate::packets::is_packet_input(input);
     if let Some((panel, dither)) = display {
-        if from_packets || hillshade.is_some() {
+        if hillshade.is_some() {
             return Err(CliError::Refused(
-                "--display draws one stream (not packets, not with --hillshade)".into(),
+                "--display and --hillshade draw different pictures: one at a time".into(),
             ));
         }
-        return on_panel(input, output, format, limits, (panel, dither, scale), start);
+        if !from_packets {
+            return on_panel(input, output, format, limits, (panel, dither, scale), start);
+        }
     }
     if let Some(ZFactor(z_factor)) = hillshade {
         if from_packets || scale != Scale::One {
@@ -181,7 +183,7 @@ pub fn run(
                 "packets decode at their coded size only".into(),
             ));
         }
-        return crate::packets::decode(inputs, output, format, limits.max_pixels);
+        return crate::packets::decode(inputs, output, format, limits.max_pixels, display);
     }
     let stream = open_stream(input, limits)?;
     if stream.header().range.is_some() {

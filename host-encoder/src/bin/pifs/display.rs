@@ -4,7 +4,7 @@
 
 use std::marker::PhantomData;
 
-use decoder_core::graphics::{Dither, FromGray, PifsImage};
+use decoder_core::graphics::{Dither, FromGray, PifsImage, Threshold};
 use decoder_core::{DecodeError, DrawError, Scale};
 use embedded_graphics_core::draw_target::DrawTarget;
 use embedded_graphics_core::geometry::{OriginDimensions, Size};
@@ -92,6 +92,56 @@ pub fn show(
         Panel::Gray4 => draw::<Gray4>(stream, dither, scale),
         Panel::Gray2 => draw::<Gray2>(stream, dither, scale),
         Panel::Mono => draw::<BinaryColor>(stream, dither, scale),
+    }
+}
+
+/// Decoded pixels (`width x height`, `channels` samples each, row-major) as `panel` shows
+/// them with `dither`: each pixel converted as the device's `graphics::DrawSink` converts it at
+/// that image position (for pictures assembled on the host, such as a packet set).
+pub fn show_pixels(
+    (width, height, channels): (u32, u32, u8),
+    pixels: &[u8],
+    panel: Panel,
+    dither: Dither,
+) -> Shown {
+    match panel {
+        Panel::Rgb565 => convert::<Rgb565>((width, height, channels), pixels, dither),
+        Panel::Rgb666 => convert::<Rgb666>((width, height, channels), pixels, dither),
+        Panel::Gray4 => convert::<Gray4>((width, height, channels), pixels, dither),
+        Panel::Gray2 => convert::<Gray2>((width, height, channels), pixels, dither),
+        Panel::Mono => convert::<BinaryColor>((width, height, channels), pixels, dither),
+    }
+}
+
+fn convert<C: Shade>(
+    (width, height, channels): (u32, u32, u8),
+    pixels: &[u8],
+    dither: Dither,
+) -> Shown {
+    let n = usize::from(C::CHANNELS);
+    let mut out = vec![0; width as usize * height as usize * n];
+    let step = usize::from(channels.max(1));
+    let positions = (0..height).flat_map(|y| (0..width).map(move |x| (x, y)));
+    for ((p, (x, y)), slot) in pixels
+        .chunks_exact(step)
+        .zip(positions)
+        .zip(out.chunks_exact_mut(n))
+    {
+        let threshold = match dither {
+            Dither::Ordered => Threshold::ordered(x, y),
+            Dither::Nearest => Threshold::NEAREST,
+        };
+        let colour = match *p {
+            [r, g, b] => C::from_rgb_with(r, g, b, threshold),
+            _ => C::from_gray_with(p[0], threshold),
+        };
+        colour.put(slot);
+    }
+    Shown {
+        width,
+        height,
+        channels: C::CHANNELS,
+        pixels: out,
     }
 }
 

@@ -93,7 +93,8 @@ enum Command {
         /// Write the picture as a small display of fewer levels shows it, drawn by the
         /// decoder's embedded-graphics adapter as on the device: rgb565 (ST7789, ILI9341,
         /// SSD1351), rgb666 (ILI9488), gray4 (16-grey OLEDs), gray2 (4-grey e-paper) or mono
-        /// (SSD1306/SH1106 OLEDs, memory LCDs); with --scale for a thumbnail.
+        /// (SSD1306/SH1106 OLEDs, memory LCDs); with --scale for a thumbnail. A packet set:
+        /// the picture assembled from what arrived, each pixel as the device draws it.
         #[arg(long, value_name = "PANEL", value_parser = display::parse_panel)]
         display: Option<display::Panel>,
         /// How --display reaches the panel's levels: ordered (a 4x4 Bayer dither, the device's

@@ -270,17 +270,19 @@ pub fn decode(
     output: &Path,
     format: OutputFormat,
     max_pixels: u64,
+    display: Option<(crate::display::Panel, decoder_core::graphics::Dither)>,
 ) -> Result<()> {
     let (_, assembled) = assemble_at(inputs, max_pixels)?;
     let mut out = Output::create(output, Content::Binary("an image"))?;
     let name = out.name().to_path_buf();
-    let bytes = format.encode(
-        &name,
-        assembled.width,
-        assembled.height,
-        assembled.channels,
-        &assembled.pixels,
-    )?;
+    let size = (assembled.width, assembled.height, assembled.channels);
+    let shown = display
+        .map(|(panel, dither)| crate::display::show_pixels(size, &assembled.pixels, panel, dither));
+    let (channels, pixels) = match &shown {
+        Some(s) => (s.channels, s.pixels.as_slice()),
+        None => (assembled.channels, assembled.pixels.as_slice()),
+    };
+    let bytes = format.encode(&name, assembled.width, assembled.height, channels, pixels)?;
     out.write_all(&bytes).map_err(|e| out.error(e))?;
     out.commit()?;
     say!("{}: {}", name.display(), describe(&assembled));
