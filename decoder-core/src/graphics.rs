@@ -54,6 +54,43 @@
 //! [`BinaryColor`] `On` for luma `>= 128`). Displays of 8 bits a channel ([`Gray8`],
 //! [`Rgb888`], [`Bgr888`]) take the pixels as they are either way.
 //!
+//! # Packets as they arrive
+//!
+//! [`DrawSink`] draws any decode of one's own, such as radio packets ([`crate::Packet`]) as
+//! they come in, each region where it lies in the image and a preview around the regions
+//! already shown, dithered as the whole picture would be:
+//!
+//! ```
+//! use decoder_core::graphics::DrawSink;
+//! use decoder_core::{DrawError, Packet, PacketKind, Rect};
+//! use embedded_graphics::pixelcolor::BinaryColor;
+//! use embedded_graphics::prelude::*;
+//!
+//! /// Draws one received packet on a 1-bit OLED; `drawn` holds the regions shown so far.
+//! fn on_packet<D: DrawTarget<Color = BinaryColor>>(
+//!     display: &mut D,
+//!     received: &[u8],
+//!     drawn: &mut [Rect; 32],
+//!     shown: &mut usize,
+//! ) -> Result<(), DrawError<D::Error>> {
+//!     let packet = Packet::parse(received)?; // its CRC first: a damaged packet is lost
+//!     let mut sink = DrawSink::new(display);
+//!     match packet.kind {
+//!         PacketKind::Preview => packet.decode_around(&drawn[..*shown], &mut sink),
+//!         PacketKind::Region => {
+//!             packet.decode(&mut sink)?;
+//!             if let Some(slot) = drawn.get_mut(*shown) {
+//!                 *slot = packet.region;
+//!                 *shown += 1;
+//!             }
+//!             Ok(())
+//!         }
+//!     }
+//! }
+//! # let mut display = embedded_graphics::mock_display::MockDisplay::<BinaryColor>::new();
+//! # let _ = on_packet(&mut display, b"not a packet", &mut [Rect::of_size(0, 0); 32], &mut 0);
+//! ```
+//!
 //! # 16-bit streams
 //!
 //! A [`PifsImage`] of a 16-bit stream (an elevation model, say) draws its values mapped onto
