@@ -5,12 +5,21 @@
 //! (`PIFS-PACKETS name=<file> received=<n> sha256=<hex>`) must equal the host's assembly of
 //! the same packets. `stack=<bytes>` is the largest peak stack of one packet's parse and
 //! decode (the decoder's own RAM; the receiver adds its packet buffer and the list of regions
-//! drawn).
+//! drawn). The same packets are then received again onto a display through
+//! `graphics::DrawSink`, colour sets on RGB565, gray sets on a 1-bit panel, dithered
+//! (`PIFS-PACKETS-DRAWN name=<file> sha256=<hex>`: each pixel's RGB565 value, little-endian, or
+//! its bit as a byte), which the host computes from its assembly.
+
+use core::convert::Infallible;
 
 use cortex_m_semihosting::heprintln;
+use decoder_core::graphics::DrawSink;
 use decoder_core::{Packet, PacketKind, PixelSink, Rect, Tile};
+use embedded_graphics::pixelcolor::{BinaryColor, Rgb565};
+use embedded_graphics::prelude::*;
 use sha2::{Digest, Sha256};
 
+use crate::targets::Hashed;
 use crate::{measure, Hex, PACKET_FRAME_LEN, PACKET_SETS};
 
 /// A framed packet set (`tests/golden/packets.txt`).
@@ -50,8 +59,8 @@ impl PixelSink for Frame<'_> {
             return Ok(());
         }
         for (r, src) in tile.pixels.chunks_exact(row).enumerate() {
-            let at = ((tile.area.y as usize + r) * self.width + tile.area.x as usize)
-                * self.channels;
+            let at =
+                ((tile.area.y as usize + r) * self.width + tile.area.x as usize) * self.channels;
             if let Some(dst) = self.pixels.get_mut(at..at + row) {
                 dst.copy_from_slice(src);
             }
@@ -94,6 +103,79 @@ fn receive(set: &PacketSet) -> bool {
         width: set.width,
         channels: set.channels,
     };
+    let Some((received, stack)) = receive_into(set, &mut frame) else {
+        return false;
+    };
+    let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
+    heprintln!(
+        "PIFS-PACKETS name={} received={} stack={} sha256={}",
+        set.name,
+        received,
+        stack,
+        Hex(hash)
+    );
+    // The same frame's memory, now a display.
+    let drawn = if set.channels == 3 {
+        on_display::<Rgb565>(set, &mut pixels)
+    } else {
+        on_display::<BinaryColor>(set, &mut pixels)
+    };
+    let Some(hash) = drawn else {
+        return false;
+    };
+    heprintln!("PIFS-PACKETS-DRAWN name={} sha256={}", set.name, Hex(hash));
+    true
+}
+
+/// The packets of `set` received onto a display of colour `C` held in `memory`, through
+/// `DrawSink`: the hash of its pixels.
+fn on_display<C: Hashed>(set: &PacketSet, memory: &mut [u8]) -> Option<[u8; 32]> {
+    let len = set.width * set.height * C::BYTES;
+    let mut panel = Panel::<C> {
+        pixels: memory.get_mut(..len)?,
+        size: Size::new(set.width as u32, set.height as u32),
+        colour: core::marker::PhantomData,
+    };
+    receive_into(set, &mut DrawSink::new(&mut panel))?;
+    Some(Sha256::digest(&panel.pixels[..]).into())
+}
+
+/// A display in memory: each pixel's bytes ([`Hashed::put`]), row-major.
+struct Panel<'a, C> {
+    pixels: &'a mut [u8],
+    size: Size,
+    colour: core::marker::PhantomData<C>,
+}
+
+impl<C> OriginDimensions for Panel<'_, C> {
+    fn size(&self) -> Size {
+        self.size
+    }
+}
+
+impl<C: Hashed> DrawTarget for Panel<'_, C> {
+    type Color = C;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<C>>>(&mut self, pixels: I) -> Result<(), Infallible> {
+        for Pixel(p, c) in pixels {
+            if p.x >= 0 && p.y >= 0 && (p.x as u32) < self.size.width {
+                let at = (p.y as usize * self.size.width as usize + p.x as usize) * C::BYTES;
+                if let Some(out) = self.pixels.get_mut(at..at + C::BYTES) {
+                    c.put(out);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Receives `set` into `sink`: every packet but the lost ones, last first. Returns the packets
+/// received and the largest peak stack of one, or `None` after reporting an error.
+fn receive_into<S: PixelSink<Error = Infallible>>(
+    set: &PacketSet,
+    sink: &mut S,
+) -> Option<(usize, usize)> {
     let mut buffer = [0u8; MAX_PACKET];
     let mut drawn = [Rect::of_size(0, 0); MAX_REGIONS];
     let mut regions = 0;
@@ -107,7 +189,7 @@ fn receive(set: &PacketSet) -> bool {
             Ok(p) => p.index,
             Err(e) => {
                 heprintln!("PIFS-ERROR name={} packet: {}", set.name, e);
-                return false;
+                return None;
             }
         };
         if set.lost.contains(&index) {
@@ -115,34 +197,26 @@ fn receive(set: &PacketSet) -> bool {
         }
         measure::paint();
         let base = measure::sp();
-        let result = draw(&buffer[..n], &mut frame, &mut drawn, &mut regions);
+        let result = draw(&buffer[..n], sink, &mut drawn, &mut regions);
         stack = stack.max(measure::peak(base));
         if let Err(e) = result {
             heprintln!("PIFS-ERROR name={} packet {}: {}", set.name, index, e);
-            return false;
+            return None;
         }
         received += 1;
     }
-    let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
-    heprintln!(
-        "PIFS-PACKETS name={} received={} stack={} sha256={}",
-        set.name,
-        received,
-        stack,
-        Hex(hash)
-    );
-    true
+    Some((received, stack))
 }
 
 /// One received packet, parsed and drawn: a region as it is (and remembered), a preview
 /// around the regions already drawn. Not inlined, so that its stack is measured alone.
 #[inline(never)]
-fn draw(
+fn draw<S: PixelSink<Error = Infallible>>(
     bytes: &[u8],
-    frame: &mut Frame<'_>,
+    frame: &mut S,
     drawn: &mut [Rect; MAX_REGIONS],
     regions: &mut usize,
-) -> Result<(), decoder_core::DrawError<core::convert::Infallible>> {
+) -> Result<(), decoder_core::DrawError<Infallible>> {
     let packet = Packet::parse(bytes)?;
     match packet.kind {
         PacketKind::Region => {

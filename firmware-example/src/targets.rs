@@ -38,6 +38,16 @@ impl Hashed for Gray8 {
     }
 }
 
+impl Hashed for embedded_graphics::pixelcolor::BinaryColor {
+    const BYTES: usize = 1;
+    fn put(self, out: &mut [u8]) {
+        out[0] = u8::from(self.is_on());
+    }
+    fn value(self) -> u32 {
+        u32::from(self.is_on())
+    }
+}
+
 impl Hashed for Rgb565 {
     const BYTES: usize = 2;
     fn put(self, out: &mut [u8]) {

@@ -10,7 +10,9 @@
 //! - `tiles`: the tiles in arrival order (per tile `x, y, w, h` as u32 LE, then the pixels);
 //! - `PIFS-FB`: the frame-buffer decode of the smallest vector;
 //! - `PIFS-PACKETS`: each golden packet set of `tests/golden/packets.txt`, received out of
-//!   order with some packets lost, hashed from a frame buffer;
+//!   order with some packets lost, hashed from a frame buffer; `PIFS-PACKETS-DRAWN`: the same
+//!   received onto a display through `graphics::DrawSink` (RGB565 for colour, 1-bit for gray,
+//!   dithered);
 //! - `PIFS-SCALED`: the row-major hash of every vector decoded at 1/4, 1/2 and 2 times its size
 //!   (`PifsImage::with_scale`);
 //! - `PIFS-VALUES`: the values of every 16-bit vector (`tests/golden/values.txt`), row-major,
@@ -495,9 +497,44 @@ fn check_packets(context: &str, lines: &[&str]) {
         );
         let stack: usize = f["stack"].parse().expect("stack");
         assert!(stack > 0, "{context}: {}: no stack measured", g.file);
+        let drawn = lines
+            .iter()
+            .find(|l| l.starts_with("PIFS-PACKETS-DRAWN ") && fields(l)["name"] == f["name"].trim())
+            .unwrap_or_else(|| panic!("{context}: {}: not drawn on a display", g.file));
+        assert_eq!(
+            fields(drawn)["sha256"],
+            sha256_hex(&panel_bytes(&host)),
+            "{context}: {}: the packets drawn through DrawSink differ from the host's",
+            g.file
+        );
         seen += 1;
     }
     assert_eq!(seen, sets.len(), "{context}: packet sets missing");
+}
+
+/// The bytes of the firmware's display after a packet set (`PIFS-PACKETS-DRAWN`): an assembled
+/// colour picture on RGB565 (u16 little-endian a pixel), a gray one on a 1-bit panel (a byte a
+/// pixel, 0 or 1), each pixel ordered-dithered at its position.
+fn panel_bytes(host: &host_encoder::packets::Assembled) -> Vec<u8> {
+    use decoder_core::graphics::{FromGray, Threshold};
+    use embedded_graphics::pixelcolor::raw::{RawData, RawU16};
+    use embedded_graphics::pixelcolor::{BinaryColor, Rgb565};
+    let w = host.width as usize;
+    let step = usize::from(host.channels);
+    host.pixels
+        .chunks_exact(step)
+        .enumerate()
+        .flat_map(|(i, p)| {
+            let t = Threshold::ordered((i % w) as u32, (i / w) as u32);
+            match *p {
+                [r, g, b] => RawU16::from(Rgb565::from_rgb_with(r, g, b, t))
+                    .into_inner()
+                    .to_le_bytes()
+                    .to_vec(),
+                _ => vec![u8::from(BinaryColor::from_gray_with(p[0], t).is_on())],
+            }
+        })
+        .collect()
 }
 
 #[test]
