@@ -1420,6 +1420,18 @@ fn wide_images_are_one_stripe_unless_told_and_packets_keep_512() {
     assert!(refused.contains("stripes of at most 512"), "{refused}");
 }
 
+/// `pifs COMMAND INPUT -o OUTPUT ARGS...`.
+fn pifs_on(command: &str, input: &Path, output: &Path, args: &[&str]) -> Output {
+    let mut all = vec![
+        command,
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    pifs(&all)
+}
+
 /// `decode --display PANEL` writes the picture as the panel shows it, drawn by decoder-core's
 /// embedded-graphics adapter as on the device: each pixel the level `FromGray::from_gray_with`
 /// / `from_rgb_with` give at `Threshold::ordered` of its position (the default) or `from_gray` /
@@ -1439,12 +1451,7 @@ fn decode_shows_the_picture_as_a_panel_would() {
     colour_gradient().save(&colour).unwrap();
     for input in [&gray, &colour] {
         let stream = input.with_extension("pifs");
-        ok(&pifs(&[
-            "encode",
-            input.to_str().unwrap(),
-            "-o",
-            stream.to_str().unwrap(),
-        ]));
+        ok(&pifs_on("encode", input, &stream, &[]));
         for (scale, factor) in [
             ("1", decoder_core::Scale::One),
             ("1/2", decoder_core::Scale::Half),
@@ -1464,34 +1471,22 @@ fn decode_shows_the_picture_as_a_panel_would() {
             };
             for (dither, ordered) in [("ordered", true), ("nearest", false)] {
                 let mono = dir.join("mono.png");
-                let said = ok(&pifs(&[
+                let said = ok(&pifs_on(
                     "decode",
-                    stream.to_str().unwrap(),
-                    "-o",
-                    mono.to_str().unwrap(),
-                    "--display",
-                    "mono",
-                    "--dither",
-                    dither,
-                    "--scale",
-                    scale,
-                ]));
+                    &stream,
+                    &mono,
+                    &["--display", "mono", "--dither", dither, "--scale", scale],
+                ));
                 assert!(said.contains("mono panel"), "{said}");
                 let shown = image::open(&mono).unwrap().to_luma8();
                 assert_eq!(shown.dimensions(), (w, h));
                 let rgb565 = dir.join("rgb565.png");
-                ok(&pifs(&[
+                ok(&pifs_on(
                     "decode",
-                    stream.to_str().unwrap(),
-                    "-o",
-                    rgb565.to_str().unwrap(),
-                    "--display",
-                    "rgb565",
-                    "--dither",
-                    dither,
-                    "--scale",
-                    scale,
-                ]));
+                    &stream,
+                    &rgb565,
+                    &["--display", "rgb565", "--dither", dither, "--scale", scale],
+                ));
                 let shown565 = image::open(&rgb565).unwrap().to_rgb8();
                 for y in 0..h {
                     for x in 0..w {
@@ -1544,21 +1539,14 @@ fn decode_shows_the_picture_as_a_panel_would() {
         "128",
     ]));
     let plain = dir.join("packets.png");
-    ok(&pifs(&[
-        "decode",
-        packets.to_str().unwrap(),
-        "-o",
-        plain.to_str().unwrap(),
-    ]));
+    ok(&pifs_on("decode", &packets, &plain, &[]));
     let shown = dir.join("packets-565.png");
-    ok(&pifs(&[
+    ok(&pifs_on(
         "decode",
-        packets.to_str().unwrap(),
-        "-o",
-        shown.to_str().unwrap(),
-        "--display",
-        "rgb565",
-    ]));
+        &packets,
+        &shown,
+        &["--display", "rgb565"],
+    ));
     let plain = image::open(&plain).unwrap().to_rgb8();
     let shown = image::open(&shown).unwrap().to_rgb8();
     assert_eq!(plain.dimensions(), shown.dimensions());
@@ -1570,33 +1558,16 @@ fn decode_shows_the_picture_as_a_panel_would() {
 
     let stream = gray.with_extension("pifs");
     let out = dir.join("refused.png");
-    let line = refused(&pifs(&[
+    let line = refused(&pifs_on(
         "decode",
-        stream.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--display",
-        "mono",
-        "--hillshade",
-    ]));
+        &stream,
+        &out,
+        &["--display", "mono", "--hillshade"],
+    ));
     assert!(line.contains("one at a time"), "{line}");
-    let line = refused(&pifs(&[
-        "decode",
-        stream.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--display",
-        "cga",
-    ]));
+    let line = refused(&pifs_on("decode", &stream, &out, &["--display", "cga"]));
     assert!(line.contains("not a panel"), "{line}");
-    let line = refused(&pifs(&[
-        "decode",
-        stream.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--dither",
-        "nearest",
-    ]));
+    let line = refused(&pifs_on("decode", &stream, &out, &["--dither", "nearest"]));
     assert!(line.contains("--display"), "{line}");
     let heights = dir.join("heights.png");
     image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(32, 16, |x, y| {
@@ -1605,20 +1576,8 @@ fn decode_shows_the_picture_as_a_panel_would() {
     .save(&heights)
     .unwrap();
     let surface = dir.join("heights.pifs");
-    ok(&pifs(&[
-        "encode",
-        heights.to_str().unwrap(),
-        "-o",
-        surface.to_str().unwrap(),
-    ]));
-    let line = refused(&pifs(&[
-        "decode",
-        surface.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--display",
-        "mono",
-    ]));
+    ok(&pifs_on("encode", &heights, &surface, &[]));
+    let line = refused(&pifs_on("decode", &surface, &out, &["--display", "mono"]));
     assert!(line.contains("16-bit surface"), "{line}");
     assert!(!out.exists());
 }
@@ -1646,16 +1605,12 @@ fn resize_fits_the_image_to_a_display() {
         (&heights, "16x16", (16, 8), 1),
     ] {
         let stream = dir.join("out.pifs");
-        let said = ok(&pifs(&[
+        let said = ok(&pifs_on(
             "encode",
-            input.to_str().unwrap(),
-            "-o",
-            stream.to_str().unwrap(),
-            "--resize",
-            fit,
-            "--bpp",
-            "2",
-        ]));
+            input,
+            &stream,
+            &["--resize", fit, "--bpp", "2"],
+        ));
         assert!(
             said.contains(&format!("resized to {}x{}", size.0, size.1)),
             "{said}"
@@ -1669,14 +1624,7 @@ fn resize_fits_the_image_to_a_display() {
         assert!(bytes.len() * 8 <= 2 * (size.0 * size.1) as usize, "{fit}");
     }
     let out = dir.join("refused.pifs");
-    let line = refused(&pifs(&[
-        "encode",
-        gray.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--resize",
-        "240",
-    ]));
+    let line = refused(&pifs_on("encode", &gray, &out, &["--resize", "240"]));
     assert!(line.contains("not a size"), "{line}");
     assert!(!out.exists());
 }
