@@ -66,9 +66,10 @@ pub fn parse_dither(text: &str) -> Result<Dither, String> {
     }
 }
 
-/// What a panel shows: `width x height` pixels of `channels` 8-bit samples, row-major.
+/// A picture of `width x height` pixels of `channels` 8-bit samples, row-major: a decode, or
+/// what a panel shows of it.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Shown {
+pub struct Picture {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
@@ -85,7 +86,7 @@ pub fn show(
     panel: Panel,
     dither: Dither,
     scale: Scale,
-) -> Result<Shown, DecodeError> {
+) -> Result<Picture, DecodeError> {
     match panel {
         Panel::Rgb565 => draw::<Rgb565>(stream, dither, scale),
         Panel::Rgb666 => draw::<Rgb666>(stream, dither, scale),
@@ -95,34 +96,27 @@ pub fn show(
     }
 }
 
-/// Decoded pixels (`width x height`, `channels` samples each, row-major) as `panel` shows
-/// them with `dither`: each pixel converted as the device's `graphics::DrawSink` converts it at
-/// that image position (for pictures assembled on the host, such as a packet set).
-pub fn show_pixels(
-    (width, height, channels): (u32, u32, u8),
-    pixels: &[u8],
-    panel: Panel,
-    dither: Dither,
-) -> Shown {
+/// A decoded `picture` as `panel` shows it with `dither`: each pixel converted as the device's
+/// `graphics::DrawSink` converts it at that image position (for pictures assembled on the
+/// host, such as a packet set).
+pub fn show_picture(picture: &Picture, panel: Panel, dither: Dither) -> Picture {
     match panel {
-        Panel::Rgb565 => convert::<Rgb565>((width, height, channels), pixels, dither),
-        Panel::Rgb666 => convert::<Rgb666>((width, height, channels), pixels, dither),
-        Panel::Gray4 => convert::<Gray4>((width, height, channels), pixels, dither),
-        Panel::Gray2 => convert::<Gray2>((width, height, channels), pixels, dither),
-        Panel::Mono => convert::<BinaryColor>((width, height, channels), pixels, dither),
+        Panel::Rgb565 => convert::<Rgb565>(picture, dither),
+        Panel::Rgb666 => convert::<Rgb666>(picture, dither),
+        Panel::Gray4 => convert::<Gray4>(picture, dither),
+        Panel::Gray2 => convert::<Gray2>(picture, dither),
+        Panel::Mono => convert::<BinaryColor>(picture, dither),
     }
 }
 
-fn convert<C: Shade>(
-    (width, height, channels): (u32, u32, u8),
-    pixels: &[u8],
-    dither: Dither,
-) -> Shown {
+fn convert<C: Shade>(picture: &Picture, dither: Dither) -> Picture {
+    let (width, height) = (picture.width, picture.height);
     let n = usize::from(C::CHANNELS);
     let mut out = vec![0; width as usize * height as usize * n];
-    let step = usize::from(channels.max(1));
+    let step = usize::from(picture.channels.max(1));
     let positions = (0..height).flat_map(|y| (0..width).map(move |x| (x, y)));
-    for ((p, (x, y)), slot) in pixels
+    for ((p, (x, y)), slot) in picture
+        .pixels
         .chunks_exact(step)
         .zip(positions)
         .zip(out.chunks_exact_mut(n))
@@ -137,7 +131,7 @@ fn convert<C: Shade>(
         };
         colour.put(slot);
     }
-    Shown {
+    Picture {
         width,
         height,
         channels: C::CHANNELS,
@@ -225,7 +219,7 @@ impl<C: Shade> DrawTarget for Canvas<C> {
     }
 }
 
-fn draw<C: Shade>(stream: &[u8], dither: Dither, scale: Scale) -> Result<Shown, DecodeError> {
+fn draw<C: Shade>(stream: &[u8], dither: Dither, scale: Scale) -> Result<Picture, DecodeError> {
     let image = PifsImage::<C>::with_stripe_capacity::<{ host_encoder::io::HOST_STRIPE }>(stream)?
         .with_scale(scale)
         .with_dither(dither);
@@ -237,7 +231,7 @@ fn draw<C: Shade>(stream: &[u8], dither: Dither, scale: Scale) -> Result<Shown, 
         colour: PhantomData::<C>,
     };
     match image.draw_checked(&mut canvas) {
-        Ok(()) => Ok(Shown {
+        Ok(()) => Ok(Picture {
             width: size.width,
             height: size.height,
             channels: C::CHANNELS,

@@ -272,17 +272,25 @@ pub fn decode(
     max_pixels: u64,
     display: Option<(crate::display::Panel, decoder_core::graphics::Dither)>,
 ) -> Result<()> {
-    let (_, assembled) = assemble_at(inputs, max_pixels)?;
+    let (_, mut assembled) = assemble_at(inputs, max_pixels)?;
     let mut out = Output::create(output, Content::Binary("an image"))?;
     let name = out.name().to_path_buf();
-    let size = (assembled.width, assembled.height, assembled.channels);
-    let shown = display
-        .map(|(panel, dither)| crate::display::show_pixels(size, &assembled.pixels, panel, dither));
-    let (channels, pixels) = match &shown {
-        Some(s) => (s.channels, s.pixels.as_slice()),
-        None => (assembled.channels, assembled.pixels.as_slice()),
+    let mut picture = crate::display::Picture {
+        width: assembled.width,
+        height: assembled.height,
+        channels: assembled.channels,
+        pixels: std::mem::take(&mut assembled.pixels),
     };
-    let bytes = format.encode(&name, assembled.width, assembled.height, channels, pixels)?;
+    if let Some((panel, dither)) = display {
+        picture = crate::display::show_picture(&picture, panel, dither);
+    }
+    let bytes = format.encode(
+        &name,
+        picture.width,
+        picture.height,
+        picture.channels,
+        &picture.pixels,
+    )?;
     out.write_all(&bytes).map_err(|e| out.error(e))?;
     out.commit()?;
     say!("{}: {}", name.display(), describe(&assembled));
