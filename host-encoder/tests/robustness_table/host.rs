@@ -784,9 +784,12 @@ fn signal(child: &std::process::Child, name: &str) {
 #[test]
 fn no_litter_when_interrupted() {
     let dir = scratch("litter");
-    let stream = dir.join("8192.pifs");
-    let bytes = host_encoder::internal::synthetic_stream(8192, 8192, 7, |node, leaf| {
+    // Long enough to be killed while it runs, on a fast machine too: 134 megapixels of 8 px
+    // leaves, over a second (large flat leaves decoded in about as long as the watch below).
+    let stream = dir.join("large.pifs");
+    let bytes = host_encoder::internal::synthetic_stream(16384, 8192, 3, |node, leaf| {
         leaf.control[0] = (((node.x + node.y) / 128) % 5) as i16 - 2;
+        leaf.control[1] = ((node.x * 7 + node.y * 13) % 9) as i16 - 4;
     })
     .unwrap();
     std::fs::write(&stream, bytes).unwrap();
@@ -795,7 +798,7 @@ fn no_litter_when_interrupted() {
     // Unnamed temporary file: nothing appears beside the output at any moment.
     let out = dir.join("killed.png");
     let mut child = start_decode(&stream, &out, false);
-    // Watched for a moment well short of the decode (67 megapixels), then killed.
+    // Watched for a moment well short of the decode, then killed.
     let until = Instant::now() + Duration::from_millis(300);
     while Instant::now() < until {
         assert!(leftovers(&dir).is_empty(), "a named file beside the output");
@@ -809,7 +812,7 @@ fn no_litter_when_interrupted() {
     rows.push(row(
         &dir,
         "SIGKILL while the output is written",
-        &format!("pifs decode DIR/8192.pifs -o {}", s(&out)),
+        &format!("pifs decode DIR/large.pifs -o {}", s(&out)),
         "no file beside the output at any moment, none after: the temporary file has no name (O_TMPFILE) until it is complete",
     ));
 
@@ -830,7 +833,7 @@ fn no_litter_when_interrupted() {
         rows.push(row(
             &dir,
             &format!("SIG{name} while a named temporary file is written (`PIFS_NAMED_TEMPORARY_FILES=1`, as on systems without O_TMPFILE)"),
-            &format!("pifs decode DIR/8192.pifs -o {}", s(&out)),
+            &format!("pifs decode DIR/large.pifs -o {}", s(&out)),
             &format!("exit {code}; the temporary file removed, no output"),
         ));
     }
