@@ -221,37 +221,13 @@ impl FromGray for Gray8 {
     }
 }
 
-impl FromGray for BinaryColor {
-    const DITHERED: bool = true;
-
-    /// `On` for luma `>= 128`, `Off` below.
-    #[inline]
-    fn from_gray(luma: u8) -> Self {
-        Self::from_gray_with(luma, Threshold::NEAREST)
-    }
-
-    /// `On` at level 1 of 0 and 1.
-    #[inline]
-    fn from_gray_with(luma: u8, threshold: Threshold) -> Self {
-        if threshold.level(luma, 1) == 1 {
-            BinaryColor::On
-        } else {
-            BinaryColor::Off
-        }
-    }
-
-    #[inline]
-    fn from_rgb_with(r: u8, g: u8, b: u8, threshold: Threshold) -> Self {
-        Self::from_gray_with(rgb_to_luma(r, g, b), threshold)
-    }
-}
-
 macro_rules! from_gray_levels {
-    ($($color:ty: $max:expr),*) => {
+    ($($color:ty: $max:expr => $make:expr),*) => {
         $(impl FromGray for $color {
             const DITHERED: bool = true;
 
-            /// The nearest level, as the embedded-graphics conversion of [`Gray8`].
+            /// The nearest level: as the embedded-graphics conversion of [`Gray8`] (a
+            /// [`BinaryColor`] is `On` for luma `>= 128`).
             #[inline]
             fn from_gray(luma: u8) -> Self {
                 Self::from_gray_with(luma, Threshold::NEAREST)
@@ -259,7 +235,7 @@ macro_rules! from_gray_levels {
 
             #[inline]
             fn from_gray_with(luma: u8, threshold: Threshold) -> Self {
-                <$color>::new(threshold.level(luma, $max))
+                $make(threshold.level(luma, $max))
             }
 
             #[inline]
@@ -270,7 +246,11 @@ macro_rules! from_gray_levels {
     };
 }
 
-from_gray_levels!(Gray2: 3, Gray4: 15);
+from_gray_levels!(
+    BinaryColor: 1 => |level: u8| BinaryColor::from(level == 1),
+    Gray2: 3 => Gray2::new,
+    Gray4: 15 => Gray4::new
+);
 
 macro_rules! from_rgb_levels {
     ($($color:ty),*) => {
