@@ -208,6 +208,16 @@ pub fn run(
     Ok(())
 }
 
+/// Writes the encoded image `bytes` to `output` (replaced atomically, never left partial);
+/// the name it goes by, for messages.
+pub fn write_image(output: &Path, bytes: &[u8]) -> Result<std::path::PathBuf> {
+    let mut out = Output::create(output, Content::Binary("an image"))?;
+    let name = out.name().to_path_buf();
+    out.write_all(bytes).map_err(|e| out.error(e))?;
+    out.commit()?;
+    Ok(name)
+}
+
 /// `pifs decode --display`: the stream `input` as `panel` shows it, dithered by `dither`, at
 /// `scale`.
 fn on_panel(
@@ -239,10 +249,7 @@ fn on_panel(
         shown.channels,
         &shown.pixels,
     )?;
-    let mut out = Output::create(output, Content::Binary("an image"))?;
-    let name = out.name().to_path_buf();
-    out.write_all(&encoded).map_err(|e| out.error(e))?;
-    out.commit()?;
+    let name = write_image(output, &encoded)?;
     say!(
         "{}: {}x{} as a {} panel shows it ({}) in {:.1} ms",
         name.display(),
@@ -272,10 +279,7 @@ fn surface(
         scale.apply(header.height.into()),
     );
     let bytes = format.encode_values(output, width, height, &values)?;
-    let mut out = Output::create(output, Content::Binary("an image"))?;
-    let name = out.name().to_path_buf();
-    out.write_all(&bytes).map_err(|e| out.error(e))?;
-    out.commit()?;
+    let name = write_image(output, &bytes)?;
     let (low, high) = header.range.map_or((0, 0), |r| (r.low, r.high()));
     say!(
         "{}: {width}x{height} 16-bit surface ({low}..{high}) decoded in {:.1} ms",
@@ -323,10 +327,7 @@ fn relief(
         1,
         &shade,
     )?;
-    let mut out = Output::create(output, Content::Binary("an image"))?;
-    let name = out.name().to_path_buf();
-    out.write_all(&bytes).map_err(|e| out.error(e))?;
-    out.commit()?;
+    let name = write_image(output, &bytes)?;
     say!(
         "{}: {}x{} hillshaded relief decoded in {:.1} ms",
         name.display(),

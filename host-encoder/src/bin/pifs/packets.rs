@@ -273,8 +273,6 @@ pub fn decode(
     display: Option<(crate::display::Panel, decoder_core::graphics::Dither)>,
 ) -> Result<()> {
     let (_, mut assembled) = assemble_at(inputs, max_pixels)?;
-    let mut out = Output::create(output, Content::Binary("an image"))?;
-    let name = out.name().to_path_buf();
     let mut picture = crate::display::Picture {
         width: assembled.width,
         height: assembled.height,
@@ -285,14 +283,13 @@ pub fn decode(
         picture = crate::display::show_picture(&picture, panel, dither);
     }
     let bytes = format.encode(
-        &name,
+        output,
         picture.width,
         picture.height,
         picture.channels,
         &picture.pixels,
     )?;
-    out.write_all(&bytes).map_err(|e| out.error(e))?;
-    out.commit()?;
+    let name = crate::decode::write_image(output, &bytes)?;
     say!("{}: {}", name.display(), describe(&assembled));
     Ok(())
 }
