@@ -197,14 +197,21 @@ def j2k_at_bytes(pgm, budget, tdir, read=read_gray):
     return best
 
 
-def bench_image(job):
-    path, rates, work, pifs, with_j2k, pifs_args = job
+def prepare(path, work):
+    """An image's name, its work directory (made), its grayscale pixels and their PGM there
+    (`orig.pgm`, what the codecs are given)."""
     name = os.path.splitext(os.path.basename(path))[0]
     tdir = os.path.join(work, name)
     os.makedirs(tdir, exist_ok=True)
     orig = read_gray(path)
     pgm = os.path.join(tdir, "orig.pgm")
     Image.fromarray(orig, "L").save(pgm)
+    return name, tdir, orig, pgm
+
+
+def bench_image(job):
+    path, rates, work, pifs, with_j2k, pifs_args = job
+    name, tdir, orig, pgm = prepare(path, work)
     h, w = orig.shape
     rows = [dict(image=name, codec="original", target_bpp="", bytes="", bpp="",
                  **{k: v for k, v in metrics(orig, orig).items()})]

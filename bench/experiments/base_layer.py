@@ -23,7 +23,7 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from seams import metrics, read_gray, run  # noqa: E402
+from seams import metrics, prepare, read_gray, run  # noqa: E402
 
 
 def block_means(img, f):
@@ -87,13 +87,8 @@ def upsample(base, f, h, w):
 
 def bench(job):
     path, rates, work, pifs, f, step = job
-    name = os.path.splitext(os.path.basename(path))[0]
-    tdir = os.path.join(work, name)
-    os.makedirs(tdir, exist_ok=True)
-    orig = read_gray(path)
+    name, tdir, orig, pgm = prepare(path, work)
     h, w = orig.shape
-    pgm = os.path.join(tdir, "orig.pgm")
-    Image.fromarray(orig, "L").save(pgm)
     qb = np.round(block_means(orig, f) / step).astype(np.int64)
     base_bytes = int(math.ceil((adaptive_bits(med_residuals(qb)) + 16) / 8))
     up = upsample(qb * float(step), f, h, w)

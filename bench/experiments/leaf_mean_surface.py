@@ -27,7 +27,8 @@ from PIL import Image
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from seam_ramps import leaves  # noqa: E402
-from seams import grid_measure, psnr, read_gray, run, smooth_grid_measure, ssim  # noqa: E402
+from seams import (grid_measure, prepare, psnr, read_gray, run,  # noqa: E402
+                   smooth_grid_measure, ssim)
 
 
 def surface(dec, lv, min_size, limit, flat, select):
@@ -63,12 +64,7 @@ def measure(orig, rec):
 
 def bench(job):
     path, rates, work, pifs, min_size, limits = job
-    name = os.path.splitext(os.path.basename(path))[0]
-    tdir = os.path.join(work, name)
-    os.makedirs(tdir, exist_ok=True)
-    orig = read_gray(path)
-    pgm = os.path.join(tdir, "orig.pgm")
-    Image.fromarray(orig, "L").save(pgm)
+    name, tdir, orig, pgm = prepare(path, work)
     rows = []
     for rate in rates:
         for tag, extra in (("stream", []), ("raw", ["--deblock", "0"])):
