@@ -1570,16 +1570,21 @@ fn decode_shows_the_picture_as_a_panel_would() {
     let line = refused(&pifs_on("decode", &stream, &out, &["--dither", "nearest"]));
     assert!(line.contains("--display"), "{line}");
     let heights = dir.join("heights.png");
-    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(32, 16, |x, y| {
-        image::Luma([(x * 1000 + y * 300) as u16])
-    })
-    .save(&heights)
-    .unwrap();
+    heights_png(&heights);
     let surface = dir.join("heights.pifs");
     ok(&pifs_on("encode", &heights, &surface, &[]));
     let line = refused(&pifs_on("decode", &surface, &out, &["--display", "mono"]));
     assert!(line.contains("16-bit surface"), "{line}");
     assert!(!out.exists());
+}
+
+/// A 32x16 16-bit grayscale PNG (a heightmap: a 16-bit stream) at `path`.
+fn heights_png(path: &Path) {
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(32, 16, |x, y| {
+        image::Luma([(x * 1000 + y * 300) as u16])
+    })
+    .save(path)
+    .unwrap();
 }
 
 /// `--resize WxH` scales the image to fit the box, keeping its shape, before `encode` (and
@@ -1593,11 +1598,7 @@ fn resize_fits_the_image_to_a_display() {
     let colour = dir.join("colour.png");
     colour_gradient().save(&colour).unwrap();
     let heights = dir.join("heights.png");
-    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(32, 16, |x, y| {
-        image::Luma([(x * 1000 + y * 300) as u16])
-    })
-    .save(&heights)
-    .unwrap();
+    heights_png(&heights);
     for (input, fit, size, channels) in [
         (&gray, "20x20", (20, 12), 1),
         (&colour, "24x100", (24, 16), 3),
