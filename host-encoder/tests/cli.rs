@@ -1432,8 +1432,8 @@ fn pifs_on(command: &str, input: &Path, output: &Path, args: &[&str]) -> Output 
     pifs(&all)
 }
 
-/// `decode --display PANEL` writes the picture as the panel shows it, drawn by decoder-core's
-/// embedded-graphics adapter as on the device: each pixel the level `FromGray::from_gray_with`
+/// `decode --display PANEL` writes the picture as the panel shows it, as decoder-core's
+/// embedded-graphics drawing converts it on the device: each pixel the level `FromGray::from_gray_with`
 /// / `from_rgb_with` give at `Threshold::ordered` of its position (the default) or `from_gray` /
 /// `from_rgb` gives (`--dither nearest`), written back as 8-bit samples; at a scale too (the
 /// positions are the scaled image's); a packet set as the host assembles it, each pixel so

@@ -186,17 +186,6 @@ impl StreamInput {
         false
     }
 
-    /// The stream's bytes, whole (a file is read again: a decoder of them checks them again).
-    pub fn bytes(&self) -> Result<Vec<u8>, FileError> {
-        match &self.bytes {
-            Stored::Memory(data) => Ok(data.clone()),
-            Stored::File(path) => std::fs::read(path).map_err(|source| FileError::Read {
-                path: self.name.clone(),
-                source,
-            }),
-        }
-    }
-
     /// A decoder of the stream, and the slot where a read error of the file it comes from
     /// is kept (the decoder itself only sees the stream end early).
     #[allow(clippy::type_complexity)]

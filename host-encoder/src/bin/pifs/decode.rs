@@ -5,7 +5,7 @@
 //! row band by row band ([`io::decode_to_image`]), so memory follows the width, not the image.
 //! A 16-bit stream is decoded whole to its values and written as a 16-bit image.
 
-use crate::display::{self, Panel};
+use crate::display::{self, Showing};
 use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
 use crate::say;
@@ -124,8 +124,8 @@ pub struct Drawing {
     pub packets: bool,
     /// Draw the heights as a hillshaded relief, with this vertical exaggeration.
     pub hillshade: Option<ZFactor>,
-    /// Draw the picture as this panel shows it, dithered so.
-    pub display: Option<(Panel, Dither)>,
+    /// Draw the picture as a panel shows it.
+    pub display: Option<Showing>,
 }
 
 /// `pifs decode`: refuses a bad output name before reading anything, a bad stream on its
@@ -159,14 +159,14 @@ pub fn run(
         say::stdout_is_data();
     }
     let from_packets = packets || inputs.len() > 1 || crate::packets::is_packet_input(input);
-    if let Some((panel, dither)) = display {
+    if let Some(showing) = display {
         if hillshade.is_some() {
             return Err(CliError::Refused(
                 "--display and --hillshade draw different pictures: one at a time".into(),
             ));
         }
         if !from_packets {
-            return on_panel(input, output, format, limits, (panel, dither, scale), start);
+            return on_panel(input, output, format, limits, showing, scale, start);
         }
     }
     if let Some(ZFactor(z_factor)) = hillshade {
@@ -225,7 +225,8 @@ fn on_panel(
     output: &Path,
     format: OutputFormat,
     limits: &Limits,
-    (panel, dither, scale): (Panel, Dither, Scale),
+    showing: Showing,
+    scale: Scale,
     start: Instant,
 ) -> Result<()> {
     let stream = open_stream(input, limits)?;
@@ -235,13 +236,21 @@ fn on_panel(
             stream.name().display()
         )));
     }
-    let bytes = stream.bytes()?;
-    let shown = display::show(&bytes, panel, dither, scale).map_err(|source| {
-        CliError::from(io::FileError::Stream {
-            path: stream.name().to_path_buf(),
-            source,
-        })
-    })?;
+    let (decoder, failure) = stream.decoder()?;
+    let decoder = decoder.scale(scale);
+    let (width, height) = decoder.output_size();
+    let channels = decoder.header().channels;
+    let mut pixels = vec![0u8; width as usize * height as usize * usize::from(channels)];
+    decoder
+        .decode_into(&mut pixels)
+        .map_err(|e| stream.error(e, &failure))?;
+    let decoded = display::Picture {
+        width,
+        height,
+        channels,
+        pixels,
+    };
+    let shown = display::show_picture(&decoded, showing);
     let encoded = format.encode(
         output,
         shown.width,
@@ -255,8 +264,8 @@ fn on_panel(
         name.display(),
         shown.width,
         shown.height,
-        display::panel_name(panel),
-        match dither {
+        display::panel_name(showing.panel),
+        match showing.dither {
             Dither::Ordered => "ordered dither",
             Dither::Nearest => "nearest levels",
         },

@@ -1,17 +1,21 @@
-//! `pifs decode --display PANEL`: the picture as a small display of fewer levels shows it. The
-//! stream is drawn by decoder-core's embedded-graphics adapter, the device's own code with its
-//! dithering, onto a panel held in memory, whose colours are then written as an 8-bit image.
+//! `pifs decode --display PANEL`: the picture as a small display of fewer levels shows it:
+//! each decoded pixel converted by decoder-core's embedded-graphics colours at its position, as
+//! the device's `graphics::DrawSink` converts it (dithering included), then written back as an
+//! 8-bit image.
 
-use std::marker::PhantomData;
-
-use decoder_core::graphics::{Dither, FromGray, PifsImage, Threshold};
-use decoder_core::{DecodeError, DrawError, Scale};
-use embedded_graphics_core::draw_target::DrawTarget;
-use embedded_graphics_core::geometry::{OriginDimensions, Size};
+use decoder_core::graphics::{Dither, FromGray, Threshold};
 use embedded_graphics_core::pixelcolor::{
     BinaryColor, Gray2, Gray4, Gray8, GrayColor, Rgb565, Rgb666, Rgb888, RgbColor,
 };
-use embedded_graphics_core::Pixel;
+
+/// What `--display` asks for: the panel, and how its levels are reached.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Showing {
+    /// The panel.
+    pub panel: Panel,
+    /// How the panel's levels are reached.
+    pub dither: Dither,
+}
 
 /// A kind of panel `pifs decode --display` shows the picture on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,26 +84,10 @@ pub struct Picture {
     pub pixels: Vec<u8>,
 }
 
-/// The picture `stream` (a whole stream) as `panel` shows it, drawn at `scale` with `dither`.
-pub fn show(
-    stream: &[u8],
-    panel: Panel,
-    dither: Dither,
-    scale: Scale,
-) -> Result<Picture, DecodeError> {
-    match panel {
-        Panel::Rgb565 => draw::<Rgb565>(stream, dither, scale),
-        Panel::Rgb666 => draw::<Rgb666>(stream, dither, scale),
-        Panel::Gray4 => draw::<Gray4>(stream, dither, scale),
-        Panel::Gray2 => draw::<Gray2>(stream, dither, scale),
-        Panel::Mono => draw::<BinaryColor>(stream, dither, scale),
-    }
-}
-
-/// A decoded `picture` as `panel` shows it with `dither`: each pixel converted as the device's
-/// `graphics::DrawSink` converts it at that image position (for pictures assembled on the
-/// host, such as a packet set).
-pub fn show_picture(picture: &Picture, panel: Panel, dither: Dither) -> Picture {
+/// A decoded `picture` as the panel of `showing` shows it: each pixel converted as the
+/// device's `graphics::DrawSink` converts it at that image position.
+pub fn show_picture(picture: &Picture, showing: Showing) -> Picture {
+    let Showing { panel, dither } = showing;
     match panel {
         Panel::Rgb565 => convert::<Rgb565>(picture, dither),
         Panel::Rgb666 => convert::<Rgb666>(picture, dither),
@@ -181,63 +169,5 @@ impl Shade for BinaryColor {
     const CHANNELS: u8 = 1;
     fn put(self, out: &mut [u8]) {
         out[0] = if self.is_on() { 255 } else { 0 };
-    }
-}
-
-/// A panel in memory.
-struct Canvas<C> {
-    size: Size,
-    pixels: Vec<u8>,
-    colour: PhantomData<C>,
-}
-
-impl<C> OriginDimensions for Canvas<C> {
-    fn size(&self) -> Size {
-        self.size
-    }
-}
-
-impl<C: Shade> DrawTarget for Canvas<C> {
-    type Color = C;
-    type Error = std::convert::Infallible;
-
-    fn draw_iter<I: IntoIterator<Item = Pixel<C>>>(
-        &mut self,
-        pixels: I,
-    ) -> Result<(), Self::Error> {
-        let n = usize::from(C::CHANNELS);
-        for Pixel(p, c) in pixels {
-            let (Ok(x), Ok(y)) = (u32::try_from(p.x), u32::try_from(p.y)) else {
-                continue;
-            };
-            if x < self.size.width && y < self.size.height {
-                let at = (y as usize * self.size.width as usize + x as usize) * n;
-                c.put(&mut self.pixels[at..at + n]);
-            }
-        }
-        Ok(())
-    }
-}
-
-fn draw<C: Shade>(stream: &[u8], dither: Dither, scale: Scale) -> Result<Picture, DecodeError> {
-    let image = PifsImage::<C>::with_stripe_capacity::<{ host_encoder::io::HOST_STRIPE }>(stream)?
-        .with_scale(scale)
-        .with_dither(dither);
-    let size = image.size();
-    let samples = size.width as usize * size.height as usize * usize::from(C::CHANNELS);
-    let mut canvas = Canvas {
-        size,
-        pixels: vec![0; samples],
-        colour: PhantomData::<C>,
-    };
-    match image.draw_checked(&mut canvas) {
-        Ok(()) => Ok(Picture {
-            width: size.width,
-            height: size.height,
-            channels: C::CHANNELS,
-            pixels: canvas.pixels,
-        }),
-        Err(DrawError::Decode(e)) => Err(e),
-        Err(DrawError::Sink(never)) => match never {},
     }
 }

@@ -90,8 +90,9 @@ enum Command {
         #[arg(long, value_name = "Z", num_args = 0..=1, default_missing_value = "auto",
               value_parser = decode::parse_z_factor)]
         hillshade: Option<decode::ZFactor>,
-        /// Write the picture as a small display of fewer levels shows it, drawn by the
-        /// decoder's embedded-graphics adapter as on the device: rgb565 (ST7789, ILI9341,
+        /// Write the picture as a small display of fewer levels shows it, each pixel converted
+        /// to the panel's colours as the device's embedded-graphics drawing converts it
+        /// (dithering included): rgb565 (ST7789, ILI9341,
         /// SSD1351), rgb666 (ILI9488), gray4 (16-grey OLEDs), gray2 (4-grey e-paper) or mono
         /// (SSD1306/SH1106 OLEDs, memory LCDs); with --scale for a thumbnail. A packet set:
         /// the picture assembled from what arrived, each pixel as the device draws it.
@@ -205,7 +206,7 @@ fn main() -> ExitCode {
                 scale,
                 packets,
                 hillshade,
-                display: display.map(|panel| (panel, dither)),
+                display: display.map(|panel| display::Showing { panel, dither }),
             },
         ),
         Some(Command::Info {

@@ -270,7 +270,7 @@ pub fn decode(
     output: &Path,
     format: OutputFormat,
     max_pixels: u64,
-    display: Option<(crate::display::Panel, decoder_core::graphics::Dither)>,
+    display: Option<crate::display::Showing>,
 ) -> Result<()> {
     let (_, mut assembled) = assemble_at(inputs, max_pixels)?;
     let mut picture = crate::display::Picture {
@@ -279,8 +279,8 @@ pub fn decode(
         channels: assembled.channels,
         pixels: std::mem::take(&mut assembled.pixels),
     };
-    if let Some((panel, dither)) = display {
-        picture = crate::display::show_picture(&picture, panel, dither);
+    if let Some(showing) = display {
+        picture = crate::display::show_picture(&picture, showing);
     }
     let bytes = format.encode(
         output,
