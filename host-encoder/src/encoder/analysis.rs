@@ -12,9 +12,9 @@
 //! Above every stage; below the public API (`super`), which encodes targets from its result.
 
 use super::candidates::{
-    targets_of, Candidate, CandidateTree, Level, NodeAnalysis, WithCandidates,
+    targets_of, Candidate, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
 };
-use super::chroma::{self, ChromaCache, ColourPlanes};
+use super::chroma::{self, ChromaCache, ChromaSteps, ColourPlanes};
 use super::config::EncoderConfig;
 use super::error::EncodeError;
 use super::fit::{fit_default, prepare_projections, Fit};
@@ -254,6 +254,12 @@ impl Analysis {
             floor: trial_lambda / margin,
         };
         let (plane, header) = (&self.plane, &self.header);
+        let colour = self.colour.as_ref();
+        let stripe = header.stripe_width();
+        let chroma_steps = ChromaSteps::Fine {
+            first,
+            floor: search.floor,
+        };
         let (levels, masking) = self.tree.levels_and_masking_mut();
         // Each node's chain ends are dropped once its fine pass is done.
         for (level, ends) in levels.iter_mut().zip(ends) {
@@ -265,6 +271,12 @@ impl Analysis {
                     let weight = masking.weight(&na.node);
                     fine_candidates(plane, header, (na, weight), &ends, &search);
                     prune_node(na, &ALL_LAMBDAS);
+                    if let Some(colour) = colour {
+                        let node = na.node;
+                        let cost = &na.chroma;
+                        na.chroma =
+                            chroma::leaf_cost(colour, &node, (stripe, weight), chroma_steps, cost);
+                    }
                 }
                 report();
             });
@@ -397,7 +409,18 @@ impl Analysis {
                         Some(na) => {
                             let weight = masking.weight(&na.node);
                             if let Some(colour) = colour {
-                                na.chroma = chroma::leaf_cost(colour, &na.node, stripe, weight);
+                                let steps = match first {
+                                    0 => ChromaSteps::All,
+                                    first => ChromaSteps::Coarse { first },
+                                };
+                                let earlier = ChromaCost::default();
+                                na.chroma = chroma::leaf_cost(
+                                    colour,
+                                    &na.node,
+                                    (stripe, weight),
+                                    steps,
+                                    &earlier,
+                                );
                             }
                             na.fits = fits.iter().map(|f| f.model).collect();
                             let ends =

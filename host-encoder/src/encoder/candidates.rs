@@ -76,6 +76,14 @@ impl ChromaCost {
         }
     }
 
+    /// The hull of plane `p`'s options (0: `Cb`, 1: `Cr`; none if not priced).
+    pub fn plane(&self, p: usize) -> &[RatePoint] {
+        self.planes
+            .as_ref()
+            .and_then(|planes| planes.get(p))
+            .map_or(&[], |hull| hull.as_slice())
+    }
+
     /// Each plane's option of least `sse + lambda * bits`.
     pub fn cheapest(&self, lambda: f64) -> impl Iterator<Item = &RatePoint> {
         let cost = move |p: &RatePoint| f64::from(p.sse) + lambda * f64::from(p.bits);

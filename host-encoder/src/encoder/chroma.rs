@@ -18,7 +18,7 @@
 use super::candidates::{ChromaCost, RatePoint};
 use super::plane::{ImagePrediction, Plane};
 use super::quantise::forward_grid_transform;
-use super::rate::lower_hull;
+use super::rate::GrowingHull;
 use crate::entropy::BitCounter;
 use decoder_core::internal::colour::{chroma_len, chroma_node, CHROMA_GRIDS};
 use decoder_core::internal::colour::{chroma_models, rgb_to_ycbcr, sample_row, ChromaPlane};
@@ -96,13 +96,21 @@ pub struct ChromaChoice {
     pub bits: f64,
 }
 
-/// The least-squares projector of one row (or column) of a chroma leaf of side `2^log2` onto
-/// the `g + 1` values of chroma model `model`'s grid of `g` intervals (`g` below the side):
-/// `(B^T B)^-1 B^T`, with `B` the pixels' linear weights of the grid values (one row per
-/// pixel). The bilinear grid is a tensor product, so a leaf is projected along its rows, then
-/// down its columns ([`targets`]): tables of a few kilobytes instead of megabytes.
-fn projector(log2: u8, model: usize) -> &'static DMatrix<f64> {
-    static CACHE: [[OnceLock<DMatrix<f64>>; 4]; 8] = [const { [const { OnceLock::new() }; 4] }; 8];
+/// The least-squares projection of one row (or column) of a chroma leaf of side `2^log2` onto
+/// the `g + 1` values of chroma model `model`'s grid of `g` intervals (`g` below the side).
+/// The bilinear grid is a tensor product, so a leaf is projected along its rows, then down its
+/// columns ([`targets`]): tables of a few kilobytes instead of megabytes.
+struct Projector {
+    /// `(B^T B)^-1 B^T`, with `B` the pixels' linear weights of the grid values (one row per
+    /// pixel).
+    p: DMatrix<f64>,
+    /// `B^T B`: the squared norm of the surface of grid values `t` is `<G t G, t>`.
+    gram: DMatrix<f64>,
+}
+
+/// The [`Projector`] of chroma model `model` on a leaf of side `2^log2`.
+fn projector(log2: u8, model: usize) -> &'static Projector {
+    static CACHE: [[OnceLock<Projector>; 4]; 8] = [const { [const { OnceLock::new() }; 4] }; 8];
     CACHE[usize::from(log2)][model].get_or_init(|| {
         let size = 1usize << log2;
         let g = usize::from(CHROMA_GRIDS[model].0);
@@ -115,12 +123,34 @@ fn projector(log2: u8, model: usize) -> &'static DMatrix<f64> {
             b[(i, a + 1)] += f;
         }
         let bt = b.transpose();
+        let gram = &bt * &b;
         // Every grid value weighs some pixel (`sp >= 2`), so the Gram matrix is invertible.
-        let inv = (&bt * &b)
+        let inv = gram
+            .clone()
             .try_inverse()
             .expect("a full-rank bilinear basis");
-        inv * bt
+        Projector { p: inv * bt, gram }
     })
+}
+
+/// A lower bound on the squared error of every reconstruction of chroma model `model` at
+/// `node` (`pixels` as [`leaf_pixels`] gives them, the node inside the plane), whatever its
+/// control values: the least-squares surface's error, less what rounding to whole levels can
+/// take away (at most half a level a pixel: by the triangle inequality, the root of the error
+/// falls by at most `size / 2`). Zero for the pixel grids, which can be exact.
+fn error_floor(pixels: &[f64], node: &Node, model: usize) -> f64 {
+    let size = node.size() as usize;
+    if usize::from(CHROMA_GRIDS[model].0) >= size {
+        return 0.0;
+    }
+    let Projector { p, gram } = projector(node.log2, model);
+    let x = DMatrix::from_row_slice(size, size, pixels);
+    let t = p * &x * p.transpose();
+    // The surface is the orthogonal projection of the pixels: its error is their norm less
+    // its own.
+    let residual = x.norm_squared() - (gram * &t * gram).dot(&t);
+    let root = residual.max(0.0).sqrt() - 0.5 * size as f64;
+    root.max(0.0).powi(2)
 }
 
 /// The chroma leaf's pixels (row-major, side `2^log2`), those past the plane's edge repeating
@@ -148,7 +178,7 @@ fn targets(pixels: &[f64], node: &Node, model: usize) -> Vec<f64> {
     if g >= size {
         return pixels.iter().map(|&p| p * one).collect();
     }
-    let p = projector(node.log2, model);
+    let p = &projector(node.log2, model).p;
     // Rows of `t` are the grid's rows (down the leaf), as the pixels'.
     let t = p * DMatrix::from_row_slice(size, size, pixels) * p.transpose();
     let side = g + 1;
@@ -170,6 +200,9 @@ fn quantise(t: &[f64], coefficients: Option<&[f64]>, side: usize, step: i32) -> 
         }
     } else {
         let mut recon = [0i16; MAX_CONTROL];
+        // Each index depends on the one before (closed loop): a multiplication by the
+        // reciprocal keeps the chain short where a division would stall it.
+        let per_step = 1.0 / f64::from(step);
         for i in 0..side * side {
             let (r, c) = (i / side, i % side);
             let base = if i == 0 {
@@ -177,8 +210,8 @@ fn quantise(t: &[f64], coefficients: Option<&[f64]>, side: usize, step: i32) -> 
             } else {
                 intra_prediction(&recon, side, r, c)
             };
-            let index = round_half_away((t[i] - f64::from(base)) / f64::from(step))
-                .clamp(-limit, limit) as i32;
+            let index =
+                round_half_away((t[i] - f64::from(base)) * per_step).clamp(-limit, limit) as i32;
             k[i] = index as i16;
             recon[i] = dequantise_control(base, step, index);
         }
@@ -310,6 +343,12 @@ struct NodeOptions {
 impl NodeOptions {
     /// No option reconstructed yet, the targets of every model fitted to `plane` at `node`.
     fn new(plane: &Plane, node: &Node) -> Self {
+        Self::of_pixels(&leaf_pixels(plane, node), node)
+    }
+
+    /// No option reconstructed yet, the targets of every model fitted to `pixels` (the
+    /// node's, as [`leaf_pixels`] gives them).
+    fn of_pixels(pixels: &[f64], node: &Node) -> Self {
         let mut series = Vec::new();
         for (model, &(g, _)) in CHROMA_GRIDS
             .iter()
@@ -329,9 +368,8 @@ impl NodeOptions {
                 });
             }
         }
-        let pixels = leaf_pixels(plane, node);
         let targets: Vec<Vec<f64>> = (0..chroma_models(node.log2))
-            .map(|model| targets(&pixels, node, model))
+            .map(|model| targets(pixels, node, model))
             .collect();
         let coefficients = targets
             .iter()
@@ -567,11 +605,59 @@ pub fn choose<P: SamplePrediction>(
     })
 }
 
+/// Which control steps [`leaf_cost`] searches (as the luma chains' passes,
+/// [`super::EncoderConfig::fine_steps`]).
+#[derive(Debug, Clone, Copy)]
+pub enum ChromaSteps {
+    /// Every step: an analysis that may serve any target.
+    All,
+    /// The coarse pass: control quantisers from `first` up.
+    Coarse {
+        /// The finest control quantiser searched.
+        first: u8,
+    },
+    /// The fine pass: the quantisers below `first`, each series going on from its step
+    /// `first` while a step lowers the error by at least `floor` per bit it adds (a step
+    /// that buys less is on the hull only for multipliers below the floor, a finer one
+    /// still, less again).
+    Fine {
+        /// The finest control quantiser of the coarse pass.
+        first: u8,
+        /// Error per bit below which a series stops.
+        floor: f64,
+    },
+}
+
+impl ChromaSteps {
+    /// The control quantisers a series visits, coarsest first (with [`ChromaSteps::Fine`],
+    /// the coarse pass's finest first, to measure the next step against).
+    fn quantisers(self) -> std::ops::RangeInclusive<u8> {
+        let coarsest = (CONTROL_QUANTISERS - 1) as u8;
+        match self {
+            ChromaSteps::All => 0..=coarsest,
+            ChromaSteps::Coarse { first } => first..=coarsest,
+            ChromaSteps::Fine { first, .. } => 0..=first,
+        }
+    }
+}
+
 /// What coding the chroma of the luma node `node` as a leaf costs, estimated from the image's
 /// own chroma (its frontier) and the contexts every stream starts from: for each plane, its
 /// options on the lower convex hull of (bits, weighted error), the error also times the node's
-/// `weight` (as its luma's, [`super::masking::Masking`]).
-pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32, weight: f64) -> ChromaCost {
+/// `weight` (as its luma's, [`super::masking::Masking`]), at the control steps `steps` says,
+/// merged with the hull of the `earlier` pass.
+///
+/// Each series of steps (a chroma model and coding, the richest first) goes from coarse to
+/// fine and stops once the hull so far covers the point of its last step's bits at the
+/// model's [`error_floor`]: a finer step has more bits (nearly always) and no less error, so
+/// it could not be on the hull (the luma chains' rule, `docs/decisions.md`).
+pub fn leaf_cost(
+    colour: &ColourPlanes,
+    node: &Node,
+    (stripe, weight): (u32, f64),
+    steps: ChromaSteps,
+    earlier: &ChromaCost,
+) -> ChromaCost {
     let cnode = chroma_node(node);
     let contexts = ChromaContexts::default();
     let mut planes: [Vec<RatePoint>; 2] = Default::default();
@@ -584,16 +670,30 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32, weight: f64) -
             plane,
             stripe: stripe / 2,
         };
-        // Every option once, in the order a write visits them: nothing is kept for later.
-        let mut options = Vec::new();
-        let node_options = NodeOptions::new(plane, &cnode);
+        let pixels = leaf_pixels(plane, &cnode);
+        let node_options = NodeOptions::of_pixels(&pixels, &cnode);
+        // The floor counts every pixel of the node: only where all are inside the plane.
+        let end = |start: u32| start.checked_add(cnode.size());
+        let inside = end(cnode.x).is_some_and(|x| x <= plane.width)
+            && end(cnode.y).is_some_and(|y| y <= plane.height);
+        let scale = weight * 4.0 * CHROMA_WEIGHTS[p & 1];
+        let floors: Vec<f64> = (0..node_options.targets.len())
+            .map(|model| match inside {
+                true => scale * error_floor(&pixels, &cnode, model),
+                false => 0.0,
+            })
+            .collect();
+        let mut growing = GrowingHull::default();
+        for o in earlier.plane(p) {
+            growing.add((f64::from(o.bits), f64::from(o.sse)));
+        }
         let mut ctx = contexts.clone();
-        for series in &node_options.series {
+        for series in node_options.series.iter().rev() {
             let model = usize::from(series.model);
             let t = &node_options.targets[model];
             let c = node_options.coefficients[model].as_ref();
-            for k in 0..CONTROL_QUANTISERS {
-                let cq = (CONTROL_QUANTISERS - 1 - k) as u8;
+            let mut last: Option<(f64, f64)> = None;
+            for cq in steps.quantisers().rev() {
                 let Some((syntax, rec)) = quantised(t, c, &cnode, series.model, cq, series.coding)
                 else {
                     continue;
@@ -602,17 +702,36 @@ pub fn leaf_cost(colour: &ColourPlanes, node: &Node, stripe: u32, weight: f64) -
                     continue;
                 };
                 let rgb_sse = 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, &cnode, &rec);
-                options.push((bits, weight * rgb_sse));
+                let point = (bits, weight * rgb_sse);
+                if let ChromaSteps::Fine { first, floor } = steps {
+                    if cq == first {
+                        // The coarse pass's last step, already counted.
+                        last = Some(point);
+                        continue;
+                    }
+                    let stalls = last.is_some_and(|(b, e)| {
+                        let added = point.0 - b;
+                        added > 0.0 && e - point.1 < floor * added
+                    });
+                    growing.add(point);
+                    if stalls {
+                        break;
+                    }
+                } else {
+                    growing.add(point);
+                }
+                if growing.covers((bits, floors[model])) {
+                    break;
+                }
+                last = Some(point);
             }
         }
-        *hull = lower_hull(&options)
-            .into_iter()
-            .map(|k| {
-                let (bits, sse) = options[usize::from(k)];
-                RatePoint {
-                    bits: bits as f32,
-                    sse: sse as f32,
-                }
+        *hull = growing
+            .vertices()
+            .iter()
+            .map(|&(bits, sse)| RatePoint {
+                bits: bits as f32,
+                sse: sse as f32,
             })
             .collect();
     }
@@ -750,6 +869,81 @@ mod tests {
             })
             .collect();
         Plane::new(32, 32, data)
+    }
+
+    /// A 64 x 64 RGB image with chroma that varies smoothly and with texture.
+    fn colour_image() -> ColourPlanes {
+        let rgb = (0..64u32 * 64)
+            .flat_map(|k| {
+                let (x, y) = (k % 64, k / 64);
+                let grain = ((x * 7 + y * 3) % 23) as i32 - 11;
+                [
+                    (60 + 2 * x as i32 + grain) as u8,
+                    (90 + y as i32 + ((x * y) % 5) as i32 * 6) as u8,
+                    (200 - 2 * y as i32 + grain / 2) as u8,
+                ]
+            })
+            .collect();
+        ColourPlanes::from_rgb(64, 64, rgb).1
+    }
+
+    /// The chroma cost of luma node `node` at `steps` after `earlier`.
+    fn cost(
+        colour: &ColourPlanes,
+        node: &Node,
+        steps: ChromaSteps,
+        earlier: &ChromaCost,
+    ) -> ChromaCost {
+        leaf_cost(colour, node, (128, 1.0), steps, earlier)
+    }
+
+    /// The coarse pass, then a fine pass that never finds a step paying too little, find the
+    /// hull one pass over every step finds.
+    #[test]
+    fn coarse_then_fine_steps_find_the_hull_of_every_step() {
+        let colour = colour_image();
+        let first = 5;
+        for log2 in 2..=6 {
+            let node = Node { x: 0, y: 0, log2 };
+            let none = ChromaCost::default();
+            let all = cost(&colour, &node, ChromaSteps::All, &none);
+            let coarse = cost(&colour, &node, ChromaSteps::Coarse { first }, &none);
+            let floor = f64::NEG_INFINITY;
+            let both = cost(&colour, &node, ChromaSteps::Fine { first, floor }, &coarse);
+            for p in 0..2 {
+                assert!(!all.plane(p).is_empty(), "{log2}");
+                assert_eq!(all.plane(p), both.plane(p), "plane {p}, node of {log2}");
+                // The coarse hull alone lacks the finest options.
+                let least =
+                    |c: &ChromaCost| c.plane(p).iter().map(|o| o.sse).fold(f32::MAX, f32::min);
+                assert!(least(&coarse) >= least(&all), "plane {p}, node of {log2}");
+            }
+        }
+    }
+
+    /// A fine pass whose floor no step reaches keeps, for the multipliers that want few bits,
+    /// the choices of every step.
+    #[test]
+    fn a_fine_pass_stops_where_steps_stop_paying() {
+        let colour = colour_image();
+        let first = 5;
+        for log2 in 2..=6 {
+            let node = Node { x: 0, y: 0, log2 };
+            let none = ChromaCost::default();
+            let all = cost(&colour, &node, ChromaSteps::All, &none);
+            let coarse = cost(&colour, &node, ChromaSteps::Coarse { first }, &none);
+            let floor = f64::INFINITY;
+            let fine = cost(&colour, &node, ChromaSteps::Fine { first, floor }, &coarse);
+            for lambda in [300.0, 3000.0, 30000.0] {
+                let cheapest =
+                    |c: &ChromaCost| -> Vec<RatePoint> { c.cheapest(lambda).copied().collect() };
+                assert_eq!(
+                    cheapest(&fine),
+                    cheapest(&all),
+                    "node of {log2}, lambda {lambda}"
+                );
+            }
+        }
     }
 
     #[test]

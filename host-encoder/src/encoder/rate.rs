@@ -567,6 +567,11 @@ impl GrowingHull {
         }
     }
 
+    /// The hull's vertices, by rising bits and falling error.
+    pub fn vertices(&self) -> &[(f64, f64)] {
+        &self.vertices
+    }
+
     /// Whether point `p` lies on or above the hull: no positive multiplier prefers it to the
     /// points added so far (nor to any added later, which only lower the hull).
     pub fn covers(&self, p: (f64, f64)) -> bool {
@@ -587,12 +592,6 @@ impl GrowingHull {
 /// Whether point `b` lies on or above the segment from `a` to `c` (`a.0 <= b.0 <= c.0`).
 fn on_or_above(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> bool {
     (b.1 - a.1) * (c.0 - a.0) >= (c.1 - a.1) * (b.0 - a.0)
-}
-
-/// Indices of the points `(bits, sse)` on their lower convex hull: those that minimise
-/// `sse + lambda * bits` for some positive `lambda`, ascending.
-pub fn lower_hull(points: &[(f64, f64)]) -> Vec<u16> {
-    lower_hull_in(points, &(0.0..=f64::INFINITY))
 }
 
 /// Indices of the points `(bits, sse)` that minimise `sse + lambda * bits` for some `lambda` in
@@ -878,7 +877,7 @@ impl FalsePosition {
 
 #[cfg(test)]
 mod tests {
-    use super::{lower_hull, lower_hull_in, Anchor, Constraint, GrowingHull, Search};
+    use super::{lower_hull_in, Anchor, Constraint, GrowingHull, Search};
 
     /// Numbers in [0, 1) from a linear congruential generator started at `seed`.
     fn uniform(mut seed: u32) -> impl FnMut() -> f64 {
@@ -909,7 +908,7 @@ mod tests {
             let points = random_points(&mut next, 15, 30.0, 500.0);
             let mut hull = GrowingHull::default();
             points.iter().for_each(|&p| hull.add(p));
-            let mut expected: Vec<(f64, f64)> = lower_hull(&points)
+            let mut expected: Vec<(f64, f64)> = lower_hull_in(&points, &(0.0..=f64::INFINITY))
                 .iter()
                 .map(|&k| points[usize::from(k)])
                 .collect();
