@@ -422,25 +422,9 @@ pub fn analyse_surface(
 
 /// Analyses `plane` under `config`, with a progress display on a terminal.
 fn analyse_with(plane: Plane, config: EncoderConfig) -> Result<Analysed> {
-    let start = Instant::now();
-    let work = Work::new(&host_encoder::analysis_steps(
-        plane.width,
-        plane.height,
-        &config,
-    ));
-    let progress = Progress::on_terminal(work);
-    let result = analyse(plane, &config, &|n| {
-        if let Some(p) = &progress {
-            p.nodes_done(n);
-        }
-    });
-    if let Some(p) = &progress {
-        p.finish();
-    }
-    Ok(Analysed {
-        analysis: result?,
-        seconds: start.elapsed().as_secs_f64(),
-        surface: None,
+    let (width, height) = (plane.width, plane.height);
+    with_progress((width, height), &config, |report| {
+        analyse(plane, &config, report)
     })
 }
 
@@ -457,14 +441,25 @@ pub fn analyse_loaded(
             width,
             height,
             data,
-        } => (width, height, data),
+        } => (*width, *height, data),
     };
+    let config = args.config(width as usize * height as usize, targets);
+    with_progress((width, height), &config, |report| {
+        analyse_colour(width, height, data.clone(), &config, report)
+    })
+}
+
+/// Runs `analysis` of an image of `width` x `height` under `config`, showing its progress on
+/// a terminal, and times it.
+fn with_progress(
+    (width, height): (u32, u32),
+    config: &EncoderConfig,
+    analysis: impl FnOnce(&(dyn Fn(u64) + Sync)) -> std::result::Result<Analysis, EncodeError>,
+) -> Result<Analysed> {
     let start = Instant::now();
-    let pixels = *width as usize * *height as usize;
-    let config = args.config(pixels, targets);
-    let work = Work::new(&host_encoder::analysis_steps(*width, *height, &config));
+    let work = Work::new(&host_encoder::analysis_steps(width, height, config));
     let progress = Progress::on_terminal(work);
-    let result = analyse_colour(*width, *height, data.clone(), &config, &|n| {
+    let result = analysis(&|n| {
         if let Some(p) = &progress {
             p.nodes_done(n);
         }
