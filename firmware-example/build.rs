@@ -45,7 +45,8 @@ fn packet_sets(dir: &Path) -> String {
     let list = dir.join("packets.txt");
     println!("cargo:rerun-if-changed={}", list.display());
     let text = fs::read_to_string(&list).unwrap_or_else(|e| panic!("{}: {e}", list.display()));
-    let mut s = String::from("/// The golden packet sets.\npub static PACKET_SETS: &[PacketSet] = &[\n");
+    let mut s =
+        String::from("/// The golden packet sets.\npub static PACKET_SETS: &[PacketSet] = &[\n");
     let mut frame = 1usize;
     for line in text.lines().map(str::trim) {
         if line.is_empty() || line.starts_with('#') {

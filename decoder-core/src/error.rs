@@ -10,6 +10,7 @@ use crate::format::VERSION;
 /// The decoder never panics: every malformed, truncated or hostile byte string ends in one of
 /// these values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 // A word-sized tag before word-aligned fields: moving an error is three word copies, where the
 // default layout's byte offsets pulled a general `memcpy` (0.7 KiB) into the M0's flash.
@@ -59,6 +60,7 @@ pub enum DecodeError {
 
 /// The header field a [`DecodeError::InvalidHeader`] is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum HeaderField {
     /// Flag bits the format reserves are set.
@@ -102,6 +104,7 @@ impl HeaderField {
 /// so that it travels the decoder's hot path in a register (a [`DecodeError`] is twelve bytes,
 /// and each `?` copied it). It becomes a [`DecodeError`] where the walk hands it out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PayloadError {
     /// The payload ended before the quadtree did ([`DecodeError::Truncated`]).
     Truncated,
@@ -120,6 +123,7 @@ impl From<PayloadError> for DecodeError {
 
 /// The payload syntax element a [`DecodeError::InvalidData`] is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum SyntaxElement {
     /// A quadtree node of a size no node may have.
@@ -202,6 +206,7 @@ impl core::error::Error for DecodeError {}
 /// A decode that hands pixels to a sink can fail two ways: the stream is bad, or the sink
 /// (a display, a file) failed. Decoding stops at the first of either.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DrawError<E> {
     /// The stream is bad: decoding stopped here (what came before was drawn).
     Decode(DecodeError),

@@ -33,7 +33,9 @@
 //! - 16-bit streams (cargo feature `deep`, on by default): surfaces such as elevation models,
 //!   whose [`Header::range`] ([`SampleRange`]) gives each pixel a value in the data's units,
 //!   finer than its grey: [`Tile::values`], [`Decoder::decode_values_into`].
-//! - Errors: [`DecodeError`] (with [`HeaderField`] and [`SyntaxElement`]), [`DrawError`].
+//! - Errors: [`DecodeError`] (with [`HeaderField`] and [`SyntaxElement`]), [`DrawError`];
+//!   with the cargo feature `defmt` they implement `defmt::Format`, so a firmware that logs
+//!   with defmt prints them without `core::fmt`.
 //! - [`Packet`]: an image sent as self-contained packets for lossy links (`docs/bitstream.md`,
 //!   section 9): [`Packet::parse`] checks one (its CRC-32 first), [`Packet::decode`] draws its
 //!   region, in image coordinates, into the same [`PixelSink`]s; a preview packet that arrives

@@ -325,6 +325,8 @@ fn check_vector_as<C: Hashed>(v: &Vector, counter: &measure::Counter) -> bool {
         Ok(img) => img,
         Err(e) => {
             heprintln!("PIFS-ERROR name={} header: {}", v.name, e);
+            // The same error through defmt (decoder-core's `defmt` feature): no `core::fmt`.
+            defmt::error!("{=str}: {}", v.name, e);
             return false;
         }
     };
