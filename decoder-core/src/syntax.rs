@@ -280,10 +280,11 @@ pub enum ControlCoding {
     Transform,
 }
 
-/// The syntax elements of one leaf, as coded.
+/// The syntax elements of one leaf, as coded: of its luma, or of one of its chroma planes (a
+/// colour stream's `Cb` or `Cr`, [`code_chroma`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LeafSyntax {
-    /// Model type index into [`MODELS`].
+    /// Model type: index into [`MODELS`] (luma) or [`CHROMA_GRIDS`] (chroma).
     pub model: u8,
     /// Control quantiser index into [`CONTROL_STEPS`].
     pub cquant: u8,
@@ -609,30 +610,6 @@ pub struct ControlGrid {
     pub transform: bool,
 }
 
-/// The syntax elements of one chroma plane of a leaf (a colour stream's `Cb` or `Cr`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ChromaSyntax {
-    /// Chroma model: index into [`CHROMA_GRIDS`].
-    pub model: u8,
-    /// Control quantiser index into [`CONTROL_STEPS`].
-    pub cquant: u8,
-    /// How the control values are coded.
-    pub coding: ControlCoding,
-    /// Control indices over the coded grid, as a luma leaf's.
-    pub control: [i16; MAX_CONTROL],
-}
-
-impl Default for ChromaSyntax {
-    fn default() -> Self {
-        ChromaSyntax {
-            model: 0,
-            cquant: 0,
-            coding: ControlCoding::Dpcm,
-            control: [0; MAX_CONTROL],
-        }
-    }
-}
-
 /// Chroma quantiser indices with contexts of their own: a tree of 4 bits, as luma's.
 const CHROMA_CQUANT_NODES: usize = 16;
 
@@ -726,7 +703,7 @@ pub fn code_chroma<C: Coder, P: SamplePrediction>(
     ctx: &mut ChromaContexts,
     node: &Node,
     prediction: &P,
-    leaf: &mut ChromaSyntax,
+    leaf: &mut LeafSyntax,
 ) -> Result<(), PayloadError> {
     let count = chroma_models(node.log2);
     let model_ctx = ctx
@@ -768,7 +745,7 @@ pub fn code_chroma<C: Coder, P: SamplePrediction>(
 }
 
 /// The control coding of a chroma plane's syntax at a chroma leaf of side `2^log2`.
-pub fn chroma_grid(leaf: &ChromaSyntax, log2: u8) -> ControlGrid {
+pub fn chroma_grid(leaf: &LeafSyntax, log2: u8) -> ControlGrid {
     let g = CHROMA_GRIDS[usize::from(leaf.model) % CHROMA_GRIDS.len()].0;
     let size = 1u32 << log2.min(15);
     let pixel_grid = u32::from(g) >= size;
@@ -782,7 +759,7 @@ pub fn chroma_grid(leaf: &ChromaSyntax, log2: u8) -> ControlGrid {
 
 /// Reconstructs a chroma plane from its syntax at a chroma leaf of side `2^log2`.
 pub fn reconstruct_chroma(
-    leaf: &ChromaSyntax,
+    leaf: &LeafSyntax,
     log2: u8,
     plane: &mut ChromaPlane,
 ) -> Result<(), PayloadError> {

@@ -20,7 +20,7 @@ use crate::model::{MAX_CONTROL, MODELS};
 use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
     code_chroma, code_chroma_subtree, code_leaf, code_split, reconstruct_chroma, reconstruct_into,
-    ChromaContexts, ChromaSyntax, Contexts, ControlCoding, Header, LeafSyntax,
+    ChromaContexts, Contexts, ControlCoding, Header, LeafSyntax,
 };
 use crate::synthesis::Patch;
 
@@ -89,7 +89,7 @@ pub trait TreeVisitor {
         _plane: usize,
         _prediction: &P,
         _contexts: &ChromaContexts,
-        _leaf: &mut ChromaSyntax,
+        _leaf: &mut LeafSyntax,
     ) {
     }
 
@@ -425,7 +425,7 @@ fn code_chroma_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     } = chroma;
     patch.node = cnode;
     for (p, plane) in patch.planes.iter_mut().enumerate() {
-        let mut leaf = ChromaSyntax::default();
+        let mut leaf = LeafSyntax::default();
         let prediction = frontier.plane(p);
         visitor.prepare_chroma(&cnode, p, &prediction, contexts, &mut leaf);
         code_chroma(coder, contexts, &cnode, &prediction, &mut leaf)?;

@@ -18,8 +18,7 @@ use decoder_core::internal::entropy::{Prob, RangeDecoder, INITIAL_COUNT, PROB_ON
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
 use decoder_core::internal::syntax::initial_contexts::INITIAL_PROBABILITIES;
 use decoder_core::internal::syntax::{
-    control_step, ChromaContexts, ChromaSyntax, Contexts, Header, CHROMA_CONTEXT_COUNT,
-    CONTEXT_COUNT,
+    control_step, ChromaContexts, Contexts, Header, LeafSyntax, CHROMA_CONTEXT_COUNT, CONTEXT_COUNT,
 };
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk, LeafInfo, TreeVisitor};
@@ -201,7 +200,7 @@ fn final_contexts(stream: &[u8]) -> Result<(Contexts, Option<ChromaContexts>), D
             _plane: usize,
             _prediction: &P,
             contexts: &ChromaContexts,
-            _leaf: &mut ChromaSyntax,
+            _leaf: &mut LeafSyntax,
         ) {
             self.0 = Some(contexts.clone());
         }

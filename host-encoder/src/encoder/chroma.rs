@@ -28,7 +28,7 @@ use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::control::{coefficient_step, CONTROL_QUANTISERS};
 use decoder_core::internal::syntax::{
     chroma_grid, code_chroma, dequantise_control, intra_prediction, reconstruct_chroma,
-    ChromaContexts, ChromaSyntax, ControlCoding,
+    ChromaContexts, ControlCoding, LeafSyntax,
 };
 use decoder_core::Node;
 use nalgebra::DMatrix;
@@ -91,7 +91,7 @@ impl ColourPlanes {
 #[derive(Debug, Clone, Copy)]
 pub struct ChromaChoice {
     /// The syntax to code.
-    pub syntax: ChromaSyntax,
+    pub syntax: LeafSyntax,
     /// Its bits under the contexts it was priced with.
     pub bits: f64,
 }
@@ -257,8 +257,8 @@ fn quantised(
     model: u8,
     cquant: u8,
     coding: ControlCoding,
-) -> Option<(ChromaSyntax, ChromaPlane)> {
-    let mut syntax = ChromaSyntax {
+) -> Option<(LeafSyntax, ChromaPlane)> {
+    let mut syntax = LeafSyntax {
         model,
         cquant,
         coding,
@@ -307,7 +307,7 @@ fn plane_sse(plane: &Plane, node: &Node, rec: &ChromaPlane) -> f64 {
 /// One way of coding a chroma leaf: its syntax, its weighted error
 /// (`CHROMA_WEIGHTS[p] * 4 * sse`, in luma units) and its bits.
 struct ChromaOption {
-    syntax: ChromaSyntax,
+    syntax: LeafSyntax,
     weighted_sse: f64,
     bits: f64,
 }
@@ -495,7 +495,7 @@ impl std::fmt::Debug for ChromaCache {
 /// The bits of chroma syntax `syntax` at chroma node `node`, priced with the chroma contexts
 /// `contexts` (not adapted) and the chroma frontier `prediction`; `None` if it cannot be coded.
 fn option_bits<P: SamplePrediction>(
-    syntax: ChromaSyntax,
+    syntax: LeafSyntax,
     contexts: &mut ChromaContexts,
     node: &Node,
     prediction: &P,
@@ -527,7 +527,7 @@ fn for_each_option<P: SamplePrediction>(
             let Some(r) = options.step(plane, p, node, s, k) else {
                 continue;
             };
-            let mut syntax = ChromaSyntax {
+            let mut syntax = LeafSyntax {
                 model,
                 cquant: r.cquant,
                 coding,
@@ -600,7 +600,7 @@ pub fn choose<P: SamplePrediction>(
     );
     cache.put(p, node, options);
     best.map(|(_, c)| c).unwrap_or(ChromaChoice {
-        syntax: ChromaSyntax::default(),
+        syntax: LeafSyntax::default(),
         bits: 0.0,
     })
 }

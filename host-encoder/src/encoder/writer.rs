@@ -14,7 +14,7 @@ use decoder_core::internal::entropy::{Coder, PayloadError, Prob, PROB_ONE};
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::{
-    control_step, seal, ChromaContexts, ChromaSyntax, Contexts, Header, LeafSyntax,
+    control_step, seal, ChromaContexts, Contexts, Header, LeafSyntax,
 };
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
@@ -260,7 +260,7 @@ impl TreeVisitor for PlanVisitor<'_> {
         plane: usize,
         prediction: &P,
         contexts: &ChromaContexts,
-        leaf: &mut ChromaSyntax,
+        leaf: &mut LeafSyntax,
     ) {
         if let Some(colour) = self.colour {
             if let Some(pos) = self.replay {
