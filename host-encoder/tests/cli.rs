@@ -1629,3 +1629,74 @@ fn resize_fits_the_image_to_a_display() {
     assert!(line.contains("not a size"), "{line}");
     assert!(!out.exists());
 }
+
+/// `info --json` describes a stream and a packet set as one JSON object on standard output,
+/// with the figures the text gives; a packet set's `missing` are the packets not there (the
+/// ones a gateway asks for again), and `received` and `missing` make up the set.
+#[test]
+fn info_describes_streams_and_packets_as_json() {
+    let dir = scratch("info-json");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let png = dir.join("in.png");
+    textured(96, 64).save(&png).unwrap();
+    let stream = dir.join("x.pifs");
+    ok(&pifs_on("encode", &png, &stream, &["--bytes", "500"]));
+    let object: serde_json::Value =
+        serde_json::from_str(&ok(&pifs(&["info", &s(&stream), "--json"]))).expect("JSON");
+    let bytes = std::fs::read(&stream).unwrap();
+    let header = decoder_core::Header::read(&bytes).unwrap();
+    assert_eq!(object["kind"], "stream");
+    assert_eq!(object["width"], 96);
+    assert_eq!(object["height"], 64);
+    assert_eq!(object["channels"], u64::from(header.channels));
+    assert_eq!(object["bytes"], bytes.len());
+    assert_eq!(object["header_bytes"], header.encoded_len());
+    // The leaves, counted three ways, and as the decoder walks them.
+    let mut walked = 0usize;
+    decoder_core::Decoder::new(&bytes)
+        .unwrap()
+        .observe(|_: &decoder_core::LeafInfo| walked += 1)
+        .verify()
+        .unwrap();
+    let sum = |v: &serde_json::Value| -> u64 {
+        match v {
+            serde_json::Value::Object(m) => m.values().map(|n| n.as_u64().unwrap()).sum(),
+            serde_json::Value::Array(a) => a.iter().map(|m| m["leaves"].as_u64().unwrap()).sum(),
+            _ => panic!("{v}"),
+        }
+    };
+    assert_eq!(object["leaves"], walked);
+    assert_eq!(sum(&object["leaves_by_side"]), walked as u64);
+    assert_eq!(sum(&object["models"]), walked as u64);
+
+    let packets = dir.join("pk");
+    ok(&pifs(&[
+        "encode",
+        &s(&png),
+        "--packets",
+        &s(&packets),
+        "--packet-size",
+        "64",
+        "--bytes",
+        "960",
+    ]));
+    for lost in ["0003.pkt", "0007.pkt", "0008.pkt"] {
+        std::fs::remove_file(packets.join(lost)).unwrap();
+    }
+    let object: serde_json::Value =
+        serde_json::from_str(&ok(&pifs(&["info", &s(&packets), "--json"]))).expect("JSON");
+    assert_eq!(object["kind"], "packets");
+    assert_eq!(object["count"], 15);
+    assert_eq!(object["files"], 12);
+    assert_eq!(object["missing"], serde_json::json!([3, 7, 8]));
+    let received: Vec<u64> = object["received"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    let expected: Vec<u64> = (0..15).filter(|i| ![3, 7, 8].contains(i)).collect();
+    assert_eq!(received, expected);
+    let coverage = object["coverage"].as_f64().unwrap();
+    assert!(coverage > 0.0 && coverage < 1.0, "{coverage}");
+}

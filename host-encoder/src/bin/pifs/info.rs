@@ -121,12 +121,75 @@ impl Stats {
     }
 }
 
-/// `pifs info`; with `svg`, also the drawing of the leaves over the decoded image. The stream's
-/// header is checked against `limits` before anything else; only with `svg` are pixels made:
-/// the figures need nothing but the entropy-decoded syntax.
-pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
+impl Stats {
+    /// The same description as [`Stats::print`], as one JSON object.
+    fn json(&self, input: &Path, header: &Header, stream_len: usize) -> serde_json::Value {
+        let px = header.pixel_count() as f64;
+        let models: Vec<serde_json::Value> = MODEL_NAMES
+            .iter()
+            .enumerate()
+            .map(|(i, name)| {
+                serde_json::json!({
+                    "name": name,
+                    "leaves": self.models[i],
+                    "dpcm": self.codings[0][i],
+                    "transform": self.codings[1][i],
+                    "pixel_grids": self.pixel_grids[i],
+                })
+            })
+            .collect();
+        let by_side: serde_json::Map<String, serde_json::Value> = self
+            .per_depth
+            .iter()
+            .map(|(log2, n)| ((1u32 << log2).to_string(), (*n).into()))
+            .collect();
+        serde_json::json!({
+            "path": input.display().to_string(),
+            "kind": "stream",
+            "format_version": decoder_core::internal::format::VERSION,
+            "width": header.width,
+            "height": header.height,
+            "channels": header.channels,
+            "bit_depth": header.bit_depth,
+            "range": header.range.map(|r| serde_json::json!({
+                "low": r.low,
+                "high": r.high(),
+                "step": f64::from(r.step) / f64::from(decoder_core::SampleRange::STEP_ONE),
+            })),
+            "bytes": stream_len,
+            "header_bytes": header.encoded_len(),
+            "bpp": stream_len as f64 * 8.0 / px,
+            "leaf_sizes": [1u32 << header.min_leaf_log2, 1u32 << header.max_leaf_log2],
+            "stripe_width": header.stripe_width(),
+            "edge_smoothing": header.deblock,
+            "leaves": self.per_depth.values().sum::<usize>(),
+            "leaves_by_side": by_side,
+            "models": models,
+            "control_steps": CONTROL_STEPS,
+            "control_quantiser_use": self.cquant,
+        })
+    }
+
+    /// Prints the description: as text, or as one JSON object (`json`).
+    fn report(&self, input: &Path, header: &Header, stream_len: usize, json: bool) {
+        match json {
+            true => println!("{}", self.json(input, header, stream_len)),
+            false => self.print(input, header, stream_len),
+        }
+    }
+}
+
+/// `pifs info`; with `svg`, also the drawing of the leaves over the decoded image; with `json`,
+/// the description as one JSON object. The stream's header is checked against `limits` before
+/// anything else; only with `svg` are pixels made: the figures need nothing but the
+/// entropy-decoded syntax.
+pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits, json: bool) -> Result<()> {
+    if json {
+        // Standard output carries the object: any status line goes to standard error.
+        crate::say::stdout_is_data();
+    }
     if crate::packets::is_packet_input(input) && svg.is_none() {
-        return crate::packets::info(input, limits.max_pixels);
+        return crate::packets::info(input, limits.max_pixels, json);
     }
     if let Some(svg) = svg {
         output::check(svg, Some(input), Kind::Svg)?;
@@ -137,7 +200,7 @@ pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
     let mut stats = Stats::default();
     let Some(svg) = svg else {
         let header = stream.verify(|leaf: &LeafInfo| stats.leaf(leaf))?;
-        stats.print(&name, &header, len);
+        stats.report(&name, &header, len, json);
         return Ok(());
     };
     let out = Output::create(svg, Content::Text)?;
@@ -156,7 +219,9 @@ pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits) -> Result<()> {
     out.write_all(drawing.as_bytes())
         .map_err(|e| out.error(e))?;
     out.commit()?;
-    stats.print(&name, &header, len);
-    say!("  leaves drawn in  {}", svg.display());
+    stats.report(&name, &header, len, json);
+    if !json {
+        say!("  leaves drawn in  {}", svg.display());
+    }
     Ok(())
 }

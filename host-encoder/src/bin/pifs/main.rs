@@ -119,6 +119,10 @@ enum Command {
         /// is read).
         #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
         max_pixels: u64,
+        /// Print the description as one JSON object on standard output (for scripts and
+        /// gateways: a packet set's `missing` indices are the packets to ask for again).
+        #[arg(long)]
+        json: bool,
     },
     /// Rate/distortion curve of an image from one analysis: bytes, bpp and PSNR per rate.
     ///
@@ -213,10 +217,12 @@ fn main() -> ExitCode {
             input,
             svg,
             max_pixels,
+            json,
         }) => info::run(
             &input,
             svg.as_deref(),
             &decoder_core::Limits::pixels(max_pixels),
+            json,
         ),
         Some(Command::Rd(args)) => rd::run(&args),
         Some(Command::Packets(PacketsCommand::Drop(args))) => packets::drop_packets(&args),

@@ -350,8 +350,8 @@ fn ranges(indices: &[u16]) -> String {
     parts.join(",")
 }
 
-/// `pifs info` of packets: count, sizes, coverage.
-pub fn info(input: &Path, max_pixels: u64) -> Result<()> {
+/// `pifs info` of packets: count, sizes, coverage; as one JSON object with `json`.
+pub fn info(input: &Path, max_pixels: u64, json: bool) -> Result<()> {
     let (packets, assembled) = assemble_at(&[input.to_path_buf()], max_pixels)?;
     let sizes: Vec<usize> = packets.iter().map(Vec::len).collect();
     let total: usize = sizes.iter().sum();
@@ -360,27 +360,51 @@ pub fn info(input: &Path, max_pixels: u64) -> Result<()> {
         .filter_map(|p| Packet::parse(p).ok())
         .filter(|p| p.kind == PacketKind::Preview)
         .count();
+    let a = &assembled;
+    let bpp = total as f64 * 8.0 / (f64::from(a.width) * f64::from(a.height));
+    if json {
+        let object = serde_json::json!({
+            "path": input.display().to_string(),
+            "kind": "packets",
+            "image_id": a.image_id,
+            "width": a.width,
+            "height": a.height,
+            "channels": a.channels,
+            "count": a.count,
+            "files": packets.len(),
+            "bytes": total,
+            "bpp": bpp,
+            "previews": previews,
+            "preview_drawn": a.preview,
+            "received": a.received,
+            "missing": a.missing,
+            "rebuilt_from_parity": a.recovered,
+            "coverage": a.coverage,
+            "ignored": {
+                "damaged": a.rejected,
+                "other_image": a.foreign,
+                "duplicates": a.duplicates,
+            },
+        });
+        println!("{object}");
+        return Ok(());
+    }
     println!("{}: PIFS packets", input.display());
     println!(
         "  image {}: {}x{} {}, sent as {} packets",
-        assembled.image_id,
-        assembled.width,
-        assembled.height,
-        if assembled.channels == 3 {
-            "colour"
-        } else {
-            "gray"
-        },
-        assembled.count
+        a.image_id,
+        a.width,
+        a.height,
+        if a.channels == 3 { "colour" } else { "gray" },
+        a.count
     );
     println!(
-        "  here: {} files, {total} bytes ({} to {} bytes each), {previews} preview(s), {:.4} bpp",
+        "  here: {} files, {total} bytes ({} to {} bytes each), {previews} preview(s), {bpp:.4} bpp",
         packets.len(),
         sizes.iter().min().unwrap_or(&0),
         sizes.iter().max().unwrap_or(&0),
-        total as f64 * 8.0 / (f64::from(assembled.width) * f64::from(assembled.height))
     );
-    println!("  {}", describe(&assembled));
+    println!("  {}", describe(a));
     Ok(())
 }
 
