@@ -165,7 +165,7 @@ impl Stats {
             "leaves": self.per_depth.values().sum::<usize>(),
             "leaves_by_side": by_side,
             "models": models,
-            "control_steps": CONTROL_STEPS,
+            "control_steps_grey": CONTROL_STEPS.map(|s| f64::from(s) / 16.0),
             "control_quantiser_use": self.cquant,
         })
     }
