@@ -159,13 +159,19 @@ def ssdv_rows(colour):
     return path, rows
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def packet_arguments(ap):
+    """The options this script shares with packet_costs.py: colour, packet size, rates, the
+    working directory and the `pifs` binary."""
     ap.add_argument("--colour", action="store_true")
     ap.add_argument("--size", type=int, default=255)
     ap.add_argument("--rates", type=float, nargs="+", default=[0.1, 0.25, 0.5])
     ap.add_argument("--work", default=None)
     ap.add_argument("--pifs", default="target/release/pifs")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    packet_arguments(ap)
     ap.add_argument("--encode-args", default="",
                     help="more options for `pifs encode` (such as --repeat-preview)")
     ap.add_argument("--csv", default=None, help="where the per-image rows go")

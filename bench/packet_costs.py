@@ -81,11 +81,7 @@ def measure(pifs, image, rate, args, work):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--colour", action="store_true")
-    ap.add_argument("--size", type=int, default=255)
-    ap.add_argument("--rates", type=float, nargs="+", default=[0.1, 0.25, 0.5])
-    ap.add_argument("--work", default=None)
-    ap.add_argument("--pifs", default="target/release/pifs")
+    loss.packet_arguments(ap)
     ap.add_argument("images", nargs="*")
     args = ap.parse_args()
     images = args.images or sorted(glob.glob(os.path.join(
