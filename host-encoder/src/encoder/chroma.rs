@@ -639,6 +639,34 @@ impl ChromaSteps {
             ChromaSteps::Fine { first, .. } => 0..=first,
         }
     }
+
+    /// What a series does with `point`, its option at control quantiser `cq`, after `last`.
+    fn next(self, cq: u8, last: Option<(f64, f64)>, point: (f64, f64)) -> Next {
+        match self {
+            ChromaSteps::Fine { first, .. } if cq == first => Next::Counted,
+            ChromaSteps::Fine { floor, .. } => {
+                let stalls = last.is_some_and(|(bits, sse)| {
+                    let added = point.0 - bits;
+                    added > 0.0 && sse - point.1 < floor * added
+                });
+                match stalls {
+                    true => Next::Last,
+                    false => Next::Add,
+                }
+            }
+            ChromaSteps::All | ChromaSteps::Coarse { .. } => Next::Add,
+        }
+    }
+}
+
+/// What a series of control steps does with an option ([`ChromaSteps::next`]).
+enum Next {
+    /// The coarse pass counted it: only the next step is measured against it.
+    Counted,
+    /// Onto the hull, and on to the next step.
+    Add,
+    /// Onto the hull, and the series ends: the step paid too little.
+    Last,
 }
 
 /// What coding the chroma of the luma node `node` as a leaf costs, estimated from the image's
@@ -646,11 +674,6 @@ impl ChromaSteps {
 /// options on the lower convex hull of (bits, weighted error), the error also times the node's
 /// `weight` (as its luma's, [`super::masking::Masking`]), at the control steps `steps` says,
 /// merged with the hull of the `earlier` pass.
-///
-/// Each series of steps (a chroma model and coding, the richest first) goes from coarse to
-/// fine and stops once the hull so far covers the point of its last step's bits at the
-/// model's [`error_floor`]: a finer step has more bits (nearly always) and no less error, so
-/// it could not be on the hull (the luma chains' rule, `docs/decisions.md`).
 pub fn leaf_cost(
     colour: &ColourPlanes,
     node: &Node,
@@ -659,83 +682,93 @@ pub fn leaf_cost(
     earlier: &ChromaCost,
 ) -> ChromaCost {
     let cnode = chroma_node(node);
-    let contexts = ChromaContexts::default();
     let mut planes: [Vec<RatePoint>; 2] = Default::default();
     for (p, hull) in planes.iter_mut().enumerate() {
         let plane = &colour.chroma[p];
-        if cnode.x >= plane.width || cnode.y >= plane.height {
-            continue;
+        if cnode.x < plane.width && cnode.y < plane.height {
+            let weights = (4.0 * CHROMA_WEIGHTS[p & 1], weight);
+            *hull = plane_hull(plane, &cnode, (stripe, weights), steps, earlier.plane(p));
         }
-        let prediction = ImagePrediction {
-            plane,
-            stripe: stripe / 2,
-        };
-        let pixels = leaf_pixels(plane, &cnode);
-        let node_options = NodeOptions::of_pixels(&pixels, &cnode);
-        // The floor counts every pixel of the node: only where all are inside the plane.
-        let end = |start: u32| start.checked_add(cnode.size());
-        let inside = end(cnode.x).is_some_and(|x| x <= plane.width)
-            && end(cnode.y).is_some_and(|y| y <= plane.height);
-        let scale = weight * 4.0 * CHROMA_WEIGHTS[p & 1];
-        let floors: Vec<f64> = (0..node_options.targets.len())
-            .map(|model| match inside {
-                true => scale * error_floor(&pixels, &cnode, model),
-                false => 0.0,
-            })
-            .collect();
-        let mut growing = GrowingHull::default();
-        for o in earlier.plane(p) {
-            growing.add((f64::from(o.bits), f64::from(o.sse)));
-        }
-        let mut ctx = contexts.clone();
-        for series in node_options.series.iter().rev() {
-            let model = usize::from(series.model);
-            let t = &node_options.targets[model];
-            let c = node_options.coefficients[model].as_ref();
-            let mut last: Option<(f64, f64)> = None;
-            for cq in steps.quantisers().rev() {
-                let Some((syntax, rec)) = quantised(t, c, &cnode, series.model, cq, series.coding)
-                else {
-                    continue;
-                };
-                let Some(bits) = option_bits(syntax, &mut ctx, &cnode, &prediction) else {
-                    continue;
-                };
-                let rgb_sse = 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, &cnode, &rec);
-                let point = (bits, weight * rgb_sse);
-                if let ChromaSteps::Fine { first, floor } = steps {
-                    if cq == first {
-                        // The coarse pass's last step, already counted.
-                        last = Some(point);
-                        continue;
-                    }
-                    let stalls = last.is_some_and(|(b, e)| {
-                        let added = point.0 - b;
-                        added > 0.0 && e - point.1 < floor * added
-                    });
-                    growing.add(point);
-                    if stalls {
-                        break;
-                    }
-                } else {
-                    growing.add(point);
-                }
-                if growing.covers((bits, floors[model])) {
-                    break;
-                }
-                last = Some(point);
-            }
-        }
-        *hull = growing
-            .vertices()
-            .iter()
-            .map(|&(bits, sse)| RatePoint {
-                bits: bits as f32,
-                sse: sse as f32,
-            })
-            .collect();
     }
     ChromaCost::of(planes)
+}
+
+/// The hull of one chroma plane's options at chroma node `cnode` ([`leaf_cost`]), from the
+/// `earlier` hull on; an error is the plane's squared error times the RGB weight of its
+/// level (`CHROMA_WEIGHTS`, times 4 luma pixels), then times the node's masking weight.
+///
+/// Each series of steps (a chroma model and coding, the richest first) goes from coarse to
+/// fine and stops once the hull so far covers the point of its last step's bits at the
+/// model's [`error_floor`]: a finer step has more bits (nearly always) and no less error, so
+/// it could not be on the hull (the luma chains' rule, `docs/decisions.md`).
+fn plane_hull(
+    plane: &Plane,
+    cnode: &Node,
+    (stripe, (rgb, masking)): (u32, (f64, f64)),
+    steps: ChromaSteps,
+    earlier: &[RatePoint],
+) -> Vec<RatePoint> {
+    let prediction = ImagePrediction {
+        plane,
+        stripe: stripe / 2,
+    };
+    let pixels = leaf_pixels(plane, cnode);
+    let options = NodeOptions::of_pixels(&pixels, cnode);
+    // The floor counts every pixel of the node: only where all are inside the plane.
+    let end = |start: u32| start.checked_add(cnode.size());
+    let inside = end(cnode.x).is_some_and(|x| x <= plane.width)
+        && end(cnode.y).is_some_and(|y| y <= plane.height);
+    let floors: Vec<f64> = (0..options.targets.len())
+        .map(|model| match inside {
+            true => masking * rgb * error_floor(&pixels, cnode, model),
+            false => 0.0,
+        })
+        .collect();
+    let mut hull = GrowingHull::default();
+    for o in earlier {
+        hull.add((f64::from(o.bits), f64::from(o.sse)));
+    }
+    let mut ctx = ChromaContexts::default();
+    for series in options.series.iter().rev() {
+        let model = usize::from(series.model);
+        let (t, c) = (
+            &options.targets[model],
+            options.coefficients[model].as_ref(),
+        );
+        let mut last = None;
+        for cq in steps.quantisers().rev() {
+            let Some((syntax, rec)) = quantised(t, c, cnode, series.model, cq, series.coding)
+            else {
+                continue;
+            };
+            let Some(bits) = option_bits(syntax, &mut ctx, cnode, &prediction) else {
+                continue;
+            };
+            let point = (bits, masking * (rgb * plane_sse(plane, cnode, &rec)));
+            match steps.next(cq, last, point) {
+                Next::Counted => {
+                    last = Some(point);
+                    continue;
+                }
+                Next::Last => {
+                    hull.add(point);
+                    break;
+                }
+                Next::Add => hull.add(point),
+            }
+            if hull.covers((bits, floors[model])) {
+                break;
+            }
+            last = Some(point);
+        }
+    }
+    hull.vertices()
+        .iter()
+        .map(|&(bits, sse)| RatePoint {
+            bits: bits as f32,
+            sse: sse as f32,
+        })
+        .collect()
 }
 
 /// Whether both chroma planes of the luma node `node` are reproduced by a bilinear chroma
