@@ -11,7 +11,9 @@
 //! bits`, `lambda` the luma plan's multiplier and `w` the weight that makes chroma error RGB
 //! error (below), 4 the luma pixels a chroma pixel stands for. The analysis prices the same
 //! options for every node from the image's own chroma and the contexts every stream starts
-//! from ([`leaf_cost`]), so that rate control splits where colour, not only luma, pays for it.
+//! from ([`leaf_cost`]; for rate targets the coarse steps first and the finer ones only where
+//! they pay, as for luma), so that rate control splits where colour, not only luma, pays for
+//! it.
 //!
 //! Above [`super::quantise`] (its forward grid transform); below the writer.
 
