@@ -549,6 +549,14 @@ fn colour_gradient() -> image::RgbImage {
     })
 }
 
+/// A gray (`textured`) and a colour (`colour_gradient`) PNG in `dir`.
+fn gray_and_colour(dir: &Path) -> (PathBuf, PathBuf) {
+    let (gray, colour) = (dir.join("gray.png"), dir.join("colour.png"));
+    textured(40, 24).save(&gray).unwrap();
+    colour_gradient().save(&colour).unwrap();
+    (gray, colour)
+}
+
 /// A colour PNG gives a colour stream (`info` says so) that decodes to a colour PNG and PPM
 /// close to the input; `--gray` gives a grayscale stream of the same image.
 #[test]
@@ -1445,10 +1453,7 @@ fn decode_shows_the_picture_as_a_panel_would() {
     use decoder_core::internal::colour::rgb_to_luma;
     use embedded_graphics_core::pixelcolor::{BinaryColor, Rgb565, Rgb888, RgbColor};
     let dir = scratch("display");
-    let gray = dir.join("gray.png");
-    textured(40, 24).save(&gray).unwrap();
-    let colour = dir.join("colour.png");
-    colour_gradient().save(&colour).unwrap();
+    let (gray, colour) = gray_and_colour(&dir);
     for input in [&gray, &colour] {
         let stream = input.with_extension("pifs");
         ok(&pifs_on("encode", input, &stream, &[]));
@@ -1593,10 +1598,7 @@ fn heights_png(path: &Path) {
 #[test]
 fn resize_fits_the_image_to_a_display() {
     let dir = scratch("resize");
-    let gray = dir.join("gray.png");
-    textured(40, 24).save(&gray).unwrap();
-    let colour = dir.join("colour.png");
-    colour_gradient().save(&colour).unwrap();
+    let (gray, colour) = gray_and_colour(&dir);
     let heights = dir.join("heights.png");
     heights_png(&heights);
     for (input, fit, size, channels) in [

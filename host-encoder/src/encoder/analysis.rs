@@ -413,13 +413,12 @@ impl Analysis {
                                     0 => ChromaSteps::All,
                                     first => ChromaSteps::Coarse { first },
                                 };
-                                let earlier = ChromaCost::default();
                                 na.chroma = chroma::leaf_cost(
                                     colour,
                                     &na.node,
                                     (stripe, weight),
                                     steps,
-                                    &earlier,
+                                    &ChromaCost::default(),
                                 );
                             }
                             na.fits = fits.iter().map(|f| f.model).collect();

@@ -922,14 +922,18 @@ mod tests {
         ColourPlanes::from_rgb(64, 64, rgb).1
     }
 
-    /// The chroma cost of luma node `node` at `steps` after `earlier`.
-    fn cost(
-        colour: &ColourPlanes,
-        node: &Node,
-        steps: ChromaSteps,
-        earlier: &ChromaCost,
-    ) -> ChromaCost {
-        leaf_cost(colour, node, (128, 1.0), steps, earlier)
+    /// The chroma costs of the luma node at the origin of side `2^log2`: every step in one
+    /// pass, the coarse pass's, and a fine pass of floor `floor` after it.
+    fn passes(colour: &ColourPlanes, log2: u8, floor: f64) -> [ChromaCost; 3] {
+        let node = Node { x: 0, y: 0, log2 };
+        let first = 5;
+        let cost =
+            |steps, earlier: &ChromaCost| leaf_cost(colour, &node, (128, 1.0), steps, earlier);
+        let none = ChromaCost::default();
+        let all = cost(ChromaSteps::All, &none);
+        let coarse = cost(ChromaSteps::Coarse { first }, &none);
+        let fine = cost(ChromaSteps::Fine { first, floor }, &coarse);
+        [all, coarse, fine]
     }
 
     /// The coarse pass, then a fine pass that never finds a step paying too little, find the
@@ -937,14 +941,8 @@ mod tests {
     #[test]
     fn coarse_then_fine_steps_find_the_hull_of_every_step() {
         let colour = colour_image();
-        let first = 5;
         for log2 in 2..=6 {
-            let node = Node { x: 0, y: 0, log2 };
-            let none = ChromaCost::default();
-            let all = cost(&colour, &node, ChromaSteps::All, &none);
-            let coarse = cost(&colour, &node, ChromaSteps::Coarse { first }, &none);
-            let floor = f64::NEG_INFINITY;
-            let both = cost(&colour, &node, ChromaSteps::Fine { first, floor }, &coarse);
+            let [all, coarse, both] = passes(&colour, log2, f64::NEG_INFINITY);
             for p in 0..2 {
                 assert!(!all.plane(p).is_empty(), "{log2}");
                 assert_eq!(all.plane(p), both.plane(p), "plane {p}, node of {log2}");
@@ -961,14 +959,8 @@ mod tests {
     #[test]
     fn a_fine_pass_stops_where_steps_stop_paying() {
         let colour = colour_image();
-        let first = 5;
         for log2 in 2..=6 {
-            let node = Node { x: 0, y: 0, log2 };
-            let none = ChromaCost::default();
-            let all = cost(&colour, &node, ChromaSteps::All, &none);
-            let coarse = cost(&colour, &node, ChromaSteps::Coarse { first }, &none);
-            let floor = f64::INFINITY;
-            let fine = cost(&colour, &node, ChromaSteps::Fine { first, floor }, &coarse);
+            let [all, _, fine] = passes(&colour, log2, f64::INFINITY);
             for lambda in [300.0, 3000.0, 30000.0] {
                 let cheapest =
                     |c: &ChromaCost| -> Vec<RatePoint> { c.cheapest(lambda).copied().collect() };

@@ -119,9 +119,7 @@ impl Stats {
             self.cquant
         );
     }
-}
 
-impl Stats {
     /// The same description as [`Stats::print`], as one JSON object.
     fn json(&self, input: &Path, header: &Header, stream_len: usize) -> serde_json::Value {
         let px = header.pixel_count() as f64;
