@@ -60,7 +60,8 @@ pub mod packets;
 pub mod relief;
 
 pub use encoder::{
-    analyse, analyse_colour, analysis_steps, psnr, Analysis, AnalysisStage, AnalysisSteps,
-    AnalysisTiming, ColourPlanes, EncodeError, Encoded, EncoderConfig, Plane, Target, Tune,
-    CHROMA_WEIGHTS, DEFAULT_STRIPE_TILES, FINE_STEP_MARGIN, MIN_TRIAL_BPP, WHOLE_WIDTH,
+    analyse, analyse_colour, analyse_colour_in_parts, analyse_in_parts, analysis_steps, psnr,
+    Analysis, AnalysisInParts, AnalysisStage, AnalysisSteps, AnalysisTiming, ColourPlanes,
+    EncodeError, Encoded, EncoderConfig, Plane, Target, Tune, CHROMA_WEIGHTS, DEFAULT_STRIPE_TILES,
+    FINE_STEP_MARGIN, MIN_TRIAL_BPP, PART_PIXELS, WHOLE_WIDTH,
 };

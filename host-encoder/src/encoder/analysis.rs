@@ -19,7 +19,7 @@ use super::config::EncoderConfig;
 use super::error::EncodeError;
 use super::fit::{fit_default, prepare_projections, Fit};
 use super::ids::{ControlQuantiserId, ModelId};
-use super::masking::Masking;
+use super::masking::{ContrastScale, Masking};
 use super::plane::{ImagePrediction, Plane};
 use super::quantise::{quantise, ControlTargets, Quantised, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
 use super::rate::{leaf_bits, node_hull, prune_node, rate_node, Anchor, GrowingHull, RateTable};
@@ -123,16 +123,31 @@ impl Analysis {
         config: &EncoderConfig,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<Analysis, EncodeError> {
-        Analysis::run_in_bands(plane, colour, config, BAND_PIXELS, progress)
+        let scale = ContrastScale::of(&plane, config.tune);
+        Analysis::run_in_bands(plane, colour, config, (BAND_PIXELS, scale), progress)
+    }
+
+    /// [`Analysis::run`] of a part of an image (`plane`, cut by [`Plane::crop`], and its
+    /// chroma), its errors weighed by the whole image's contrast `scale`: the analysis the
+    /// whole image's would make there, but at the part's top edge (its trial encode, which
+    /// trains its rates, sees no pixel above it).
+    pub(super) fn run_part(
+        plane: Plane,
+        colour: Option<ColourPlanes>,
+        config: &EncoderConfig,
+        scale: Option<ContrastScale>,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<Analysis, EncodeError> {
+        Analysis::run_in_bands(plane, colour, config, (BAND_PIXELS, scale), progress)
     }
 
     /// [`Analysis::run`], fitting and quantising bands of about `band_pixels` pixels one after
-    /// the other ([`band_height`]).
+    /// the other ([`band_height`]), errors weighed by `scale` ([`Masking::scaled`]).
     fn run_in_bands(
         plane: Plane,
         colour: Option<ColourPlanes>,
         config: &EncoderConfig,
-        band_pixels: u32,
+        (band_pixels, scale): (u32, Option<ContrastScale>),
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<Analysis, EncodeError> {
         let mut header = header_for(&plane, config)?;
@@ -143,7 +158,7 @@ impl Analysis {
             tree: CandidateTree::new(
                 empty_levels(&plane, &header),
                 header.min_leaf_log2,
-                Masking::of(&plane, config.tune),
+                Masking::scaled(&plane, scale),
             ),
             plane,
             header,
@@ -446,12 +461,16 @@ impl WithCandidates for Analysis {
 
 /// The header of the streams of `plane` under `config` (its payload yet unknown), or
 /// [`EncodeError::BadDimensions`] if the format cannot hold the image.
-fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeError> {
+pub(super) fn header_for(plane: &Plane, config: &EncoderConfig) -> Result<Header, EncodeError> {
     header_of_size(plane.width, plane.height, config)
 }
 
 /// [`header_for`] an image of `width x height` pixels.
-fn header_of_size(width: u32, height: u32, config: &EncoderConfig) -> Result<Header, EncodeError> {
+pub(super) fn header_of_size(
+    width: u32,
+    height: u32,
+    config: &EncoderConfig,
+) -> Result<Header, EncodeError> {
     let bad = || EncodeError::BadDimensions { width, height };
     let width = u16::try_from(width).map_err(|_| bad())?;
     let height = u16::try_from(height).map_err(|_| bad())?;
@@ -1446,18 +1465,19 @@ mod tests {
             ..EncoderConfig::default()
         };
         let plane = textured_plane(256, 200);
+        let scale = ContrastScale::of(&plane, config.tune);
         let reported = AtomicU64::new(0);
         let progress = |n: u64| {
             reported.fetch_max(n, Ordering::Relaxed);
         };
-        let banded = Analysis::run_in_bands(plane.clone(), None, &config, 1, &progress)
+        let banded = Analysis::run_in_bands(plane.clone(), None, &config, (1, scale), &progress)
             .expect("an analysis");
         let listed = steps_in_bands(256, 200, &config, 1);
         assert_eq!(listed.iter().filter(|s| s.log2 == 5).count(), 7 * 2 + 1);
         let steps: u64 = listed.iter().map(|s| s.nodes).sum();
         assert_eq!(reported.load(Ordering::Relaxed), steps);
-        let whole =
-            Analysis::run_in_bands(plane, None, &config, u32::MAX, &|_| {}).expect("an analysis");
+        let whole = Analysis::run_in_bands(plane, None, &config, (u32::MAX, scale), &|_| {})
+            .expect("an analysis");
         // The first band's nodes hold their indices, the others make them again.
         let image = prediction_of(&banded.plane, &banded.header);
         let unplaced = |na: &NodeAnalysis| (na.candidates.clone(), na.leaves(&image));

@@ -38,6 +38,8 @@ pub enum EncodeError {
     Syntax(DecodeError),
     /// The encoder's own bookkeeping is inconsistent (a bug); the text says what was found.
     Internal(&'static str),
+    /// What was asked is not supported; the text says what.
+    Unsupported(&'static str),
 }
 
 impl fmt::Display for EncodeError {
@@ -60,6 +62,7 @@ impl fmt::Display for EncodeError {
                 write!(f, "internal encoder error: the syntax refused a leaf")
             }
             EncodeError::Internal(what) => write!(f, "internal encoder error: {what}"),
+            EncodeError::Unsupported(what) => write!(f, "not supported: {what}"),
         }
     }
 }

@@ -38,44 +38,77 @@ pub struct Masking {
     sums: Vec<f64>,
 }
 
-impl Masking {
-    /// Every error counts the same ([`Tune::Psnr`]).
-    pub fn uniform() -> Masking {
-        Masking::default()
-    }
+/// How an image's block variances become weights: `((v + floor) / g)^-STRENGTH / mean`, `g`
+/// the geometric mean of `v + floor` over the image's blocks and `mean` the mean of the
+/// unscaled weights, so that the weights' mean over the image is 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContrastScale {
+    /// `ln g`.
+    log_mean: f64,
+    /// The mean of `((v + floor) / g)^-STRENGTH` over the blocks.
+    mean: f64,
+}
 
-    /// The weights `tune` gives `plane`'s errors.
-    pub fn of(plane: &Plane, tune: Tune) -> Masking {
-        match tune {
-            Tune::Psnr => Masking::uniform(),
-            Tune::Ssim => Masking::by_contrast(plane),
+impl ContrastScale {
+    /// The scale of `plane`'s weights under `tune`: `None` for uniform weights
+    /// ([`Tune::Psnr`], or an empty plane).
+    pub fn of(plane: &Plane, tune: Tune) -> Option<ContrastScale> {
+        if tune == Tune::Psnr {
+            return None;
         }
-    }
-
-    /// Weights that fall as each block's variance rises: `((v + floor) / g)^-STRENGTH`, `g` the
-    /// geometric mean of `v + floor` over the blocks, then scaled to a mean of 1.
-    fn by_contrast(plane: &Plane) -> Masking {
         let (cols, rows) = (plane.width.div_ceil(BLOCK), plane.height.div_ceil(BLOCK));
         if cols == 0 || rows == 0 {
-            return Masking::uniform();
+            return None;
         }
         let spread: Vec<f64> = (0..rows)
             .flat_map(|r| (0..cols).map(move |c| (c, r)))
             .map(|(c, r)| block_variance(plane, c, r) + VARIANCE_FLOOR)
             .collect();
         let log_mean = spread.iter().map(|v| v.ln()).sum::<f64>() / spread.len() as f64;
-        let weights: Vec<f64> = spread
-            .iter()
-            .map(|v| (-STRENGTH * (v.ln() - log_mean)).exp())
-            .collect();
-        let mean = weights.iter().sum::<f64>() / weights.len() as f64;
+        let raw = ContrastScale {
+            log_mean,
+            mean: 1.0,
+        };
+        let mean = spread.iter().map(|&v| raw.unscaled(v)).sum::<f64>() / spread.len() as f64;
+        Some(ContrastScale { log_mean, mean })
+    }
+
+    /// The weight of a block whose variance plus the floor is `spread`, before the scaling to a
+    /// mean of 1.
+    fn unscaled(&self, spread: f64) -> f64 {
+        (-STRENGTH * (spread.ln() - self.log_mean)).exp()
+    }
+
+    /// The weight of a block of variance `variance`.
+    fn weight(&self, variance: f64) -> f64 {
+        self.unscaled(variance + VARIANCE_FLOOR) / self.mean
+    }
+}
+
+impl Masking {
+    /// Every error counts the same ([`Tune::Psnr`]).
+    pub fn uniform() -> Masking {
+        Masking::default()
+    }
+
+    /// The weights of `plane`'s errors scaled by `scale` (by [`Tune::Psnr`]'s none, uniform):
+    /// a part of an image cut on block edges gets, from its image's scale, the weights the
+    /// whole image's errors have there.
+    pub fn scaled(plane: &Plane, scale: Option<ContrastScale>) -> Masking {
+        let Some(scale) = scale else {
+            return Masking::uniform();
+        };
+        let (cols, rows) = (plane.width.div_ceil(BLOCK), plane.height.div_ceil(BLOCK));
+        if cols == 0 || rows == 0 {
+            return Masking::uniform();
+        }
         let stride = cols as usize + 1;
         let mut sums = vec![0.0f64; stride * (rows as usize + 1)];
         for r in 0..rows as usize {
             for c in 0..cols as usize {
                 let at = (r + 1) * stride + c + 1;
-                sums[at] = weights[r * cols as usize + c] / mean + sums[at - 1] + sums[at - stride]
-                    - sums[at - stride - 1];
+                let weight = scale.weight(block_variance(plane, c as u32, r as u32));
+                sums[at] = weight + sums[at - 1] + sums[at - stride] - sums[at - stride - 1];
             }
         }
         Masking { cols, rows, sums }
@@ -198,7 +231,8 @@ mod tests {
                 }
             })
             .collect();
-        let m = Masking::of(&Plane::new(w, h, data), Tune::Ssim);
+        let plane = Plane::new(w, h, data);
+        let m = Masking::scaled(&plane, ContrastScale::of(&plane, Tune::Ssim));
         let (flat, noisy) = (m.weight(&node(0, 0, 5)), m.weight(&node(32, 0, 5)));
         assert!(flat > 1.5 * noisy, "flat {flat}, noisy {noisy}");
         assert!(((flat + noisy) / 2.0 - 1.0).abs() < 1e-9);
@@ -211,7 +245,7 @@ mod tests {
     #[test]
     fn psnr_tuning_weighs_every_error_alike() {
         let plane = Plane::new(16, 16, (0..=255).collect());
-        let m = Masking::of(&plane, Tune::Psnr);
+        let m = Masking::scaled(&plane, ContrastScale::of(&plane, Tune::Psnr));
         assert_eq!(m.weight(&node(0, 0, 4)), 1.0);
         assert_eq!(m, Masking::uniform());
     }

@@ -11,7 +11,8 @@
 //!   for the multiplier that meets a target;
 //! - [`writer`]: the stream of a plan, and its reconstruction;
 //! - [`analysis`]: the driver that runs the stages on an image;
-//! - this module: the public API, [`analyse`] and [`Analysis::encode`] for any [`Target`].
+//! - this module: the public API, [`analyse`] and [`Analysis::encode`] for any [`Target`];
+//!   with [`parts`], images too large to analyse whole ([`analyse_in_parts`]).
 
 mod analysis;
 mod candidates;
@@ -21,6 +22,7 @@ mod error;
 mod fit;
 mod ids;
 mod masking;
+mod parts;
 mod plane;
 mod quantise;
 mod rate;
@@ -36,6 +38,7 @@ pub use config::{
     EncoderConfig, Target, Tune, DEFAULT_STRIPE_TILES, FINE_STEP_MARGIN, MIN_TRIAL_BPP, WHOLE_WIDTH,
 };
 pub use error::EncodeError;
+pub use parts::{analyse_colour_in_parts, analyse_in_parts, AnalysisInParts, PART_PIXELS};
 pub use plane::{psnr, Plane};
 pub(crate) use writer::LeafBits;
 

@@ -19,6 +19,9 @@ pub struct Plane {
     /// resolution of the decoder's patches), which the analysis fits instead of `data` (their
     /// rounding to grey).
     pub fine: Option<Vec<u16>>,
+    /// For a plane cut from a larger image ([`Plane::crop`]): the samples of the image's row
+    /// just above it, which prediction at its top edge sees as the whole image's would.
+    above: Option<Vec<i32>>,
 }
 
 impl Plane {
@@ -34,6 +37,7 @@ impl Plane {
             height,
             data,
             fine: None,
+            above: None,
         }
     }
 
@@ -84,6 +88,43 @@ impl Plane {
         }
     }
 
+    /// The rectangle `width` x `height` at `(x, y)` (inside this plane) as a plane of its own,
+    /// keeping the samples of the row above it: the analysis of a part of an image
+    /// predicts its top edge from that row as the whole image's analysis would.
+    pub(crate) fn crop(&self, (x, y): (u32, u32), (width, height): (u32, u32)) -> Plane {
+        let rows = |row_len: usize| {
+            let stride = self.width as usize;
+            (y as usize..(y + height) as usize).map(move |r| {
+                let start = r * stride + x as usize;
+                start..start + row_len
+            })
+        };
+        let data = rows(width as usize)
+            .flat_map(|at| self.data[at].iter().copied())
+            .collect();
+        let fine = self.fine.as_ref().map(|fine| {
+            rows(width as usize)
+                .flat_map(|at| fine[at].iter().copied())
+                .collect()
+        });
+        let above = (y > 0).then(|| (x..x + width).map(|c| self.sample(c, y - 1)).collect());
+        Plane {
+            width,
+            height,
+            data,
+            fine,
+            above,
+        }
+    }
+
+    /// This plane as an image of its own: without the row above it that [`Plane::crop`] kept.
+    pub(crate) fn alone(self) -> Plane {
+        Plane {
+            above: None,
+            ..self
+        }
+    }
+
     /// The target at `(x, y)` in 1/16 of a grey level.
     #[inline]
     pub fn sample(&self, x: u32, y: u32) -> i32 {
@@ -123,6 +164,11 @@ impl ImagePrediction<'_> {
 impl SamplePrediction for ImagePrediction<'_> {
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
         let (width, height) = (self.plane.width, self.plane.height);
+        if above && y == 0 {
+            // The row above a plane cut from a larger image.
+            let row = self.plane.above.as_ref()?;
+            return (y < height).then(|| row.get(x as usize).copied()).flatten();
+        }
         beside_known(above, x, y, width, height, self.stripe).then(|| {
             let (x, y) = if above { (x, y - 1) } else { (x - 1, y) };
             self.sample(x, y)
@@ -133,6 +179,38 @@ impl SamplePrediction for ImagePrediction<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A plane cut from a larger one predicts its top edge from the row above it, as the whole
+    /// plane does there, and nothing beyond its own width; alone, from nothing.
+    #[test]
+    fn a_cut_plane_predicts_from_the_row_above_it() {
+        let data: Vec<u8> = (0..64 * 40).map(|i| (i * 7 % 251) as u8).collect();
+        let whole = Plane::new(64, 40, data);
+        let cut = whole.crop((32, 16), (32, 24));
+        assert_eq!(cut.get(3, 2), whole.get(35, 18));
+        let (full, part) = (
+            ImagePrediction {
+                plane: &whole,
+                stripe: 32,
+            },
+            ImagePrediction {
+                plane: &cut,
+                stripe: 32,
+            },
+        );
+        for x in 0..32 {
+            assert_eq!(part.beside(true, x, 0), full.beside(true, x + 32, 16));
+            assert_eq!(part.beside(true, x, 5), full.beside(true, x + 32, 21));
+            assert_eq!(part.beside(false, x, 5), full.beside(false, x + 32, 21));
+        }
+        assert_eq!(part.beside(true, 32, 0), None);
+        let alone = cut.alone();
+        let alone = ImagePrediction {
+            plane: &alone,
+            stripe: 32,
+        };
+        assert_eq!(alone.beside(true, 3, 0), None);
+    }
 
     /// A plane of samples keeps them as its targets (`value`, `row_values`, `sample`) and
     /// their rounding to grey as its pixels; a plane of pixels targets the pixels.

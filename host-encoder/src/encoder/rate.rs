@@ -279,7 +279,7 @@ impl RateTable {
 
     /// The best cut of `tree` (whose candidates this table rates) for multiplier `lambda`
     /// (squared error per bit).
-    fn optimise(&self, tree: &CandidateTree, header: &Header, lambda: f64) -> Plan {
+    pub(super) fn optimise(&self, tree: &CandidateTree, header: &Header, lambda: f64) -> Plan {
         let min = tree.min_leaf_log2();
         let colour = header.channels == 3;
         let mut decisions: Vec<Vec<Decision>> = Vec::with_capacity(tree.levels().len());

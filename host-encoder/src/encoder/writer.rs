@@ -7,7 +7,7 @@
 use super::candidates::CandidateTree;
 use super::chroma::{choose, ChromaCache, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
-use super::plane::ImagePrediction;
+use super::plane::{ImagePrediction, Plane};
 use super::rate::{Decision, Plan};
 use crate::entropy::RangeEncoder;
 use decoder_core::internal::entropy::{Coder, PayloadError, Prob, PROB_ONE};
@@ -101,61 +101,66 @@ fn cut_leaves(
     }
 }
 
-/// The walk's visitor: splits and codes the leaves as the plan says.
-struct PlanVisitor<'a> {
+/// What a walk reads to write a plan: the candidates, the plan, the syntax of its leaves, the
+/// image it is made from, the chroma. Their nodes lie `origin` pixels from the stream's (the
+/// walk's): a part of the image analysed on its own ([`write_in_parts`]) has nodes of its own.
+#[derive(Clone, Copy)]
+struct PlanSource<'a> {
     tree: &'a CandidateTree,
     plan: &'a Plan,
     /// The syntax of the plan's leaves.
-    plan_leaves: PlanLeaves,
+    plan_leaves: &'a PlanLeaves,
     /// The image the syntax is made from.
     image: ImagePrediction<'a>,
-    leaves: usize,
     /// The chroma of a colour stream.
     colour: Option<&'a ColourPlanes>,
     /// Chroma options reconstructed by earlier writes.
     cache: &'a ChromaCache,
+    /// Where the candidates' image lies in the stream's, pixels.
+    origin: (u32, u32),
+}
+
+impl PlanSource<'_> {
+    /// The candidates' node at the stream's node `node` (of luma, or of chroma when `chroma`).
+    fn local(&self, node: &Node, chroma: bool) -> Node {
+        let shift = u32::from(chroma);
+        Node {
+            x: node.x - (self.origin.0 >> shift),
+            y: node.y - (self.origin.1 >> shift),
+            log2: node.log2,
+        }
+    }
+}
+
+/// What a walk of plans keeps as it goes.
+#[derive(Default)]
+struct WalkRecord<'a> {
+    leaves: usize,
     chroma_bits: f64,
     /// Chroma choices in coding order: replayed from an earlier write of the same plan, or
     /// recorded for a later one ([`ChromaMemo`]).
     tape: Vec<ChromaChoice>,
     /// How many of `tape` were replayed so far; `None` when recording.
     replay: Option<usize>,
+    /// Whether chroma choices are recorded.
+    recording: bool,
     /// Where each leaf's bits are counted, when they are ([`leaf_bits`]).
     meter: Option<Meter<'a>>,
-    /// The node whose chroma covers its subtree, while the walk may be in it.
+    /// The node whose chroma covers its subtree, while the walk may be in it (the stream's).
     subtree: Option<Node>,
 }
 
-impl<'a> PlanVisitor<'a> {
-    /// A visitor of `plan` that chooses every chroma leaf (recording the choices), counting
-    /// leaves' bits into `meter` if given.
-    fn new(
-        (tree, image): (&'a CandidateTree, &ImagePrediction<'a>),
-        plan: &'a Plan,
-        colour: Option<&'a ColourPlanes>,
-        cache: &'a ChromaCache,
-        meter: Option<Meter<'a>>,
-    ) -> Self {
-        PlanVisitor {
-            tree,
-            plan,
-            plan_leaves: plan_leaves(tree, plan, image),
-            image: *image,
-            leaves: 0,
-            colour,
-            cache,
-            chroma_bits: 0.0,
-            tape: Vec::new(),
-            replay: None,
-            meter,
-            subtree: None,
-        }
-    }
+/// The walk's visitor: splits and codes the leaves as the plan says.
+struct PlanVisitor<'a, 'r, 'm> {
+    source: PlanSource<'a>,
+    record: &'r mut WalkRecord<'m>,
+}
 
+impl PlanVisitor<'_, '_, '_> {
     /// The plan's decision for `node`, the next node of the walk: inside the subtree whose
     /// chroma a node above codes, the plan's decisions for such subtrees.
     fn decision(&mut self, node: &Node) -> Option<Decision> {
-        let inside = self.subtree.is_some_and(|s| {
+        let inside = self.record.subtree.is_some_and(|s| {
             node.log2 < s.log2
                 && node.x >= s.x
                 && node.y >= s.y
@@ -163,9 +168,24 @@ impl<'a> PlanVisitor<'a> {
                 && node.y - s.y < s.size()
         });
         if !inside {
-            self.subtree = None;
+            self.record.subtree = None;
         }
-        self.plan.decision(self.tree, node, inside)
+        let local = self.source.local(node, false);
+        self.source.plan.decision(self.source.tree, &local, inside)
+    }
+}
+
+/// A prediction whose coordinates lie `(dx, dy)` from the caller's: the walk's frontier seen
+/// from a part of the image analysed on its own.
+struct Shifted<'p, P> {
+    inner: &'p P,
+    dx: u32,
+    dy: u32,
+}
+
+impl<P: SamplePrediction> SamplePrediction for Shifted<'_, P> {
+    fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
+        self.inner.beside(above, x + self.dx, y + self.dy)
     }
 }
 
@@ -223,7 +243,7 @@ thread_local! {
     static CHROMA_MEMO: RefCell<Option<ChromaMemo>> = const { RefCell::new(None) };
 }
 
-impl TreeVisitor for PlanVisitor<'_> {
+impl TreeVisitor for PlanVisitor<'_, '_, '_> {
     type Error = DecodeError;
 
     fn split(&mut self, node: &Node) -> bool {
@@ -231,10 +251,12 @@ impl TreeVisitor for PlanVisitor<'_> {
     }
 
     fn chroma_subtree(&mut self, node: &Node) -> bool {
-        let here = self.colour.is_some()
-            && self.plan.decision(self.tree, node, false) == Some(Decision::SplitWithChroma);
+        let source = self.source;
+        let local = source.local(node, false);
+        let here = source.colour.is_some()
+            && source.plan.decision(source.tree, &local, false) == Some(Decision::SplitWithChroma);
         if here {
-            self.subtree = Some(*node);
+            self.record.subtree = Some(*node);
         }
         here
     }
@@ -246,10 +268,12 @@ impl TreeVisitor for PlanVisitor<'_> {
         leaf: &mut LeafSyntax,
     ) {
         if let Some(Decision::Leaf(c)) = self.decision(node) {
-            if let Some(made) = self.plan_leaves.get(&leaf_key(node, c)) {
+            let source = self.source;
+            let local = source.local(node, false);
+            if let Some(made) = source.plan_leaves.get(&leaf_key(&local, c)) {
                 *leaf = *made;
-            } else if let Some(na) = self.tree.node(node) {
-                *leaf = na.leaf(usize::from(c), &self.image);
+            } else if let Some(na) = source.tree.node(&local) {
+                *leaf = na.leaf(usize::from(c), &source.image);
             }
         }
     }
@@ -262,33 +286,41 @@ impl TreeVisitor for PlanVisitor<'_> {
         contexts: &ChromaContexts,
         leaf: &mut LeafSyntax,
     ) {
-        if let Some(colour) = self.colour {
-            if let Some(pos) = self.replay {
-                if let Some(choice) = self.tape.get(pos).copied() {
-                    self.replay = Some(pos + 1);
+        let source = self.source;
+        let record = &mut *self.record;
+        if let Some(colour) = source.colour {
+            if let Some(pos) = record.replay {
+                if let Some(choice) = record.tape.get(pos).copied() {
+                    record.replay = Some(pos + 1);
                     *leaf = choice.syntax;
-                    self.chroma_bits += choice.bits;
+                    record.chroma_bits += choice.bits;
                     return;
                 }
                 // The tape ran out (it should not): choose from here on, recording nothing.
-                self.replay = Some(usize::MAX);
+                record.replay = Some(usize::MAX);
             }
             // The node's errors count `weight` times, as in the analysis: the same choice as
             // its bits counting `1 / weight` times.
-            let weight = self.tree.masking().chroma_weight(node);
+            let local = source.local(node, true);
+            let weight = source.tree.masking().chroma_weight(&local);
+            let shifted = Shifted {
+                inner: prediction,
+                dx: source.origin.0 / 2,
+                dy: source.origin.1 / 2,
+            };
             let choice = choose(
                 &colour.chroma[plane & 1],
                 plane,
-                node,
-                prediction,
+                &local,
+                &shifted,
                 contexts,
-                self.plan.lambda / weight,
-                self.cache,
+                source.plan.lambda / weight,
+                source.cache,
             );
             *leaf = choice.syntax;
-            self.chroma_bits += choice.bits;
-            if self.replay.is_none() {
-                self.tape.push(choice);
+            record.chroma_bits += choice.bits;
+            if record.replay.is_none() && record.recording {
+                record.tape.push(choice);
             }
         }
     }
@@ -300,8 +332,9 @@ impl TreeVisitor for PlanVisitor<'_> {
         frontier: &mut Frontier<STRIPE>,
     ) -> Result<(), DecodeError> {
         frontier.record(&info.node, control_step(info.cquant), patch, &mut Discard);
-        self.leaves += 1;
-        if let Some(meter) = &mut self.meter {
+        let record = &mut *self.record;
+        record.leaves += 1;
+        if let Some(meter) = &mut record.meter {
             let now = meter.total.get();
             meter.leaves.push(LeafBits {
                 node: info.node,
@@ -343,10 +376,26 @@ pub fn write(
                 .then_some(memo.choices)
         })
     });
-    let replay = tape.as_ref().map(|_| 0);
-    let mut visitor = PlanVisitor::new((tree, prediction), plan, colour, cache, None);
-    visitor.tape = tape.unwrap_or_default();
-    visitor.replay = replay;
+    let plan_leaves = plan_leaves(tree, plan, prediction);
+    let mut record = WalkRecord {
+        replay: tape.as_ref().map(|_| 0),
+        tape: tape.unwrap_or_default(),
+        recording: true,
+        ..WalkRecord::default()
+    };
+    let source = PlanSource {
+        tree,
+        plan,
+        plan_leaves: &plan_leaves,
+        image: *prediction,
+        colour,
+        cache,
+        origin: (0, 0),
+    };
+    let mut visitor = PlanVisitor {
+        source,
+        record: &mut record,
+    };
     let mut coder = RangeEncoder::new();
     let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
     walk_with(header, &mut coder, &mut visitor, &mut state).map_err(EncodeError::Syntax)?;
@@ -357,11 +406,21 @@ pub fn write(
             lambda: plan.lambda.to_bits(),
             image,
             header: key_header,
-            choices: std::mem::take(&mut visitor.tape),
+            choices: std::mem::take(&mut record.tape),
         };
         CHROMA_MEMO.with(|m| *m.borrow_mut() = Some(memo));
     }
-    let payload = coder.finish();
+    sealed(header, coder.finish(), state.contexts, &record)
+}
+
+/// The stream of `header` with `payload`, the contexts the walk ended with and what it
+/// recorded.
+fn sealed(
+    header: &Header,
+    payload: Vec<u8>,
+    final_contexts: Contexts,
+    record: &WalkRecord,
+) -> Result<Written, EncodeError> {
     let header = Header {
         payload_len: u32::try_from(payload.len())
             .map_err(|_| EncodeError::Internal("a payload of 4 GiB or more"))?,
@@ -374,9 +433,9 @@ pub fn write(
     Ok(Written {
         payload_bits: payload.len() as f64 * 8.0,
         bytes,
-        final_contexts: state.contexts,
-        leaves: visitor.leaves,
-        chroma_bits: visitor.chroma_bits,
+        final_contexts,
+        leaves: record.leaves,
+        chroma_bits: record.chroma_bits,
     })
 }
 
@@ -396,12 +455,235 @@ pub fn leaf_bits(
         last: 0.0,
         leaves: Vec::new(),
     };
-    let mut visitor = PlanVisitor::new((tree, image), plan, colour, cache, Some(meter));
+    let plan_leaves = plan_leaves(tree, plan, image);
+    let mut record = WalkRecord {
+        meter: Some(meter),
+        ..WalkRecord::default()
+    };
+    let mut visitor = PlanVisitor {
+        source: PlanSource {
+            tree,
+            plan,
+            plan_leaves: &plan_leaves,
+            image: *image,
+            colour,
+            cache,
+            origin: (0, 0),
+        },
+        record: &mut record,
+    };
     let mut coder = MeteredEncoder {
         inner: RangeEncoder::new(),
         total: &total,
     };
     let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
     walk_with(header, &mut coder, &mut visitor, &mut state).map_err(EncodeError::Syntax)?;
-    Ok(visitor.meter.map(|m| m.leaves).unwrap_or_default())
+    Ok(record.meter.map(|m| m.leaves).unwrap_or_default())
+}
+
+/// A part of the image analysed on its own and planned, for [`write_in_parts`].
+#[derive(Debug)]
+pub struct Part {
+    /// Where the part lies in the image (its top-left pixel): its nodes are relative to it.
+    pub origin: (u32, u32),
+    /// The part's candidates.
+    pub tree: CandidateTree,
+    /// The part's pixels, cut with the row above them (`Plane::crop`): its candidates'
+    /// syntax is made from them.
+    pub plane: Plane,
+    /// The part's chroma, for a colour stream.
+    pub colour: Option<ColourPlanes>,
+    /// Chroma options reconstructed so far.
+    pub cache: ChromaCache,
+    /// The plan of the part's leaves.
+    pub plan: Plan,
+}
+
+impl Part {
+    fn contains(&self, node: &Node) -> bool {
+        let (x, y) = self.origin;
+        node.x >= x
+            && node.y >= y
+            && node.x - x < self.plane.width
+            && node.y - y < self.plane.height
+    }
+}
+
+/// Why a walk of parts stopped.
+#[derive(Debug)]
+enum PartsFailure {
+    Syntax(DecodeError),
+    /// A part could not be made.
+    Part(EncodeError),
+}
+
+impl From<DecodeError> for PartsFailure {
+    fn from(e: DecodeError) -> Self {
+        PartsFailure::Syntax(e)
+    }
+}
+
+/// The walk's visitor over parts: holds one part at a time, asking for the next as the walk
+/// leaves it.
+struct PartsVisitor<'n> {
+    /// The part the walk is in, with the syntax of its plan's leaves.
+    held: Option<(Part, PlanLeaves)>,
+    record: WalkRecord<'static>,
+    /// Makes the next part from the payload bits written so far.
+    next: &'n mut dyn FnMut(f64) -> Result<Part, EncodeError>,
+    /// Payload bits written so far.
+    total: &'n Cell<f64>,
+    /// The stream's stripe width, pixels.
+    stripe: u32,
+    /// Why the walk must stop, once a part could not be made.
+    failed: Option<EncodeError>,
+}
+
+impl PartsVisitor<'_> {
+    /// Calls `visit` with the visitor of the part holding `node` (the next part, made now, when
+    /// the walk has left the one held); `None` once a part could not be made.
+    fn in_part<R>(
+        &mut self,
+        node: &Node,
+        visit: impl FnOnce(&mut PlanVisitor<'_, '_, 'static>) -> R,
+    ) -> Option<R> {
+        if self.failed.is_some() {
+            return None;
+        }
+        if !self.held.as_ref().is_some_and(|(p, _)| p.contains(node)) {
+            // One part in memory at a time.
+            self.held = None;
+            let made = (self.next)(self.total.get()).and_then(|part| {
+                if !part.contains(node) {
+                    return Err(EncodeError::Internal("parts out of coding order"));
+                }
+                let image = ImagePrediction {
+                    plane: &part.plane,
+                    stripe: self.stripe,
+                };
+                let leaves = plan_leaves(&part.tree, &part.plan, &image);
+                Ok((part, leaves))
+            });
+            match made {
+                Ok(held) => self.held = Some(held),
+                Err(e) => {
+                    self.failed = Some(e);
+                    return None;
+                }
+            }
+        }
+        let (part, leaves) = self.held.as_ref()?;
+        let mut visitor = PlanVisitor {
+            source: PlanSource {
+                tree: &part.tree,
+                plan: &part.plan,
+                plan_leaves: leaves,
+                image: ImagePrediction {
+                    plane: &part.plane,
+                    stripe: self.stripe,
+                },
+                colour: part.colour.as_ref(),
+                cache: &part.cache,
+                origin: part.origin,
+            },
+            record: &mut self.record,
+        };
+        Some(visit(&mut visitor))
+    }
+}
+
+impl TreeVisitor for PartsVisitor<'_> {
+    type Error = PartsFailure;
+
+    fn split(&mut self, node: &Node) -> bool {
+        self.in_part(node, |v| v.split(node)).unwrap_or(false)
+    }
+
+    fn chroma_subtree(&mut self, node: &Node) -> bool {
+        self.in_part(node, |v| v.chroma_subtree(node))
+            .unwrap_or(false)
+    }
+
+    fn prepare_leaf<P: SamplePrediction>(
+        &mut self,
+        node: &Node,
+        prediction: &P,
+        leaf: &mut LeafSyntax,
+    ) {
+        self.in_part(node, |v| v.prepare_leaf(node, prediction, leaf));
+    }
+
+    fn prepare_chroma<P: SamplePrediction>(
+        &mut self,
+        node: &Node,
+        plane: usize,
+        prediction: &P,
+        contexts: &ChromaContexts,
+        leaf: &mut LeafSyntax,
+    ) {
+        // The leaf's luma was prepared in the part that holds it.
+        let luma = Node {
+            x: node.x * 2,
+            y: node.y * 2,
+            log2: node.log2 + 1,
+        };
+        self.in_part(&luma, |v| {
+            v.prepare_chroma(node, plane, prediction, contexts, leaf)
+        });
+    }
+
+    fn leaf<const STRIPE: usize>(
+        &mut self,
+        info: &LeafInfo,
+        patch: &Patch,
+        frontier: &mut Frontier<STRIPE>,
+    ) -> Result<(), PartsFailure> {
+        match self.in_part(&info.node, |v| v.leaf(info, patch, frontier)) {
+            Some(done) => done.map_err(PartsFailure::Syntax),
+            None => {
+                Err(PartsFailure::Part(self.failed.take().unwrap_or(
+                    EncodeError::Internal("a part could not be made"),
+                )))
+            }
+        }
+    }
+}
+
+/// Writes the stream of `header` part by part, holding one part at a time: `next` makes the
+/// part the walk enters next (parts come in coding order: runs of coding tiles), given the
+/// payload bits written so far, so that it can plan the part for what is left of a budget.
+pub fn write_in_parts(
+    header: &Header,
+    next: &mut dyn FnMut(f64) -> Result<Part, EncodeError>,
+) -> Result<Written, EncodeError> {
+    let total = Cell::new(0.0);
+    let mut visitor = PartsVisitor {
+        held: None,
+        record: WalkRecord::default(),
+        next,
+        total: &total,
+        stripe: header.stripe_width(),
+        failed: None,
+    };
+    let mut coder = MeteredEncoder {
+        inner: RangeEncoder::new(),
+        total: &total,
+    };
+    let mut state = Box::new(WalkState::<MAX_STRIPE>::default());
+    let walked = walk_with(header, &mut coder, &mut visitor, &mut state);
+    if let Some(e) = visitor.failed.take() {
+        return Err(e);
+    }
+    match walked {
+        Ok(()) => {}
+        Err(PartsFailure::Syntax(e)) => return Err(EncodeError::Syntax(e)),
+        Err(PartsFailure::Part(e)) => return Err(e),
+    }
+    drop(visitor.held.take());
+    sealed(
+        header,
+        coder.inner.finish(),
+        state.contexts,
+        &visitor.record,
+    )
 }

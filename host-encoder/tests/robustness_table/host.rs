@@ -235,6 +235,16 @@ fn decoded(stream: &[u8]) -> (u32, u32, Vec<u8>) {
     (u32::from(w), u32::from(h), px)
 }
 
+/// PSNR of a decoded image of [`noise`].
+fn psnr_of_noise((w, h, px): &(u32, u32, Vec<u8>)) -> f64 {
+    let sse: f64 = (0..*h)
+        .flat_map(|y| (0..*w).map(move |x| (x, y)))
+        .zip(px)
+        .map(|((x, y), &p)| (f64::from(p) - f64::from(noise(x, y))).powi(2))
+        .sum();
+    10.0 * (255.0f64.powi(2) * px.len() as f64 / sse).log10()
+}
+
 fn leftovers(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .unwrap()
@@ -279,6 +289,8 @@ fn encode_refuses_a_flat_8000x8000_png_up_front() {
             s(&out),
             "--max-pixels",
             "4000000000",
+            "--max-memory",
+            "16G",
         ],
     );
     let msg = message(&dir, &run.out);
@@ -289,11 +301,11 @@ fn encode_refuses_a_flat_8000x8000_png_up_front() {
         &dir,
         "a 60000x60000 PNG header with --max-pixels raised",
         &format!(
-            "pifs encode {} -o {} --max-pixels 4000000000",
+            "pifs encode {} -o {} --max-pixels 4000000000 --max-memory 16G",
             s(&huge),
             s(&out)
         ),
-        &format!("refused in < 1 s by the memory available: {msg}; no output"),
+        &format!("refused in < 1 s by the memory allowed: {msg}; no output"),
     ));
     record("encode_refuses_a_flat_8000x8000_png_up_front", &rows);
 }
@@ -313,25 +325,31 @@ fn needs_mb(line: &str) -> f64 {
 #[test]
 fn encode_is_bounded_by_its_memory_budget() {
     let dir = scratch("budget");
-    // More than the cap below holds by the estimate (an encode of 1200x1200 fits in it).
-    let big = dir.join("noise-1600.png");
-    gray_png(&big, 1600, 1600, noise);
+    // More than the cap below holds by the estimate, even analysed in parts (its smallest
+    // parts are bands of 8000 x 320 pixels).
+    let big = dir.join("noise-8000x1000.png");
+    gray_png(&big, 8000, 1000, noise);
     let small = dir.join("noise-250.png");
     gray_png(&small, 250, 250, noise);
     let mid = dir.join("noise-500.png");
     gray_png(&mid, 500, 500, noise);
+    let parted = dir.join("noise-500x900.png");
+    gray_png(&parted, 500, 900, noise);
     let out = dir.join("b.pifs");
     let cap = ["prlimit", "--as=400000000"];
     let mut rows = Vec::new();
 
     let run = measured(&cap, &["encode", s(&big), "-o", s(&out)]);
     let msg = message(&dir, &run.out);
-    assert!(msg.contains("--max-memory"), "{msg}");
+    assert!(
+        msg.contains("--max-memory") && msg.contains("in parts"),
+        "{msg}"
+    );
     assert!(run.seconds < 1.0);
     assert!(!out.exists());
     rows.push(row(
         &dir,
-        "encode 1600x1600 under a 400 MB address-space cap",
+        "encode 8000x1000 under a 400 MB address-space cap",
         &format!(
             "prlimit --as=400000000 pifs encode {} -o {}",
             s(&big),
@@ -354,16 +372,33 @@ fn encode_is_bounded_by_its_memory_budget() {
         "encoded within it; the stream decodes",
     ));
 
-    let run = measured(
-        &[],
-        &["encode", s(&big), "-o", s(&out), "--max-memory", "200M"],
+    // Too large to analyse whole in the budget given: analysed in parts, within it.
+    let budget = ["encode", s(&parted), "-o", s(&out), "--bytes", "20000"];
+    let run = measured(&[], &[&budget[..], &["--max-memory", "120M"]].concat());
+    let said = ok(&run.out);
+    assert!(said.contains("analysing it in parts"), "{said}");
+    assert!(run.peak_mb <= 120.0, "{} MB", run.peak_mb);
+    let stream = std::fs::read(&out).unwrap();
+    assert!(stream.len() <= 20000, "{} bytes", stream.len());
+    let parts_psnr = psnr_of_noise(&decoded(&stream));
+    let run = measured(&[], &budget);
+    ok(&run.out);
+    let whole = std::fs::read(&out).unwrap();
+    let whole_psnr = psnr_of_noise(&decoded(&whole));
+    assert!(
+        (parts_psnr - whole_psnr).abs() < 0.1,
+        "in parts {parts_psnr} dB, whole {whole_psnr} dB"
     );
-    let msg = message(&dir, &run.out);
     rows.push(row(
         &dir,
-        "a budget given with --max-memory",
-        &format!("pifs encode {} -o {} --max-memory 200M", s(&big), s(&out)),
-        &format!("refused at once: {msg}"),
+        "a budget given with --max-memory that the whole analysis exceeds",
+        &format!(
+            "pifs encode {} -o {} --bytes 20000 --max-memory 120M",
+            s(&parted),
+            s(&out)
+        ),
+        "analysed in parts within it (peak <= 120 MB); the stream decodes, fits --bytes, and \
+         its PSNR is within 0.1 dB of the stream of the whole image's analysis",
     ));
 
     // The estimate behind these refusals bounds what an encode really takes.

@@ -14,7 +14,8 @@ use crate::say;
 use clap::Args;
 use host_encoder::io::{self, Content, ImageLimits, ImageProbe, Output};
 use host_encoder::{
-    analyse, analyse_colour, Analysis, EncodeError, Encoded, EncoderConfig, Plane, Target, Tune,
+    analyse, analyse_colour, analyse_colour_in_parts, analyse_in_parts, Analysis, EncodeError,
+    Encoded, EncoderConfig, Plane, Target, Tune,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -94,8 +95,9 @@ pub struct InputLimits {
     #[arg(long, value_name = "PIXELS")]
     pub max_pixels: Option<u64>,
     /// Memory the encode may use, such as 800M or 4G [default: what the system has available
-    /// (Linux: free memory, cgroup and ulimit)]. An image whose analysis would need more is
-    /// refused before it is decoded.
+    /// (Linux: free memory, cgroup and ulimit)]. An 8-bit image whose analysis would need more
+    /// is analysed in parts (one band of the image at a time, for twice the time); one that
+    /// would need more even so is refused before it is decoded.
     #[arg(long, value_name = "SIZE", value_parser = memory::parse_size)]
     pub max_memory: Option<u64>,
 }
@@ -127,6 +129,9 @@ pub struct Checked {
     max_alloc: u64,
     /// The box the image is scaled to fit, if any.
     fit: Option<io::Fit>,
+    /// For an image too large to analyse whole in the memory allowed: the pixels of the parts
+    /// it is analysed in instead ([`host_encoder::analyse_in_parts`]).
+    pub in_parts: Option<u64>,
 }
 
 /// Reads the image at `path` (`-`: standard input) and checks its header against `limits` and
@@ -173,14 +178,32 @@ pub fn check_image(
             memory::human(need),
         )));
     }
+    let mut in_parts = None;
     if let Some((budget, source)) = budget {
         if need > budget {
-            return Err(CliError::Refused(format!(
-                "{}: encoding {fw}x{fh} needs about {} ({per_pixel} bytes per pixel), more than {} allowed by {source}",
-                name.display(),
-                memory::human(need),
-                memory::human(budget),
-            )));
+            // Analysed part by part, an image needs memory for one part only.
+            let stripe = u64::from(analysis.stripe_width.unwrap_or(0)) * 128;
+            match memory::parts_within(size, channels, analysis.min_leaf_log2, stripe, budget) {
+                Ok((part_pixels, parts_need)) => {
+                    say!(
+                        "{}: encoding {fw}x{fh} whole needs about {}, more than {} allowed by {source}: analysing it in parts (about {}, twice the time)",
+                        name.display(),
+                        memory::human(need),
+                        memory::human(budget),
+                        memory::human(parts_need),
+                    );
+                    in_parts = Some(part_pixels);
+                }
+                Err(parts_need) => {
+                    return Err(CliError::Refused(format!(
+                        "{}: encoding {fw}x{fh} needs about {} ({per_pixel} bytes per pixel), or {} analysed in parts, more than {} allowed by {source}",
+                        name.display(),
+                        memory::human(need),
+                        memory::human(parts_need),
+                        memory::human(budget),
+                    )));
+                }
+            }
         }
     }
     Ok(Checked {
@@ -189,10 +212,23 @@ pub fn check_image(
         probe,
         max_alloc: budget.map_or(u64::MAX, |(b, _)| b),
         fit: limits.resize,
+        in_parts,
     })
 }
 
 impl Checked {
+    /// Refuses an image too large to analyse whole in the memory allowed, for what (`done`)
+    /// needs the whole image analysed.
+    pub fn whole(&self, done: &str) -> Result<()> {
+        match self.in_parts {
+            Some(_) => Err(CliError::Refused(format!(
+                "{}: {done} from an analysis of the whole image, which needs more memory than allowed (see --max-memory)",
+                self.path.display()
+            ))),
+            None => Ok(()),
+        }
+    }
+
     /// Decodes the pixels as the encoder takes them (colour unless `gray` or the image is
     /// gray; a 16-bit grayscale image as a surface unless `depth` says 8), orientation
     /// applied; a note for a TIFF of several pages (the first is taken).
@@ -532,17 +568,43 @@ fn write_encoded(
     analysed: &Analysed,
     encoded: Encoded,
     note: Option<String>,
+    out: Output,
+    t: Instant,
+) -> Result<Encoded> {
+    let made = Made {
+        size: analysed.size(),
+        seconds: analysed.seconds,
+        surface: analysed.surface.as_ref(),
+    };
+    write_made(&made, encoded, note, out, t)
+}
+
+/// What a stream was made from, for its summary.
+struct Made<'a> {
+    /// Width and height, pixels.
+    size: (u32, u32),
+    /// The analysis's wall time, seconds.
+    seconds: f64,
+    /// The 16-bit surface it codes, if it is one.
+    surface: Option<&'a io::Surface>,
+}
+
+/// Writes `encoded` (made from `made`, encoded since `t`) into `out` and prints its figures.
+fn write_made(
+    made: &Made,
+    encoded: Encoded,
+    note: Option<String>,
     mut out: Output,
     t: Instant,
 ) -> Result<Encoded> {
     out.write_all(&encoded.bytes).map_err(|e| out.error(e))?;
     let name = out.name().to_path_buf();
     out.commit()?;
-    let (w, h) = analysed.size();
+    let (w, h) = made.size;
     let actual = encoded.actual_payload_bits;
     let gap = 100.0 * (encoded.estimated_payload_bits - actual) / actual.max(1.0);
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
-    let kind = if let Some(surface) = &analysed.surface {
+    let kind = if let Some(surface) = made.surface {
         let error = surface_error(surface, &encoded.bytes)?;
         format!(
             "16-bit surface {}..{}, RMSE {:.2}, max error {}, PSNR {:.2} dB of the range",
@@ -561,9 +623,9 @@ fn write_encoded(
         "{}: {w}x{h} -> {} bytes, {:.4} bpp, {kind}, {} leaves, rate estimate {gap:+.2}% off, analysis {:.2} s + encode {:.2} s{note}",
         name.display(),
         encoded.bytes.len(),
-        analysed.bpp(encoded.bytes.len()),
+        encoded.bytes.len() as f64 * 8.0 / (f64::from(w) * f64::from(h)),
         encoded.leaves,
-        analysed.seconds,
+        made.seconds,
         t.elapsed().as_secs_f64()
     );
     Ok(encoded)
@@ -772,6 +834,7 @@ fn encode_packets(args: &EncodeArgs, job: Job) -> Result<()> {
         }
     }
     let checked = check_image(input, &args.limits, &args.analysis, args.gray)?;
+    checked.whole("packets are made")?;
     let image = checked.decode(args.gray, args.analysis.depth)?;
     if let io::Loaded::Surface(_) = image {
         return Err(CliError::Refused(format!(
@@ -802,7 +865,11 @@ pub fn encode_one(
     check_target_fits(job, checked.probe.width, checked.probe.height)?;
     let out = Output::create(output, Content::Binary("a PIFS stream"))?;
     let input = checked.path.clone();
+    let in_parts = checked.in_parts;
     let image = checked.decode(args.gray, args.analysis.depth)?;
+    if let Some(part_pixels) = in_parts {
+        return encode_in_parts(args, job, (image, part_pixels), out);
+    }
     if args.max_error.is_some() && matches!(image, io::Loaded::Rgb { .. }) {
         return Err(CliError::Refused(
             "--max-error needs a grayscale image or a 16-bit surface (add --gray)".into(),
@@ -836,6 +903,69 @@ pub fn encode_one(
         Err(e) => Err(explain(e, job, analysed.size())),
         Ok((encoded, note)) => write_encoded(&analysed, encoded, note, out, t).map(|_| ()),
     }
+}
+
+/// Encodes `image`, too large to analyse whole in the memory allowed, part by part
+/// ([`host_encoder::analyse_in_parts`], parts of about `part_pixels` pixels) for `job` into
+/// `out`.
+fn encode_in_parts(
+    args: &EncodeArgs,
+    job: Job,
+    (image, part_pixels): (io::Loaded, u64),
+    out: Output,
+) -> Result<()> {
+    if args.max_error.is_some() {
+        return Err(CliError::Refused(
+            "--max-error needs the whole image analysed, which needs more memory than allowed (see --max-memory)".into(),
+        ));
+    }
+    let (width, height) = match &image {
+        io::Loaded::Gray(plane) => (plane.width, plane.height),
+        io::Loaded::Rgb { width, height, .. } => (*width, *height),
+        io::Loaded::Surface(_) => {
+            return Err(CliError::Refused(
+                "a 16-bit surface is analysed whole, which needs more memory than allowed: add --depth 8, or allow more with --max-memory".into(),
+            ))
+        }
+    };
+    let config = args
+        .analysis
+        .config(width as usize * height as usize, &[job.target]);
+    let parts = host_encoder::AnalysisInParts::count(width, height, &config, part_pixels);
+    // Each part is analysed twice: for its curve, then for the stream (a few more choose the
+    // edge smoothing).
+    let progress = Progress::on_terminal(Work::even(2 * parts as u64));
+    let report = |n: u64| {
+        if let Some(p) = &progress {
+            p.nodes_done(n);
+        }
+    };
+    let start = Instant::now();
+    let analysis = match image {
+        io::Loaded::Gray(plane) => analyse_in_parts(plane, &config, part_pixels, &report),
+        io::Loaded::Rgb {
+            width,
+            height,
+            data,
+        } => analyse_colour_in_parts(width, height, data, &config, part_pixels, &report),
+        io::Loaded::Surface(_) => unreachable!("refused above"),
+    }?;
+    let seconds = start.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let written = |n: u64| report(parts as u64 + n);
+    let encoded = analysis
+        .encode_reporting(job.target, &written)
+        .map_err(|e| explain(e.into(), job, (width, height)));
+    if let Some(p) = &progress {
+        p.finish();
+    }
+    let made = Made {
+        size: (width, height),
+        seconds,
+        surface: None,
+    };
+    let note = format!("analysed in {parts} parts");
+    write_made(&made, encoded?, Some(note), out, t).map(|_| ())
 }
 
 /// The largest error of `encoded` against the image `analysed` holds: in its units for a

@@ -25,9 +25,14 @@
 //! grayscale (`/usr/bin/time -f %M pifs encode IN.png -o x.pifs --bpp 0.25`), about 16 bytes
 //! per pixel more; [`image_bytes_per_pixel`] prices it.
 //!
+//! An image whose analysis does not fit is analysed in parts (`host_encoder::analyse_in_parts`):
+//! bands of a stripe, one at a time, beside the image held whole and the stream's
+//! reconstruction ([`parts_within`] chooses the largest parts that fit).
+//!
 //! The test `encode_is_bounded_by_its_memory_budget` (host-encoder/tests/robustness_table/
-//! host.rs) checks the estimate against measured peaks of a grayscale and a colour encode, so
-//! that a change in the analysis shows here.
+//! host.rs) checks the estimate against measured peaks of a grayscale and a colour encode, and
+//! an encode in parts against the budget it was given, so that a change in the analysis shows
+//! here.
 //!
 //! What may be used is the smallest of: the memory the system has available
 //! (`MemAvailable`), what the process's cgroup may still charge (`memory.max` less
@@ -115,6 +120,66 @@ pub fn encode_bytes(size: ImageSize, channels: u8, min_leaf_log2: u8) -> u64 {
         .saturating_add(pixels.saturating_mul(4));
     let analysing = analysis_bytes(pixels, size.width, channels, min_leaf_log2);
     decoding.max(analysing).saturating_add(FIXED_BYTES)
+}
+
+/// The largest part an encode in parts of about `part_pixels` pixels analyses at once, of an
+/// image of `size` coded in stripes of `stripe` pixels (0: the whole width): its width and
+/// pixels. Parts are whole bands of 128 pixels of a stripe, `part_pixels` or one band, and the
+/// last part of a stripe takes a short rest with it (`host_encoder::analyse_in_parts`).
+fn largest_part(size: ImageSize, stripe: u64, part_pixels: u64) -> (u64, u64) {
+    let width = match stripe {
+        0 => size.width,
+        s => s.min(size.width),
+    };
+    let bands = (part_pixels / (width.max(1) * 128)).max(1);
+    let rows = (128 * bands + 64 * bands + 128).min(size.height);
+    (width, width.saturating_mul(rows))
+}
+
+/// Bytes an encode in parts of about `part_pixels` pixels (`host_encoder::analyse_in_parts`)
+/// of an image of `size` into a stream of `channels` channels, in stripes of `stripe` pixels,
+/// needs at its peak: the decoding as [`encode_bytes`] prices it, then the image held whole
+/// (luma, or RGB and its luma while the contrast is measured) with the stream's
+/// reconstruction, beside the analysis of its largest part.
+fn encode_in_parts_bytes(
+    size: ImageSize,
+    channels: u8,
+    min_leaf_log2: u8,
+    (stripe, part_pixels): (u64, u64),
+) -> u64 {
+    let pixels = size.width.saturating_mul(size.height);
+    let decoding = size
+        .decoded_bytes
+        .saturating_mul(2)
+        .saturating_add(pixels.saturating_mul(4));
+    let whole = pixels.saturating_mul(if channels == 3 { 7 } else { 2 });
+    let (width, part) = largest_part(size, stripe, part_pixels);
+    let analysing = whole.saturating_add(analysis_bytes(part, width, channels, min_leaf_log2));
+    decoding.max(analysing).saturating_add(FIXED_BYTES)
+}
+
+/// The largest parts (pixels, about) an encode in parts of an image of `size` into `channels`
+/// channels, in stripes of `stripe` pixels, fits in `budget` bytes with (up to
+/// [`host_encoder::PART_PIXELS`]; larger parts cost fewer analyses at their edges), and what
+/// it then needs; or what the smallest parts need when even they do not fit.
+pub fn parts_within(
+    size: ImageSize,
+    channels: u8,
+    min_leaf_log2: u8,
+    stripe: u64,
+    budget: u64,
+) -> Result<(u64, u64), u64> {
+    let mut part_pixels = host_encoder::PART_PIXELS;
+    loop {
+        let need = encode_in_parts_bytes(size, channels, min_leaf_log2, (stripe, part_pixels));
+        if need <= budget {
+            return Ok((part_pixels, need));
+        }
+        if part_pixels <= 1 << 14 {
+            return Err(need);
+        }
+        part_pixels /= 2;
+    }
 }
 
 /// Bytes per pixel of the analysis of an image of `size` into `channels` channels, with the

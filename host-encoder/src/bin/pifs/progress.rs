@@ -76,6 +76,13 @@ impl Work {
         }
     }
 
+    /// Work of `steps` steps of equal work.
+    pub fn even(steps: u64) -> Work {
+        Work {
+            levels: vec![(steps, 1.0)],
+        }
+    }
+
     /// Nodes in all.
     pub fn nodes(&self) -> u64 {
         self.levels.iter().map(|l| l.0).sum()

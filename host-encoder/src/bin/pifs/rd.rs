@@ -144,8 +144,9 @@ pub fn run(args: &RdArgs) -> Result<()> {
         }
         None => Vec::new(),
     };
-    let image = encode::check_image(&args.input, &args.limits, &args.analysis, args.gray)?
-        .decode(args.gray, args.analysis.depth)?;
+    let checked = encode::check_image(&args.input, &args.limits, &args.analysis, args.gray)?;
+    checked.whole("rate/distortion curves are measured")?;
+    let image = checked.decode(args.gray, args.analysis.depth)?;
     let targets: Vec<Target> = args.rates.iter().map(|&r| Target::Bpp(r)).collect();
     let analysed = encode::analyse_loaded(&image, &args.analysis, &targets)?;
     drop(image);
