@@ -30,8 +30,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Called once a part is analysed.
 type Report<'a> = dyn Fn() + Sync + 'a;
 
-/// Pixels a part holds at most (unless one band of a stripe is larger): about 130 MB of
-/// analysis at its peak.
+/// The largest parts `pifs encode` asks for, pixels (a part is at least one band of a stripe,
+/// and a stripe's last part takes a short rest with it): two bands of a 16384-pixel-wide
+/// image, whose encode in parts peaked at 0.80 GB (docs/results.md).
 pub const PART_PIXELS: u64 = 1 << 22;
 
 /// The multipliers each part's curve is measured at: `2^(k / 2 - 10)`, squared error per bit,
