@@ -22,6 +22,7 @@ use super::writer::{self, Part};
 use super::{
     decode, psnr, EncodeError, Encoded, EncoderConfig, Fidelity, Plane, Target, DEBLOCK_STRENGTHS,
 };
+use decoder_core::internal::colour::rgb_to_ycbcr;
 use decoder_core::internal::format::CODING_TILE;
 use decoder_core::internal::syntax::Header;
 use rayon::prelude::*;
@@ -173,7 +174,12 @@ impl AnalysisInParts {
                 )
             }
             Source::Rgb { width, height, rgb } => {
-                let (luma, _) = ColourPlanes::from_rgb(*width, *height, rgb.clone());
+                // The luma alone, as `ColourPlanes::from_rgb` makes it: no copy of the RGB.
+                let luma = rgb
+                    .chunks_exact(3)
+                    .map(|p| rgb_to_ycbcr(p[0], p[1], p[2])[0])
+                    .collect();
+                let luma = Plane::new(*width, *height, luma);
                 (
                     ContrastScale::of(&luma, config.tune),
                     header_for(&luma, config)?,
