@@ -22,7 +22,9 @@ use super::ids::{ControlQuantiserId, ModelId};
 use super::masking::{ContrastScale, Masking};
 use super::plane::{ImagePrediction, Plane};
 use super::quantise::{quantise, ControlTargets, Quantised, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
-use super::rate::{leaf_bits, node_hull, prune_node, rate_node, Anchor, GrowingHull, RateTable};
+use super::rate::{
+    leaf_bits, node_hull, prune_node, rate_node, Anchor, GrowingHull, LocalContexts, RateTable,
+};
 use super::writer;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_ONE};
@@ -200,19 +202,19 @@ impl Analysis {
         let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
         drop(first);
         self.trial = plan.anchor();
-        let snapshot = match writer::write(
+        let (snapshot, local) = match writer::write_trial(
             (&self.tree, &prediction_of(&self.plane, &self.header)),
             &self.header,
             &plan,
-            None,
             &self.chroma_cache,
         ) {
-            Ok(w) => w.final_contexts,
-            Err(_) => Contexts::default(),
+            Ok(t) => (t.written.final_contexts, t.local),
+            Err(_) => (Contexts::default(), LocalContexts::default()),
         };
         let trial = Trial {
             prediction: prediction_of(&self.plane, &self.header),
             snapshot: &snapshot,
+            local: &local,
             window: (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW),
         };
         let (plane, header) = (&self.plane, &self.header);
@@ -715,14 +717,18 @@ fn add_candidate(
 struct Trial<'a> {
     /// Prediction from the image's own pixels.
     prediction: ImagePrediction<'a>,
-    /// The contexts the trial encode ended with: every candidate is rated from them.
+    /// The contexts the trial encode ended with: a candidate is rated from them where `local`
+    /// has none for its node.
     snapshot: &'a Contexts,
+    /// The trial encode's contexts at the end of each block: a candidate is rated from those
+    /// of the block around its node.
+    local: &'a LocalContexts,
     /// The multipliers near the trial's, whose candidates get rounding variants.
     window: std::ops::RangeInclusive<f64>,
 }
 
 /// The final pruning of node `na`, under the trial encode's contexts: rates its candidates
-/// from them, keeps those that are its best leaf for some multiplier, adds the rounding
+/// from those of the block around it, keeps those that are its best leaf for some multiplier, adds the rounding
 /// variants of those best near the trial's multiplier ([`add_rounding_variants`]), and keeps
 /// again what pays. Node by node, so that no node's variants wait for the others'.
 /// `weight`: the node's error weight ([`Masking`]).
@@ -732,13 +738,14 @@ fn final_candidates(
     (na, weight): (&mut NodeAnalysis, f64),
     trial: &Trial,
 ) {
-    rate_node(na, &trial.prediction, trial.snapshot);
+    let snapshot = trial.local.of_node(&na.node).unwrap_or(trial.snapshot);
+    rate_node(na, &trial.prediction, snapshot);
     prune_node(na, &ALL_LAMBDAS);
     let vary = node_hull(na, &trial.window);
     let known = na.candidates.len();
     let varied = add_rounding_variants(plane, header, (na, weight), &vary);
     let node = na.node;
-    let mut ctx = trial.snapshot.clone();
+    let mut ctx = snapshot.clone();
     for (c, leaf) in na.candidates[known..].iter_mut().zip(&varied) {
         c.bits = leaf_bits(&node, leaf, &trial.prediction, &mut ctx);
     }
@@ -1043,6 +1050,68 @@ mod tests {
     use super::*;
 
     /// A textured test image: a smooth pattern plus noise.
+    /// The trial encode's contexts block by block follow its coder: after its last leaf they
+    /// price a leaf as the contexts the stream ended with do; and on an image smooth on the left
+    /// and noisy on the right, the smooth tile's own contexts price its leaves for fewer bits
+    /// than the contexts the stream ended with (the noisy tile's).
+    #[test]
+    fn local_contexts_follow_the_trial_encode() {
+        let (w, h) = (256u32, 128u32);
+        let mut seed = 11u32;
+        let data = (0..w * h)
+            .map(|i| {
+                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                let (x, y) = (f64::from(i % w), f64::from(i / w));
+                let smooth = 128.0 + 50.0 * (x / 21.0).sin() * (y / 17.0).cos();
+                let noise = if x < 128.0 {
+                    0.0
+                } else {
+                    f64::from(seed >> 26) - 32.0
+                };
+                (smooth + noise).clamp(0.0, 255.0) as u8
+            })
+            .collect();
+        let analysis = Analysis::run(
+            Plane::new(w, h, data),
+            None,
+            &EncoderConfig::default(),
+            &|_| {},
+        )
+        .expect("an analysis");
+        let (tree, header) = (&analysis.tree, &analysis.header);
+        let image = prediction_of(&analysis.plane, header);
+        let bits = 2.0 * f64::from(w * h);
+        let plan = analysis.rates.rough_plan_for_bits(tree, header, bits);
+        let trial = writer::write_trial((tree, &image), header, &plan, &analysis.chroma_cache)
+            .expect("a trial stream");
+        let leaves = writer::leaf_bits((tree, &image), header, &plan, None, &analysis.chroma_cache)
+            .expect("the leaves");
+        // Every candidate of `node`, priced from `contexts`.
+        let price = |node: &Node, contexts: &Contexts| -> f64 {
+            let na = tree.node(node).expect("an analysed node");
+            (na.leaves(&image).iter())
+                .map(|leaf| f64::from(leaf_bits(node, leaf, &image, &mut contexts.clone())))
+                .sum()
+        };
+        let local = |node: &Node| trial.local.of_node(node).expect("a block's contexts");
+        let last = leaves.last().expect("a leaf").node;
+        let end = &trial.written.final_contexts;
+        assert_eq!(price(&last, local(&last)), price(&last, end));
+        let smooth: Vec<Node> = leaves
+            .iter()
+            .map(|l| l.node)
+            .filter(|n| n.x < 128)
+            .collect();
+        let (own, ended): (f64, f64) = smooth
+            .iter()
+            .map(|n| (price(n, local(n)), price(n, end)))
+            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        assert!(
+            own < 0.95 * ended,
+            "{own} bits from their own contexts, {ended} from the end's"
+        );
+    }
+
     fn textured_plane(w: u32, h: u32) -> Plane {
         let mut seed = 7u32;
         let data = (0..w * h)

@@ -2,8 +2,9 @@
 //! (thesis Alg. 2) and the search for the multiplier that meets a target (thesis III.3.6.3).
 //!
 //! Rates come from decoder-core's own syntax code run on a [`BitCounter`] whose contexts start
-//! from a snapshot of the real coder's state (the contexts a trial encode ended with), so the
-//! estimate follows the real coder; each target then corrects its aim by the real coder's size.
+//! from a snapshot of the real coder's state (a leaf's, the contexts a trial encode had at the end
+//! of the block around it: [`LocalContexts`]), so the estimate follows the real coder where the
+//! leaf is; each target then corrects its aim by the real coder's size.
 //!
 //! Above [`super::candidates`] (it rates and chooses among them); below [`super::writer`], which
 //! writes the [`Plan`]s it makes.
@@ -11,10 +12,13 @@
 use super::candidates::{Candidate, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates};
 use super::plane::ImagePrediction;
 use crate::entropy::BitCounter;
+use decoder_core::internal::format::MAX_LEAF_LOG2;
+use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header, LeafSyntax};
 use decoder_core::internal::walk::{node_kind, NodeKind};
 use decoder_core::Node;
 use rayon::prelude::*;
+use std::collections::HashMap;
 
 /// The rates rate control works with: each candidate carries its bits and its error
 /// ([`Candidate::bits`], read in place: copies of them were 12 bytes a candidate in every
@@ -487,6 +491,85 @@ impl Planner<'_> {
     fn at(&self, log_lambda: f64) -> Plan {
         self.rates
             .optimise(self.tree, self.header, log_lambda.exp())
+    }
+}
+
+/// Side (log2) of the smallest blocks whose own contexts price their nodes' leaves
+/// ([`LocalContexts`]): 32, 64 and 128 did the same, 128 a little worse (docs/decisions.md).
+pub const LOCAL_LOG2: u8 = 6;
+
+/// A block of the image, by its side (log2) and its position in blocks of that side.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct Block {
+    x: u32,
+    y: u32,
+    log2: u8,
+}
+
+impl Block {
+    /// The block of side `2^log2` around `node`'s corner.
+    fn around(node: &Node, log2: u8) -> Block {
+        Block {
+            x: node.x >> log2,
+            y: node.y >> log2,
+            log2,
+        }
+    }
+}
+
+/// The leaf contexts of a walk, followed leaf by leaf, as they were at the end of every block
+/// of `2^LOCAL_LOG2` pixels and of every larger block the walk coded as one or more whole
+/// leaves. The contexts adapt within a few dozen bits, so the state a stream ends with
+/// describes only its last region; a node's leaf is priced from the state after its own block
+/// instead (the trial encode's statistics there).
+#[derive(Debug, Clone, Default)]
+pub struct LocalContexts {
+    /// The leaf contexts so far (the split flags' are not followed).
+    contexts: Contexts,
+    /// At each side (log2), the block the walk is in, if its leaves are no larger than it.
+    open: [Option<Block>; MAX_LEAF_LOG2 as usize + 1],
+    /// The contexts at the end of each block.
+    ends: HashMap<Block, Contexts>,
+}
+
+impl LocalContexts {
+    /// Follows the coding of `leaf` at `node` (predicted from `prediction`, as the walk codes
+    /// it), after closing the blocks the walk has left.
+    pub fn follow<P: SamplePrediction>(&mut self, node: &Node, prediction: &P, leaf: &LeafSyntax) {
+        for log2 in LOCAL_LOG2..=MAX_LEAF_LOG2 {
+            let block = (log2 >= node.log2).then(|| Block::around(node, log2));
+            let open = &mut self.open[usize::from(log2)];
+            if *open != block {
+                if let Some(left) = std::mem::replace(open, block) {
+                    self.ends.insert(left, self.contexts.clone());
+                }
+            }
+        }
+        let mut leaf = *leaf;
+        // An uncodable leaf fails the walk too: nothing to follow.
+        let _ = code_leaf(
+            &mut BitCounter::default(),
+            &mut self.contexts,
+            node,
+            prediction,
+            &mut leaf,
+        );
+    }
+
+    /// Closes the blocks still open: the walk is over.
+    pub fn finish(&mut self) {
+        for open in &mut self.open {
+            if let Some(left) = open.take() {
+                self.ends.insert(left, self.contexts.clone());
+            }
+        }
+    }
+
+    /// The contexts at the end of the smallest block around `node` that the walk coded in
+    /// leaves no larger than it, if any.
+    pub fn of_node(&self, node: &Node) -> Option<&Contexts> {
+        (LOCAL_LOG2.max(node.log2)..=MAX_LEAF_LOG2)
+            .find_map(|log2| self.ends.get(&Block::around(node, log2)))
     }
 }
 

@@ -8,7 +8,7 @@ use super::candidates::CandidateTree;
 use super::chroma::{choose, ChromaCache, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
 use super::plane::{ImagePrediction, Plane};
-use super::rate::{Decision, Plan};
+use super::rate::{Decision, LocalContexts, Plan};
 use crate::entropy::RangeEncoder;
 use decoder_core::internal::entropy::{Coder, PayloadError, Prob, PROB_ONE};
 use decoder_core::internal::prediction::Frontier;
@@ -148,6 +148,8 @@ struct WalkRecord<'a> {
     meter: Option<Meter<'a>>,
     /// The node whose chroma covers its subtree, while the walk may be in it (the stream's).
     subtree: Option<Node>,
+    /// The leaf contexts block by block, when they are followed ([`write_trial`]).
+    local: Option<Box<LocalContexts>>,
 }
 
 /// The walk's visitor: splits and codes the leaves as the plan says.
@@ -264,7 +266,7 @@ impl TreeVisitor for PlanVisitor<'_, '_, '_> {
     fn prepare_leaf<P: SamplePrediction>(
         &mut self,
         node: &Node,
-        _prediction: &P,
+        prediction: &P,
         leaf: &mut LeafSyntax,
     ) {
         if let Some(Decision::Leaf(c)) = self.decision(node) {
@@ -275,6 +277,9 @@ impl TreeVisitor for PlanVisitor<'_, '_, '_> {
             } else if let Some(na) = source.tree.node(&local) {
                 *leaf = na.leaf(usize::from(c), &source.image);
             }
+        }
+        if let Some(contexts) = &mut self.record.local {
+            contexts.follow(node, prediction, leaf);
         }
     }
 
@@ -357,6 +362,47 @@ pub fn write(
     colour: Option<&ColourPlanes>,
     cache: &ChromaCache,
 ) -> Result<Written, EncodeError> {
+    let walked = walk_plan((tree, prediction), header, plan, colour, cache, false)?;
+    Ok(walked.written)
+}
+
+/// A trial encode: the stream and the leaf contexts block by block.
+pub struct TrialStream {
+    /// The stream.
+    pub written: Written,
+    /// The leaf contexts at the end of each block.
+    pub local: LocalContexts,
+}
+
+/// [`write`] for a grayscale trial encode, following the leaf contexts block by block.
+pub fn write_trial(
+    (tree, prediction): (&CandidateTree, &ImagePrediction),
+    header: &Header,
+    plan: &Plan,
+    cache: &ChromaCache,
+) -> Result<TrialStream, EncodeError> {
+    let walked = walk_plan((tree, prediction), header, plan, None, cache, true)?;
+    Ok(TrialStream {
+        written: walked.written,
+        local: walked.local.map(|l| *l).unwrap_or_default(),
+    })
+}
+
+/// A walk's stream and, when followed, its leaf contexts block by block.
+struct Walked {
+    written: Written,
+    local: Option<Box<LocalContexts>>,
+}
+
+/// [`write`], following the leaf contexts block by block if `follow`.
+fn walk_plan(
+    (tree, prediction): (&CandidateTree, &ImagePrediction),
+    header: &Header,
+    plan: &Plan,
+    colour: Option<&ColourPlanes>,
+    cache: &ChromaCache,
+    follow: bool,
+) -> Result<Walked, EncodeError> {
     let colour = colour.filter(|_| header.channels == 3);
     let key_header = Header {
         deblock: 0,
@@ -381,6 +427,7 @@ pub fn write(
         replay: tape.as_ref().map(|_| 0),
         tape: tape.unwrap_or_default(),
         recording: true,
+        local: follow.then(Box::default),
         ..WalkRecord::default()
     };
     let source = PlanSource {
@@ -410,7 +457,12 @@ pub fn write(
         };
         CHROMA_MEMO.with(|m| *m.borrow_mut() = Some(memo));
     }
-    sealed(header, coder.finish(), state.contexts, &record)
+    let mut local = record.local.take();
+    if let Some(local) = &mut local {
+        local.finish();
+    }
+    let written = sealed(header, coder.finish(), state.contexts, &record)?;
+    Ok(Walked { written, local })
 }
 
 /// The stream of `header` with `payload`, the contexts the walk ended with and what it
