@@ -17,8 +17,8 @@ pub struct EncoderConfig {
     /// leaves were not chosen in practice and their projections are costly (see
     /// docs/decisions.md).
     pub max_leaf_log2: u8,
-    /// Bit rate of the trial encode whose final contexts train the rate estimates: the closer
-    /// to the targets to come, the closer the estimates (see docs/decisions.md).
+    /// Bit rate of the trial encode whose contexts, block by block, price the candidates: the
+    /// closer to the targets to come, the better the choices (see docs/decisions.md).
     pub trial_bpp: f64,
     /// Width of the stripes the image is coded in, in coding tiles of 128 pixels (0, the
     /// default: one stripe as wide as the image). Prediction and edge smoothing do not cross a
@@ -86,7 +86,7 @@ impl Default for EncoderConfig {
         EncoderConfig {
             min_leaf_log2: 2,
             max_leaf_log2: 7,
-            trial_bpp: MIN_TRIAL_BPP,
+            trial_bpp: DEFAULT_TRIAL_BPP,
             stripe: WHOLE_WIDTH,
             deblock: None,
             fine_steps: None,
@@ -100,9 +100,13 @@ impl Default for EncoderConfig {
 /// for rate targets (see docs/decisions.md).
 pub const FINE_STEP_MARGIN: f64 = 16.0;
 
-/// The lowest trial rate [`Target::trial_bpp`] chooses: below it, trials at the targets' own
-/// rates made no measurable difference (see docs/decisions.md).
-pub const MIN_TRIAL_BPP: f64 = 0.2;
+/// The trial rate of an analysis for targets that name no rate (a quality target), and
+/// [`EncoderConfig::default`]'s.
+pub const DEFAULT_TRIAL_BPP: f64 = 0.2;
+
+/// The lowest trial rate [`Target::trial_bpp`] chooses: a trial at the target's own rate paid
+/// down to this one, the lowest measured (see docs/decisions.md).
+pub const MIN_TRIAL_BPP: f64 = 0.02;
 
 /// What an encode must achieve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -127,7 +131,8 @@ impl Target {
     }
 
     /// The trial rate for an analysis that serves `targets` ([`EncoderConfig::trial_bpp`]):
-    /// the geometric mean of their rates, but at least [`MIN_TRIAL_BPP`].
+    /// the geometric mean of their rates, but at least [`MIN_TRIAL_BPP`];
+    /// [`DEFAULT_TRIAL_BPP`] if none names a rate.
     pub fn trial_bpp(targets: &[Target], pixels: usize) -> f64 {
         let logs: Vec<f64> = targets
             .iter()
@@ -136,7 +141,7 @@ impl Target {
             .map(f64::ln)
             .collect();
         if logs.is_empty() {
-            return MIN_TRIAL_BPP;
+            return DEFAULT_TRIAL_BPP;
         }
         (logs.iter().sum::<f64>() / logs.len() as f64)
             .exp()
@@ -151,5 +156,29 @@ impl fmt::Display for Target {
             Target::Bytes(n) => write!(f, "{n} bytes"),
             Target::Psnr(p) => write!(f, "PSNR {p} dB"),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Target, DEFAULT_TRIAL_BPP, MIN_TRIAL_BPP};
+
+    /// A trial runs at the geometric mean of the rates its analysis serves, down to
+    /// [`MIN_TRIAL_BPP`]; a quality target alone gets [`DEFAULT_TRIAL_BPP`].
+    #[test]
+    fn trials_run_at_the_targets_rates() {
+        let pixels = 768 * 512;
+        let trial = |targets: &[Target]| Target::trial_bpp(targets, pixels);
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(near(trial(&[Target::Bpp(0.05)]), 0.05));
+        let bytes = 2458.0 * 8.0 / pixels as f64;
+        assert!(near(trial(&[Target::Bytes(2458)]), bytes));
+        assert!(near(
+            trial(&[Target::Bpp(0.05), Target::Bpp(0.5)]),
+            0.025f64.sqrt()
+        ));
+        assert_eq!(trial(&[Target::Bpp(0.001)]), MIN_TRIAL_BPP);
+        assert_eq!(trial(&[Target::Psnr(35.0)]), DEFAULT_TRIAL_BPP);
+        assert!(near(trial(&[Target::Psnr(35.0), Target::Bpp(0.1)]), 0.1));
     }
 }
