@@ -36,6 +36,11 @@ type Report<'a> = dyn Fn() + Sync + 'a;
 /// image, whose encode in parts peaked at 0.80 GB (docs/results.md).
 pub const PART_PIXELS: u64 = 1 << 22;
 
+/// A stream written in parts that leaves more than this share of its budget unused is written
+/// once more, aimed higher: the last part's plan is made from estimates alone, which miss by
+/// a few per cent (each write analyses every part again).
+const UNUSED_SHARE: f64 = 0.02;
+
 /// The multipliers each part's curve is measured at: `2^(k / 2 - 10)`, squared error per bit,
 /// from rates above 8 bits a pixel to below any stream's smallest.
 const CURVE_POINTS: usize = 81;
@@ -271,7 +276,7 @@ impl AnalysisInParts {
 
     /// [`AnalysisInParts::encode`], calling `progress` with the number of parts analysed so far
     /// (those that choose the edge smoothing, then every part of the stream; again if the
-    /// stream must be written again to fit its budget).
+    /// stream must be written again to fit its budget or to spend it).
     pub fn encode_reporting(
         &self,
         target: Target,
@@ -290,8 +295,9 @@ impl AnalysisInParts {
         }
     }
 
-    /// The stream of at most `budget` bytes: aimed a little below it, and lower by what it
-    /// missed by when it does not fit.
+    /// The stream of at most `budget` bytes: aimed a little below it, lower by what it missed
+    /// by when it does not fit, and once higher by most of what it left when that is more
+    /// than [`UNUSED_SHARE`] of the budget (the larger stream that fits is kept).
     fn encode_budget(&self, budget: usize, report: &Report) -> Result<Encoded, EncodeError> {
         let longest = Header {
             payload_len: u32::try_from(budget).unwrap_or(u32::MAX),
@@ -299,10 +305,24 @@ impl AnalysisInParts {
         };
         let overhead = (longest.encoded_len() + 4) as f64 * 8.0;
         let mut aim = (budget as f64 * 8.0 - overhead) * 0.998;
+        // A stream that fitted but left more than `UNUSED_SHARE` of the budget.
+        let mut fitted: Option<Encoded> = None;
         for _ in 0..4 {
             let encoded = self.write(&Aim::Bits(aim), report)?;
             if encoded.bytes.len() <= budget {
-                return Ok(encoded);
+                let unused = (budget - encoded.bytes.len()) as f64 * 8.0;
+                return match fitted {
+                    None if unused > UNUSED_SHARE * budget as f64 * 8.0 => {
+                        aim += 0.9 * unused;
+                        fitted = Some(encoded);
+                        continue;
+                    }
+                    Some(first) if first.bytes.len() > encoded.bytes.len() => Ok(first),
+                    _ => Ok(encoded),
+                };
+            }
+            if let Some(first) = fitted {
+                return Ok(first);
             }
             let excess = (encoded.bytes.len() - budget) as f64 * 8.0;
             aim -= 1.5 * excess + 0.002 * aim.max(0.0);
