@@ -728,9 +728,9 @@ struct Trial<'a> {
 }
 
 /// The final pruning of node `na`, under the trial encode's contexts: rates its candidates
-/// from those of the block around it, keeps those that are its best leaf for some multiplier, adds the rounding
-/// variants of those best near the trial's multiplier ([`add_rounding_variants`]), and keeps
-/// again what pays. Node by node, so that no node's variants wait for the others'.
+/// from those of the block around it, keeps those that are its best leaf for some multiplier,
+/// adds the rounding variants of those best near the trial's multiplier
+/// ([`add_rounding_variants`]), and keeps again what pays. Node by node, so that no node's variants wait for the others'.
 /// `weight`: the node's error weight ([`Masking`]).
 fn final_candidates(
     plane: &Plane,
@@ -1049,7 +1049,6 @@ mod tests {
     use super::super::config::{Target, Tune, FINE_STEP_MARGIN};
     use super::*;
 
-    /// A textured test image: a smooth pattern plus noise.
     /// The trial encode's contexts block by block follow its coder: after its last leaf they
     /// price a leaf as the contexts the stream ended with do; and on an image smooth on the left
     /// and noisy on the right, the smooth tile's own contexts price its leaves for fewer bits
@@ -1112,6 +1111,7 @@ mod tests {
         );
     }
 
+    /// A textured test image: a smooth pattern plus noise.
     fn textured_plane(w: u32, h: u32) -> Plane {
         let mut seed = 7u32;
         let data = (0..w * h)

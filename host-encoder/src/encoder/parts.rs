@@ -311,15 +311,15 @@ impl AnalysisInParts {
             let encoded = self.write(&Aim::Bits(aim), report)?;
             if encoded.bytes.len() <= budget {
                 let unused = (budget - encoded.bytes.len()) as f64 * 8.0;
-                return match fitted {
+                match fitted {
                     None if unused > UNUSED_SHARE * budget as f64 * 8.0 => {
                         aim += 0.9 * unused;
                         fitted = Some(encoded);
                         continue;
                     }
-                    Some(first) if first.bytes.len() > encoded.bytes.len() => Ok(first),
-                    _ => Ok(encoded),
-                };
+                    Some(first) if first.bytes.len() > encoded.bytes.len() => return Ok(first),
+                    _ => return Ok(encoded),
+                }
             }
             if let Some(first) = fitted {
                 return Ok(first);

@@ -495,7 +495,7 @@ impl Planner<'_> {
 }
 
 /// Side (log2) of the smallest blocks whose own contexts price their nodes' leaves
-/// ([`LocalContexts`]): 32, 64 and 128 did the same, 128 a little worse (docs/decisions.md).
+/// ([`LocalContexts`]): 16, 32 and 64 did the same, the 128 tile less (docs/decisions.md).
 pub const LOCAL_LOG2: u8 = 6;
 
 /// A block of the image, by its side (log2) and its position in blocks of that side.

@@ -362,15 +362,14 @@ pub fn write(
     colour: Option<&ColourPlanes>,
     cache: &ChromaCache,
 ) -> Result<Written, EncodeError> {
-    let walked = walk_plan((tree, prediction), header, plan, colour, cache, false)?;
-    Ok(walked.written)
+    walk_plan((tree, prediction), header, plan, colour, cache, false).map(|t| t.written)
 }
 
 /// A trial encode: the stream and the leaf contexts block by block.
 pub struct TrialStream {
     /// The stream.
     pub written: Written,
-    /// The leaf contexts at the end of each block.
+    /// The leaf contexts at the end of each block (none where the walk did not follow them).
     pub local: LocalContexts,
 }
 
@@ -381,17 +380,7 @@ pub fn write_trial(
     plan: &Plan,
     cache: &ChromaCache,
 ) -> Result<TrialStream, EncodeError> {
-    let walked = walk_plan((tree, prediction), header, plan, None, cache, true)?;
-    Ok(TrialStream {
-        written: walked.written,
-        local: walked.local.map(|l| *l).unwrap_or_default(),
-    })
-}
-
-/// A walk's stream and, when followed, its leaf contexts block by block.
-struct Walked {
-    written: Written,
-    local: Option<Box<LocalContexts>>,
+    walk_plan((tree, prediction), header, plan, None, cache, true)
 }
 
 /// [`write`], following the leaf contexts block by block if `follow`.
@@ -402,7 +391,7 @@ fn walk_plan(
     colour: Option<&ColourPlanes>,
     cache: &ChromaCache,
     follow: bool,
-) -> Result<Walked, EncodeError> {
+) -> Result<TrialStream, EncodeError> {
     let colour = colour.filter(|_| header.channels == 3);
     let key_header = Header {
         deblock: 0,
@@ -457,12 +446,10 @@ fn walk_plan(
         };
         CHROMA_MEMO.with(|m| *m.borrow_mut() = Some(memo));
     }
-    let mut local = record.local.take();
-    if let Some(local) = &mut local {
-        local.finish();
-    }
+    let mut local = record.local.take().map(|l| *l).unwrap_or_default();
+    local.finish();
     let written = sealed(header, coder.finish(), state.contexts, &record)?;
-    Ok(Walked { written, local })
+    Ok(TrialStream { written, local })
 }
 
 /// The stream of `header` with `payload`, the contexts the walk ended with and what it
