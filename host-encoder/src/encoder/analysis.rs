@@ -12,7 +12,8 @@
 //! Above every stage; below the public API (`super`), which encodes targets from its result.
 
 use super::candidates::{
-    targets_of, Candidate, CandidateTree, ChromaCost, Level, NodeAnalysis, WithCandidates,
+    targets_of, Candidate, CandidateTree, ChromaCost, Level, NodeAnalysis, RoundingId,
+    WithCandidates,
 };
 use super::chroma::{self, ChromaCache, ChromaSteps, ColourPlanes};
 use super::config::EncoderConfig;
@@ -21,7 +22,9 @@ use super::fit::{fit_default, prepare_projections, Fit};
 use super::ids::{ControlQuantiserId, ModelId};
 use super::masking::{ContrastScale, Masking};
 use super::plane::{ImagePrediction, Plane};
-use super::quantise::{quantise, ControlTargets, Quantised, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
+use super::quantise::{
+    quantise, ControlTargets, Quantised, ResidualPrices, Rounding, ROUNDING_LAMBDA,
+};
 use super::rate::{
     leaf_bits, node_hull, prune_node, rate_node, Anchor, GrowingHull, LocalContexts, RateTable,
 };
@@ -202,6 +205,7 @@ impl Analysis {
         let plan = first.rough_plan_for_bits(&self.tree, &self.header, trial_bpp * pixels);
         drop(first);
         self.trial = plan.anchor();
+        // The split flags are priced from the contexts the trial ended with.
         let (snapshot, local) = match writer::write_trial(
             (&self.tree, &prediction_of(&self.plane, &self.header)),
             &self.header,
@@ -213,7 +217,6 @@ impl Analysis {
         };
         let trial = Trial {
             prediction: prediction_of(&self.plane, &self.header),
-            snapshot: &snapshot,
             local: &local,
             window: (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW),
         };
@@ -700,12 +703,18 @@ fn add_candidate(
     (chain, cq): (Chain, ControlQuantiserId),
     (prediction, ctx): (&ImagePrediction, &mut Contexts),
 ) -> Candidate {
-    let q = quantise(fit, targets, cq, chain.coding, ROUNDING_LAMBDA);
+    let q = quantise(
+        fit,
+        targets,
+        cq,
+        chain.coding,
+        Rounding::from_start(ROUNDING_LAMBDA),
+    );
     let c = Candidate {
         fit: chain.fit,
         cq,
         coding: chain.coding,
-        rounding: 0,
+        rounding: RoundingId::default(),
         sse: quantised_sse(plane, &na.node, fit, &q) * weight,
         bits: leaf_bits(&na.node, &q.leaf, prediction, ctx),
     };
@@ -717,11 +726,8 @@ fn add_candidate(
 struct Trial<'a> {
     /// Prediction from the image's own pixels.
     prediction: ImagePrediction<'a>,
-    /// The contexts the trial encode ended with: a candidate is rated from them where `local`
-    /// has none for its node.
-    snapshot: &'a Contexts,
     /// The trial encode's contexts at the end of each block: a candidate is rated from those
-    /// of the block around its node.
+    /// of the block around its node, and its variants rounded with their prices.
     local: &'a LocalContexts,
     /// The multipliers near the trial's, whose candidates get rounding variants.
     window: std::ops::RangeInclusive<f64>,
@@ -730,7 +736,8 @@ struct Trial<'a> {
 /// The final pruning of node `na`, under the trial encode's contexts: rates its candidates
 /// from those of the block around it, keeps those that are its best leaf for some multiplier,
 /// adds the rounding variants of those best near the trial's multiplier
-/// ([`add_rounding_variants`]), and keeps again what pays. Node by node, so that no node's variants wait for the others'.
+/// ([`add_rounding_variants`], some priced under the block's contexts), and keeps again what
+/// pays. Node by node, so that no node's variants wait for the others'.
 /// `weight`: the node's error weight ([`Masking`]).
 fn final_candidates(
     plane: &Plane,
@@ -738,14 +745,16 @@ fn final_candidates(
     (na, weight): (&mut NodeAnalysis, f64),
     trial: &Trial,
 ) {
-    let snapshot = trial.local.of_node(&na.node).unwrap_or(trial.snapshot);
-    rate_node(na, &trial.prediction, snapshot);
+    let around = trial.local.around(&na.node);
+    rate_node(na, &trial.prediction, &around.contexts);
     prune_node(na, &ALL_LAMBDAS);
     let vary = node_hull(na, &trial.window);
     let known = na.candidates.len();
-    let varied = add_rounding_variants(plane, header, (na, weight), &vary);
+    let prices = around.prices();
+    let varied = add_rounding_variants(plane, header, (na, weight), &vary, &prices);
+    na.prices = Some(prices);
     let node = na.node;
-    let mut ctx = snapshot.clone();
+    let mut ctx = around.contexts.clone();
     for (c, leaf) in na.candidates[known..].iter_mut().zip(&varied) {
         c.bits = leaf_bits(&node, leaf, &trial.prediction, &mut ctx);
     }
@@ -753,19 +762,23 @@ fn final_candidates(
 }
 
 /// Adds to node `na`, for each of its candidates `vary` lists, the same quantisers rounding
-/// its control indices with each of [`ROUNDING_VARIANTS`] (where that changes an index):
-/// points between those of its control steps. Their errors are weighted by `weight`, as the
+/// its control indices with [`ROUNDING_LAMBDA`] and each of [`ROUNDING_VARIANTS`], the bits
+/// priced under `block`, the trial encode's contexts around the node ([`RoundingId::variants`];
+/// where that makes indices no other rounding made): points between those of its control
+/// steps, rounded knowing what bits cost there. Their errors are weighted by `weight`, as the
 /// node's others are. Returns the syntax of the added candidates, in order.
 fn add_rounding_variants(
     plane: &Plane,
     header: &Header,
     (na, weight): (&mut NodeAnalysis, f64),
     vary: &[u16],
+    block: &ResidualPrices,
 ) -> Vec<LeafSyntax> {
     let image = prediction_of(plane, header);
     // Each fit is made again (with its targets) once, for all its candidates.
     let mut made: Vec<Option<(Fit, ControlTargets)>> = (0..na.fits.len()).map(|_| None).collect();
-    let mut varied = Vec::with_capacity(vary.len() * ROUNDING_VARIANTS.len());
+    let roundings: Vec<RoundingId> = RoundingId::variants().collect();
+    let mut varied = Vec::with_capacity(vary.len() * roundings.len());
     na.reserve(varied.capacity(), varied.capacity() * MAX_CONTROL);
     for &k in vary {
         let c = na.candidates[usize::from(k)];
@@ -774,16 +787,18 @@ fn add_rounding_variants(
         let n = fit.model.model().control_count();
         let own = match na.indices {
             Some(_) => na.leaf(usize::from(k), &image),
-            None => quantise(fit, targets, c.cq, c.coding, c.rounding_lambda()).leaf,
+            None => quantise(fit, targets, c.cq, c.coding, c.rounding.with(Some(block))).leaf,
         };
-        for (variant, lambda) in (1..).zip(ROUNDING_VARIANTS) {
-            let q = quantise(fit, targets, c.cq, c.coding, lambda);
-            if own.control[..n] == q.leaf.control[..n] {
+        let mut made_here = vec![own.control];
+        for r in &roundings {
+            let q = quantise(fit, targets, c.cq, c.coding, r.with(Some(block)));
+            if made_here.iter().any(|m| m[..n] == q.leaf.control[..n]) {
                 continue;
             }
+            made_here.push(q.leaf.control);
             let v = Candidate {
                 sse: quantised_sse(plane, &na.node, fit, &q) * weight,
-                rounding: variant,
+                rounding: *r,
                 ..c
             };
             na.push(v, &q.leaf);
@@ -1047,7 +1062,10 @@ fn fine_sse(plane: &Plane, node: &Node, patch: &Patch) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::super::config::{Target, Tune, FINE_STEP_MARGIN};
+    use super::super::ids::leaf_syntax;
+    use super::super::quantise::ROUNDING_VARIANTS;
     use super::*;
+    use decoder_core::internal::syntax::code_leaf;
 
     /// The trial encode's contexts block by block follow its coder: after its last leaf they
     /// price a leaf as the contexts the stream ended with do; and on an image smooth on the left
@@ -1092,7 +1110,7 @@ mod tests {
                 .map(|leaf| f64::from(leaf_bits(node, leaf, &image, &mut contexts.clone())))
                 .sum()
         };
-        let local = |node: &Node| trial.local.of_node(node).expect("a block's contexts");
+        let local = |node: &Node| &trial.local.around(node).contexts;
         let last = leaves.last().expect("a leaf").node;
         let end = &trial.written.final_contexts;
         assert_eq!(price(&last, local(&last)), price(&last, end));
@@ -1144,7 +1162,8 @@ mod tests {
                     for cq in [4, 7, 10].map(ControlQuantiserId::new) {
                         for coding in [ControlCoding::Dpcm, ControlCoding::Transform] {
                             for (t, &lambda) in totals.iter_mut().zip(&multipliers) {
-                                let q = quantise(&fit, &targets, cq, coding, lambda);
+                                let rounding = Rounding::from_start(lambda);
+                                let q = quantise(&fit, &targets, cq, coding, rounding);
                                 let Some(added) = q.added_error else { continue };
                                 t.0 += q.leaf.control[..n].iter().filter(|&&i| i != 0).count();
                                 t.1 += added;
@@ -1179,6 +1198,102 @@ mod tests {
             })
             .count();
         assert!(kept_variants > 0, "no node kept a rounding variant");
+    }
+
+    /// Choosing each leaf in the walk, under the contexts and beside the pixels it is coded
+    /// with, among the candidates that cost no more than the plan's, never makes a plan's
+    /// stream larger than its leaves written as planned, and makes it smaller over a range of
+    /// rates: rate control can rely on a plan's size ([`writer::write`]).
+    #[test]
+    fn leaves_chosen_in_the_walk_cost_no_more_than_planned() {
+        let analysis = Analysis::run(
+            textured_plane(128, 128),
+            None,
+            &EncoderConfig::default(),
+            &|_| {},
+        )
+        .expect("an analysis");
+        let (tree, header) = (&analysis.tree, &analysis.header);
+        let image = prediction_of(&analysis.plane, header);
+        let pixels = f64::from(128 * 128);
+        let cache = &analysis.chroma_cache;
+        let (mut chosen_sum, mut planned_sum) = (0.0, 0.0);
+        for bpp in [0.05, 0.1, 0.25, 0.5, 1.0, 2.0] {
+            let plan = analysis
+                .rates
+                .rough_plan_for_bits(tree, header, bpp * pixels);
+            let chosen = writer::write((tree, &image), header, &plan, None, cache);
+            let planned = writer::write_as_planned((tree, &image), header, &plan, cache);
+            let (chosen, planned) = (chosen.unwrap().payload_bits, planned.unwrap().payload_bits);
+            assert!(
+                chosen <= planned,
+                "{bpp} bpp: {chosen} bits chosen, {planned} planned"
+            );
+            chosen_sum += chosen;
+            planned_sum += planned;
+        }
+        assert!(
+            chosen_sum < planned_sum,
+            "{chosen_sum} bits chosen, {planned_sum} planned"
+        );
+    }
+
+    /// Rounding under the prices of contexts that have coded only zero residuals keeps fewer
+    /// nonzero indices than under the contexts every stream starts from or contexts that have
+    /// coded residuals of one: a block's prices move the rounding ([`add_rounding_variants`]).
+    #[test]
+    fn block_prices_move_the_rounding() {
+        let plane = textured_plane(64, 64);
+        let header = header_for(&plane, &EncoderConfig::default()).expect("a header");
+        let image = prediction_of(&plane, &header);
+        let cq = ControlQuantiserId::new(6);
+        let at = Node {
+            x: 16,
+            y: 16,
+            log2: 4,
+        };
+        let model = ModelId::for_block(4).last().expect("a model");
+        let n = model.model().control_count();
+        // Contexts that have coded `count` leaves whose residuals are all `residual` (signs
+        // alternating).
+        let adapted = |residual: i16| {
+            let mut contexts = Contexts::default();
+            let mut leaf = leaf_syntax(model, cq, ControlCoding::Dpcm);
+            for (i, index) in leaf.control[1..n].iter_mut().enumerate() {
+                *index = if i % 2 == 0 { residual } else { -residual };
+            }
+            for _ in 0..300 {
+                let mut coded = leaf;
+                let mut counter = crate::entropy::BitCounter::default();
+                code_leaf(&mut counter, &mut contexts, &at, &image, &mut coded).expect("codable");
+            }
+            ResidualPrices::under(&contexts)
+        };
+        let (quiet, busy) = (adapted(0), adapted(1));
+        let prices = [&quiet, ResidualPrices::at_start(), &busy];
+        let mut nonzero = [0usize; 3];
+        for log2 in 2..=4u8 {
+            for (x, y) in [(0, 0), (16, 16), (32, 0), (48, 32)] {
+                let node = Node { x, y, log2 };
+                for m in ModelId::for_block(log2) {
+                    let fit = fit_default(&plane, &node, m);
+                    let targets = ControlTargets::of(&fit, log2);
+                    for (count, prices) in nonzero.iter_mut().zip(prices) {
+                        let rounding = Rounding {
+                            lambda: ROUNDING_LAMBDA,
+                            prices,
+                        };
+                        let q = quantise(&fit, &targets, cq, ControlCoding::Dpcm, rounding);
+                        let k = m.model().control_count();
+                        *count += q.leaf.control[1..k].iter().filter(|&&i| i != 0).count();
+                    }
+                }
+            }
+        }
+        assert!(
+            nonzero[0] < nonzero[1] && nonzero[0] < nonzero[2],
+            "nonzero indices under quiet / starting / busy prices: {nonzero:?}"
+        );
     }
 
     /// The fine pass takes each chain on from its coarse end one step at a time, and stops a
@@ -1400,11 +1515,13 @@ mod tests {
             assert_eq!(na.candidates, rated);
             let vary: Vec<u16> = (0..na.candidates.len() as u16).step_by(2).collect();
             let known = na.candidates.len();
-            let varied = add_rounding_variants(&plane, &header, (na, 1.0), &vary);
+            let block = ResidualPrices::under(&start);
+            let varied = add_rounding_variants(&plane, &header, (na, 1.0), &vary, &block);
             assert!(!varied.is_empty());
             assert_eq!(na.candidates.len(), known + varied.len());
             for (k, leaf) in (known..).zip(&varied) {
-                assert!(na.candidates[k].rounding > 0);
+                let c = na.candidates[k];
+                assert_ne!(c.rounding, RoundingId::default());
                 assert_eq!(&na.leaf(k, &image), leaf);
             }
             let keep: Vec<u16> = (0..na.candidates.len() as u16).step_by(3).collect();
@@ -1461,7 +1578,8 @@ mod tests {
                     .into_iter()
                     .flat_map(|c| codings.map(|d| (c, d)))
                 {
-                    let q = quantise(&fit, &targets, cq, coding, ROUNDING_LAMBDA);
+                    let rounding = Rounding::from_start(ROUNDING_LAMBDA);
+                    let q = quantise(&fit, &targets, cq, coding, rounding);
                     let n = m.model().control_count();
                     let control: Vec<f64> = q.control_values(log2)[..n]
                         .iter()

@@ -9,9 +9,12 @@ use super::fit::{fit_default, Fit};
 use super::ids::{ControlQuantiserId, Models};
 use super::masking::Masking;
 use super::plane::ImagePrediction;
-use super::quantise::{quantise, ControlTargets, ROUNDING_LAMBDA, ROUNDING_VARIANTS};
+use super::quantise::{
+    quantise, ControlTargets, ResidualPrices, Rounding, ROUNDING_LAMBDA, ROUNDING_VARIANTS,
+};
 use decoder_core::internal::syntax::{ControlCoding, LeafSyntax};
 use decoder_core::Node;
+use std::sync::Arc;
 
 /// One way of coding a node as a leaf.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,9 +25,8 @@ pub struct Candidate {
     pub cq: ControlQuantiserId,
     /// Control coding.
     pub coding: ControlCoding,
-    /// How its control indices were rounded: 0 for [`ROUNDING_LAMBDA`], `k + 1` for
-    /// [`ROUNDING_VARIANTS`]`[k]`.
-    pub rounding: u8,
+    /// How its control indices were rounded.
+    pub rounding: RoundingId,
     /// Squared error over the node's in-image pixels, times the node's weight
     /// ([`CandidateTree::masking`]).
     pub sse: f64,
@@ -34,12 +36,36 @@ pub struct Candidate {
     pub bits: f32,
 }
 
-impl Candidate {
-    /// The multiplier its control indices were rounded with.
-    pub fn rounding_lambda(&self) -> f64 {
-        match self.rounding.checked_sub(1) {
+/// How a candidate's control indices were rounded ([`Rounding`]), in a few bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RoundingId {
+    /// The multiplier: 0 for [`ROUNDING_LAMBDA`], `k + 1` for [`ROUNDING_VARIANTS`]`[k]`.
+    pub multiplier: u8,
+    /// Whether the bits were priced under the trial encode's contexts around the node
+    /// ([`NodeAnalysis::prices`]) instead of those every stream starts from.
+    pub block_prices: bool,
+}
+
+impl RoundingId {
+    /// The roundings of a candidate's variants: every multiplier, the bits priced under its
+    /// block's contexts. (With the prices every stream starts from too, they gained at most
+    /// 0.008 dB for 13% more encoding time: docs/decisions.md.)
+    pub fn variants() -> impl Iterator<Item = RoundingId> {
+        (0..=ROUNDING_VARIANTS.len() as u8).map(|multiplier| RoundingId {
+            multiplier,
+            block_prices: true,
+        })
+    }
+
+    /// The rounding, `block` being the prices of the node's block ([`NodeAnalysis::prices`]).
+    pub fn with(self, block: Option<&ResidualPrices>) -> Rounding<'_> {
+        let lambda = match self.multiplier.checked_sub(1) {
             None => ROUNDING_LAMBDA,
             Some(k) => ROUNDING_VARIANTS[usize::from(k)],
+        };
+        match block.filter(|_| self.block_prices) {
+            Some(prices) => Rounding { lambda, prices },
+            None => Rounding::from_start(lambda),
         }
     }
 }
@@ -114,6 +140,9 @@ pub struct NodeAnalysis {
     pub indices: Option<Box<Vec<i16>>>,
     /// What its chroma costs as a leaf (colour analyses only).
     pub chroma: ChromaCost,
+    /// The residuals' bits under the trial encode's contexts around the node, once the final
+    /// pruning has rounded candidates with them ([`Candidate::block_prices`]).
+    pub prices: Option<Arc<ResidualPrices>>,
 }
 
 impl NodeAnalysis {
@@ -125,6 +154,7 @@ impl NodeAnalysis {
             candidates: Vec::new(),
             indices: holds.then(Box::default),
             chroma: ChromaCost::default(),
+            prices: None,
         }
     }
 
@@ -187,7 +217,8 @@ impl NodeAnalysis {
             }
             None => {
                 let (fit, targets) = self.fit_and_targets(c.fit, image);
-                quantise(&fit, &targets, c.cq, c.coding, c.rounding_lambda()).leaf
+                let rounding = c.rounding.with(self.prices.as_deref());
+                quantise(&fit, &targets, c.cq, c.coding, rounding).leaf
             }
         }
     }
@@ -212,7 +243,8 @@ impl NodeAnalysis {
             .map(|c| {
                 let (fit, targets) = made[usize::from(c.fit)]
                     .get_or_insert_with(|| self.fit_and_targets(c.fit, image));
-                quantise(fit, targets, c.cq, c.coding, c.rounding_lambda()).leaf
+                let rounding = c.rounding.with(self.prices.as_deref());
+                quantise(fit, targets, c.cq, c.coding, rounding).leaf
             })
             .collect()
     }

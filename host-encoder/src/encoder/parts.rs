@@ -37,9 +37,13 @@ type Report<'a> = dyn Fn() + Sync + 'a;
 pub const PART_PIXELS: u64 = 1 << 22;
 
 /// A stream written in parts that leaves more than this share of its budget unused is written
-/// once more, aimed higher: the last part's plan is made from estimates alone, which miss by
+/// again, aimed higher: the last part's plan is made from estimates alone, which miss by
 /// a few per cent (each write analyses every part again).
 const UNUSED_SHARE: f64 = 0.02;
+
+/// How many times a stream in parts may be written to fit a budget (each write analyses every
+/// part again).
+const BUDGET_WRITES: usize = 4;
 
 /// The multipliers each part's curve is measured at: `2^(k / 2 - 10)`, squared error per bit,
 /// from rates above 8 bits a pixel to below any stream's smallest.
@@ -295,9 +299,11 @@ impl AnalysisInParts {
         }
     }
 
-    /// The stream of at most `budget` bytes: aimed a little below it, lower by what it missed
-    /// by when it does not fit, and once higher by most of what it left when that is more
-    /// than [`UNUSED_SHARE`] of the budget (the larger stream that fits is kept).
+    /// The stream of at most `budget` bytes, in at most [`BUDGET_WRITES`] writes: aimed a
+    /// little below it, lower by what it missed by while nothing fitted, higher by most of what
+    /// it left while that is more than [`UNUSED_SHARE`] of the budget; once a stream has fitted
+    /// and another has not, the next aim lies between theirs. The largest stream that fitted
+    /// is kept.
     fn encode_budget(&self, budget: usize, report: &Report) -> Result<Encoded, EncodeError> {
         let longest = Header {
             payload_len: u32::try_from(budget).unwrap_or(u32::MAX),
@@ -305,37 +311,43 @@ impl AnalysisInParts {
         };
         let overhead = (longest.encoded_len() + 4) as f64 * 8.0;
         let mut aim = (budget as f64 * 8.0 - overhead) * 0.998;
-        // A stream that fitted but left more than `UNUSED_SHARE` of the budget.
-        let mut fitted: Option<Encoded> = None;
-        for _ in 0..4 {
+        // The largest stream that fitted, with its aim; the lowest aim whose stream did not.
+        let mut fitted: Option<(f64, Encoded)> = None;
+        let mut too_large: Option<f64> = None;
+        let mut smallest = usize::MAX;
+        for _ in 0..BUDGET_WRITES {
             let encoded = self.write(&Aim::Bits(aim), report)?;
-            if encoded.bytes.len() <= budget {
-                let unused = (budget - encoded.bytes.len()) as f64 * 8.0;
-                match fitted {
-                    None if unused > UNUSED_SHARE * budget as f64 * 8.0 => {
-                        aim += 0.9 * unused;
-                        fitted = Some(encoded);
-                        continue;
+            let size = encoded.bytes.len();
+            smallest = smallest.min(size);
+            if size <= budget {
+                let unused = (budget - size) as f64 * 8.0;
+                if unused <= UNUSED_SHARE * budget as f64 * 8.0 {
+                    return Ok(encoded);
+                }
+                let next = aim + 0.9 * unused;
+                if fitted.as_ref().is_none_or(|(_, f)| f.bytes.len() < size) {
+                    fitted = Some((aim, encoded));
+                }
+                aim = too_large.map_or(next, |bound| next.min(0.5 * (aim + bound)));
+            } else {
+                too_large = Some(too_large.map_or(aim, |bound| bound.min(aim)));
+                aim = match &fitted {
+                    Some((below, _)) => 0.5 * (below + aim),
+                    None => {
+                        let excess = (size - budget) as f64 * 8.0;
+                        aim - 1.5 * excess - 0.002 * aim.max(0.0)
                     }
-                    Some(first) if first.bytes.len() > encoded.bytes.len() => return Ok(first),
-                    _ => return Ok(encoded),
+                };
+                if aim <= 0.0 {
+                    return Err(EncodeError::BudgetTooSmall { budget, smallest });
                 }
             }
-            if let Some(first) = fitted {
-                return Ok(first);
-            }
-            let excess = (encoded.bytes.len() - budget) as f64 * 8.0;
-            aim -= 1.5 * excess + 0.002 * aim.max(0.0);
-            if aim <= 0.0 {
-                return Err(EncodeError::BudgetTooSmall {
-                    budget,
-                    smallest: encoded.bytes.len(),
-                });
-            }
         }
-        Err(EncodeError::Internal(
-            "a budget the parts missed four times",
-        ))
+        fitted
+            .map(|(_, encoded)| encoded)
+            .ok_or(EncodeError::Internal(
+                "a budget the parts missed four times",
+            ))
     }
 
     /// The stream whose PSNR reaches `db`: planned at the multiplier whose estimated error

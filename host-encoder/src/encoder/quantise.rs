@@ -313,24 +313,18 @@ impl Quantised {
 }
 
 /// Quantises `fit` (whose control values `targets` holds) with control quantiser `cq` and
-/// control coding `coding`, rounding control indices with the Lagrange multiplier
-/// `rounding_lambda` ([`ROUNDING_LAMBDA`] and [`ROUNDING_VARIANTS`]).
+/// control coding `coding`, its control indices rounded as `rounding` says.
 pub fn quantise(
     fit: &Fit,
     targets: &ControlTargets,
     cq: ControlQuantiserId,
     coding: ControlCoding,
-    rounding_lambda: f64,
+    rounding: Rounding,
 ) -> Quantised {
     let mut leaf = leaf_syntax(fit.model, cq, coding);
     let step = cq.step();
     let side = targets.side;
-    let rounding = IndexRounding::new(
-        cq,
-        coding == ControlCoding::Transform,
-        side,
-        rounding_lambda,
-    );
+    let rounding = IndexRounding::new(cq, coding == ControlCoding::Transform, side, rounding);
     let form = match coding {
         ControlCoding::Dpcm => quantise_dpcm(targets, side, step, &rounding, &mut leaf.control),
         ControlCoding::Transform => {
@@ -497,7 +491,7 @@ const MAX_REFINEMENT_PASSES: usize = 8;
 /// What refining the quantised coefficients of one leaf needs, in coding order.
 struct CoefficientQuantiser<'a> {
     /// How indices are rounded.
-    rounding: &'a IndexRounding,
+    rounding: &'a IndexRounding<'a>,
     order: &'a [u8],
     steps: &'a [f64; MAX_CONTROL],
     /// The steps' reciprocals.
@@ -625,14 +619,35 @@ pub const ROUNDING_VARIANTS: [f64; 4] = [0.03, 0.06, 0.25, 0.5];
 /// skipping the pricing saves analysis time (see docs/decisions.md).
 const SURE_ZERO: f64 = 0.4;
 
+/// How a leaf's control indices are rounded ([`quantise`]): what bits are worth, and what
+/// each residual's bits are.
+#[derive(Debug, Clone, Copy)]
+pub struct Rounding<'a> {
+    /// Bits are worth this much of the leaf's mean patch error per squared step
+    /// ([`ROUNDING_LAMBDA`], [`ROUNDING_VARIANTS`]).
+    pub lambda: f64,
+    /// The residuals' bits.
+    pub prices: &'a ResidualPrices,
+}
+
+impl Rounding<'static> {
+    /// Multiplier `lambda`, the residuals priced under the contexts every stream starts from.
+    pub fn from_start(lambda: f64) -> Rounding<'static> {
+        Rounding {
+            lambda,
+            prices: ResidualPrices::at_start(),
+        }
+    }
+}
+
 /// How the control indices of one leaf are rounded: each index but the first is the one next
-/// to its target (or zero) that costs least in patch error plus bits, priced with the
-/// contexts every stream starts from, its own and those of the two indices whose zero-flag
+/// to its target (or zero) that costs least in patch error plus bits, priced under some state
+/// of the contexts ([`Rounding`]), its own and those of the two indices whose zero-flag
 /// contexts it sets (right of and below it). A nonzero index must pay for itself, more so
 /// among zero neighbours; large indices round to nearest.
-struct IndexRounding {
+struct IndexRounding<'a> {
     /// Bits by class, zero-flag context and magnitude, in the leaf's step group.
-    bits: &'static [PricedClass; CONTROL_CLASSES],
+    bits: &'a [PricedClass; CONTROL_CLASSES],
     /// The class of each grid position.
     classes: &'static [u8; MAX_CONTROL],
     /// The row and column of each grid position (a lookup: dividing by the side is among the
@@ -643,17 +658,22 @@ struct IndexRounding {
     lambda: f64,
 }
 
-impl IndexRounding {
+impl IndexRounding<'_> {
     /// The rounding of control quantiser `cq` under the grid transform or DPCM, for a grid of
-    /// side `side`, with multiplier `lambda`.
-    fn new(cq: ControlQuantiserId, transform: bool, side: usize, lambda: f64) -> IndexRounding {
-        let costs = ResidualCosts::get();
+    /// side `side`, as `rounding` says.
+    fn new(
+        cq: ControlQuantiserId,
+        transform: bool,
+        side: usize,
+        rounding: Rounding,
+    ) -> IndexRounding {
+        let grids = GridTables::get();
         IndexRounding {
-            bits: &costs.bits[cq.step_group()],
-            classes: &costs.classes[usize::from(transform)][side],
-            positions: &costs.positions[side],
+            bits: &rounding.prices.bits[cq.step_group()],
+            classes: &grids.classes[usize::from(transform)][side],
+            positions: &grids.positions[side],
             side,
-            lambda,
+            lambda: rounding.lambda,
         }
     }
 
@@ -795,36 +815,25 @@ const PRICED_MAGNITUDES: usize = 32;
 /// Single precision keeps all the tables in 13 KiB, in a core's first-level cache.
 type PricedClass = [[f32; PRICED_MAGNITUDES]; ZERO_CONTEXTS];
 
-/// The bits of control residuals under the contexts every stream starts from, by step group,
-/// and the class of every grid position.
-struct ResidualCosts {
+/// The bits of control residuals under one state of the contexts, by step group, class,
+/// zero-flag context and magnitude.
+#[derive(Debug)]
+pub struct ResidualPrices {
     bits: [[PricedClass; CONTROL_CLASSES]; STEP_GROUPS],
-    /// By DPCM (0) or transform (1) and grid side.
-    classes: [[[u8; MAX_CONTROL]; MAX_GRID + 1]; 2],
-    /// By grid side: the row and column of each position.
-    positions: [[(u8, u8); MAX_CONTROL]; MAX_GRID + 1],
 }
 
-impl ResidualCosts {
-    fn get() -> &'static ResidualCosts {
-        use std::sync::OnceLock;
-        static COSTS: OnceLock<Box<ResidualCosts>> = OnceLock::new();
-        COSTS.get_or_init(ResidualCosts::build)
-    }
-
-    fn build() -> Box<ResidualCosts> {
-        let start = Contexts::default();
-        let mut costs = Box::new(ResidualCosts {
+impl ResidualPrices {
+    /// The prices under `contexts`.
+    pub fn under(contexts: &Contexts) -> ResidualPrices {
+        let mut prices = ResidualPrices {
             bits: [[[[0.0; PRICED_MAGNITUDES]; ZERO_CONTEXTS]; CONTROL_CLASSES]; STEP_GROUPS],
-            classes: [[[0; MAX_CONTROL]; MAX_GRID + 1]; 2],
-            positions: [[(0, 0); MAX_CONTROL]; MAX_GRID + 1],
-        });
-        for (group, classes) in costs.bits.iter_mut().enumerate() {
-            for (class, contexts) in classes.iter_mut().enumerate() {
-                let residuals = start
+        };
+        for (group, classes) in prices.bits.iter_mut().enumerate() {
+            for (class, by_context) in classes.iter_mut().enumerate() {
+                let residuals = contexts
                     .control_residuals(group, class)
                     .expect("every group and class has contexts");
-                for (context, magnitudes) in contexts.iter_mut().enumerate() {
+                for (context, magnitudes) in by_context.iter_mut().enumerate() {
                     for (m, bits) in magnitudes.iter_mut().enumerate() {
                         let mut counter = BitCounter::frozen();
                         let mut v = m as i32;
@@ -837,6 +846,37 @@ impl ResidualCosts {
                 }
             }
         }
+        prices
+    }
+
+    /// The prices under the contexts every stream starts from.
+    pub fn at_start() -> &'static ResidualPrices {
+        use std::sync::OnceLock;
+        static START: OnceLock<ResidualPrices> = OnceLock::new();
+        START.get_or_init(|| ResidualPrices::under(&Contexts::default()))
+    }
+}
+
+/// The class and the row and column of every grid position.
+struct GridTables {
+    /// By DPCM (0) or transform (1) and grid side.
+    classes: [[[u8; MAX_CONTROL]; MAX_GRID + 1]; 2],
+    /// By grid side: the row and column of each position.
+    positions: [[(u8, u8); MAX_CONTROL]; MAX_GRID + 1],
+}
+
+impl GridTables {
+    fn get() -> &'static GridTables {
+        use std::sync::OnceLock;
+        static GRIDS: OnceLock<Box<GridTables>> = OnceLock::new();
+        GRIDS.get_or_init(GridTables::build)
+    }
+
+    fn build() -> Box<GridTables> {
+        let mut costs = Box::new(GridTables {
+            classes: [[[0; MAX_CONTROL]; MAX_GRID + 1]; 2],
+            positions: [[(0, 0); MAX_CONTROL]; MAX_GRID + 1],
+        });
         for (side, positions) in costs.positions.iter_mut().enumerate().skip(1) {
             for (i, position) in positions.iter_mut().enumerate().take(side * side) {
                 *position = ((i / side) as u8, (i % side) as u8);
@@ -976,7 +1016,12 @@ mod tests {
                         let mut indices = [0i16; MAX_CONTROL];
                         let cq = CONTROL_STEPS.iter().position(|&s| s == step).unwrap();
                         let cq = ControlQuantiserId::new(cq as u8);
-                        let rounding = IndexRounding::new(cq, true, side, ROUNDING_LAMBDA);
+                        let rounding = IndexRounding::new(
+                            cq,
+                            true,
+                            side,
+                            Rounding::from_start(ROUNDING_LAMBDA),
+                        );
                         quantise_coefficients(t, side, step, &rounding, &mut indices);
                         let mut values = [0i16; MAX_CONTROL];
                         transform_control_values(side, step, &indices, &mut values);
@@ -1027,7 +1072,13 @@ mod tests {
         ) {
             let (model, cq) = (fit.model, ControlQuantiserId::new(4));
             let targets = ControlTargets::of(fit, node.log2).with_edges(prediction, node, model);
-            let q = quantise(fit, &targets, cq, ControlCoding::Dpcm, ROUNDING_LAMBDA);
+            let q = quantise(
+                fit,
+                &targets,
+                cq,
+                ControlCoding::Dpcm,
+                Rounding::from_start(ROUNDING_LAMBDA),
+            );
             let mut counter = BitCounter::frozen();
             let mut leaf = q.leaf;
             code_leaf(
@@ -1078,8 +1129,12 @@ mod tests {
     fn rounding_prices_nonzero_indices_by_their_neighbours() {
         let side = 3;
         for transform in [false, true] {
-            let rounding =
-                IndexRounding::new(ControlQuantiserId::new(9), transform, side, ROUNDING_LAMBDA);
+            let rounding = IndexRounding::new(
+                ControlQuantiserId::new(9),
+                transform,
+                side,
+                Rounding::from_start(ROUNDING_LAMBDA),
+            );
             let mut indices = [0i16; MAX_CONTROL];
             assert_eq!(rounding.round(&indices, 4, 0.65, 1.0, None), 0);
             assert_eq!(rounding.round(&indices, 4, -0.65, 1.0, None), 0);
@@ -1099,7 +1154,12 @@ mod tests {
     /// is to nearest.
     #[test]
     fn large_indices_round_to_nearest() {
-        let rounding = IndexRounding::new(ControlQuantiserId::new(9), true, 5, ROUNDING_LAMBDA);
+        let rounding = IndexRounding::new(
+            ControlQuantiserId::new(9),
+            true,
+            5,
+            Rounding::from_start(ROUNDING_LAMBDA),
+        );
         let indices = [0i16; MAX_CONTROL];
         assert_eq!(rounding.round(&indices, 12, 5.45, 1.0, None), 5);
         assert_eq!(rounding.round(&indices, 12, 5.55, 1.0, None), 6);

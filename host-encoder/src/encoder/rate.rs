@@ -11,14 +11,15 @@
 
 use super::candidates::{Candidate, CandidateTree, ChromaCost, NodeAnalysis, WithCandidates};
 use super::plane::ImagePrediction;
+use super::quantise::ResidualPrices;
 use crate::entropy::BitCounter;
 use decoder_core::internal::format::MAX_LEAF_LOG2;
-use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::{code_leaf, code_split, Contexts, Header, LeafSyntax};
 use decoder_core::internal::walk::{node_kind, NodeKind};
 use decoder_core::Node;
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::sync::{Arc, OnceLock};
 
 /// The rates rate control works with: each candidate carries its bits and its error
 /// ([`Candidate::bits`], read in place: copies of them were 12 bytes a candidate in every
@@ -517,59 +518,80 @@ impl Block {
     }
 }
 
-/// The leaf contexts of a walk, followed leaf by leaf, as they were at the end of every block
-/// of `2^LOCAL_LOG2` pixels and of every larger block the walk coded as one or more whole
-/// leaves. The contexts adapt within a few dozen bits, so the state a stream ends with
+/// Contexts at one point of a trial encode, with the prices of the control residuals under
+/// them (made when first asked for: most blocks' are never needed).
+#[derive(Debug, Default)]
+pub struct PricedContexts {
+    /// The contexts.
+    pub contexts: Contexts,
+    prices: OnceLock<Arc<ResidualPrices>>,
+}
+
+impl PricedContexts {
+    fn new(contexts: Contexts) -> PricedContexts {
+        PricedContexts {
+            contexts,
+            prices: OnceLock::new(),
+        }
+    }
+
+    /// The control residuals' bits under these contexts.
+    pub fn prices(&self) -> Arc<ResidualPrices> {
+        Arc::clone(
+            self.prices
+                .get_or_init(|| Arc::new(ResidualPrices::under(&self.contexts))),
+        )
+    }
+}
+
+/// The leaf contexts of a walk as they were at the end of every block of `2^LOCAL_LOG2`
+/// pixels and of every larger block the walk coded as one or more whole leaves, and at the
+/// walk's end. The contexts adapt within a few dozen bits, so the state a stream ends with
 /// describes only its last region; a node's leaf is priced from the state after its own block
 /// instead (the trial encode's statistics there).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct LocalContexts {
-    /// The leaf contexts so far (the split flags' are not followed).
-    contexts: Contexts,
     /// At each side (log2), the block the walk is in, if its leaves are no larger than it.
     open: [Option<Block>; MAX_LEAF_LOG2 as usize + 1],
     /// The contexts at the end of each block.
-    ends: HashMap<Block, Contexts>,
+    ends: HashMap<Block, PricedContexts>,
+    /// The contexts at the walk's end.
+    last: PricedContexts,
 }
 
 impl LocalContexts {
-    /// Follows the coding of `leaf` at `node` (predicted from `prediction`, as the walk codes
-    /// it), after closing the blocks the walk has left.
-    pub fn follow<P: SamplePrediction>(&mut self, node: &Node, prediction: &P, leaf: &LeafSyntax) {
+    /// Notes that the walk codes a leaf at `node` next, its contexts being `contexts`: closes
+    /// the blocks the walk has left.
+    pub fn enter(&mut self, node: &Node, contexts: &Contexts) {
         for log2 in LOCAL_LOG2..=MAX_LEAF_LOG2 {
             let block = (log2 >= node.log2).then(|| Block::around(node, log2));
             let open = &mut self.open[usize::from(log2)];
             if *open != block {
                 if let Some(left) = std::mem::replace(open, block) {
-                    self.ends.insert(left, self.contexts.clone());
+                    self.ends
+                        .insert(left, PricedContexts::new(contexts.clone()));
                 }
             }
         }
-        let mut leaf = *leaf;
-        // An uncodable leaf fails the walk too: nothing to follow.
-        let _ = code_leaf(
-            &mut BitCounter::default(),
-            &mut self.contexts,
-            node,
-            prediction,
-            &mut leaf,
-        );
     }
 
-    /// Closes the blocks still open: the walk is over.
-    pub fn finish(&mut self) {
+    /// Closes the blocks still open: the walk is over, its contexts being `contexts`.
+    pub fn finish(&mut self, contexts: &Contexts) {
         for open in &mut self.open {
             if let Some(left) = open.take() {
-                self.ends.insert(left, self.contexts.clone());
+                self.ends
+                    .insert(left, PricedContexts::new(contexts.clone()));
             }
         }
+        self.last = PricedContexts::new(contexts.clone());
     }
 
     /// The contexts at the end of the smallest block around `node` that the walk coded in
-    /// leaves no larger than it, if any.
-    pub fn of_node(&self, node: &Node) -> Option<&Contexts> {
+    /// leaves no larger than it, or else at the walk's end.
+    pub fn around(&self, node: &Node) -> &PricedContexts {
         (LOCAL_LOG2.max(node.log2)..=MAX_LEAF_LOG2)
             .find_map(|log2| self.ends.get(&Block::around(node, log2)))
+            .unwrap_or(&self.last)
     }
 }
 

@@ -4,17 +4,17 @@
 //! Above [`super::rate`] (it writes the plans rate control makes); below [`super::analysis`],
 //! whose trial encode it writes.
 
-use super::candidates::CandidateTree;
+use super::candidates::{CandidateTree, NodeAnalysis};
 use super::chroma::{choose, ChromaCache, ChromaChoice, ColourPlanes};
 use super::error::EncodeError;
 use super::plane::{ImagePrediction, Plane};
 use super::rate::{Decision, LocalContexts, Plan};
-use crate::entropy::RangeEncoder;
+use crate::entropy::{BitCounter, RangeEncoder};
 use decoder_core::internal::entropy::{Coder, PayloadError, Prob, PROB_ONE};
 use decoder_core::internal::prediction::Frontier;
 use decoder_core::internal::prediction::SamplePrediction;
 use decoder_core::internal::syntax::{
-    control_step, seal, ChromaContexts, Contexts, Header, LeafSyntax,
+    code_leaf, control_step, seal, ChromaContexts, Contexts, Header, LeafSyntax,
 };
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
@@ -148,7 +148,12 @@ struct WalkRecord<'a> {
     meter: Option<Meter<'a>>,
     /// The node whose chroma covers its subtree, while the walk may be in it (the stream's).
     subtree: Option<Node>,
-    /// The leaf contexts block by block, when they are followed ([`write_trial`]).
+    /// The leaf contexts as the walk codes them, followed leaf by leaf: each leaf is chosen
+    /// under them ([`choose_leaf`]).
+    contexts: Box<Contexts>,
+    /// Whether the plan's leaves are written as planned, none chosen in the walk.
+    as_planned: bool,
+    /// The leaf contexts block by block, when they are recorded ([`write_trial`]).
     local: Option<Box<LocalContexts>>,
 }
 
@@ -277,10 +282,34 @@ impl TreeVisitor for PlanVisitor<'_, '_, '_> {
             } else if let Some(na) = source.tree.node(&local) {
                 *leaf = na.leaf(usize::from(c), &source.image);
             }
+            let na = source.tree.node(&local).filter(|_| !self.record.as_planned);
+            if let Some(na) = na {
+                let contexts = &self.record.contexts;
+                let chosen = Chosen {
+                    candidate: usize::from(c),
+                    leaf: *leaf,
+                };
+                let here = LeafPlace {
+                    node,
+                    prediction,
+                    contexts,
+                };
+                *leaf = choose_leaf(na, chosen, &here, &source);
+            }
         }
-        if let Some(contexts) = &mut self.record.local {
-            contexts.follow(node, prediction, leaf);
+        let contexts = &mut self.record.contexts;
+        if let Some(local) = &mut self.record.local {
+            local.enter(node, contexts);
         }
+        let mut coded = *leaf;
+        // A leaf the syntax cannot code fails the walk too: nothing to follow.
+        let _ = code_leaf(
+            &mut BitCounter::default(),
+            contexts,
+            node,
+            prediction,
+            &mut coded,
+        );
     }
 
     fn prepare_chroma<P: SamplePrediction>(
@@ -351,6 +380,79 @@ impl TreeVisitor for PlanVisitor<'_, '_, '_> {
     }
 }
 
+/// The leaf the plan chose at a node: its candidate number and syntax.
+#[derive(Clone, Copy)]
+struct Chosen {
+    candidate: usize,
+    leaf: LeafSyntax,
+}
+
+/// Where the walk codes a leaf: the stream's node, the pixels beside it, the contexts.
+struct LeafPlace<'p, P> {
+    node: &'p Node,
+    prediction: &'p P,
+    contexts: &'p Contexts,
+}
+
+/// The candidate of `na` within [`CHOICE_REACH`] places of the plan's `chosen` one on the
+/// node's rate/distortion hull ([`hull_neighbours`]) of least `sse + lambda * bits` and no more
+/// bits than the chosen one, its bits coded at `here` as the walk will code them: under the
+/// walk's adapted contexts and predicted from the pixels earlier leaves drew, where the plan
+/// priced it under the trial encode's contexts around the node and predicted from the image.
+/// A leaf never costs more than the plan's would, so that a plan's stream is never larger for
+/// the choice and rate control can still bisect between plans (docs/decisions.md).
+fn choose_leaf<P: SamplePrediction>(
+    na: &NodeAnalysis,
+    chosen: Chosen,
+    here: &LeafPlace<P>,
+    source: &PlanSource,
+) -> LeafSyntax {
+    let bits = |leaf: &LeafSyntax| {
+        let mut leaf = *leaf;
+        let mut contexts = here.contexts.clone();
+        let mut counter = BitCounter::default();
+        match code_leaf(
+            &mut counter,
+            &mut contexts,
+            here.node,
+            here.prediction,
+            &mut leaf,
+        ) {
+            Ok(()) => counter.bits(),
+            Err(_) => f64::INFINITY,
+        }
+    };
+    let lambda = source.plan.lambda;
+    let planned = bits(&chosen.leaf);
+    let mut best = (
+        na.candidates[chosen.candidate].sse + lambda * planned,
+        chosen.leaf,
+    );
+    for k in hull_neighbours(na, chosen.candidate, CHOICE_REACH) {
+        let leaf = na.leaf(k, &source.image);
+        let b = bits(&leaf);
+        let j = na.candidates[k].sse + lambda * b;
+        if b <= planned && j < best.0 {
+            best = (j, leaf);
+        }
+    }
+    best.1
+}
+
+/// How far along a node's hull, in candidates, the walk looks from the plan's choice
+/// ([`choose_leaf`]): 2 did as well as the whole hull (docs/decisions.md).
+const CHOICE_REACH: usize = 2;
+
+/// The candidates of `na` within `reach` places of candidate `k` in the order of their bits
+/// (the node's rate/distortion hull, after the final pruning), `k` left out.
+fn hull_neighbours(na: &NodeAnalysis, k: usize, reach: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..na.candidates.len()).collect();
+    order.sort_by(|&a, &b| na.candidates[a].bits.total_cmp(&na.candidates[b].bits));
+    let at = order.iter().position(|&j| j == k).unwrap_or(0);
+    let range = at.saturating_sub(reach)..(at + reach + 1).min(order.len());
+    order[range].iter().copied().filter(|&j| j != k).collect()
+}
+
 /// Writes the stream for `plan` (of `tree`'s candidates, whose syntax is made again from the
 /// image `prediction` predicts from) with `header`; a colour stream's chroma (`header.channels ==
 /// 3`) is chosen leaf by leaf from `colour`, with the options `cache` holds (and keeps) for
@@ -362,7 +464,15 @@ pub fn write(
     colour: Option<&ColourPlanes>,
     cache: &ChromaCache,
 ) -> Result<Written, EncodeError> {
-    walk_plan((tree, prediction), header, plan, colour, cache, false).map(|t| t.written)
+    walk_plan(
+        (tree, prediction),
+        header,
+        plan,
+        colour,
+        cache,
+        WalkMode::Write,
+    )
+    .map(|t| t.written)
 }
 
 /// A trial encode: the stream and the leaf contexts block by block.
@@ -380,17 +490,49 @@ pub fn write_trial(
     plan: &Plan,
     cache: &ChromaCache,
 ) -> Result<TrialStream, EncodeError> {
-    walk_plan((tree, prediction), header, plan, None, cache, true)
+    walk_plan(
+        (tree, prediction),
+        header,
+        plan,
+        None,
+        cache,
+        WalkMode::Trial,
+    )
 }
 
-/// [`write`], following the leaf contexts block by block if `follow`.
+/// [`write`] for a grayscale stream with its leaves as the plan chose them, none chosen in the
+/// walk: what [`choose_leaf`] is measured against.
+#[cfg(test)]
+pub fn write_as_planned(
+    (tree, prediction): (&CandidateTree, &ImagePrediction),
+    header: &Header,
+    plan: &Plan,
+    cache: &ChromaCache,
+) -> Result<Written, EncodeError> {
+    let mode = WalkMode::AsPlanned;
+    walk_plan((tree, prediction), header, plan, None, cache, mode).map(|t| t.written)
+}
+
+/// What a walk of a plan does besides writing it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum WalkMode {
+    /// Chooses each leaf in the walk ([`choose_leaf`]).
+    Write,
+    /// That, and records the leaf contexts block by block ([`write_trial`]).
+    Trial,
+    /// Writes the plan's leaves as planned.
+    #[cfg(test)]
+    AsPlanned,
+}
+
+/// [`write`], as `mode` says.
 fn walk_plan(
     (tree, prediction): (&CandidateTree, &ImagePrediction),
     header: &Header,
     plan: &Plan,
     colour: Option<&ColourPlanes>,
     cache: &ChromaCache,
-    follow: bool,
+    mode: WalkMode,
 ) -> Result<TrialStream, EncodeError> {
     let colour = colour.filter(|_| header.channels == 3);
     let key_header = Header {
@@ -416,7 +558,9 @@ fn walk_plan(
         replay: tape.as_ref().map(|_| 0),
         tape: tape.unwrap_or_default(),
         recording: true,
-        local: follow.then(Box::default),
+        local: (mode == WalkMode::Trial).then(Box::default),
+        #[cfg(test)]
+        as_planned: mode == WalkMode::AsPlanned,
         ..WalkRecord::default()
     };
     let source = PlanSource {
@@ -447,7 +591,7 @@ fn walk_plan(
         CHROMA_MEMO.with(|m| *m.borrow_mut() = Some(memo));
     }
     let mut local = record.local.take().map(|l| *l).unwrap_or_default();
-    local.finish();
+    local.finish(&record.contexts);
     let written = sealed(header, coder.finish(), state.contexts, &record)?;
     Ok(TrialStream { written, local })
 }
