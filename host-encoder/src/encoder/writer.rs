@@ -46,8 +46,9 @@ pub struct Written {
 /// by node (side as a power of two, then its top-left pixel) and candidate.
 type PlanLeaves = HashMap<(u8, u32, u32, u16), LeafSyntax>;
 
-/// The syntax of every leaf `plan` (of `tree`'s candidates) codes, made from the image `image`
-/// predicts from.
+/// The syntax of every leaf `plan` (of `tree`'s candidates) codes, and of the candidates the
+/// walk weighs against it ([`choose_leaf`]) at nodes that do not hold their indices, made from
+/// the image `image` predicts from: in parallel, not one by one in the walk.
 fn plan_leaves(tree: &CandidateTree, plan: &Plan, image: &ImagePrediction) -> PlanLeaves {
     let mut wanted = Vec::new();
     if let Some(top) = tree.levels().last() {
@@ -57,10 +58,20 @@ fn plan_leaves(tree: &CandidateTree, plan: &Plan, image: &ImagePrediction) -> Pl
     }
     wanted
         .into_par_iter()
-        .filter_map(|(node, c)| {
-            let na = tree.node(&node)?;
+        .flat_map_iter(|(node, c)| {
             let k = usize::from(c);
-            (k < na.candidates.len()).then(|| (leaf_key(&node, c), na.leaf(k, image)))
+            let na = tree.node(&node).filter(|na| k < na.candidates.len());
+            let mut made = Vec::new();
+            if let Some(na) = na {
+                made.push(k);
+                if na.indices.is_none() {
+                    made.extend(hull_neighbours(na, k, CHOICE_REACH));
+                }
+            }
+            made.into_iter().filter_map(move |k| {
+                let na = na?;
+                Some((leaf_key(&node, u16::try_from(k).ok()?), na.leaf(k, image)))
+            })
         })
         .collect()
 }
@@ -429,7 +440,11 @@ fn choose_leaf<P: SamplePrediction>(
         chosen.leaf,
     );
     for k in hull_neighbours(na, chosen.candidate, CHOICE_REACH) {
-        let leaf = na.leaf(k, &source.image);
+        let made = u16::try_from(k).ok().and_then(|c| {
+            let local = source.local(here.node, false);
+            source.plan_leaves.get(&leaf_key(&local, c)).copied()
+        });
+        let leaf = made.unwrap_or_else(|| na.leaf(k, &source.image));
         let b = bits(&leaf);
         let j = na.candidates[k].sse + lambda * b;
         if b <= planned && j < best.0 {
