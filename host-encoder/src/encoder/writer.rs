@@ -285,42 +285,51 @@ impl TreeVisitor for PlanVisitor<'_, '_, '_> {
         prediction: &P,
         leaf: &mut LeafSyntax,
     ) {
+        // The contexts after the leaf, when choosing it coded it already.
+        let mut after = None;
         if let Some(Decision::Leaf(c)) = self.decision(node) {
             let source = self.source;
             let local = source.local(node, false);
+            let na = source.tree.node(&local);
             if let Some(made) = source.plan_leaves.get(&leaf_key(&local, c)) {
                 *leaf = *made;
-            } else if let Some(na) = source.tree.node(&local) {
+            } else if let Some(na) = na {
                 *leaf = na.leaf(usize::from(c), &source.image);
             }
-            let na = source.tree.node(&local).filter(|_| !self.record.as_planned);
-            if let Some(na) = na {
-                let contexts = &self.record.contexts;
+            if let Some(na) = na.filter(|_| !self.record.as_planned) {
                 let chosen = Chosen {
                     candidate: usize::from(c),
                     leaf: *leaf,
                 };
                 let here = LeafPlace {
                     node,
+                    local,
                     prediction,
-                    contexts,
+                    contexts: &self.record.contexts,
                 };
-                *leaf = choose_leaf(na, chosen, &here, &source);
+                let priced = choose_leaf(na, chosen, &here, &source);
+                *leaf = priced.leaf;
+                after = priced.contexts;
             }
         }
         let contexts = &mut self.record.contexts;
         if let Some(local) = &mut self.record.local {
             local.enter(node, contexts);
         }
-        let mut coded = *leaf;
-        // A leaf the syntax cannot code fails the walk too: nothing to follow.
-        let _ = code_leaf(
-            &mut BitCounter::default(),
-            contexts,
-            node,
-            prediction,
-            &mut coded,
-        );
+        match after {
+            Some(after) => *contexts = after,
+            None => {
+                let mut coded = *leaf;
+                // A leaf the syntax cannot code fails the walk too: nothing to follow.
+                let _ = code_leaf(
+                    &mut BitCounter::default(),
+                    contexts,
+                    node,
+                    prediction,
+                    &mut coded,
+                );
+            }
+        }
     }
 
     fn prepare_chroma<P: SamplePrediction>(
@@ -398,11 +407,19 @@ struct Chosen {
     leaf: LeafSyntax,
 }
 
-/// Where the walk codes a leaf: the stream's node, the pixels beside it, the contexts.
+/// Where the walk codes a leaf: the stream's node, the candidates' node, the pixels beside
+/// it, the contexts.
 struct LeafPlace<'p, P> {
     node: &'p Node,
+    local: Node,
     prediction: &'p P,
     contexts: &'p Contexts,
+}
+
+/// A leaf, and the contexts after coding it (none if the syntax cannot code it).
+struct PricedLeaf {
+    leaf: LeafSyntax,
+    contexts: Option<Box<Contexts>>,
 }
 
 /// The candidate of `na` within [`CHOICE_REACH`] places of the plan's `chosen` one on the
@@ -417,38 +434,49 @@ fn choose_leaf<P: SamplePrediction>(
     chosen: Chosen,
     here: &LeafPlace<P>,
     source: &PlanSource,
-) -> LeafSyntax {
-    let bits = |leaf: &LeafSyntax| {
-        let mut leaf = *leaf;
-        let mut contexts = here.contexts.clone();
+) -> PricedLeaf {
+    // Its bits, and the contexts after it.
+    let coded = |leaf: LeafSyntax| {
+        let mut coded = leaf;
+        let mut contexts = Box::new(here.contexts.clone());
         let mut counter = BitCounter::default();
         match code_leaf(
             &mut counter,
             &mut contexts,
             here.node,
             here.prediction,
-            &mut leaf,
+            &mut coded,
         ) {
-            Ok(()) => counter.bits(),
-            Err(_) => f64::INFINITY,
+            Ok(()) => (
+                counter.bits(),
+                PricedLeaf {
+                    leaf,
+                    contexts: Some(contexts),
+                },
+            ),
+            Err(_) => (
+                f64::INFINITY,
+                PricedLeaf {
+                    leaf,
+                    contexts: None,
+                },
+            ),
         }
     };
     let lambda = source.plan.lambda;
-    let planned = bits(&chosen.leaf);
+    let (planned, plan_leaf) = coded(chosen.leaf);
     let mut best = (
         na.candidates[chosen.candidate].sse + lambda * planned,
-        chosen.leaf,
+        plan_leaf,
     );
     for k in hull_neighbours(na, chosen.candidate, CHOICE_REACH) {
-        let made = u16::try_from(k).ok().and_then(|c| {
-            let local = source.local(here.node, false);
-            source.plan_leaves.get(&leaf_key(&local, c)).copied()
-        });
-        let leaf = made.unwrap_or_else(|| na.leaf(k, &source.image));
-        let b = bits(&leaf);
-        let j = na.candidates[k].sse + lambda * b;
-        if b <= planned && j < best.0 {
-            best = (j, leaf);
+        let made = u16::try_from(k)
+            .ok()
+            .and_then(|c| source.plan_leaves.get(&leaf_key(&here.local, c)).copied());
+        let (bits, priced) = coded(made.unwrap_or_else(|| na.leaf(k, &source.image)));
+        let j = na.candidates[k].sse + lambda * bits;
+        if bits <= planned && j < best.0 {
+            best = (j, priced);
         }
     }
     best.1
@@ -494,7 +522,7 @@ pub fn write(
 pub struct TrialStream {
     /// The stream.
     pub written: Written,
-    /// The leaf contexts at the end of each block (none where the walk did not follow them).
+    /// The leaf contexts at the end of each block and of the walk.
     pub local: LocalContexts,
 }
 
