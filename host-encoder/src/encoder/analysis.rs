@@ -29,6 +29,7 @@ use super::rate::{
     leaf_bits, node_hull, prune_node, rate_node, Anchor, GrowingHull, LocalContexts, RateTable,
 };
 use super::writer;
+use decoder_core::internal::colour::rgb_to_luma;
 use decoder_core::internal::format::{MAX_LEAF_LOG2, MIN_LEAF_LOG2};
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_ONE};
 use decoder_core::internal::syntax::LeafSyntax;
@@ -57,6 +58,9 @@ pub struct Analysis {
     /// The trial encode's plan (its multiplier and estimates): where the searches of targets
     /// start.
     pub(super) trial: Anchor,
+    /// The pixels the trial encode drew (its luma), which the candidates the final pruning
+    /// rounds were predicted from ([`RoundingId::prediction`]); `None` for a 16-bit surface.
+    pub(super) drawn: Option<Plane>,
     /// The edge-smoothing strength every stream gets, or `None` to choose it per stream
     /// ([`EncoderConfig::deblock`]).
     pub(super) deblock: Option<u8>,
@@ -173,6 +177,7 @@ impl Analysis {
                 bits: 1.0,
                 sse: 1.0,
             },
+            drawn: None,
             // A 16-bit stream is not smoothed (its samples are the leaves').
             deblock: match config.range {
                 Some(_) => Some(0),
@@ -212,20 +217,23 @@ impl Analysis {
             &plan,
             &self.chroma_cache,
         ) {
-            Ok(t) => (t.written.final_contexts, t.local),
+            Ok(t) => {
+                self.drawn = trial_reconstruction(&t.written.bytes, &self.plane);
+                (t.written.final_contexts, t.local)
+            }
             Err(_) => (Contexts::default(), LocalContexts::default()),
         };
         let trial = Trial {
-            prediction: prediction_of(&self.plane, &self.header),
+            prediction: prediction_of(&self.plane, &self.header).with_drawn(self.drawn.as_ref()),
             local: &local,
             window: (self.trial.lambda / VARIANT_WINDOW)..=(self.trial.lambda * VARIANT_WINDOW),
         };
-        let (plane, header) = (&self.plane, &self.header);
+        let plane = &self.plane;
         let (levels, masking) = self.tree.levels_and_masking_mut();
         for level in levels {
             level.nodes.par_iter_mut().flatten().for_each(|na| {
                 let weight = masking.weight(&na.node);
-                final_candidates(plane, header, (na, weight), &trial);
+                final_candidates(plane, (na, weight), &trial);
             });
         }
         self.rates = RateTable::of_contexts(&snapshot);
@@ -685,12 +693,57 @@ fn chains_of(fi: usize, fit: &Fit) -> Vec<Chain> {
         .collect()
 }
 
+/// The pixels a trial `stream` of `plane` decodes to, as a plane predictions can be made from
+/// (its luma: for a colour stream, that of its RGB by the encoder's rule, within a level of the
+/// decoder's own). `None` for a 16-bit surface, which is predicted from its own samples.
+fn trial_reconstruction(stream: &[u8], plane: &Plane) -> Option<Plane> {
+    /// Keeps the luma of the tiles it is given.
+    struct Luma {
+        width: u32,
+        pixels: Vec<u8>,
+    }
+    impl PixelSink for Luma {
+        type Error = Infallible;
+
+        fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+            let Rect { x, y, w, h } = tile.area;
+            let channels = usize::from(tile.channels);
+            let mut k = 0;
+            for py in y..y + h {
+                let row = (py * self.width) as usize;
+                for px in x..x + w {
+                    let p = &tile.pixels[k * channels..][..channels];
+                    self.pixels[row + px as usize] = match p {
+                        &[r, g, b] => rgb_to_luma(r, g, b),
+                        _ => p[0],
+                    };
+                    k += 1;
+                }
+            }
+            Ok(())
+        }
+    }
+    if plane.fine.is_some() {
+        return None;
+    }
+    let decoder = decoder_core::Decoder::new(stream)
+        .ok()?
+        .stripe_capacity::<{ 1 << 16 }>();
+    let (width, height) = decoder.output_size();
+    if (width, height) != (plane.width, plane.height) {
+        return None;
+    }
+    let mut luma = Luma {
+        width,
+        pixels: vec![0; plane.data.len()],
+    };
+    decoder.decode(&mut luma).ok()?;
+    Some(plane.redrawn(luma.pixels))
+}
+
 /// Prediction from the pixels of `plane`, coded under `header`, as the analysis estimates it.
 pub(super) fn prediction_of<'a>(plane: &'a Plane, header: &Header) -> ImagePrediction<'a> {
-    ImagePrediction {
-        plane,
-        stripe: header.stripe_width(),
-    }
+    ImagePrediction::new(plane, header.stripe_width())
 }
 
 /// Quantises `fit` (the node's fit of chain `chain`, whose targets are `targets`) with control
@@ -724,7 +777,7 @@ fn add_candidate(
 
 /// What the final pruning of every node needs from the trial encode.
 struct Trial<'a> {
-    /// Prediction from the image's own pixels.
+    /// Prediction from the image, knowing the pixels the trial encode drew.
     prediction: ImagePrediction<'a>,
     /// The trial encode's contexts at the end of each block: a candidate is rated from those
     /// of the block around its node, and its variants rounded with their prices.
@@ -739,24 +792,20 @@ struct Trial<'a> {
 /// ([`add_rounding_variants`], some priced under the block's contexts), and keeps again what
 /// pays. Node by node, so that no node's variants wait for the others'.
 /// `weight`: the node's error weight ([`Masking`]).
-fn final_candidates(
-    plane: &Plane,
-    header: &Header,
-    (na, weight): (&mut NodeAnalysis, f64),
-    trial: &Trial,
-) {
+fn final_candidates(plane: &Plane, (na, weight): (&mut NodeAnalysis, f64), trial: &Trial) {
+    let prediction = &trial.prediction;
     let around = trial.local.around(&na.node);
-    rate_node(na, &trial.prediction, &around.contexts);
+    rate_node(na, prediction, &around.contexts);
     prune_node(na, &ALL_LAMBDAS);
     let vary = node_hull(na, &trial.window);
     let known = na.candidates.len();
     let prices = around.prices();
-    let varied = add_rounding_variants(plane, header, (na, weight), &vary, &prices);
+    let varied = add_rounding_variants(plane, prediction, (na, weight), &vary, &prices);
     na.prices = Some(prices);
     let node = na.node;
     let mut ctx = around.contexts.clone();
     for (c, leaf) in na.candidates[known..].iter_mut().zip(&varied) {
-        c.bits = leaf_bits(&node, leaf, &trial.prediction, &mut ctx);
+        c.bits = leaf_bits(&node, leaf, &prediction.drawn(), &mut ctx);
     }
     prune_node(na, &ALL_LAMBDAS);
 }
@@ -766,29 +815,28 @@ fn final_candidates(
 /// priced under `block`, the trial encode's contexts around the node ([`RoundingId::variants`];
 /// where that makes indices no other rounding made): points between those of its control
 /// steps, rounded knowing what bits cost there. Their errors are weighted by `weight`, as the
-/// node's others are. Returns the syntax of the added candidates, in order.
+/// node's others are. They are rounded predicting from the pixels the trial drew
+/// ([`ImagePrediction::drawn`] of `image`). Returns the syntax of the added candidates, in
+/// order.
 fn add_rounding_variants(
     plane: &Plane,
-    header: &Header,
+    image: &ImagePrediction,
     (na, weight): (&mut NodeAnalysis, f64),
     vary: &[u16],
     block: &ResidualPrices,
 ) -> Vec<LeafSyntax> {
-    let image = prediction_of(plane, header);
     // Each fit is made again (with its targets) once, for all its candidates.
     let mut made: Vec<Option<(Fit, ControlTargets)>> = (0..na.fits.len()).map(|_| None).collect();
     let roundings: Vec<RoundingId> = RoundingId::variants().collect();
     let mut varied = Vec::with_capacity(vary.len() * roundings.len());
     na.reserve(varied.capacity(), varied.capacity() * MAX_CONTROL);
+    let drawn = image.drawn();
     for &k in vary {
         let c = na.candidates[usize::from(k)];
+        let own = na.leaf(usize::from(k), image);
         let (fit, targets) =
-            made[usize::from(c.fit)].get_or_insert_with(|| na.fit_and_targets(c.fit, &image));
+            made[usize::from(c.fit)].get_or_insert_with(|| na.fit_and_targets(c.fit, &drawn));
         let n = fit.model.model().control_count();
-        let own = match na.indices {
-            Some(_) => na.leaf(usize::from(k), &image),
-            None => quantise(fit, targets, c.cq, c.coding, c.rounding.with(Some(block))).leaf,
-        };
         let mut made_here = vec![own.control];
         for r in &roundings {
             let q = quantise(fit, targets, c.cq, c.coding, r.with(Some(block)));
@@ -1096,7 +1144,7 @@ mod tests {
         )
         .expect("an analysis");
         let (tree, header) = (&analysis.tree, &analysis.header);
-        let image = prediction_of(&analysis.plane, header);
+        let image = analysis.image();
         let bits = 2.0 * f64::from(w * h);
         let plan = analysis.rates.rough_plan_for_bits(tree, header, bits);
         let trial = writer::write_trial((tree, &image), header, &plan, &analysis.chroma_cache)
@@ -1214,7 +1262,7 @@ mod tests {
         )
         .expect("an analysis");
         let (tree, header) = (&analysis.tree, &analysis.header);
-        let image = prediction_of(&analysis.plane, header);
+        let image = analysis.image();
         let pixels = f64::from(128 * 128);
         let cache = &analysis.chroma_cache;
         let (mut chosen_sum, mut planned_sum) = (0.0, 0.0);
@@ -1489,12 +1537,22 @@ mod tests {
 
     /// A candidate's syntax, held by its node or made again ([`NodeAnalysis::leaf`]), is the
     /// syntax the passes made and rated, for the coarse pass's candidates, the rounding
-    /// variants and those a node keeps; a node that holds indices keeps only its candidates'.
+    /// variants (rounded against other pixels drawn beside the node than the image's) and
+    /// those a node keeps; a node that holds indices keeps only its candidates'.
     #[test]
     fn candidates_are_made_again_unchanged() {
         let plane = textured_plane(64, 64);
         let header = header_for(&plane, &EncoderConfig::default()).expect("a header");
-        let image = prediction_of(&plane, &header);
+        // What a trial encode might have drawn: the image, blurred into steps of 8 px.
+        let drawn = Plane::new(
+            64,
+            64,
+            (0..64 * 64)
+                .map(|i| plane.get(i % 64 / 8 * 8, i / 64 / 8 * 8))
+                .collect(),
+        );
+        let own = prediction_of(&plane, &header);
+        let image = own.with_drawn(Some(&drawn));
         let node = Node {
             x: 16,
             y: 16,
@@ -1511,13 +1569,18 @@ mod tests {
             coarse_candidates(&plane, &header, (na, 1.0), &fits, &start, 0);
             assert!(na.candidates.len() > 8);
             let rated = na.candidates.clone();
-            rate_node(na, &image, &start);
+            rate_node(na, &own, &start);
             assert_eq!(na.candidates, rated);
             let vary: Vec<u16> = (0..na.candidates.len() as u16).step_by(2).collect();
             let known = na.candidates.len();
             let block = ResidualPrices::under(&start);
-            let varied = add_rounding_variants(&plane, &header, (na, 1.0), &vary, &block);
+            // Rounded against the image's own pixels beside the node, some variants differ.
+            let mut alone = na.clone();
+            let varied_alone =
+                add_rounding_variants(&plane, &own, (&mut alone, 1.0), &vary, &block);
+            let varied = add_rounding_variants(&plane, &image, (na, 1.0), &vary, &block);
             assert!(!varied.is_empty());
+            assert_ne!(varied, varied_alone);
             assert_eq!(na.candidates.len(), known + varied.len());
             for (k, leaf) in (known..).zip(&varied) {
                 let c = na.candidates[k];
@@ -1666,7 +1729,7 @@ mod tests {
         let whole = Analysis::run_in_bands(plane, None, &config, (u32::MAX, scale), &|_| {})
             .expect("an analysis");
         // The first band's nodes hold their indices, the others make them again.
-        let image = prediction_of(&banded.plane, &banded.header);
+        let image = banded.image();
         let unplaced = |na: &NodeAnalysis| (na.candidates.clone(), na.leaves(&image));
         let mut made_again = 0;
         for (a, b) in banded.tree.levels().iter().zip(whole.tree.levels()) {
@@ -1697,6 +1760,40 @@ mod tests {
             .collect();
         let (y, colour) = ColourPlanes::from_rgb(w, h, rgb);
         Analysis::run(y, Some(colour), &EncoderConfig::default(), &|_| {}).expect("an analysis")
+    }
+
+    /// The pixels the trial encode drew, which the final pruning predicts from, are a picture
+    /// of the image's luma at about the trial's rate, for a grayscale and a colour image
+    /// alike (a colour image's trial is coded in grayscale: its luma, not its RGB's).
+    #[test]
+    fn the_trial_draws_the_images_luma() {
+        let surface = |x: u32, y: u32| {
+            128.0 + 60.0 * (f64::from(x) / 9.0).sin() * (f64::from(y) / 13.0).cos()
+        };
+        let colour = colour_analysis(|x, y| [surface(x, y) as u8, 80, 180]);
+        let gray = Analysis::run(
+            Plane::new(
+                64,
+                64,
+                (0..64 * 64)
+                    .map(|i| surface(i % 64, i / 64) as u8)
+                    .collect(),
+            ),
+            None,
+            &EncoderConfig::default(),
+            &|_| {},
+        )
+        .expect("an analysis");
+        for analysis in [&gray, &colour] {
+            let drawn = analysis.drawn.as_ref().expect("the trial's pixels");
+            assert_eq!((drawn.width, drawn.height), (64, 64));
+            let sse: f64 = (drawn.data.iter().zip(&analysis.plane.data))
+                .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+                .sum();
+            let psnr = super::super::plane::psnr(sse, drawn.data.len());
+            assert!(psnr > 30.0, "the trial's luma at {psnr} dB");
+            assert_ne!(drawn.data, analysis.plane.data, "a trial at its own rate");
+        }
     }
 
     /// The quadtree's cut weighs each leaf's chroma with its luma: on an image whose colour

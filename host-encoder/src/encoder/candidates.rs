@@ -41,8 +41,10 @@ pub struct Candidate {
 pub struct RoundingId {
     /// The multiplier: 0 for [`ROUNDING_LAMBDA`], `k + 1` for [`ROUNDING_VARIANTS`]`[k]`.
     pub multiplier: u8,
-    /// Whether the bits were priced under the trial encode's contexts around the node
-    /// ([`NodeAnalysis::prices`]) instead of those every stream starts from.
+    /// Whether it was rounded knowing the trial encode: the bits priced under the trial's
+    /// contexts around the node ([`NodeAnalysis::prices`]) and its edges predicted from the
+    /// pixels the trial drew ([`ImagePrediction::drawn`]), instead of the contexts every
+    /// stream starts from and the image's own pixels.
     pub block_prices: bool,
 }
 
@@ -55,6 +57,15 @@ impl RoundingId {
             multiplier,
             block_prices: true,
         })
+    }
+
+    /// The prediction its indices were rounded against, of those `image` knows.
+    pub fn prediction<'a>(self, image: &ImagePrediction<'a>) -> ImagePrediction<'a> {
+        if self.block_prices {
+            image.drawn()
+        } else {
+            image.own()
+        }
     }
 
     /// The rounding, `block` being the prices of the node's block ([`NodeAnalysis::prices`]).
@@ -195,8 +206,8 @@ impl NodeAnalysis {
         leaf
     }
 
-    /// The node's fit number `fit`, made again from the image `image` predicts from, with its
-    /// quantisation targets.
+    /// The node's fit number `fit`, made again from `image`'s plane, with its quantisation
+    /// targets predicting as `image` does.
     pub fn fit_and_targets(&self, fit: u8, image: &ImagePrediction) -> (Fit, ControlTargets) {
         let fit = fit_default(image.plane, &self.node, self.fits[usize::from(fit)]);
         let targets = targets_of(image, &self.node, &fit);
@@ -204,8 +215,8 @@ impl NodeAnalysis {
     }
 
     /// The leaf syntax of candidate number `k`: the indices the node holds, or else made again
-    /// from the image `image` predicts from (the fit, by its model, its targets, then the
-    /// candidate's quantiser and rounding).
+    /// from the image `image` predicts from (the fit, by its model, its targets predicting as
+    /// its rounding did, [`RoundingId::prediction`], then its quantiser and rounding).
     pub fn leaf(&self, k: usize, image: &ImagePrediction) -> LeafSyntax {
         let c = &self.candidates[k];
         match &self.indices {
@@ -216,7 +227,7 @@ impl NodeAnalysis {
                 self.held_leaf(c, &indices[at..][..self.index_count(c)])
             }
             None => {
-                let (fit, targets) = self.fit_and_targets(c.fit, image);
+                let (fit, targets) = self.fit_and_targets(c.fit, &c.rounding.prediction(image));
                 let rounding = c.rounding.with(self.prices.as_deref());
                 quantise(&fit, &targets, c.cq, c.coding, rounding).leaf
             }
@@ -236,13 +247,21 @@ impl NodeAnalysis {
                 })
                 .collect();
         }
-        let mut made: Vec<Option<(Fit, ControlTargets)>> =
-            (0..self.fits.len()).map(|_| None).collect();
+        // Each fit made once, its targets once per prediction its candidates were rounded
+        // against.
+        let mut fits: Vec<Option<Fit>> = (0..self.fits.len()).map(|_| None).collect();
+        let mut targets: Vec<Option<ControlTargets>> =
+            (0..2 * self.fits.len()).map(|_| None).collect();
         self.candidates
             .iter()
             .map(|c| {
-                let (fit, targets) = made[usize::from(c.fit)]
-                    .get_or_insert_with(|| self.fit_and_targets(c.fit, image));
+                let f = usize::from(c.fit);
+                let fit = fits[f]
+                    .get_or_insert_with(|| fit_default(image.plane, &self.node, self.fits[f]));
+                let targets = targets[2 * f + usize::from(c.rounding.block_prices)]
+                    .get_or_insert_with(|| {
+                        targets_of(&c.rounding.prediction(image), &self.node, fit)
+                    });
                 let rounding = c.rounding.with(self.prices.as_deref());
                 quantise(fit, targets, c.cq, c.coding, rounding).leaf
             })

@@ -710,10 +710,7 @@ fn plane_hull(
     steps: ChromaSteps,
     earlier: &[RatePoint],
 ) -> Vec<RatePoint> {
-    let prediction = ImagePrediction {
-        plane,
-        stripe: stripe / 2,
-    };
+    let prediction = ImagePrediction::new(plane, stripe / 2);
     let pixels = leaf_pixels(plane, cnode);
     let options = NodeOptions::of_pixels(&pixels, cnode);
     // The floor counts every pixel of the node: only where all are inside the plane.
@@ -976,10 +973,7 @@ mod tests {
     #[test]
     fn the_cache_changes_no_choice() {
         let plane = textured_plane();
-        let prediction = ImagePrediction {
-            plane: &plane,
-            stripe: 256,
-        };
+        let prediction = ImagePrediction::new(&plane, 256);
         let cache = ChromaCache::default();
         let mut adapted = ChromaContexts::default();
         for (i, node) in [(0, 0, 4), (16, 0, 4), (0, 16, 3), (8, 24, 3), (0, 0, 5)]

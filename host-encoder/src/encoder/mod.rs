@@ -188,7 +188,7 @@ impl Analysis {
 
     /// The image as the analysis predicts from it: what its candidates' syntax is made from.
     fn image(&self) -> plane::ImagePrediction<'_> {
-        analysis::prediction_of(&self.plane, &self.header)
+        analysis::prediction_of(&self.plane, &self.header).with_drawn(self.drawn.as_ref())
     }
 
     fn write(&self, header: &Header, plan: &rate::Plan) -> Result<writer::Written, EncodeError> {

@@ -624,6 +624,7 @@ fn into_part(analysis: Analysis, origin: (u32, u32), plan: Plan) -> Part {
         origin,
         tree: analysis.tree,
         plane: analysis.plane,
+        drawn: analysis.drawn,
         colour: analysis.colour,
         cache: analysis.chroma_cache,
         plan,

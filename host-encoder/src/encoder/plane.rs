@@ -56,6 +56,15 @@ impl Plane {
         }
     }
 
+    /// The plane with `pixels` (row-major, 8-bit, of its size) in place of its own, and the
+    /// row above it kept: what a reconstruction of it predicts from.
+    pub fn redrawn(&self, pixels: Vec<u8>) -> Plane {
+        Plane {
+            above: self.above.clone(),
+            ..Plane::new(self.width, self.height, pixels)
+        }
+    }
+
     /// The pixel at `(x, y)`, rounded to grey.
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> u8 {
@@ -145,28 +154,69 @@ pub fn psnr(sse: f64, pixels: usize) -> f64 {
 }
 
 /// Prediction from earlier leaves, estimated before the stream exists: earlier leaves are taken
-/// to have drawn the image's own pixels, under the decoder's availability rule
-/// ([`decoder_core::internal::prediction::Frontier`]).
+/// to have drawn the image's own pixels, or those a trial encode drew, under the decoder's
+/// availability rule ([`decoder_core::internal::prediction::Frontier`]).
 #[derive(Debug, Clone, Copy)]
 pub struct ImagePrediction<'a> {
-    /// The image.
+    /// The image (what leaves are fitted to).
     pub plane: &'a Plane,
+    /// The pixels a trial encode drew, of the plane's size, once one has been made: nearer
+    /// than the image's own to those a stream's leaves will be predicted from.
+    drawn: Option<&'a Plane>,
+    /// The pixels this prediction reads: the plane's own, or `drawn`.
+    beside: &'a Plane,
     /// Width of the stripes the image is coded in, pixels.
     pub stripe: u32,
 }
 
-impl ImagePrediction<'_> {
+impl<'a> ImagePrediction<'a> {
+    /// Prediction from the image's own pixels, coded in stripes of `stripe` pixels.
+    pub fn new(plane: &'a Plane, stripe: u32) -> Self {
+        ImagePrediction {
+            plane,
+            drawn: None,
+            beside: plane,
+            stripe,
+        }
+    }
+
+    /// The same prediction, knowing the pixels a trial encode drew (of the plane's size),
+    /// which [`ImagePrediction::drawn`] predicts from.
+    pub fn with_drawn(self, drawn: Option<&'a Plane>) -> Self {
+        debug_assert!(
+            drawn.is_none_or(|d| (d.width, d.height) == (self.plane.width, self.plane.height))
+        );
+        ImagePrediction { drawn, ..self }
+    }
+
+    /// Prediction from the pixels the trial encode drew where they are known, else from the
+    /// image's own.
+    pub fn drawn(self) -> Self {
+        ImagePrediction {
+            beside: self.drawn.unwrap_or(self.plane),
+            ..self
+        }
+    }
+
+    /// Prediction from the image's own pixels.
+    pub fn own(self) -> Self {
+        ImagePrediction {
+            beside: self.plane,
+            ..self
+        }
+    }
+
     fn sample(&self, x: u32, y: u32) -> i32 {
-        self.plane.sample(x, y)
+        self.beside.sample(x, y)
     }
 }
 
 impl SamplePrediction for ImagePrediction<'_> {
     fn beside(&self, above: bool, x: u32, y: u32) -> Option<i32> {
-        let (width, height) = (self.plane.width, self.plane.height);
+        let (width, height) = (self.beside.width, self.beside.height);
         if above && y == 0 {
             // The row above a plane cut from a larger image.
-            let row = self.plane.above.as_ref()?;
+            let row = self.beside.above.as_ref()?;
             return (y < height).then(|| row.get(x as usize).copied()).flatten();
         }
         beside_known(above, x, y, width, height, self.stripe).then(|| {
@@ -189,14 +239,8 @@ mod tests {
         let cut = whole.crop((32, 16), (32, 24));
         assert_eq!(cut.get(3, 2), whole.get(35, 18));
         let (full, part) = (
-            ImagePrediction {
-                plane: &whole,
-                stripe: 32,
-            },
-            ImagePrediction {
-                plane: &cut,
-                stripe: 32,
-            },
+            ImagePrediction::new(&whole, 32),
+            ImagePrediction::new(&cut, 32),
         );
         for x in 0..32 {
             assert_eq!(part.beside(true, x, 0), full.beside(true, x + 32, 16));
@@ -205,10 +249,7 @@ mod tests {
         }
         assert_eq!(part.beside(true, 32, 0), None);
         let alone = cut.alone();
-        let alone = ImagePrediction {
-            plane: &alone,
-            stripe: 32,
-        };
+        let alone = ImagePrediction::new(&alone, 32);
         assert_eq!(alone.beside(true, 3, 0), None);
     }
 

@@ -1094,10 +1094,7 @@ mod tests {
         }
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
         let plane = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
-        let image = ImagePrediction {
-            plane: &plane,
-            stripe: 128,
-        };
+        let image = ImagePrediction::new(&plane, 128);
         let (model, log2) = (ModelId::new(3), 3u8);
         let (mut with, mut without) = ((0.0, 0.0), (0.0, 0.0));
         for by in 1..plane.height >> log2 {

@@ -597,12 +597,14 @@ impl LocalContexts {
 
 /// Rates every candidate of `na` (whose syntax is made again from the image `prediction`
 /// predicts from) from the context state `snapshot` (frozen: every candidate is priced from
-/// the same state): infinite bits for a candidate the syntax cannot code.
+/// the same state), predicting from the pixels a trial encode drew where `prediction` knows
+/// them ([`ImagePrediction::drawn`]): infinite bits for a candidate the syntax cannot code.
 pub fn rate_node(na: &mut NodeAnalysis, prediction: &ImagePrediction, snapshot: &Contexts) {
     let mut ctx = snapshot.clone();
     let leaves = na.leaves(prediction);
+    let drawn = prediction.drawn();
     for (c, leaf) in na.candidates.iter_mut().zip(&leaves) {
-        c.bits = leaf_bits(&na.node, leaf, prediction, &mut ctx);
+        c.bits = leaf_bits(&na.node, leaf, &drawn, &mut ctx);
     }
 }
 

@@ -526,7 +526,8 @@ pub struct TrialStream {
     pub local: LocalContexts,
 }
 
-/// [`write`] for a grayscale trial encode, following the leaf contexts block by block.
+/// [`write`] for a trial encode, following the leaf contexts block by block: a grayscale
+/// stream (of a colour image, its luma), whatever `header`'s channels.
 pub fn write_trial(
     (tree, prediction): (&CandidateTree, &ImagePrediction),
     header: &Header,
@@ -535,7 +536,10 @@ pub fn write_trial(
 ) -> Result<TrialStream, EncodeError> {
     walk_plan(
         (tree, prediction),
-        header,
+        &Header {
+            channels: 1,
+            ..*header
+        },
         plan,
         None,
         cache,
@@ -717,6 +721,8 @@ pub struct Part {
     /// The part's pixels, cut with the row above them (`Plane::crop`): its candidates'
     /// syntax is made from them.
     pub plane: Plane,
+    /// The pixels the part's trial encode drew (`Analysis::drawn`).
+    pub drawn: Option<Plane>,
     /// The part's chroma, for a colour stream.
     pub colour: Option<ColourPlanes>,
     /// Chroma options reconstructed so far.
@@ -726,6 +732,11 @@ pub struct Part {
 }
 
 impl Part {
+    /// The part as its analysis predicts from it, coded in stripes of `stripe` pixels.
+    fn image(&self, stripe: u32) -> ImagePrediction<'_> {
+        ImagePrediction::new(&self.plane, stripe).with_drawn(self.drawn.as_ref())
+    }
+
     fn contains(&self, node: &Node) -> bool {
         let (x, y) = self.origin;
         node.x >= x
@@ -783,11 +794,7 @@ impl PartsVisitor<'_> {
                 if !part.contains(node) {
                     return Err(EncodeError::Internal("parts out of coding order"));
                 }
-                let image = ImagePrediction {
-                    plane: &part.plane,
-                    stripe: self.stripe,
-                };
-                let leaves = plan_leaves(&part.tree, &part.plan, &image);
+                let leaves = plan_leaves(&part.tree, &part.plan, &part.image(self.stripe));
                 Ok((part, leaves))
             });
             match made {
@@ -804,10 +811,7 @@ impl PartsVisitor<'_> {
                 tree: &part.tree,
                 plan: &part.plan,
                 plan_leaves: leaves,
-                image: ImagePrediction {
-                    plane: &part.plane,
-                    stripe: self.stripe,
-                },
+                image: part.image(self.stripe),
                 colour: part.colour.as_ref(),
                 cache: &part.cache,
                 origin: part.origin,
