@@ -10,15 +10,14 @@
 use decoder_core::internal::entropy::{
     Coder, IntContexts, PayloadError, Prob, RangeDecoder, PROB_ONE,
 };
-use decoder_core::internal::model::MODELS;
+use decoder_core::internal::model::{MAX_CONTROL, MODELS};
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
-use decoder_core::internal::syntax::control::{
-    band_level, coefficient_step, grid_sizes, transform_order,
-};
+use decoder_core::internal::syntax::control::{band_level, coefficient_step, transform_order};
 use decoder_core::internal::syntax::{control_step, ControlCoding, Header, LeafSyntax};
 use decoder_core::internal::synthesis::{Discard, Patch};
 use decoder_core::internal::walk::{walk_with, LeafInfo, TreeVisitor, WalkState};
 use decoder_core::{DecodeError, Node, SliceSource};
+use host_encoder::internal::forward_grid_transform;
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::rc::Rc;
@@ -84,42 +83,12 @@ impl Pricer {
     }
 }
 
-fn forward_line(g: &mut [f64], start: usize, stride: usize, m: usize) {
-    let (nl, nh) = (m.div_ceil(2), m / 2);
-    let x: Vec<f64> = (0..m).map(|i| g[start + i * stride]).collect();
-    let d: Vec<f64> = (0..nh)
-        .map(|i| {
-            let right = if 2 * i + 2 < m {
-                x[2 * i + 2]
-            } else {
-                x[2 * i]
-            };
-            x[2 * i + 1] - 0.5 * (x[2 * i] + right)
-        })
-        .collect();
-    for i in 0..nl {
-        let u = if nh == 0 {
-            0.0
-        } else {
-            0.25 * (d[i.saturating_sub(1)] + d[i.min(nh - 1)])
-        };
-        g[start + i * stride] = x[2 * i] + u;
-    }
-    for i in 0..nh {
-        g[start + (nl + i) * stride] = d[i];
-    }
-}
-
+/// The forward grid transform (the encoder's) of a grid of side `side`, row-major.
 fn forward(g: &mut [f64], side: usize) {
-    let (sizes, levels) = grid_sizes(side);
-    for &m in &sizes[..levels] {
-        for j in 0..m {
-            forward_line(g, j * side, 1, m);
-        }
-        for j in 0..m {
-            forward_line(g, j, side, m);
-        }
-    }
+    let mut grid = [0.0; MAX_CONTROL];
+    grid[..g.len()].copy_from_slice(g);
+    forward_grid_transform(&mut grid, side);
+    g.copy_from_slice(&grid[..g.len()]);
 }
 
 /// The predictors: the stream's own (the low band against the mean of the pixels beside),

@@ -6,6 +6,7 @@
 //! that need a 16384 x 16384 or a 65535 x 65535 stream, and the fuzz seeds of large declared
 //! dimensions, are made with it.
 
+pub use crate::encoder::forward_grid_transform;
 pub use crate::entropy::RangeEncoder;
 
 use decoder_core::internal::format::{CODING_TILE, DEFAULT_STRIPE};

@@ -41,6 +41,7 @@ pub use config::{
 pub use error::EncodeError;
 pub use parts::{analyse_colour_in_parts, analyse_in_parts, AnalysisInParts, PART_PIXELS};
 pub use plane::{psnr, Plane};
+pub use quantise::forward_grid_transform;
 pub(crate) use writer::LeafBits;
 
 use decoder_core::internal::syntax::Header;
