@@ -21,9 +21,8 @@ use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
 use crate::synthesis::Patch;
 use control::{
-    band_level, band_level_table, band_multiplier_table, coefficient_step, expand_pixel_grid,
-    grid_position, inverse_grid_transform, scaled_step, transform_order, CONTROL_QUANTISERS,
-    CONTROL_STEPS,
+    band_level, band_level_table, coefficient_step, expand_pixel_grid, grid_position,
+    inverse_grid_transform, transform_order, CONTROL_QUANTISERS, CONTROL_STEPS,
 };
 use initial_contexts::{CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES};
 
@@ -276,7 +275,7 @@ impl Header {
 pub enum ControlCoding {
     /// DPCM within the leaf: suits edges.
     Dpcm,
-    /// The 5/3 wavelet of the control grid: suits texture and smooth shading.
+    /// The DCT of the control grid: suits texture and smooth shading.
     Transform,
 }
 
@@ -584,10 +583,10 @@ pub fn transform_control_values(
     indices: &[i16],
     out: &mut [i16; MAX_CONTROL],
 ) {
-    let multipliers = band_multiplier_table(side);
-    for ((v, &k), &b) in out.iter_mut().zip(indices).zip(multipliers) {
+    let q = coefficient_step(side, step);
+    for (v, &k) in out.iter_mut().zip(indices).take(side * side) {
         // A 16-bit index times a step below 2^14: no overflow.
-        let c = i32::from(k) * scaled_step(step, b);
+        let c = i32::from(k) * q;
         *v = c.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
     }
     inverse_grid_transform(out, side);
@@ -835,7 +834,7 @@ fn code_control<C: Coder>(
     // The first coded value is grid position 0 in both orders. A grid transform's low band is
     // the block's mean, DPCM's first value its corner.
     let (width, q) = if transform {
-        (node.size(), coefficient_step(side, 0, step))
+        (node.size(), coefficient_step(side, step))
     } else {
         (1, step)
     };

@@ -16,6 +16,12 @@
 //! first-column residual's also by the direction of the change between the pixels beside its
 //! point and beside the point before it (what its prediction was made from).
 //!
+//! And two ways of not coding a leaf's trailing zeros (the zero flags after its last residual
+//! that is not zero, its first value apart): an end flag after every residual that is not
+//! zero (whether another follows; a context per integer class and magnitude 1, 2+) and one
+//! flag before the rest of the leaf (whether any residual after the first value is not zero;
+//! a context per coding and grid side), the zero flags then priced only where still coded.
+//!
 //! Prints each alternative's saving as a share of the payload.
 //!
 //! `cargo run --release -p host-encoder --example position_study -- STREAM.pifs...`
@@ -94,6 +100,12 @@ struct Study {
     first: Shadow,
     sign_base: Shadow,
     sign_edge: Shadow,
+    end_zero: Shadow,
+    end_flag: Shadow,
+    skip_zero: Shadow,
+    skip_flag: Shadow,
+    trailing: u64,
+    integers: u64,
     leaves: u64,
     transform_leaves: u64,
 }
@@ -166,6 +178,30 @@ impl Reader {
         let mag = |v: i32| v.unsigned_abs().min(2) as usize;
         let first = mag(ints[0].value);
         let mut nonzeros = 0usize;
+        let last = (ints.iter().enumerate().skip(1))
+            .rev()
+            .find(|(_, c)| c.value != 0)
+            .map(|(k, _)| k);
+        let kind = (usize::MAX, usize::from(transform), side);
+        s.end_flag.price(kind, last.is_some());
+        s.skip_flag.price(kind, last.is_some());
+        s.integers += ints.len() as u64;
+        s.trailing += (ints.len() - 1 - last.unwrap_or(0)) as u64;
+        for (k, coded) in ints.iter().enumerate() {
+            let (nz, key) = (coded.value != 0, (coded.key, coded.ctx, 0));
+            if k == 0 {
+                s.end_zero.price(key, nz);
+                s.skip_zero.price(key, nz);
+            } else if let Some(last) = last {
+                s.skip_zero.price(key, nz);
+                if k <= last {
+                    s.end_zero.price(key, nz);
+                    if nz {
+                        s.end_flag.price((coded.key, 1, mag(coded.value)), k < last);
+                    }
+                }
+            }
+        }
         for (k, (coded, &(r, c))) in ints.iter().zip(&order).enumerate() {
             let nz = coded.value != 0;
             let (key, ctx) = (coded.key, coded.ctx);
@@ -268,6 +304,31 @@ fn main() {
         "a DPCM edge residual's sign by the direction of the change beside it: {:+.2}%",
         pct(s.sign_edge.bits - s.sign_base.bits)
     );
+    println!(
+        "trailing zeros: {} of {} integers ({:.1}%)",
+        s.trailing,
+        s.integers,
+        100.0 * s.trailing as f64 / s.integers as f64
+    );
+    for (name, zero, flag) in [
+        (
+            "an end flag after every nonzero residual",
+            &s.end_zero,
+            &s.end_flag,
+        ),
+        (
+            "one flag before the rest of a leaf",
+            &s.skip_zero,
+            &s.skip_flag,
+        ),
+    ] {
+        println!(
+            "{name}: zero flags {:+.2}%, the flags {:.2}%, net {:+.2}%",
+            pct(zero.bits - s.base.bits),
+            pct(flag.bits),
+            pct(zero.bits + flag.bits - s.base.bits)
+        );
+    }
     for (name, alt) in [
         ("a detail's parent magnitude", &s.parent),
         ("the leaf's size, for its first value", &s.size),

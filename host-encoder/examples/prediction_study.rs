@@ -290,7 +290,7 @@ impl Reader {
             .map(|&i| usize::from(i))
             .collect();
         let band = |i: usize| band_level(side, i / side, i % side);
-        let q = |i: usize| coefficient_step(side, i, step);
+        let q = |_: usize| coefficient_step(side, step);
         // The stream's low band is a residual against the mean of the known pixels beside.
         let size = info.node.size() as usize;
         let known: Vec<i32> = (self.above[..size].iter().chain(&self.left[..size]))

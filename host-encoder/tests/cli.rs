@@ -1294,8 +1294,10 @@ fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     assert_eq!(image::open(&relief).unwrap().to_luma8().as_raw(), &expected);
 
     // --max-error: every value within it (in metres here), the smaller error the larger file.
+    // (The best stream of this surface reaches 7 m since format 20, 4 m before: see
+    // docs/decisions.md on the DCT.)
     let mut sizes = Vec::new();
-    for max in [6u16, 20] {
+    for max in [8u16, 20] {
         let out = dir.join(format!("within-{max}.pifs"));
         let line = ok(&pifs(&[
             "encode",

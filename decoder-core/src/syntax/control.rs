@@ -1,6 +1,6 @@
-//! Control-value coding: the control quantisers' steps, the reversible 5/3 wavelet of a
-//! control grid ("grid transform") with its coding order and per-band steps, the pixel-grid
-//! layout. What the syntax reads is turned into control values here.
+//! Control-value coding: the control quantisers' steps, the 2-D DCT of a control grid ("grid
+//! transform") with its coding order and steps, the pixel-grid layout. What the syntax reads is
+//! turned into control values here.
 
 use crate::format::{load, store};
 #[cfg(doc)]
@@ -9,11 +9,12 @@ use crate::model::ModelType;
 use crate::model::MODELS;
 use crate::model::{MAX_CONTROL, MAX_GRID};
 
-/// Largest number of transform levels of a control grid (a side of 9: 9, 5, 3, 2, 1).
+/// Largest number of band levels of a control grid (a side of 9: 9, 5, 3, 2, 1).
 pub const MAX_GRID_LEVELS: usize = 4;
 
-/// The sides of a control grid's low band after each transform level, from the grid's side
-/// down to 1, and the number of levels: `n, ceil(n/2), ...`.
+/// The sides of the nested squares that group a control grid's coefficients into band levels
+/// (frequencies rising with the row and column), from the grid's side down to 1, and the
+/// number of levels: `n, ceil(n/2), ...`.
 pub const fn grid_sizes(side: usize) -> ([usize; MAX_GRID_LEVELS + 1], usize) {
     let mut sizes = [1usize; MAX_GRID_LEVELS + 1];
     sizes[0] = side;
@@ -46,8 +47,8 @@ pub fn grid_position(i: usize, side: usize) -> (usize, usize) {
     (r, i.wrapping_sub(r * side))
 }
 
-/// The transform level of position `(r, c)` of a control grid of side `side`: 0 for the
-/// finest detail band, up to the number of levels for the single low-band value at `(0, 0)`.
+/// The band level of position `(r, c)` of a control grid of side `side`: 0 for the highest
+/// frequencies, up to the number of levels for the grid's mean at `(0, 0)`.
 /// A table lookup for the coded grid sides.
 pub const fn band_level(side: usize, r: usize, c: usize) -> usize {
     if r < side && c < side && side <= MAX_GRID && GRID_SIDES[GRID_SLOTS[side] as usize] == side {
@@ -89,9 +90,9 @@ pub fn band_level_table(side: usize) -> &'static [u8] {
 /// [`band_levels`] of every coded grid side.
 const BAND_LEVELS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandLevels);
 
-/// The coding order of a control grid of side `side` under the grid transform: the low-band
-/// value `(0, 0)` first, then for each level from the coarsest to the finest the positions that
-/// become detail at that level, in raster order. Entries are row-major grid indices; entries
+/// The coding order of a control grid of side `side` under the grid transform: the mean `(0,
+/// 0)` first, then for each band level from the lowest frequencies to the highest its
+/// positions, in raster order. Entries are row-major grid indices; entries
 /// past `side * side` are unused.
 const fn transform_scan(side: usize) -> [u8; MAX_CONTROL] {
     let mut out = [0u8; MAX_CONTROL];
@@ -162,8 +163,6 @@ fn grid_entries(table: &[u8; GRID_TABLE_LEN], side: usize) -> &[u8] {
 enum GridTable {
     /// [`transform_scan`].
     Scans,
-    /// [`band_multipliers`].
-    BandMultipliers,
     /// [`band_levels`].
     BandLevels,
 }
@@ -176,7 +175,6 @@ const fn per_side_table(table: GridTable) -> [u8; GRID_TABLE_LEN] {
     while k < GRID_SIDES.len() {
         let entries = match table {
             GridTable::Scans => transform_scan(GRID_SIDES[k]),
-            GridTable::BandMultipliers => band_multipliers(GRID_SIDES[k]),
             GridTable::BandLevels => band_levels(GRID_SIDES[k]),
         };
         let mut i = 0;
@@ -221,64 +219,101 @@ pub fn expand_pixel_grid(values: &mut [i16; MAX_CONTROL], m: usize) {
     }
 }
 
-/// One inverse lifting step of the reversible 5/3 wavelet (LeGall, as in JPEG 2000's
-/// lossless path, with symmetric extension) on the `m` values of `g` at `start`, `start +
-/// stride`, ...: low-band values first, then high-band values; replaced by the signal, each
-/// value saturated to the `i16` range it is stored in. (The intermediate values are sums of a
-/// few 16-bit values, so 32 bits hold them exactly.) `y` is scratch space for the band values.
-const fn inverse_line(
-    g: &mut [i16; MAX_CONTROL],
-    y: &mut [i16; MAX_GRID],
-    start: usize,
-    stride: usize,
-    m: usize,
-) {
-    if m < 2 || m > MAX_GRID || start + (m - 1) * stride >= MAX_CONTROL {
-        return;
-    }
-    let nl = m.div_ceil(2);
-    let nh = m / 2;
-    // The band values, read once (the signal is written over them).
-    let mut i = 0;
-    let mut at = start;
-    while i < m {
-        store(y, i, load(g, at));
-        at += stride;
-        i += 1;
-    }
-    // Even samples: low band minus the update from the neighbouring details (mirrored at the
-    // ends: d[-1] = d[0], d[nh] = d[nh - 1]); odd samples: detail plus the prediction from the
-    // neighbouring even samples (the one to the right is made first; past the end, the one to
-    // the left). The last pair, where the mirrors are, is made after the loop.
-    let mut detail = load(y, nl) as i32;
-    let mut left = y[0] as i32 - ((detail + 1) >> 1);
-    store(g, start, narrow(left));
-    let mut at = start + stride;
-    i = 0;
-    while i + 1 < nh {
-        let next = load(y, nl + i + 1) as i32;
-        let right = load(y, i + 1) as i32 - ((detail + next + 2) >> 2);
-        store(g, at, narrow(detail + ((left + right + 1) >> 1)));
-        store(g, at + stride, narrow(right));
-        at += 2 * stride;
-        left = right;
-        detail = next;
-        i += 1;
-    }
-    if 2 * nh < m {
-        // An odd line ends on an even sample, whose detail to the right is mirrored.
-        let right = load(y, nh) as i32 - ((detail + 1) >> 1);
-        store(g, at, narrow(detail + ((left + right + 1) >> 1)));
-        store(g, at + stride, narrow(right));
-    } else {
-        store(g, at, narrow(detail + left));
+/// The cosines of the inverse DCT in 1/4096, one row per frequency: `round(4096 sqrt(2) cos(pi
+/// (2t + 1) k / 2n))` for frequency `k > 0` at point `t` of a line of `n` points, 4096 for `k =
+/// 0` (so that coefficient 0 is the mean of a line and every other basis line has a mean
+/// square of one). Rows 0 to 7 are those of `n = 8` (also `n = 4` and 2: every second and
+/// fourth row), rows 8 to 16 those of `n = 9` (also `n = 3`: every third), rows 17 to 21
+/// those of `n = 5`; points past `n` are 0. Each row is symmetric (even `k`) or antisymmetric
+/// (odd `k`) about its middle, exactly.
+const COSINES: [[i16; MAX_GRID]; 22] = [
+    [4096, 4096, 4096, 4096, 4096, 4096, 4096, 4096, 0],
+    [5681, 4816, 3218, 1130, -1130, -3218, -4816, -5681, 0],
+    [5352, 2217, -2217, -5352, -5352, -2217, 2217, 5352, 0],
+    [4816, -1130, -5681, -3218, 3218, 5681, 1130, -4816, 0],
+    [4096, -4096, -4096, 4096, 4096, -4096, -4096, 4096, 0],
+    [3218, -5681, 1130, 4816, -4816, -1130, 5681, -3218, 0],
+    [2217, -5352, 5352, -2217, -2217, 5352, -5352, 2217, 0],
+    [1130, -3218, 4816, -5681, 5681, -4816, 3218, -1130, 0],
+    [4096, 4096, 4096, 4096, 4096, 4096, 4096, 4096, 4096],
+    [5705, 5017, 3723, 1981, 0, -1981, -3723, -5017, -5705],
+    [5443, 2896, -1006, -4437, -5793, -4437, -1006, 2896, 5443],
+    [5017, 0, -5017, -5017, 0, 5017, 5017, 0, -5017],
+    [4437, -2896, -5443, 1006, 5793, 1006, -5443, -2896, 4437],
+    [3723, -5017, -1981, 5705, 0, -5705, 1981, 5017, -3723],
+    [2896, -5793, 2896, 2896, -5793, 2896, 2896, -5793, 2896],
+    [1981, -5017, 5705, -3723, 0, 3723, -5705, 5017, -1981],
+    [1006, -2896, 4437, -5443, 5793, -5443, 4437, -2896, 1006],
+    [4096, 4096, 4096, 4096, 4096, 0, 0, 0, 0],
+    [5509, 3405, 0, -3405, -5509, 0, 0, 0, 0],
+    [4686, -1790, -5793, -1790, 4686, 0, 0, 0, 0],
+    [3405, -5509, 0, 5509, -3405, 0, 0, 0, 0],
+    [1790, -4686, 5793, -4686, 1790, 0, 0, 0, 0],
+];
+
+/// Where the cosine rows of a line of `n` points start in [`COSINES`], and how many rows apart
+/// its frequencies are (`None` for another length).
+fn cosine_rows(n: usize) -> Option<(usize, usize)> {
+    match n {
+        2 => Some((0, 4)),
+        3 => Some((8, 3)),
+        4 => Some((0, 2)),
+        5 => Some((17, 1)),
+        8 => Some((0, 1)),
+        9 => Some((8, 1)),
+        _ => None,
     }
 }
 
+/// The inverse DCT of the `n` coefficients of `g` at `start`, `start + stride`, ... (`n` from 2
+/// to 9): point `t` becomes `(2048 + sum_k X_k C_n(k, t)) >> 12`, saturated to `i16` (at most 9
+/// products of a 16-bit value and a cosine below 2^13, and the rounding, fit 32 bits). The
+/// sums over even and odd frequencies are made for the first half of the points only, the
+/// second half's being their difference (the rows' symmetry); zero coefficients are skipped,
+/// and a line without any is left as it is (all zero: what the sums give). Whether the line
+/// had a coefficient that is not zero.
+fn inverse_dct_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, n: usize) -> bool {
+    let Some((first_row, every)) = cosine_rows(n) else {
+        return false;
+    };
+    if start + (n - 1) * stride >= MAX_CONTROL {
+        return false;
+    }
+    let half = n.div_ceil(2);
+    // Per point of the first half: the sums over even and over odd frequencies.
+    let mut even = [2048i32; MAX_GRID.div_ceil(2)];
+    let mut odd = [0i32; MAX_GRID.div_ceil(2)];
+    let mut any = false;
+    let mut row = first_row;
+    for k in 0..n {
+        let x = i32::from(load(g, start + k * stride));
+        if x != 0 {
+            any = true;
+            let Some(cosines) = COSINES.get(row) else {
+                return false;
+            };
+            let sums = if k % 2 == 0 { &mut even } else { &mut odd };
+            for (sum, &c) in sums.iter_mut().zip(cosines).take(half) {
+                *sum += x * i32::from(c);
+            }
+        }
+        row += every;
+    }
+    if !any {
+        return false;
+    }
+    for (t, (&e, &o)) in even.iter().zip(&odd).enumerate().take(half) {
+        store(g, start + t * stride, narrow((e + o) >> 12));
+        store(g, start + (n - 1 - t) * stride, narrow((e - o) >> 12));
+    }
+    true
+}
+
 /// `v` saturated to the `i16` range.
-const fn narrow(v: i32) -> i16 {
+#[inline]
+fn narrow(v: i32) -> i16 {
     // One unsigned compare for the values in range, as they nearly always are.
-    if (v.wrapping_sub(i16::MIN as i32) as u32) <= u16::MAX as u32 {
+    if (v.wrapping_sub(i32::from(i16::MIN)) as u32) <= u32::from(u16::MAX) {
         v as i16
     } else if v < 0 {
         i16::MIN
@@ -287,96 +322,48 @@ const fn narrow(v: i32) -> i16 {
     }
 }
 
-/// Inverse transform of a control grid of side `side` (row-major): the coefficients of every
-/// level, coarsest first, are turned back into control values. Level `k` works on the top-left
-/// square of side `grid_sizes(side).0[k]`: columns first, then rows. Works in place on 16-bit
-/// values (saturating), so that a decoder needs no wider copy of the grid.
-pub const fn inverse_grid_transform(g: &mut [i16; MAX_CONTROL], side: usize) {
-    let (sizes, levels) = grid_sizes(side);
-    // One line's band values at a time (cleared once, not per line).
-    let mut y = [0i16; MAX_GRID];
-    let mut k = levels;
-    while k > 0 {
-        k -= 1;
-        let m = sizes[k];
-        let mut j = 0;
-        while j < m {
-            inverse_line(g, &mut y, j, side, m);
-            j += 1;
-        }
-        j = 0;
-        while j < m {
-            inverse_line(g, &mut y, j * side, 1, m);
-            j += 1;
+/// Inverse transform of a control grid of side `side` (2 to 9, row-major): the 2-D inverse
+/// DCT, every column (`inverse_dct_line`), then every row. Works in place on 16-bit values
+/// (saturating), so that a decoder needs no wider copy of the grid; a grid without any
+/// coefficient is left as it is.
+pub fn inverse_grid_transform(g: &mut [i16; MAX_CONTROL], side: usize) {
+    let mut any = false;
+    for j in 0..side {
+        any |= inverse_dct_line(g, j, side, side);
+    }
+    if any {
+        for j in 0..side {
+            inverse_dct_line(g, j * side, 1, side);
         }
     }
 }
 
-/// Fixed-point scale of band multipliers: a multiplier `b` scales a step by `b / 64`.
-pub const BAND_ONE: i32 = 64;
+/// Fixed-point scale of grid multipliers: a multiplier `b` scales a step by `b / 64`.
+pub const MULTIPLIER_ONE: i32 = 64;
 
-/// Integer square root (floor).
-const fn isqrt(v: u64) -> u64 {
-    let mut lo = 0u64;
-    let mut hi = 1u64 << 32;
-    while hi - lo > 1 {
-        let mid = (lo + hi) / 2;
-        if mid * mid <= v {
-            lo = mid;
-        } else {
-            hi = mid;
+/// The step multiplier of the coefficients of a control grid of side `side`, in units of
+/// [`MULTIPLIER_ONE`]: `64 / side`, rounded. A unit coefficient makes control values of a mean
+/// square of one (coefficient 0 a constant grid, every other a basis grid of mean square one),
+/// `side^2` of them, so every coefficient adds the same error to the control values per step,
+/// and a step of `s` in the coefficients adds what a step of `s` in each value would.
+pub fn grid_multiplier(side: usize) -> i32 {
+    // A table rather than a division (a library call on a Cortex-M0).
+    const MULTIPLIERS: [u8; MAX_GRID + 1] = {
+        let mut out = [0u8; MAX_GRID + 1];
+        let mut n = 1;
+        while n <= MAX_GRID {
+            out[n] = ((2 * MULTIPLIER_ONE as usize + n) / (2 * n)) as u8;
+            n += 1;
         }
-    }
-    lo
+        out
+    };
+    i32::from(MULTIPLIERS.get(side).copied().unwrap_or(0))
 }
 
-/// The step multipliers of the coefficients of a control grid of side `side`, in units of
-/// [`BAND_ONE`]: `64 / sqrt(E)`, rounded, with `E` the energy of the control values that a unit
-/// coefficient at that position makes (computed with [`inverse_grid_transform`] on an impulse
-/// of `2^12`). Every coefficient then adds the same error to the control values per step.
-const fn band_multipliers(side: usize) -> [u8; MAX_CONTROL] {
-    const UNIT: i16 = 1 << 12;
-    let mut out = [0u8; MAX_CONTROL];
-    let mut i = 0;
-    while i < side * side {
-        let mut g = [0i16; MAX_CONTROL];
-        g[i] = UNIT;
-        inverse_grid_transform(&mut g, side);
-        let mut energy = 0u64;
-        let mut j = 0;
-        while j < side * side {
-            energy += (g[j] as i64 * g[j] as i64) as u64;
-            j += 1;
-        }
-        let root = isqrt(energy);
-        let scaled = (BAND_ONE as u64 * UNIT as u64 * 2 + root) / (2 * root);
-        out[i] = if scaled > 255 { 255 } else { scaled as u8 };
-        i += 1;
-    }
-    out
-}
-
-/// [`band_multipliers`] of every coded grid side.
-const BAND_MULTIPLIERS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandMultipliers);
-
-/// The quantiser step of coefficient `i` (row-major) of a control grid of side `side` for the
-/// control step `step`: `max(1, (step * multiplier + 32) >> 6)`.
-pub fn coefficient_step(side: usize, i: usize, step: i32) -> i32 {
-    scaled_step(
-        step,
-        band_multiplier_table(side).get(i).copied().unwrap_or(0),
-    )
-}
-
-/// The band multipliers of a coded grid of side `side`, row-major (see `band_multipliers`).
-pub fn band_multiplier_table(side: usize) -> &'static [u8] {
-    grid_entries(&BAND_MULTIPLIERS, side)
-}
-
-/// A control step scaled by a band multiplier: `max(1, (step * multiplier + 32) >> 6)`.
-#[inline]
-pub fn scaled_step(step: i32, multiplier: u8) -> i32 {
-    ((step * i32::from(multiplier) + BAND_ONE / 2) >> 6).max(1)
+/// The quantiser step of the coefficients of a control grid of side `side` for the control
+/// step `step`: `max(1, (step * grid_multiplier(side) + 32) >> 6)`.
+pub fn coefficient_step(side: usize, step: i32) -> i32 {
+    ((step * grid_multiplier(side) + MULTIPLIER_ONE / 2) >> 6).max(1)
 }
 
 /// Number of control-value quantisers (the 'cquant' element, coded on 4 bits).
@@ -425,6 +412,69 @@ mod tests {
         }
     }
 
+    /// The inverse DCT of a line is the specification's sum, `(2048 + sum_k X_k C_n(k, t)) >>
+    /// 12` saturated, for every line length, coefficients small, large and saturating, sparse
+    /// and dense; and the cosine rows are symmetric or antisymmetric about their middle, which
+    /// the half-line sums rely on.
+    #[test]
+    fn the_inverse_dct_is_the_sum_of_its_definition() {
+        let mut seed = 11u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed >> 8
+        };
+        for n in [2usize, 3, 4, 5, 8, 9] {
+            let (first, every) = cosine_rows(n).unwrap();
+            let c = |k: usize, t: usize| i32::from(COSINES[first + k * every][t]);
+            for k in 0..n {
+                for t in 0..n {
+                    let mirrored = if k % 2 == 0 { c(k, t) } else { -c(k, t) };
+                    assert_eq!(c(k, n - 1 - t), mirrored, "n {n}, k {k}, t {t}");
+                }
+            }
+            for trial in 0..2000 {
+                let mut g = [0i16; MAX_CONTROL];
+                let scale = [16, 1 << 10, 1 << 15][trial % 3];
+                for v in g.iter_mut().take(n) {
+                    if next() % 3 == 0 {
+                        *v = ((next() % (2 * scale)) as i32 - scale as i32).clamp(-32768, 32767)
+                            as i16;
+                    }
+                }
+                let mut expected = [0i16; MAX_GRID];
+                for (t, e) in expected.iter_mut().enumerate().take(n) {
+                    let sum: i32 = (0..n).map(|k| i32::from(g[k]) * c(k, t)).sum();
+                    *e = ((2048 + sum) >> 12).clamp(-32768, 32767) as i16;
+                }
+                let had = g[..n].iter().any(|&v| v != 0);
+                assert_eq!(inverse_dct_line(&mut g, 0, 1, n), had);
+                assert_eq!(&g[..n], &expected[..n], "n {n}");
+            }
+        }
+    }
+
+    /// Every coefficient of a grid adds the same error per step: a unit coefficient anywhere
+    /// makes control values whose energy gives the side's multiplier (`64 / sqrt(E)` in units
+    /// of the coefficient), within the cosines' rounding.
+    #[test]
+    fn every_coefficient_has_the_grids_multiplier() {
+        const UNIT: i16 = 1 << 12;
+        for side in GRID_SIDES {
+            for i in 0..side * side {
+                let mut g = [0i16; MAX_CONTROL];
+                g[i] = UNIT;
+                inverse_grid_transform(&mut g, side);
+                let energy: f64 = g.iter().map(|&v| f64::from(v).powi(2)).sum();
+                let multiplier = f64::from(MULTIPLIER_ONE) * f64::from(UNIT) / energy.sqrt();
+                assert_eq!(
+                    multiplier.round() as i32,
+                    grid_multiplier(side),
+                    "{side}: {i}"
+                );
+            }
+        }
+    }
+
     /// The per-side tables hold every coded grid side: the coding order of each is a
     /// permutation of its positions, low band first.
     #[test]
@@ -443,7 +493,7 @@ mod tests {
                     seen[usize::from(i)] = true;
                 }
                 assert_eq!(order[0], 0);
-                assert!(coefficient_step(side, side * side - 1, 256) >= 1);
+                assert!(coefficient_step(side, 24) >= 1);
             }
         }
     }

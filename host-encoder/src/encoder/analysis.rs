@@ -968,6 +968,11 @@ fn fine_candidates(
         let targets = targets_of(&prediction, &na.node, &fit);
         let residual = error_floor(&na.node, &fit) * weight;
         for end in same_fit {
+            // The hull may have come to cover the chain's coarse end since (with the finer
+            // steps of other chains): its finer steps could not be on it either.
+            if hull.covers((f64::from(end.bits), residual)) {
+                continue;
+            }
             let chain = end.chain;
             let (mut last_bits, mut last_sse) = (end.bits, end.sse);
             for cq in ControlQuantiserId::all()
@@ -1388,14 +1393,24 @@ mod tests {
                 continue;
             }
             // Each chain's finer steps, in the order made: every one but the last adds no
-            // bits to the one before; the last adds some, or is the finest step.
+            // bits to the one before; the last adds some, or is the finest step. A chain
+            // without any is one whose coarse end the hull had come to cover.
+            let mut hull = GrowingHull::default();
+            for c in &na.candidates {
+                hull.add((f64::from(c.bits), c.sse));
+            }
             for end in &ends {
                 let c = end.chain;
                 let of_chain = (c.fit, c.coding == ControlCoding::Transform);
                 let chain: Vec<usize> = (coarse..na.candidates.len())
                     .filter(|&k| key(&na.candidates[k]) == of_chain)
                     .collect();
-                assert!(!chain.is_empty());
+                if chain.is_empty() {
+                    let fit = fit_default(&plane, &node, na.fits[usize::from(c.fit)]);
+                    let floor = error_floor(&node, &fit);
+                    assert!(hull.covers((f64::from(end.bits), floor)), "{of_chain:?}");
+                    continue;
+                }
                 let mut last = end.bits;
                 for (j, &k) in chain.iter().enumerate() {
                     let adds = bits[k] > last;
@@ -1442,50 +1457,78 @@ mod tests {
         assert!(fine > all - 0.05, "{fine} dB against {all} dB");
     }
 
-    /// Contrast masking moves error from smooth areas to texture: at the same budget, the
-    /// smooth half of an image (a gentle wave) comes out closer to the original with
-    /// [`Tune::Ssim`] than with [`Tune::Psnr`], the noisy half less close, and the plain
-    /// squared error over the whole image is no lower than the PSNR tuning's.
-    #[test]
-    fn ssim_tuning_moves_error_to_texture() {
-        let (w, h) = (128u32, 64u32);
-        let noisy = textured_plane(w, h);
-        let data = (0..w * h)
-            .map(|i| {
-                let (x, y) = (f64::from(i % w), f64::from(i / w));
-                if x < 64.0 {
-                    (100.0 + 40.0 * (x / 6.0).sin() * (y / 8.0).cos()).round() as u8
-                } else {
-                    noisy.data[i as usize]
-                }
-            })
+    /// Mean SSIM (Wang et al. 2004: an 11 x 11 Gaussian window of deviation 1.5, `K1` 0.01,
+    /// `K2` 0.03, over the windows inside the image) of `b` against `a`, both `w` wide.
+    fn mean_ssim(a: &[u8], b: &[u8], w: usize) -> f64 {
+        let h = a.len() / w;
+        let g: Vec<f64> = (0..11)
+            .map(|i| (-((i as f64 - 5.0).powi(2)) / 4.5).exp())
             .collect();
-        let plane = Plane::new(w, h, data);
-        let target = Target::Bpp(0.5);
-        let halves = |tune: Tune| {
-            let config = EncoderConfig {
-                tune,
-                ..EncoderConfig::for_targets(&[target], (w * h) as usize)
-            };
-            let analysis = Analysis::run(plane.clone(), None, &config, &|_| {}).expect("analysis");
-            let encoded = analysis.encode(target).expect("an encode");
-            let mut sse = [0.0f64; 2];
-            for (i, (&a, &b)) in plane.data.iter().zip(&encoded.reconstruction).enumerate() {
-                let d = f64::from(a) - f64::from(b);
-                sse[usize::from(i as u32 % w >= 64)] += d * d;
+        let norm: f64 = g.iter().sum::<f64>().powi(2);
+        let (c1, c2) = ((0.01f64 * 255.0).powi(2), (0.03f64 * 255.0).powi(2));
+        let mut total = 0.0;
+        for y in 0..h - 10 {
+            for x in 0..w - 10 {
+                let mut m = [0.0f64; 5];
+                for j in 0..11 {
+                    for i in 0..11 {
+                        let k = g[i] * g[j] / norm;
+                        let (p, q) = (
+                            f64::from(a[(y + j) * w + x + i]),
+                            f64::from(b[(y + j) * w + x + i]),
+                        );
+                        m[0] += k * p;
+                        m[1] += k * q;
+                        m[2] += k * p * p;
+                        m[3] += k * q * q;
+                        m[4] += k * p * q;
+                    }
+                }
+                let (va, vb, cov) = (m[2] - m[0] * m[0], m[3] - m[1] * m[1], m[4] - m[0] * m[1]);
+                total += (2.0 * m[0] * m[1] + c1) * (2.0 * cov + c2)
+                    / ((m[0] * m[0] + m[1] * m[1] + c1) * (va + vb + c2));
             }
-            (sse, encoded.sse)
-        };
-        let ((psnr_halves, psnr_total), (ssim_halves, ssim_total)) =
-            (halves(Tune::Psnr), halves(Tune::Ssim));
-        assert!(
-            ssim_halves[0] < psnr_halves[0] && ssim_halves[1] > psnr_halves[1],
-            "smooth, textured: {ssim_halves:?} (ssim) against {psnr_halves:?} (psnr)"
-        );
-        assert!(
-            ssim_total >= psnr_total,
-            "{ssim_total} against {psnr_total}"
-        );
+        }
+        total / ((w - 10) * (h - 10)) as f64
+    }
+
+    /// Contrast masking buys SSIM: at the same budget, six crops of the bundled sample (256 x
+    /// 128 each: its blurred background and the parrots) have a higher mean SSIM with
+    /// [`Tune::Ssim`] than with [`Tune::Psnr`] (summed over the crops). (Their squared error
+    /// need not be higher: the rate control's choices are not exactly optimal for either.)
+    #[test]
+    fn ssim_tuning_buys_ssim() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../samples/kodim23.png");
+        let sample = crate::io::load_luma(std::path::Path::new(path)).expect("the bundled sample");
+        let (w, h) = (256u32, 128u32);
+        let target = Target::Bpp(0.25);
+        // Per tuning: the summed SSIM.
+        let mut sums = [0.0f64; 2];
+        for (x0, y0) in [
+            (0, 64),
+            (256, 64),
+            (512, 64),
+            (0, 320),
+            (256, 320),
+            (512, 320),
+        ] {
+            let data = (0..w * h)
+                .map(|i| sample.data[((y0 + i / w) * sample.width + x0 + i % w) as usize])
+                .collect();
+            let plane = Plane::new(w, h, data);
+            for (tune, ssim) in [Tune::Psnr, Tune::Ssim].into_iter().zip(&mut sums) {
+                let config = EncoderConfig {
+                    tune,
+                    ..EncoderConfig::for_targets(&[target], (w * h) as usize)
+                };
+                let analysis =
+                    Analysis::run(plane.clone(), None, &config, &|_| {}).expect("analysis");
+                let encoded = analysis.encode(target).expect("an encode");
+                *ssim += mean_ssim(&plane.data, &encoded.reconstruction, w as usize);
+            }
+        }
+        let [psnr, ssim] = sums;
+        assert!(ssim > psnr, "SSIM {ssim} (ssim) against {psnr} (psnr)");
     }
 
     /// A node that a bilinear patch reproduces ends the analysis below it: the flat half of an

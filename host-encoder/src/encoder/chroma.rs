@@ -196,8 +196,8 @@ fn quantise(t: &[f64], coefficients: Option<&[f64]>, side: usize, step: i32) -> 
     let mut k = [0i16; MAX_CONTROL];
     let limit = 4095.0;
     if let Some(g) = coefficients {
-        for (i, (k, &c)) in k.iter_mut().zip(g).enumerate().take(side * side) {
-            let q = f64::from(coefficient_step(side, i, step));
+        let q = f64::from(coefficient_step(side, step));
+        for (k, &c) in k.iter_mut().zip(g).take(side * side) {
             *k = round_half_away(c / q).clamp(-limit, limit) as i16;
         }
     } else {

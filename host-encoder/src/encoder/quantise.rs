@@ -13,7 +13,7 @@ use decoder_core::internal::prediction::{
     edge_context, edge_offset, edge_pixels, SamplePrediction,
 };
 use decoder_core::internal::syntax::control::{
-    coefficient_step, expand_pixel_grid, grid_sizes, transform_order,
+    coefficient_step, expand_pixel_grid, transform_order,
 };
 use decoder_core::internal::syntax::{
     control_class, control_step, control_value, dequantise_control, intra_prediction,
@@ -421,12 +421,10 @@ fn quantise_coefficients(
 ) -> Option<f64> {
     let order = transform_order(side);
     let n = order.len();
-    let mut steps = [0.0f64; MAX_CONTROL];
-    let mut inverse_steps = [0.0f64; MAX_CONTROL];
-    for ((s, inverse), &i) in steps.iter_mut().zip(&mut inverse_steps).zip(order) {
-        *s = f64::from(coefficient_step(side, usize::from(i), step));
-        *inverse = 1.0 / *s;
-    }
+    // Every coefficient of a grid has the same step.
+    let q = f64::from(coefficient_step(side, step));
+    let steps = [q; MAX_CONTROL];
+    let inverse_steps = [1.0 / q; MAX_CONTROL];
     let Some(exact) = &targets.exact else {
         for (k, &i) in order.iter().enumerate() {
             let i = usize::from(i);
@@ -560,47 +558,55 @@ impl CoefficientQuantiser<'_> {
 }
 
 /// The forward grid transform of control values (row-major, side `side`), in real arithmetic:
-/// the inverse of decoder-core's integer [`decoder_core::internal::syntax::control::inverse_grid_transform`] up to
-/// its roundings. Level by level, rows first, then columns, on the shrinking low band.
+/// the 2-D DCT whose integer inverse is decoder-core's
+/// [`decoder_core::internal::syntax::control::inverse_grid_transform`] up to its roundings.
 pub fn forward_grid_transform(g: &mut [f64; MAX_CONTROL], side: usize) {
-    let (sizes, levels) = grid_sizes(side);
-    for &m in &sizes[..levels] {
-        for j in 0..m {
-            forward_line(g, j * side, 1, m);
-        }
-        for j in 0..m {
-            forward_line(g, j, side, m);
-        }
+    for j in 0..side {
+        forward_line(g, j * side, 1, side);
+    }
+    for j in 0..side {
+        forward_line(g, j, side, side);
     }
 }
 
-/// One 5/3 lifting step on `m` values at `start`, `start + stride`, ...: low band first.
+/// The DCT of `m` values at `start`, `start + stride`, ...: coefficient 0 their mean, coefficient
+/// `k` `sqrt(2) / m sum_n x_n cos(pi (2n + 1) k / 2m)` (the inverse of decoder-core's, whose
+/// basis lines have a mean square of one).
 fn forward_line(g: &mut [f64; MAX_CONTROL], start: usize, stride: usize, m: usize) {
-    let (nl, nh) = (m.div_ceil(2), m / 2);
+    let Some(basis) = dct_basis().get(m) else {
+        return;
+    };
     let mut x = [0.0f64; MAX_GRID];
     for (i, v) in x.iter_mut().enumerate().take(m) {
         *v = g[start + i * stride];
     }
-    let mut d = [0.0f64; MAX_GRID];
-    for (i, v) in d.iter_mut().enumerate().take(nh) {
-        let right = if 2 * i + 2 < m {
-            x[2 * i + 2]
-        } else {
-            x[2 * i]
-        };
-        *v = x[2 * i + 1] - 0.5 * (x[2 * i] + right);
+    for (k, row) in basis.iter().enumerate().take(m) {
+        let sum: f64 = x.iter().zip(row).take(m).map(|(v, c)| v * c).sum();
+        g[start + k * stride] = sum;
     }
-    for i in 0..nl {
-        let update = if nh == 0 {
-            0.0
-        } else {
-            0.25 * (d[i.saturating_sub(1)] + d[i.min(nh - 1)])
-        };
-        g[start + i * stride] = x[2 * i] + update;
-    }
-    for (i, v) in d.iter().enumerate().take(nh) {
-        g[start + (nl + i) * stride] = *v;
-    }
+}
+
+/// For each line length `m` up to [`MAX_GRID`], the forward DCT's weights: row `k`, column `n`,
+/// `1 / m` for `k = 0`, else `sqrt(2) / m cos(pi (2n + 1) k / 2m)`.
+fn dct_basis() -> &'static [[[f64; MAX_GRID]; MAX_GRID]; MAX_GRID + 1] {
+    static BASIS: std::sync::OnceLock<[[[f64; MAX_GRID]; MAX_GRID]; MAX_GRID + 1]> =
+        std::sync::OnceLock::new();
+    BASIS.get_or_init(|| {
+        let mut out = [[[0.0; MAX_GRID]; MAX_GRID]; MAX_GRID + 1];
+        for (m, rows) in out.iter_mut().enumerate().skip(1) {
+            let n = m as f64;
+            for (k, row) in rows.iter_mut().enumerate().take(m) {
+                for (i, c) in row.iter_mut().enumerate().take(m) {
+                    let angle = std::f64::consts::PI * (2 * i + 1) as f64 * k as f64 / (2.0 * n);
+                    *c = match k {
+                        0 => 1.0 / n,
+                        _ => std::f64::consts::SQRT_2 * angle.cos() / n,
+                    };
+                }
+            }
+        }
+        out
+    })
 }
 
 /// The Lagrange multiplier of index rounding: bits are worth this much of a leaf's mean
@@ -901,8 +907,30 @@ mod tests {
 
     const SIDES: [usize; 4] = [2, 3, 5, 9];
 
-    /// The encoder's real-valued forward transform and decoder-core's integer inverse agree:
-    /// rounded coefficients come back as the original values, up to the lifting's roundings.
+    /// The real inverse DCT of a grid of side `side` (row-major), with exact cosines.
+    fn real_inverse(coefficients: &[f64], side: usize) -> Vec<f64> {
+        let basis = |k: usize, n: usize| match k {
+            0 => 1.0,
+            _ => {
+                let angle = std::f64::consts::PI * (2 * n + 1) as f64 * k as f64;
+                std::f64::consts::SQRT_2 * (angle / (2 * side) as f64).cos()
+            }
+        };
+        let mut out = vec![0.0; side * side];
+        for (i, o) in out.iter_mut().enumerate() {
+            let (r, c) = (i / side, i % side);
+            for (j, x) in coefficients.iter().enumerate() {
+                *o += x * basis(j / side, r) * basis(j % side, c);
+            }
+        }
+        out
+    }
+
+    /// The encoder's forward transform is the inverse of the real DCT that decoder-core's
+    /// integer transform computes, and decoder-core's transform is that real inverse to within
+    /// its roundings: a column pass off by at most `1/2 + sum |X| / 8192` (the rounding, and
+    /// each cosine within half a unit of 1/4096), the row pass by that again for its own
+    /// inputs, plus the column errors times the row's cosines.
     #[test]
     fn forward_transform_inverts_the_decoders_transform() {
         let mut seed = 7u64;
@@ -910,29 +938,89 @@ mod tests {
             seed = seed
                 .wrapping_mul(6_364_136_223_846_793_005)
                 .wrapping_add(1_442_695_040_888_963_407);
-            ((seed >> 33) % 4096) as f64
+            (seed >> 33) % 4096
         };
-        for side in SIDES {
+        for side in [2, 3, 4, 5, 8, 9] {
             for _ in 0..50 {
-                let original: Vec<f64> = (0..side * side).map(|_| next()).collect();
+                let original: Vec<f64> = (0..side * side).map(|_| next() as f64).collect();
                 let mut real = [0.0; MAX_CONTROL];
                 real[..side * side].copy_from_slice(&original);
                 forward_grid_transform(&mut real, side);
-                let mut g = [0i16; MAX_CONTROL];
-                for (v, r) in g.iter_mut().zip(&real) {
-                    *v = r.round() as i16;
+                let back = real_inverse(&real[..side * side], side);
+                for (b, o) in back.iter().zip(&original) {
+                    assert!((b - o).abs() < 1e-6, "side {side}: {o} came back as {b}");
                 }
-                inverse_grid_transform(&mut g, side);
-                for (i, &o) in original.iter().enumerate() {
-                    let d = (f64::from(g[i]) - o).abs();
+                // Integer coefficients as a stream makes them: a low band and sparse details.
+                let mut g = [0i16; MAX_CONTROL];
+                for (i, v) in g.iter_mut().enumerate().take(side * side) {
+                    let x = next() as i16 - 2048;
+                    *v = match i {
+                        0 => x + 2048,
+                        _ if next() % 3 == 0 => x / 4,
+                        _ => 0,
+                    };
+                }
+                let exact = real_inverse(
+                    &g[..side * side]
+                        .iter()
+                        .map(|&v| f64::from(v))
+                        .collect::<Vec<_>>(),
+                    side,
+                );
+                let column_error: Vec<f64> = (0..side)
+                    .map(|c| {
+                        let sum: f64 = (0..side).map(|r| f64::from(g[r * side + c]).abs()).sum();
+                        0.5 + sum / 8192.0
+                    })
+                    .collect();
+                let mut integer = g;
+                inverse_grid_transform(&mut integer, side);
+                for (i, &e) in exact.iter().enumerate() {
+                    let (r, c0) = (i / side, i % side);
+                    // The columns' outputs on row r, as the row pass sees them.
+                    let columns = real_inverse_columns(&g, side, r);
+                    let bound = 0.5
+                        + columns.iter().map(|v| v.abs() + 1.0).sum::<f64>() / 8192.0
+                        + (0..side)
+                            .map(|c| {
+                                column_error[c]
+                                    * if c == 0 {
+                                        1.0
+                                    } else {
+                                        std::f64::consts::SQRT_2
+                                    }
+                            })
+                            .sum::<f64>();
+                    let d = (f64::from(integer[i]) - e).abs();
                     assert!(
-                        d <= 4.0,
-                        "side {side}, value {i}: {o} came back as {}",
-                        g[i]
+                        d <= bound,
+                        "side {side}, ({r}, {c0}): {} against {e}, bound {bound}",
+                        integer[i]
                     );
                 }
             }
         }
+    }
+
+    /// Row `r` of the real inverse DCT's column pass of `g` (side `side`): what the row pass
+    /// transforms.
+    fn real_inverse_columns(g: &[i16; MAX_CONTROL], side: usize, r: usize) -> Vec<f64> {
+        (0..side)
+            .map(|c| {
+                (0..side)
+                    .map(|k| {
+                        let b = match k {
+                            0 => 1.0,
+                            _ => {
+                                let angle = std::f64::consts::PI * (2 * r + 1) as f64 * k as f64;
+                                std::f64::consts::SQRT_2 * (angle / (2 * side) as f64).cos()
+                            }
+                        };
+                        f64::from(g[k * side + c]) * b
+                    })
+                    .sum()
+            })
+            .collect()
     }
 
     /// A pseudo-random symmetric positive definite matrix (`A^T A + I`).
@@ -987,9 +1075,9 @@ mod tests {
 
     /// On the bundled sample image, error feedback with weighted rounding and refinement
     /// lowers the error that quantising the 9x9 model's grid transform adds to its exact fits
-    /// (summed over blocks and mid-range steps) by more than a tenth, for no more bits (as the
-    /// rounding prices them), against rounding each coefficient on its own with equal weights
-    /// (the margins measured are in docs/decisions.md).
+    /// (summed over blocks and mid-range steps) by more than a tenth, for at most a thousandth
+    /// more bits (as the rounding prices them), against rounding each coefficient on its own
+    /// with equal weights (the margins measured are in docs/decisions.md).
     #[test]
     fn error_feedback_lowers_the_added_error() {
         use super::super::fit::fit_default;
@@ -1038,8 +1126,10 @@ mod tests {
                 }
             }
         }
+        // Format 20's DCT: 12% less error for 0.07% more bits (the 5/3 wavelet's: 19% less for
+        // 1.5% fewer). A tenth of the error is worth far more than a thousandth of the bits.
         assert!(
-            with.0 < 0.9 * without.0 && with.1 <= without.1,
+            with.0 < 0.9 * without.0 && with.1 <= 1.001 * without.1,
             "added error {} with feedback, {} without; bits {} and {}",
             with.0,
             without.0,
