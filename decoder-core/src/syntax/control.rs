@@ -280,9 +280,10 @@ fn inverse_dct_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, n: 
         return false;
     }
     let half = n.div_ceil(2);
-    // Per point of the first half: the sums over even and over odd frequencies.
-    let mut even = [2048i32; MAX_GRID.div_ceil(2)];
-    let mut odd = [0i32; MAX_GRID.div_ceil(2)];
+    // Per point of the first half: the sums over even and over odd frequencies (one array,
+    // cleared at once).
+    let mut sums = [0i32; 2 * HALF_LINE];
+    let (even, odd) = sums.split_at_mut(HALF_LINE);
     let mut any = false;
     let mut row = first_row;
     for k in 0..n {
@@ -292,9 +293,13 @@ fn inverse_dct_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, n: 
             let Some(cosines) = COSINES.get(row) else {
                 return false;
             };
-            let sums = if k % 2 == 0 { &mut even } else { &mut odd };
-            for (sum, &c) in sums.iter_mut().zip(cosines).take(half) {
-                *sum += x * i32::from(c);
+            let sums = if k % 2 == 0 { &mut *even } else { &mut *odd };
+            match half {
+                1 => accumulate::<1>(sums, x, cosines),
+                2 => accumulate::<2>(sums, x, cosines),
+                3 => accumulate::<3>(sums, x, cosines),
+                4 => accumulate::<4>(sums, x, cosines),
+                _ => accumulate::<5>(sums, x, cosines),
             }
         }
         row += every;
@@ -302,11 +307,23 @@ fn inverse_dct_line(g: &mut [i16; MAX_CONTROL], start: usize, stride: usize, n: 
     if !any {
         return false;
     }
-    for (t, (&e, &o)) in even.iter().zip(&odd).enumerate().take(half) {
+    for (t, (&e, &o)) in even.iter().zip(odd.iter()).enumerate().take(half) {
+        let e = e + 2048;
         store(g, start + t * stride, narrow((e + o) >> 12));
         store(g, start + (n - 1 - t) * stride, narrow((e - o) >> 12));
     }
     true
+}
+
+/// Points in the first half of the longest line.
+const HALF_LINE: usize = MAX_GRID.div_ceil(2);
+
+/// Adds `x` times the first `H` cosines of a row to `sums` (a loop of known length, unrolled).
+#[inline(never)]
+fn accumulate<const H: usize>(sums: &mut [i32], x: i32, cosines: &[i16; MAX_GRID]) {
+    for (sum, &c) in sums.iter_mut().zip(cosines).take(H) {
+        *sum += x * i32::from(c);
+    }
 }
 
 /// `v` saturated to the `i16` range.
