@@ -423,19 +423,13 @@ fn quantise_coefficients(
     let n = order.len();
     // Every coefficient of a grid has the same step.
     let q = f64::from(coefficient_step(side, step));
-    let steps = [q; MAX_CONTROL];
-    let inverse_steps = [1.0 / q; MAX_CONTROL];
+    let inverse_q = 1.0 / q;
     let Some(exact) = &targets.exact else {
-        for (k, &i) in order.iter().enumerate() {
+        for &i in order {
             let i = usize::from(i);
             // Coefficients are below 2^18 and steps at least 1: indices fit in i16.
-            indices[i] = rounding.round(
-                indices,
-                i,
-                targets.coefficients[i] * inverse_steps[k],
-                1.0,
-                None,
-            ) as i16;
+            indices[i] =
+                rounding.round(indices, i, targets.coefficients[i] * inverse_q, 1.0, None) as i16;
         }
         return None;
     };
@@ -443,7 +437,7 @@ fn quantise_coefficients(
     // Each coefficient's weight in the patch's error per step, relative to the leaf's mean.
     let mut relative_weights = [0.0f64; MAX_CONTROL];
     for (k, w) in relative_weights.iter_mut().enumerate().take(n) {
-        *w = f.weights[k] * steps[k] * steps[k];
+        *w = f.weights[k] * q * q;
     }
     let mean = relative_weights.iter().sum::<f64>() / n as f64;
     relative_weights.iter_mut().for_each(|w| *w /= mean);
@@ -454,15 +448,9 @@ fn quantise_coefficients(
         let i = usize::from(i);
         let (partial, last) = (f.partial(k, &errors[..k]), f.row(k)[k]);
         let target = exact.coefficients[i] - partial * f.inverse_last[k];
-        let index = rounding.round(
-            indices,
-            i,
-            target * inverse_steps[k],
-            relative_weights[k],
-            None,
-        );
+        let index = rounding.round(indices, i, target * inverse_q, relative_weights[k], None);
         indices[i] = index as i16;
-        errors[k] = f64::from(index) * steps[k] - exact.coefficients[i];
+        errors[k] = f64::from(index) * q - exact.coefficients[i];
         rows[k] = partial + last * errors[k];
     }
     let mut gradient = [0.0f64; MAX_CONTROL];
@@ -470,8 +458,8 @@ fn quantise_coefficients(
     let quantiser = CoefficientQuantiser {
         rounding,
         order,
-        steps: &steps,
-        inverse_steps: &inverse_steps,
+        step: q,
+        inverse_step: inverse_q,
         relative_weights: &relative_weights,
         exact: &exact.coefficients,
         form: &f.form,
@@ -491,9 +479,10 @@ struct CoefficientQuantiser<'a> {
     /// How indices are rounded.
     rounding: &'a IndexRounding<'a>,
     order: &'a [u8],
-    steps: &'a [f64; MAX_CONTROL],
-    /// The steps' reciprocals.
-    inverse_steps: &'a [f64; MAX_CONTROL],
+    /// The coefficients' step (one for the grid).
+    step: f64,
+    /// Its reciprocal.
+    inverse_step: f64,
     relative_weights: &'a [f64; MAX_CONTROL],
     /// The exact coefficients, by grid position.
     exact: &'a [f64; MAX_CONTROL],
@@ -534,11 +523,11 @@ impl CoefficientQuantiser<'_> {
                 let index = self.rounding.round(
                     indices,
                     i,
-                    target * self.inverse_steps[k],
+                    target * self.inverse_step,
                     self.relative_weights[k],
                     None,
                 );
-                let error = f64::from(index) * self.steps[k] - self.exact[i];
+                let error = f64::from(index) * self.step - self.exact[i];
                 let delta = error - errors[k];
                 if delta != 0.0 {
                     changed = Some(k);
