@@ -290,7 +290,7 @@ impl Reader {
             .map(|&i| usize::from(i))
             .collect();
         let band = |i: usize| band_level(side, i / side, i % side);
-        let q = |_: usize| coefficient_step(side, step);
+        let q = coefficient_step(side, step);
         // The stream's low band is a residual against the mean of the known pixels beside.
         let size = info.node.size() as usize;
         let known: Vec<i32> = (self.above[..size].iter().chain(&self.left[..size]))
@@ -301,7 +301,7 @@ impl Reader {
         for (&i, &v) in order.iter().zip(&ints) {
             k[i] = v;
         }
-        k[0] += round_div(mean, q(0));
+        k[0] += round_div(mean, q);
         let as_coded: Coding = order
             .iter()
             .zip(&ints)
@@ -313,7 +313,7 @@ impl Reader {
         let against = |g: &Vec<f64>, coarse_only: bool| -> Coding {
             (order.iter())
                 .map(|&i| {
-                    let predicted = (g[i] / f64::from(q(i))).round() as i32;
+                    let predicted = (g[i] / f64::from(q)).round() as i32;
                     let used = !coarse_only || i == 0 || band(i) >= 1;
                     (band(i), if used { k[i] - predicted } else { k[i] })
                 })
@@ -338,13 +338,13 @@ impl Reader {
             let plain: Coding = (order.iter())
                 .map(|&i| {
                     let v = if i == 0 { t[0] - f64::from(mean) } else { t[i] };
-                    (band(i), dead_zone(v, q(i)))
+                    (band(i), dead_zone(v, q))
                 })
                 .collect();
             let predicted: Vec<Coding> = (grids.iter())
                 .map(|g| {
                     (order.iter())
-                        .map(|&i| (band(i), dead_zone(t[i] - g[i], q(i))))
+                        .map(|&i| (band(i), dead_zone(t[i] - g[i], q)))
                         .collect()
                 })
                 .collect();
