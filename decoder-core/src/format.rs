@@ -5,7 +5,7 @@
 /// The four magic bytes that open every stream.
 pub const MAGIC: [u8; 4] = *b"PIFS";
 /// The format version this crate reads and writes.
-pub const VERSION: u8 = 20;
+pub const VERSION: u8 = 21;
 /// Smallest allowed leaf side, as a power of two.
 pub const MIN_LEAF_LOG2: u8 = 1;
 /// Largest allowed leaf side, as a power of two.

@@ -350,11 +350,14 @@ pub fn control_step(cq: u8) -> i32 {
     CONTROL_STEPS.get(usize::from(cq)).copied().unwrap_or(0)
 }
 
-/// The context group of control quantiser `cq`.
+// The 'cquant' element is a tree of four bits: each of its 16 values names a quantiser.
+const _: () = assert!(CONTROL_QUANTISERS == 1 << 4);
+
+/// The context group of control quantiser `cq`: steps up to 64, 96 to 256, 384 and up.
 pub fn step_group(cq: u8) -> usize {
-    match cq {
-        0..=3 => 0,
-        4..=7 => 1,
+    match control_step(cq) {
+        ..=64 => 0,
+        65..=256 => 1,
         _ => 2,
     }
 }
@@ -499,10 +502,8 @@ pub fn code_leaf<C: Coder, P: SamplePrediction>(
     let mi = usize::from(leaf.model);
 
     let mut cq = u32::from(leaf.cquant);
+    // Four bits: every value names one of the 16 quantisers.
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
-    if cq as usize >= CONTROL_QUANTISERS {
-        return Err(PayloadError::InvalidData(SyntaxElement::ControlQuantiser));
-    }
     leaf.cquant = cq as u8;
 
     let mut transform = leaf.coding == ControlCoding::Transform;
@@ -715,10 +716,8 @@ pub fn code_chroma<C: Coder, P: SamplePrediction>(
     // `pos < count`, at most the number of chroma grids.
     let mi = (pos as usize).min(CHROMA_GRIDS.len() - 1);
     let mut cq = u32::from(leaf.cquant);
+    // Four bits: every value names one of the 16 quantisers.
     code_tree(c, &mut ctx.cquant[mi], 4, &mut cq)?;
-    if cq as usize >= CONTROL_QUANTISERS {
-        return Err(PayloadError::InvalidData(SyntaxElement::ControlQuantiser));
-    }
     leaf.cquant = cq as u8;
     let g = usize::from(CHROMA_GRIDS[mi].0);
     let mut transform = leaf.coding == ControlCoding::Transform;

@@ -199,7 +199,14 @@ fn images_of_any_size_encode_with_the_default_target() {
 fn the_best_psnr_reported_is_reached() {
     let dir = scratch("psnr");
     let png = dir.join("tex.png");
-    textured(48, 40).save(&png).unwrap();
+    // A gentle slope under a one-level checkerboard: nodes whose bilinear patch reproduces them
+    // within half a grey level squared settle, so the best stream is not lossless (the
+    // textured image is, with the finest steps).
+    image::GrayImage::from_fn(48, 40, |x, y| {
+        image::Luma([(60 + x + y / 2 + ((x ^ y) & 1)) as u8])
+    })
+    .save(&png)
+    .unwrap();
     let out_path = dir.join("q.pifs");
     let run = |extra: &[&str]| {
         let mut args = vec![
@@ -232,6 +239,32 @@ fn the_best_psnr_reported_is_reached() {
     );
     let stdout = ok(&run(&["--bpp", "100"]));
     assert!(psnr_of(&stdout) <= best + 0.01 + 1e-9, "{stdout}");
+}
+
+/// The finest control steps (16 and 12, 1/16 grey) code a pixel grid's values to within half a
+/// grey level: the highest quality target makes a textured 8-bit image lossless.
+#[test]
+fn the_highest_quality_is_lossless() {
+    let dir = scratch("lossless");
+    let png = dir.join("tex.png");
+    let image = textured(48, 40);
+    image.save(&png).unwrap();
+    let out_path = dir.join("top.pifs");
+    let line = ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--psnr",
+        "150",
+        "-o",
+        out_path.to_str().unwrap(),
+    ]));
+    assert!(line.contains("PSNR inf dB"), "{line}");
+    let bytes = std::fs::read(&out_path).unwrap();
+    let mut decoded = vec![0u8; 48 * 40];
+    decoder_core::Decoder::new(&bytes)
+        .and_then(|d| d.decode_into(&mut decoded))
+        .unwrap();
+    assert_eq!(decoded, image.into_raw());
 }
 
 #[test]
@@ -1294,10 +1327,10 @@ fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     assert_eq!(image::open(&relief).unwrap().to_luma8().as_raw(), &expected);
 
     // --max-error: every value within it (in metres here), the smaller error the larger file.
-    // (The best stream of this surface reaches 7 m since format 20, 4 m before: see
-    // docs/decisions.md on the DCT.)
+    // (The best stream of this surface reaches 3 m since format 21's finer steps; 7 m in format
+    // 20, 4 m before: see docs/decisions.md on the DCT.)
     let mut sizes = Vec::new();
-    for max in [8u16, 20] {
+    for max in [3u16, 20] {
         let out = dir.join(format!("within-{max}.pifs"));
         let line = ok(&pifs(&[
             "encode",

@@ -378,17 +378,22 @@ pub fn grid_multiplier(side: usize) -> i32 {
 }
 
 /// The quantiser step of the coefficients of a control grid of side `side` for the control
-/// step `step`: `max(1, (step * grid_multiplier(side) + 32) >> 6)`.
+/// step `step`: `max(2, (step * grid_multiplier(side) + 32) >> 6)` (at least 2, so that a
+/// grid's indices stay within what an integer codes).
 pub fn coefficient_step(side: usize, step: i32) -> i32 {
-    ((step * grid_multiplier(side) + MULTIPLIER_ONE / 2) >> 6).max(1)
+    ((step * grid_multiplier(side) + MULTIPLIER_ONE / 2) >> 6).max(2)
 }
 
 /// Number of control-value quantisers (the 'cquant' element, coded on 4 bits).
-pub const CONTROL_QUANTISERS: usize = 14;
-/// Control step of each control quantiser, in sample units (1/16 grey level).
+pub const CONTROL_QUANTISERS: usize = 16;
+/// Control step of each control quantiser ('cquant' value), in sample units (1/16 grey level):
+/// version 20's fourteen steps, then the two finer ones version 21 gave its unused values.
 pub const CONTROL_STEPS: [i32; CONTROL_QUANTISERS] = [
-    24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048,
+    24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048, 16, 12,
 ];
+/// The control quantisers ('cquant' values) from the finest step to the coarsest.
+pub const QUANTISERS_BY_STEP: [u8; CONTROL_QUANTISERS] =
+    [15, 14, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13];
 
 #[cfg(test)]
 mod tests {
@@ -492,6 +497,41 @@ mod tests {
         }
     }
 
+    /// Control values anywhere in the sample range make coefficients (but the mean) whose
+    /// indices, at every grid side's finest coefficient step, an integer codes (below
+    /// `2^MAX_PREFIX`): `|X_kl| <= a_k a_l (SAMPLE_MAX - SAMPLE_MIN) / 2`, with `a_k` the mean
+    /// magnitude of cosine row `k` (a coefficient other than the mean ignores a constant).
+    #[test]
+    fn the_finest_step_keeps_indices_codable() {
+        use crate::entropy::MAX_PREFIX;
+        use crate::model::{SAMPLE_MAX, SAMPLE_MIN};
+        for side in GRID_SIDES {
+            let (first, every) = cosine_rows(side).unwrap();
+            let mean_magnitude = |k: usize| {
+                let row = &COSINES[first + k * every][..side];
+                row.iter().map(|&c| f64::from(c).abs()).sum::<f64>() / (4096.0 * side as f64)
+            };
+            let largest = (0..side * side)
+                .skip(1)
+                .map(|i| mean_magnitude(i / side) * mean_magnitude(i % side))
+                .fold(0.0, f64::max);
+            let half_range = f64::from(SAMPLE_MAX - SAMPLE_MIN) / 2.0;
+            let q = coefficient_step(side, CONTROL_STEPS[usize::from(QUANTISERS_BY_STEP[0])]);
+            let index = largest * half_range / f64::from(q);
+            assert!(index < f64::from(1 << MAX_PREFIX), "side {side}: {index}");
+        }
+    }
+
+    /// The quantisers by step are every quantiser once, their steps rising.
+    #[test]
+    fn quantisers_by_step_rise() {
+        let steps = QUANTISERS_BY_STEP.map(|cq| CONTROL_STEPS[usize::from(cq)]);
+        assert!(steps.windows(2).all(|w| w[0] < w[1]), "{steps:?}");
+        let mut seen = QUANTISERS_BY_STEP;
+        seen.sort_unstable();
+        assert!(seen.iter().enumerate().all(|(i, &cq)| usize::from(cq) == i));
+    }
+
     /// The per-side tables hold every coded grid side: the coding order of each is a
     /// permutation of its positions, low band first.
     #[test]
@@ -510,7 +550,6 @@ mod tests {
                     seen[usize::from(i)] = true;
                 }
                 assert_eq!(order[0], 0);
-                assert!(coefficient_step(side, 24) >= 1);
             }
         }
     }

@@ -887,7 +887,7 @@ fn coarse_candidates(
         .collect();
     // Room for every candidate the pass can make, so that pushing never moves them.
     let steps = ControlQuantiserId::all()
-        .filter(|cq| cq.get() >= first)
+        .filter(|cq| cq.rank() >= first)
         .count();
     for (fit, chains) in fits.iter().zip(&chains) {
         let n = chains.len() * steps;
@@ -902,7 +902,7 @@ fn coarse_candidates(
         let residual = error_floor(&na.node, fit) * weight;
         for chain in chains {
             let mut end = None;
-            let tried = ControlQuantiserId::all().filter(|cq| cq.get() >= first);
+            let tried = ControlQuantiserId::all().filter(|cq| cq.rank() >= first);
             for cq in tried.rev() {
                 let rating = (&prediction, &mut ctx);
                 let c = add_candidate(plane, (na, weight), (fit, &targets), (chain, cq), rating);
@@ -959,7 +959,7 @@ fn fine_candidates(
         hull.add((f64::from(c.bits), c.sse));
     }
     let steps = ControlQuantiserId::all()
-        .filter(|cq| cq.get() < search.first)
+        .filter(|cq| cq.rank() < search.first)
         .count();
     na.reserve(ends.len() * steps, ends.len() * steps * MAX_CONTROL);
     // The chains of one fit are consecutive: its targets are made once.
@@ -976,7 +976,7 @@ fn fine_candidates(
             let chain = end.chain;
             let (mut last_bits, mut last_sse) = (end.bits, end.sse);
             for cq in ControlQuantiserId::all()
-                .filter(|cq| cq.get() < search.first)
+                .filter(|cq| cq.rank() < search.first)
                 .rev()
             {
                 let rating = (&prediction, &mut ctx);
@@ -996,7 +996,7 @@ fn fine_candidates(
 
 /// With [`EncoderConfig::fine_steps`], control quantisers from this one up (steps of 128 and
 /// coarser, 1/16 grey) are tried at every node, finer ones only while they pay.
-const FIRST_COARSE: u8 = 5;
+const FIRST_COARSE: u8 = 7;
 
 /// The multipliers the analysis keeps candidates for: every target's.
 const ALL_LAMBDAS: std::ops::RangeInclusive<f64> = 1e-2..=1e6;
@@ -1212,7 +1212,7 @@ mod tests {
                     let fit = fit_default(&plane, &node, m);
                     let targets = ControlTargets::of(&fit, log2);
                     let n = m.model().control_count();
-                    for cq in [4, 7, 10].map(ControlQuantiserId::new) {
+                    for cq in [6, 9, 12].map(ControlQuantiserId::new) {
                         for coding in [ControlCoding::Dpcm, ControlCoding::Transform] {
                             for (t, &lambda) in totals.iter_mut().zip(&multipliers) {
                                 let rounding = Rounding::from_start(lambda);
@@ -1299,7 +1299,7 @@ mod tests {
         let plane = textured_plane(64, 64);
         let header = header_for(&plane, &EncoderConfig::default()).expect("a header");
         let image = prediction_of(&plane, &header);
-        let cq = ControlQuantiserId::new(6);
+        let cq = ControlQuantiserId::new(8);
         let at = Node {
             x: 16,
             y: 16,
@@ -1378,12 +1378,13 @@ mod tests {
         coarse_candidates(&plane, &header, (&mut all, 1.0), &fits, &start, 0);
         for floor in [f64::INFINITY, f64::NEG_INFINITY] {
             let mut na = fresh();
-            let ends = coarse_candidates(&plane, &header, (&mut na, 1.0), &fits, &start, 5);
-            assert!(na.candidates.iter().all(|c| c.cq.get() >= 5));
+            let ends =
+                coarse_candidates(&plane, &header, (&mut na, 1.0), &fits, &start, FIRST_COARSE);
+            assert!(na.candidates.iter().all(|c| c.cq.rank() >= FIRST_COARSE));
             let coarse = na.candidates.len();
             let search = FineSearch {
                 start: &start,
-                first: 5,
+                first: FIRST_COARSE,
                 floor,
             };
             fine_candidates(&plane, &header, (&mut na, 1.0), &ends, &search);
@@ -1414,7 +1415,7 @@ mod tests {
                 let mut last = end.bits;
                 for (j, &k) in chain.iter().enumerate() {
                     let adds = bits[k] > last;
-                    let finest = na.candidates[k].cq.get() == 0;
+                    let finest = na.candidates[k].cq.rank() == 0;
                     assert_eq!(adds || finest, j + 1 == chain.len(), "{chain:?}");
                     last = bits[k];
                 }
@@ -1422,8 +1423,9 @@ mod tests {
         }
     }
 
-    /// Only an analysis whose every target is a rate searches fine steps near its trial: a
-    /// quality target's rate is not known before the analysis.
+    /// Only an analysis whose every target is a rate below the raw size searches fine steps
+    /// near its trial: a quality target's rate is not known before the analysis, and at the
+    /// unlimited budget every step pays.
     #[test]
     fn fine_steps_only_for_rate_targets() {
         let of = |targets: &[Target]| EncoderConfig::for_targets(targets, 1000).fine_steps;
@@ -1433,6 +1435,8 @@ mod tests {
         );
         assert_eq!(of(&[Target::Bytes(300), Target::Psnr(30.0)]), None);
         assert_eq!(of(&[Target::Psnr(30.0)]), None);
+        assert_eq!(of(&[Target::Bytes(usize::MAX)]), None);
+        assert_eq!(of(&[Target::Bpp(8.0)]), None);
         assert_eq!(of(&[]), None);
         assert_eq!(EncoderConfig::default().fine_steps, None);
     }
@@ -1679,7 +1683,7 @@ mod tests {
                 let fit = fit_default(&plane, &node, m);
                 let targets = ControlTargets::of(&fit, log2);
                 let codings = [ControlCoding::Dpcm, ControlCoding::Transform];
-                for (cq, coding) in [0, 5, 11]
+                for (cq, coding) in [2, 7, 13]
                     .map(ControlQuantiserId::new)
                     .into_iter()
                     .flat_map(|c| codings.map(|d| (c, d)))

@@ -27,7 +27,9 @@ use decoder_core::internal::colour::{chroma_models, rgb_to_ycbcr, sample_row, Ch
 use decoder_core::internal::format::CODING_TILE;
 use decoder_core::internal::model::{MAX_CONTROL, SAMPLE_MAX, SAMPLE_MIN, SAMPLE_ONE};
 use decoder_core::internal::prediction::SamplePrediction;
-use decoder_core::internal::syntax::control::{coefficient_step, CONTROL_QUANTISERS};
+use decoder_core::internal::syntax::control::{
+    coefficient_step, CONTROL_QUANTISERS, QUANTISERS_BY_STEP,
+};
 use decoder_core::internal::syntax::{
     chroma_grid, code_chroma, dequantise_control, intra_prediction, reconstruct_chroma,
     ChromaContexts, ControlCoding, LeafSyntax,
@@ -250,19 +252,20 @@ fn transformed(t: &[f64], side: usize) -> [f64; MAX_CONTROL] {
 }
 
 /// The syntax of chroma model `model` (whose targets are `t`, and their grid transform
-/// `coefficients` if known) at `node` with control quantiser `cquant` and `coding`, and its
-/// reconstruction by decoder-core; `None` if it cannot be reconstructed.
+/// `coefficients` if known) at `node` with the control quantiser of rank `rank` (0 the finest
+/// step) and `coding`, and its reconstruction by decoder-core; `None` if it cannot be
+/// reconstructed.
 fn quantised(
     t: &[f64],
     coefficients: Option<&[f64; MAX_CONTROL]>,
     node: &Node,
     model: u8,
-    cquant: u8,
+    rank: u8,
     coding: ControlCoding,
 ) -> Option<(LeafSyntax, ChromaPlane)> {
     let mut syntax = LeafSyntax {
         model,
-        cquant,
+        cquant: QUANTISERS_BY_STEP[usize::from(rank)],
         coding,
         control: [0; MAX_CONTROL],
     };
@@ -415,13 +418,13 @@ impl NodeOptions {
     ) -> Option<&Reconstructed> {
         while self.series[s].steps.len() <= k {
             let (model, coding) = (self.series[s].model, self.series[s].coding);
-            let cq = (CONTROL_QUANTISERS - 1 - self.series[s].steps.len()) as u8;
+            let rank = (CONTROL_QUANTISERS - 1 - self.series[s].steps.len()) as u8;
             let t = &self.targets[usize::from(model)];
             let c = self.coefficients[usize::from(model)].as_ref();
-            let option = quantised(t, c, node, model, cq, coding).map(|(syntax, rec)| {
+            let option = quantised(t, c, node, model, rank, coding).map(|(syntax, rec)| {
                 let side = chroma_grid(&syntax, node.log2).side;
                 Reconstructed {
-                    cquant: cq,
+                    cquant: syntax.cquant,
                     control: syntax.control[..side * side].into(),
                     weighted_sse: 4.0 * CHROMA_WEIGHTS[p & 1] * plane_sse(plane, node, &rec),
                 }
@@ -613,9 +616,9 @@ pub fn choose<P: SamplePrediction>(
 pub enum ChromaSteps {
     /// Every step: an analysis that may serve any target.
     All,
-    /// The coarse pass: control quantisers from `first` up.
+    /// The coarse pass: control quantisers from rank `first` up (0 the finest step).
     Coarse {
-        /// The finest control quantiser searched.
+        /// The rank of the finest control quantiser searched.
         first: u8,
     },
     /// The fine pass: the quantisers below `first`, each series going on from its step
@@ -623,7 +626,7 @@ pub enum ChromaSteps {
     /// that buys less is on the hull only for multipliers below the floor, a finer one
     /// still, less again).
     Fine {
-        /// The finest control quantiser of the coarse pass.
+        /// The rank of the finest control quantiser of the coarse pass.
         first: u8,
         /// Error per bit below which a series stops.
         floor: f64,
@@ -923,7 +926,7 @@ mod tests {
     /// pass, the coarse pass's, and a fine pass of floor `floor` after it.
     fn passes(colour: &ColourPlanes, log2: u8, floor: f64) -> [ChromaCost; 3] {
         let node = Node { x: 0, y: 0, log2 };
-        let first = 5;
+        let first = 7;
         let cost =
             |steps, earlier: &ChromaCost| leaf_cost(colour, &node, (128, 1.0), steps, earlier);
         let none = ChromaCost::default();

@@ -69,13 +69,15 @@ pub const WHOLE_WIDTH: u8 = 0;
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
     /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`], and fine steps
-    /// searched near it ([`FINE_STEP_MARGIN`]) when every target is a rate (a quality
-    /// target's rate is not known before the analysis).
+    /// searched near it ([`FINE_STEP_MARGIN`]) when every target is a rate below
+    /// [`FINE_STEPS_BELOW_BPP`] (a quality target's rate is not known before the analysis).
     pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
         EncoderConfig {
             trial_bpp: Target::trial_bpp(targets, pixels),
-            fine_steps: (!targets.is_empty() && targets.iter().all(|t| t.bpp(pixels).is_some()))
-                .then_some(FINE_STEP_MARGIN),
+            fine_steps: (!targets.is_empty()
+                && (targets.iter())
+                    .all(|t| t.bpp(pixels).is_some_and(|b| b < FINE_STEPS_BELOW_BPP)))
+            .then_some(FINE_STEP_MARGIN),
             ..EncoderConfig::default()
         }
     }
@@ -99,6 +101,12 @@ impl Default for EncoderConfig {
 /// The margin of [`EncoderConfig::fine_steps`] that [`EncoderConfig::for_targets`] chooses
 /// for rate targets (see docs/decisions.md).
 pub const FINE_STEP_MARGIN: f64 = 16.0;
+
+/// Rate targets below this many bits per pixel (an 8-bit grayscale image's raw size) search the
+/// fine control steps only where they pay near the trial's multiplier; a target at or above it
+/// (the unlimited budget of the highest quality) searches every step, where the finest (lossless
+/// on pixel grids) pay.
+pub const FINE_STEPS_BELOW_BPP: f64 = 8.0;
 
 /// The trial rate of an analysis for targets that name no rate (a quality target), and
 /// [`EncoderConfig::default`]'s.

@@ -5,7 +5,9 @@
 //! Bottom layer of the encoder: uses nothing else of it.
 
 use decoder_core::internal::model::{ModelType, MODELS, MODEL_COUNT};
-use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, CONTROL_STEPS};
+use decoder_core::internal::syntax::control::{
+    CONTROL_QUANTISERS, CONTROL_STEPS, QUANTISERS_BY_STEP,
+};
 use decoder_core::internal::syntax::{models_for_block, step_group, LeafSyntax};
 
 /// A model type: an index into [`MODELS`] (the 'model' syntax element).
@@ -90,20 +92,22 @@ impl FromIterator<ModelId> for Models {
     }
 }
 
-/// A control quantiser: an index into [`CONTROL_STEPS`] (the 'cquant' syntax element).
+/// A control quantiser, held as its rank among the steps (0 the finest), so that the order of
+/// the ids is the order of their steps; [`ControlQuantiserId::get`] is its 'cquant' value.
 #[repr(transparent)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct ControlQuantiserId(u8);
 
 impl ControlQuantiserId {
-    /// Control quantiser `index`; panics if the format has no such quantiser.
+    /// The control quantiser of rank `rank` (0 the finest step); panics if the format has no
+    /// such quantiser.
     #[cfg(test)]
-    pub const fn new(index: u8) -> ControlQuantiserId {
+    pub const fn new(rank: u8) -> ControlQuantiserId {
         assert!(
-            (index as usize) < CONTROL_QUANTISERS,
+            (rank as usize) < CONTROL_QUANTISERS,
             "no such control quantiser"
         );
-        ControlQuantiserId(index)
+        ControlQuantiserId(rank)
     }
 
     /// Every control quantiser, finest step first.
@@ -111,19 +115,24 @@ impl ControlQuantiserId {
         (0..CONTROL_QUANTISERS as u8).map(ControlQuantiserId)
     }
 
+    /// Its rank among the steps, 0 the finest.
+    pub const fn rank(self) -> u8 {
+        self.0
+    }
+
     /// The syntax element's value.
     pub const fn get(self) -> u8 {
-        self.0
+        QUANTISERS_BY_STEP[self.0 as usize]
     }
 
     /// Its step, in sample units (1/16 grey level).
     pub const fn step(self) -> i32 {
-        CONTROL_STEPS[self.0 as usize]
+        CONTROL_STEPS[self.get() as usize]
     }
 
     /// Its group of steps, which selects the residuals' contexts.
     pub fn step_group(self) -> usize {
-        step_group(self.0)
+        step_group(self.get())
     }
 }
 

@@ -383,7 +383,7 @@ fn quantise_dpcm(
         } else {
             targets.edge_offset(r, c, base, step)
         };
-        // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 24.
+        // Indices stay far inside i16: |target - base| < 2^14 and the step is at least 12.
         let context = if i == 0 {
             None
         } else {
@@ -891,7 +891,7 @@ impl GridTables {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use decoder_core::internal::syntax::control::{inverse_grid_transform, CONTROL_STEPS};
+    use decoder_core::internal::syntax::control::inverse_grid_transform;
     use nalgebra::DVector;
 
     const SIDES: [usize; 4] = [2, 3, 5, 9];
@@ -1091,8 +1091,8 @@ mod tests {
                 for step in [192, 384, 768] {
                     let added = |t: &ControlTargets, sum: &mut (f64, f64)| {
                         let mut indices = [0i16; MAX_CONTROL];
-                        let cq = CONTROL_STEPS.iter().position(|&s| s == step).unwrap();
-                        let cq = ControlQuantiserId::new(cq as u8);
+                        let cq = ControlQuantiserId::all().find(|cq| cq.step() == step);
+                        let cq = cq.unwrap();
                         let rounding = IndexRounding::new(
                             cq,
                             true,
@@ -1149,7 +1149,7 @@ mod tests {
             prediction: &P,
             sum: &mut (f64, f64),
         ) {
-            let (model, cq) = (fit.model, ControlQuantiserId::new(4));
+            let (model, cq) = (fit.model, ControlQuantiserId::new(6));
             let targets = ControlTargets::of(fit, node.log2).with_edges(prediction, node, model);
             let q = quantise(
                 fit,
@@ -1206,7 +1206,7 @@ mod tests {
         let side = 3;
         for transform in [false, true] {
             let rounding = IndexRounding::new(
-                ControlQuantiserId::new(9),
+                ControlQuantiserId::new(11),
                 transform,
                 side,
                 Rounding::from_start(ROUNDING_LAMBDA),
@@ -1231,7 +1231,7 @@ mod tests {
     #[test]
     fn large_indices_round_to_nearest() {
         let rounding = IndexRounding::new(
-            ControlQuantiserId::new(9),
+            ControlQuantiserId::new(11),
             true,
             5,
             Rounding::from_start(ROUNDING_LAMBDA),
