@@ -16,7 +16,7 @@ use super::candidates::{
     WithCandidates,
 };
 use super::chroma::{self, ChromaCache, ChromaSteps, ColourPlanes};
-use super::config::EncoderConfig;
+use super::config::{EncoderConfig, BOUND_PENALTY};
 use super::error::EncodeError;
 use super::fit::{fit_default, prepare_projections, Fit};
 use super::ids::{ControlQuantiserId, ModelId};
@@ -153,13 +153,14 @@ impl Analysis {
     /// [`Analysis::run`], fitting and quantising bands of about `band_pixels` pixels one after
     /// the other ([`band_height`]), errors weighed by `scale` ([`Masking::scaled`]).
     fn run_in_bands(
-        plane: Plane,
+        mut plane: Plane,
         colour: Option<ColourPlanes>,
         config: &EncoderConfig,
         (band_pixels, scale): (u32, Option<ContrastScale>),
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<Analysis, EncodeError> {
         let mut header = header_for(&plane, config)?;
+        plane.bound = config.bound_in_samples();
         if colour.is_some() {
             header.channels = 3;
         }
@@ -1028,9 +1029,9 @@ fn quantised_sse(plane: &Plane, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
         if let Some(sse) = estimate {
             // The integer synthesis's rounding adds about 1/12 per pixel and its clamping can
             // remove error; both matter only when the error itself is that small, where the
-            // closed loop decides.
+            // closed loop decides; so does a bound on each pixel's error above it.
             let pixels = f64::from(node.size()) * f64::from(node.size());
-            if sse > MIN_ESTIMATED_MSE * pixels {
+            if sse > MIN_ESTIMATED_MSE * pixels && plane.bound.is_none() {
                 return sse;
             }
         }
@@ -1039,7 +1040,8 @@ fn quantised_sse(plane: &Plane, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
 }
 
 /// Squared error of a quantised leaf, reconstructed by decoder-core, over its in-image pixels
-/// (a 16-bit surface's: its samples against the fine targets, in grey levels squared).
+/// (a 16-bit surface's: its samples against the fine targets, in grey levels squared), plus
+/// [`BOUND_PENALTY`] times each pixel's squared excess over the plane's bound, if any.
 fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
     let Ok(patch) = reconstruct(leaf, node.log2) else {
         return f64::INFINITY;
@@ -1047,10 +1049,10 @@ fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
     if plane.fine.is_some() {
         return fine_sse(plane, node, &patch);
     }
-    /// Adds up the squared errors of the tiles it is given.
+    /// Adds up the errors of the tiles it is given.
     struct Sse<'a> {
         plane: &'a Plane,
-        total: u64,
+        sum: ErrorSum,
     }
     impl PixelSink for Sse<'_> {
         type Error = Infallible;
@@ -1061,26 +1063,62 @@ fn closed_loop_sse(plane: &Plane, node: &Node, leaf: &LeafSyntax) -> f64 {
             for py in y..y + h {
                 for px in x..x + w {
                     let d = i64::from(self.plane.get(px, py)) - i64::from(tile.pixels[k]);
-                    self.total += (d * d) as u64;
+                    self.sum.add(d * i64::from(SAMPLE_ONE));
                     k += 1;
                 }
             }
             Ok(())
         }
     }
-    let mut sink = Sse { plane, total: 0 };
+    let mut sink = Sse {
+        plane,
+        sum: ErrorSum::new(plane.bound),
+    };
     let image = Rect::of_size(plane.width, plane.height);
     let Ok(()) = patch.render(node, image, &mut sink);
-    sink.total as f64
+    sink.sum.distortion()
+}
+
+/// Errors in samples: the sum of their squares, and of their squared excess over a bound.
+struct ErrorSum {
+    squares: u64,
+    excess: u64,
+    bound: Option<u32>,
+}
+
+impl ErrorSum {
+    fn new(bound: Option<u32>) -> ErrorSum {
+        ErrorSum {
+            squares: 0,
+            excess: 0,
+            bound,
+        }
+    }
+
+    #[inline]
+    fn add(&mut self, d: i64) {
+        self.squares += (d * d) as u64;
+        if let Some(b) = self.bound {
+            let over = d.unsigned_abs().saturating_sub(u64::from(b));
+            self.excess += over * over;
+        }
+    }
+
+    /// The squared error plus [`BOUND_PENALTY`] times the squared excess, in grey levels
+    /// squared.
+    fn distortion(&self) -> f64 {
+        let one = f64::from(SAMPLE_ONE);
+        (self.squares as f64 + BOUND_PENALTY * self.excess as f64) / (one * one)
+    }
 }
 
 /// [`closed_loop_sse`] of a 16-bit surface: the patch's samples, clamped to grey 0..255 as a
 /// decoder clamps them, against the plane's fine targets.
 fn fine_sse(plane: &Plane, node: &Node, patch: &Patch) -> f64 {
-    /// Adds up the squared errors of the tiles' samples.
+    /// Adds up the errors of the tiles' samples.
     struct Sse<'a> {
         plane: &'a Plane,
-        total: u64,
+        sum: ErrorSum,
     }
     impl TileOut for Sse<'_> {
         fn put(&mut self, _tile: TileMut<'_>) -> Result<(), Stop> {
@@ -1094,7 +1132,7 @@ fn fine_sse(plane: &Plane, node: &Node, patch: &Patch) -> f64 {
             let points = (y..y + h).flat_map(|py| (x..x + w).map(move |px| (px, py)));
             for ((px, py), &s) in points.zip(samples.iter()) {
                 let d = i64::from(self.plane.sample(px, py) - i32::from(s).clamp(0, top));
-                self.total += (d * d) as u64;
+                self.sum.add(d);
             }
             Ok(())
         }
@@ -1103,13 +1141,15 @@ fn fine_sse(plane: &Plane, node: &Node, patch: &Patch) -> f64 {
             Depth::Samples
         }
     }
-    let mut sink = Sse { plane, total: 0 };
+    let mut sink = Sse {
+        plane,
+        sum: ErrorSum::new(plane.bound),
+    };
     let image = Rect::of_size(plane.width, plane.height);
     if patch.render_to(node, image, &mut sink).is_err() {
         return f64::INFINITY;
     }
-    let one = f64::from(SAMPLE_ONE);
-    sink.total as f64 / (one * one)
+    sink.sum.distortion()
 }
 
 #[cfg(test)]
@@ -1715,6 +1755,58 @@ mod tests {
             }
         }
         assert!(checked >= 60, "only {checked} leaves checked");
+    }
+
+    /// With a bound on each pixel's error, a leaf's distortion is its squared error plus
+    /// [`BOUND_PENALTY`] times each pixel's squared excess over the bound, measured in the
+    /// closed loop even where an error this large is otherwise estimated.
+    #[test]
+    fn a_bound_adds_the_squared_excess() {
+        let plain = textured_plane(64, 64);
+        let node = Node {
+            x: 16,
+            y: 16,
+            log2: 4,
+        };
+        let model = ModelId::for_block(node.log2).next().unwrap();
+        let fit = fit_default(&plain, &node, model);
+        let targets = ControlTargets::of(&fit, node.log2);
+        let cq = ControlQuantiserId::new(13);
+        let rounding = Rounding::from_start(ROUNDING_LAMBDA);
+        let q = quantise(&fit, &targets, cq, ControlCoding::Dpcm, rounding);
+        let patch = reconstruct(&q.leaf, node.log2).unwrap();
+        let mut errors = Vec::new();
+        let mut collect = |tile: Tile<'_>| {
+            let Rect { x, y, w, h } = tile.area;
+            let points = (y..y + h).flat_map(|py| (x..x + w).map(move |px| (px, py)));
+            for ((px, py), &p) in points.zip(tile.pixels) {
+                errors.push(i64::from(plain.get(px, py)) - i64::from(p));
+            }
+        };
+        struct Each<'a, F: FnMut(Tile<'_>)>(&'a mut F);
+        impl<F: FnMut(Tile<'_>)> PixelSink for Each<'_, F> {
+            type Error = Infallible;
+            fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
+                (self.0)(tile);
+                Ok(())
+            }
+        }
+        let Ok(()) = patch.render(&node, Rect::of_size(64, 64), &mut Each(&mut collect));
+        let squares: i64 = errors.iter().map(|d| d * d).sum();
+        assert_eq!(closed_loop_sse(&plain, &node, &q.leaf), squares as f64);
+        let largest = errors.iter().map(|d| d.abs()).max().unwrap();
+        assert!(largest >= 2, "a coarse step errs by {largest}");
+        for bound in [0, 1, largest - 1, largest] {
+            let mut bounded = plain.clone();
+            bounded.bound = Some((bound * i64::from(SAMPLE_ONE)) as u32);
+            let excess: i64 = errors.iter().map(|d| (d.abs() - bound).max(0).pow(2)).sum();
+            let expected = squares as f64 + BOUND_PENALTY * excess as f64;
+            assert_eq!(
+                quantised_sse(&bounded, &node, &fit, &q),
+                expected,
+                "{bound}"
+            );
+        }
     }
 
     /// Detail finer than the smallest leaf's subdividing grids: a checkerboard of 2 px squares

@@ -4,6 +4,7 @@
 //! Bottom layer of the encoder: uses nothing else of it.
 
 use decoder_core::internal::format::CODING_TILE;
+use decoder_core::internal::model::SAMPLE_ONE;
 use decoder_core::SampleRange;
 use std::fmt;
 
@@ -44,6 +45,31 @@ pub struct EncoderConfig {
     /// (grey 0 `low`, 255 `high`), coded as 16-bit streams (decoded to values in the range at
     /// 1/16 grey level, unsmoothed). `None`: 8-bit streams.
     pub range: Option<SampleRange>,
+    /// `Some(e)`: the largest error per pixel the streams are meant to keep, in grey levels (of
+    /// a 16-bit surface, in its own units): a candidate's distortion adds [`BOUND_PENALTY`]
+    /// times the square of each pixel's excess over it, so that rate control spends its bits
+    /// where the bound needs them (`pifs encode --max-error`). Grayscale and surfaces.
+    pub error_bound: Option<f64>,
+}
+
+/// The weight of a pixel's squared excess over [`EncoderConfig::error_bound`] in a
+/// candidate's distortion, against one of its squared error (see docs/decisions.md).
+pub const BOUND_PENALTY: f64 = 16384.0;
+
+impl EncoderConfig {
+    /// [`EncoderConfig::error_bound`] in whole samples (1/16 grey level, rounded down), if
+    /// any: a surface's units through its range's step.
+    pub(super) fn bound_in_samples(&self) -> Option<u32> {
+        let one = f64::from(SAMPLE_ONE);
+        self.error_bound.map(|e| {
+            let samples = match self.range {
+                Some(r) => e * one * f64::from(SampleRange::STEP_ONE) / f64::from(r.step),
+                None => e * one,
+            };
+            // Saturating: a bound beyond every error bounds nothing.
+            samples.max(0.0) as u32
+        })
+    }
 }
 
 /// What an encode's distortion is.
@@ -94,6 +120,7 @@ impl Default for EncoderConfig {
             fine_steps: None,
             tune: Tune::default(),
             range: None,
+            error_bound: None,
         }
     }
 }

@@ -22,6 +22,9 @@ pub struct Plane {
     /// For a plane cut from a larger image ([`Plane::crop`]): the samples of the image's row
     /// just above it, which prediction at its top edge sees as the whole image's would.
     above: Option<Vec<i32>>,
+    /// The analysis's bound on each pixel's error, in whole samples
+    /// ([`super::EncoderConfig::error_bound`]), which a leaf's distortion sees.
+    pub(super) bound: Option<u32>,
 }
 
 impl Plane {
@@ -38,6 +41,7 @@ impl Plane {
             data,
             fine: None,
             above: None,
+            bound: None,
         }
     }
 
@@ -123,6 +127,7 @@ impl Plane {
             data,
             fine,
             above,
+            bound: self.bound,
         }
     }
 

@@ -315,6 +315,9 @@ pub struct AnalysisArgs {
     /// other image) or `8` (a 16-bit image mapped to 8 bits from its type's full range).
     #[arg(long, default_value = "auto", value_parser = parse_depth)]
     pub depth: io::Depth,
+    /// The bound on each pixel's error the analysis works to (`--max-error`'s), if any.
+    #[arg(skip)]
+    pub error_bound: Option<f64>,
 }
 
 /// `--depth`: `auto` or `8`.
@@ -377,6 +380,7 @@ impl Default for AnalysisArgs {
             deblock: Deblock(d.deblock),
             tune: d.tune,
             depth: io::Depth::Auto,
+            error_bound: None,
         }
     }
 }
@@ -403,6 +407,7 @@ impl AnalysisArgs {
             stripe: self.stripe_width.unwrap_or(chosen.stripe),
             deblock: self.deblock.0,
             tune: self.tune,
+            error_bound: self.error_bound,
             ..chosen
         }
     }
@@ -875,12 +880,18 @@ pub fn encode_one(
             "--max-error needs a grayscale image or a 16-bit surface (add --gray)".into(),
         ));
     }
-    let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
-    let t = Instant::now();
     if let Some(max) = args.max_error {
+        let bounded = AnalysisArgs {
+            error_bound: Some(max),
+            ..args.analysis.clone()
+        };
+        let analysed = analyse_loaded(&image, &bounded, &[job.target])?;
+        let t = Instant::now();
         let (encoded, note) = smallest_within(&analysed, max)?;
         return write_encoded(&analysed, encoded, Some(note), out, t).map(|_| ());
     }
+    let analysed = analyse_loaded(&image, &args.analysis, &[job.target])?;
+    let t = Instant::now();
     match encode_stream(&analysed.analysis, job) {
         Err(CliError::Encode(EncodeError::QualityUnreachable { .. })) => {
             // A quality target's analysis is tuned (its trial encode, which trains the rate
