@@ -242,7 +242,8 @@ fn the_best_psnr_reported_is_reached() {
 }
 
 /// The finest control steps (16 and 12, 1/16 grey) code a pixel grid's values to within half a
-/// grey level: the highest quality target makes a textured 8-bit image lossless.
+/// grey level: the highest quality target makes a textured 8-bit image lossless, and so does
+/// `--max-error 0`.
 #[test]
 fn the_highest_quality_is_lossless() {
     let dir = scratch("lossless");
@@ -265,6 +266,32 @@ fn the_highest_quality_is_lossless() {
         .and_then(|d| d.decode_into(&mut decoded))
         .unwrap();
     assert_eq!(decoded, image.into_raw());
+
+    // `--max-error 0` asks for the same.
+    let bounded = dir.join("exact.pifs");
+    let line = ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--max-error",
+        "0",
+        "-o",
+        bounded.to_str().unwrap(),
+    ]));
+    assert!(line.contains("largest error 0"), "{line}");
+    let bytes = std::fs::read(&bounded).unwrap();
+    let mut exact = vec![0u8; 48 * 40];
+    decoder_core::Decoder::new(&bytes)
+        .and_then(|d| d.decode_into(&mut exact))
+        .unwrap();
+    assert_eq!(exact, textured(48, 40).into_raw());
+    let line = refused(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--max-error=-1",
+        "-o",
+        dir.join("none.pifs").to_str().unwrap(),
+    ]));
+    assert!(line.contains("from 0 (lossless) up"), "{line}");
 }
 
 #[test]

@@ -71,7 +71,8 @@ pub struct EncodeArgs {
     #[arg(long, group = "target")]
     pub psnr: Option<f64>,
     /// Smallest file whose every pixel is within this of the image: in grey levels, or in a
-    /// 16-bit surface's own units (metres of a heightmap). Grayscale images and surfaces.
+    /// 16-bit surface's own units (metres of a heightmap); 0 for lossless. Grayscale images
+    /// and surfaces.
     #[arg(long, group = "target", value_name = "ERROR")]
     pub max_error: Option<f64>,
     #[command(flatten)]
@@ -785,9 +786,9 @@ pub fn run(args: &EncodeArgs) -> Result<()> {
     let job = args.job();
     validate_target(job.target)?;
     if let Some(e) = args.max_error {
-        if !(e.is_finite() && e > 0.0) {
+        if !(e.is_finite() && e >= 0.0) {
             return Err(CliError::Refused(format!(
-                "--max-error must be a positive number, got {}",
+                "--max-error must be a number from 0 (lossless) up, got {}",
                 number(e)
             )));
         }
