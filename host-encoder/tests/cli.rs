@@ -1354,10 +1354,10 @@ fn sixteen_bit_heightmaps_round_trip_as_surfaces() {
     assert_eq!(image::open(&relief).unwrap().to_luma8().as_raw(), &expected);
 
     // --max-error: every value within it (in metres here), the smaller error the larger file.
-    // (The best stream of this surface reaches 3 m since format 21's finer steps; 7 m in format
-    // 20, 4 m before: see docs/decisions.md on the DCT.)
+    // (The best stream of this surface reaches 2 m since format 21's finer steps and the bound
+    // in each leaf's distortion; 7 m in format 20, 4 m before: see docs/decisions.md.)
     let mut sizes = Vec::new();
-    for max in [3u16, 20] {
+    for max in [2u16, 20] {
         let out = dir.join(format!("within-{max}.pifs"));
         let line = ok(&pifs(&[
             "encode",
