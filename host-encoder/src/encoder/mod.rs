@@ -35,8 +35,8 @@ mod layering;
 pub use analysis::{analysis_steps, Analysis, AnalysisStage, AnalysisSteps, AnalysisTiming};
 pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
 pub use config::{
-    EncoderConfig, Target, Tune, DEFAULT_STRIPE_TILES, DEFAULT_TRIAL_BPP, FINE_STEP_MARGIN,
-    MIN_TRIAL_BPP, WHOLE_WIDTH,
+    EncoderConfig, Target, Tune, BOUND_PENALTY, DEFAULT_STRIPE_TILES, DEFAULT_TRIAL_BPP,
+    FINE_STEPS_BELOW_BPP, FINE_STEP_MARGIN, MIN_TRIAL_BPP, WHOLE_WIDTH,
 };
 pub use error::EncodeError;
 pub use parts::{analyse_colour_in_parts, analyse_in_parts, AnalysisInParts, PART_PIXELS};
