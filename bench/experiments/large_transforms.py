@@ -21,6 +21,9 @@ import sys
 import numpy as np
 from PIL import Image
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from block_transforms import entropy_bits  # noqa: E402
+
 STEPS = [3, 4, 6, 8, 12, 16, 24, 32, 48, 64]
 
 
@@ -30,15 +33,6 @@ def dct(n):
     c[0] *= np.sqrt(1 / n)
     c[1:] *= np.sqrt(2 / n)
     return c
-
-
-def entropy_bits(indices):
-    """Zero-order entropy of each column of `indices` (one column per position), summed."""
-    bits = 0.0
-    for p in range(indices.shape[1]):
-        _, counts = np.unique(indices[:, p], return_counts=True)
-        bits -= (counts * np.log2(counts / counts.sum())).sum()
-    return bits
 
 
 def code(blocks, n, step):

@@ -1015,8 +1015,12 @@ const MIN_ESTIMATED_MSE: f64 = 2.0;
 /// (the error quantisation added, which error feedback computed, or else [`Fit::error_of`]: the
 /// reconstructed control values, or coefficients, exactly and the synthesis in real arithmetic,
 /// so it differs from the closed loop only by the integer synthesis's rounding and clamping),
-/// else by [`closed_loop_sse`].
+/// else by [`closed_loop_sse`]. Under a bound on each pixel's error, always by the closed loop:
+/// the form knows no single pixel's error.
 fn quantised_sse(plane: &Plane, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
+    if plane.bound.is_some() {
+        return closed_loop_sse(plane, node, &q.leaf);
+    }
     if let Some(residual) = fit.residual {
         let estimate = q.added_error.map(|added| residual + added).or_else(|| {
             let n = fit.model.model().control_count();
@@ -1029,9 +1033,9 @@ fn quantised_sse(plane: &Plane, node: &Node, fit: &Fit, q: &Quantised) -> f64 {
         if let Some(sse) = estimate {
             // The integer synthesis's rounding adds about 1/12 per pixel and its clamping can
             // remove error; both matter only when the error itself is that small, where the
-            // closed loop decides; so does a bound on each pixel's error above it.
+            // closed loop decides.
             let pixels = f64::from(node.size()) * f64::from(node.size());
-            if sse > MIN_ESTIMATED_MSE * pixels && plane.bound.is_none() {
+            if sse > MIN_ESTIMATED_MSE * pixels {
                 return sse;
             }
         }

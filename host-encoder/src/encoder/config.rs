@@ -56,22 +56,6 @@ pub struct EncoderConfig {
 /// candidate's distortion, against one of its squared error (see docs/decisions.md).
 pub const BOUND_PENALTY: f64 = 16384.0;
 
-impl EncoderConfig {
-    /// [`EncoderConfig::error_bound`] in whole samples (1/16 grey level, rounded down), if
-    /// any: a surface's units through its range's step.
-    pub(super) fn bound_in_samples(&self) -> Option<u32> {
-        let one = f64::from(SAMPLE_ONE);
-        self.error_bound.map(|e| {
-            let samples = match self.range {
-                Some(r) => e * one * f64::from(SampleRange::STEP_ONE) / f64::from(r.step),
-                None => e * one,
-            };
-            // Saturating: a bound beyond every error bounds nothing.
-            samples.max(0.0) as u32
-        })
-    }
-}
-
 /// What an encode's distortion is.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Tune {
@@ -106,6 +90,20 @@ impl EncoderConfig {
             .then_some(FINE_STEP_MARGIN),
             ..EncoderConfig::default()
         }
+    }
+
+    /// [`EncoderConfig::error_bound`] in whole samples (1/16 grey level, rounded down), if
+    /// any: a surface's units through its range's step.
+    pub(super) fn bound_in_samples(&self) -> Option<u32> {
+        let one = f64::from(SAMPLE_ONE);
+        self.error_bound.map(|e| {
+            let samples = match self.range {
+                Some(r) => e * one * f64::from(SampleRange::STEP_ONE) / f64::from(r.step),
+                None => e * one,
+            };
+            // Saturating: a bound beyond every error bounds nothing.
+            samples.max(0.0) as u32
+        })
     }
 }
 
