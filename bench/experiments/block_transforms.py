@@ -70,18 +70,25 @@ def entropy_bits(indices):
     return bits
 
 
-def main():
-    paths = sys.argv[1:] or sorted(
+def image_blocks(paths, n):
+    """The n x n blocks of the grayscale images `paths` (the 24 Kodak images when none), one
+    array of them per image."""
+    paths = paths or sorted(
         glob.glob(os.path.join(os.path.dirname(__file__), "../../../shared/images/kodak/*.png"))
     )
     blocks = []
     for path in paths:
         image = np.asarray(Image.open(path).convert("L"), dtype=float)
-        h, w = (s - s % N for s in image.shape)
-        b = image[:h, :w].reshape(h // N, N, w // N, N).transpose(0, 2, 1, 3).reshape(-1, N, N)
+        h, w = (s - s % n for s in image.shape)
+        b = image[:h, :w].reshape(h // n, n, w // n, n).transpose(0, 2, 1, 3).reshape(-1, n, n)
         blocks.append(b)
+    return blocks
+
+
+def main():
+    blocks = image_blocks(sys.argv[1:], N)
     x = np.concatenate(blocks) - 128.0
-    print(f"{len(paths)} images, {len(x)} blocks of {N} x {N}")
+    print(f"{len(blocks)} images, {len(x)} blocks of {N} x {N}")
     print("| transform | step | bits per pixel | PSNR (dB) |")
     print("|---|---:|---:|---:|")
     for name, analysis in [("5/3 wavelet", matrix(wavelet_53)), ("DCT", dct())]:

@@ -1,9 +1,12 @@
 """The PSNR-RGB ceiling of 4:2:0 chroma with exact luma, on a set of images, for two ways of
 making the half-size chroma planes: the means of 2 x 2 blocks (what the encoder does) and
 the least-squares planes for the decoder's drawing (linear interpolation at the centred
-siting, luma x at chroma x / 2 - 1/4, clamped at the edges). Conversions are decoder-core's
-integer BT.601 ones (docs/bitstream.md, "Drawing in RGB"). docs/decisions.md, "Colour:
-chroma tools measured", quotes its means on Kodak.
+siting, luma x at chroma x / 2 - 1/4, clamped at the edges); and a third: the 2 x 2 means with
+each pixel's luma the one whose RGB, with the chroma drawn there, is nearest the pixel's (what
+the encoder codes since "Luma that makes up for the chroma drawn"). Conversions are
+decoder-core's integer BT.601 ones (docs/bitstream.md, "Drawing in RGB"). docs/decisions.md,
+"Colour: chroma tools measured" and "Luma that makes up for the chroma drawn", quote its means
+on Kodak.
 
     python3 bench/experiments/chroma_ceiling.py ../shared/images/kodak/*.png
 
@@ -48,8 +51,20 @@ def psnr(a, b):
     return 10 * np.log10(255**2 / np.mean((a.astype(float) - b) ** 2))
 
 
+def made_up_luma(rgb, cb, cr):
+    """Each pixel's 8-bit luma nearest its RGB with chroma (cb, cr), clamping included."""
+    best_error = np.full(cb.shape, np.iinfo(np.int64).max)
+    best = np.zeros(cb.shape, dtype=np.int64)
+    for level in range(256):
+        got = to_rgb(np.full(cb.shape, level, dtype=np.int64), cb, cr)
+        error = ((got - rgb.astype(np.int64)) ** 2).sum(axis=-1)
+        better = error < best_error
+        best_error[better], best[better] = error[better], level
+    return best
+
+
 def main(paths):
-    means, least = [], []
+    means, least, made_up = [], [], []
     for path in paths:
         rgb = np.asarray(Image.open(path).convert("RGB"))
         h, w, _ = rgb.shape
@@ -67,8 +82,16 @@ def main(paths):
 
         means.append(psnr(rgb, to_rgb(y, draw(mean2x2(cb)), draw(mean2x2(cr)))))
         least.append(psnr(rgb, to_rgb(y, draw(least_squares(cb)), draw(least_squares(cr)))))
-        print(f"{path}: 2x2 means {means[-1]:.2f} dB, least squares {least[-1]:.2f} dB")
-    print(f"mean over {len(paths)}: 2x2 means {np.mean(means):.2f} dB, least squares {np.mean(least):.2f} dB")
+        drawn = draw(mean2x2(cb)), draw(mean2x2(cr))
+        made_up.append(psnr(rgb, to_rgb(made_up_luma(rgb, *drawn), *drawn)))
+        print(
+            f"{path}: 2x2 means {means[-1]:.2f} dB, least squares {least[-1]:.2f} dB, "
+            f"2x2 means with the luma made up {made_up[-1]:.2f} dB"
+        )
+    print(
+        f"mean over {len(paths)}: 2x2 means {np.mean(means):.2f} dB, least squares "
+        f"{np.mean(least):.2f} dB, 2x2 means with the luma made up {np.mean(made_up):.2f} dB"
+    )
 
 
 if __name__ == "__main__":

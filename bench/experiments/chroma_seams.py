@@ -1,9 +1,10 @@
 """Chroma seams of colour PIFS decodes: mean PSNR-RGB and the grid measure B_8 / B_16 on the
-Cb and Cr planes (and on Y) of the decoded RGB, over a set of images at target bit rates.
+Cb and Cr planes (and on Y) of the decoded RGB, and B_32 / B_64, over a set of images at target bit rates.
 B_g is bench/seams.py's measure (the mean absolute step across the lines of a g-pixel grid
 over the mean step elsewhere), taken here on the full-resolution planes of the decode
 converted with BT.601 full range; the Kodak originals measure 0.97-1.00. Chroma leaves start
-on multiples of 4 and 8 luma pixels or more, so B_8 and B_16 see their edges.
+on multiples of 4 and 8 luma pixels or more, so B_8 and B_16 see their edges; the large chroma
+patches of smooth areas at low rates show in B_32 and B_64.
 
 docs/decisions.md ("Leaf edges: what did not work", chroma edge pull) quotes it, run on an
 experiment build (chroma_edge_pull.patch, on commit 39f9023; its PIFS_PULL and PIFS_PULL_NUM
@@ -11,6 +12,9 @@ environment variables set the strength and the fraction, in sixths):
 
     python3 bench/experiments/chroma_seams.py target/release/pifs WORKDIR 0.05 0.1 0.25 -- \
         ../shared/images/kodak/kodim{01,03,05,13,19,23}.png
+
+With `original` for the pifs binary it measures the originals' planes (their PSNR is then
+meaningless): about 1 at every grid, an image not knowing the grid.
 
 Needs numpy and Pillow.
 """
@@ -32,6 +36,9 @@ def ycc(a):
             128 + 0.5 * r - 0.418688 * g - 0.081312 * b]
 
 
+GRIDS = (8, 16, 32, 64)
+
+
 def grid_measure(p, g):
     dx = np.abs(np.diff(p, axis=1))
     dy = np.abs(np.diff(p, axis=0))
@@ -43,17 +50,20 @@ def grid_measure(p, g):
 
 
 def one(pifs, work, img, rate):
-    out = os.path.join(work, f"{os.path.basename(img)[:-4]}_{rate}")
-    subprocess.run([pifs, "encode", img, "-o", out + ".pifs", "--bpp", str(rate)], check=True,
-                   capture_output=True)
-    subprocess.run([pifs, "decode", out + ".pifs", "-o", out + ".png"], check=True,
-                   capture_output=True)
     a = np.asarray(Image.open(img).convert("RGB"))
-    b = np.asarray(Image.open(out + ".png").convert("RGB"))
-    mse = np.mean((a.astype(float) - b.astype(float)) ** 2)
+    if pifs == "original":
+        b = a
+    else:
+        out = os.path.join(work, f"{os.path.basename(img)[:-4]}_{rate}")
+        subprocess.run([pifs, "encode", img, "-o", out + ".pifs", "--bpp", str(rate)],
+                       check=True, capture_output=True)
+        subprocess.run([pifs, "decode", out + ".pifs", "-o", out + ".png"], check=True,
+                       capture_output=True)
+        b = np.asarray(Image.open(out + ".png").convert("RGB"))
+    mse = max(np.mean((a.astype(float) - b.astype(float)) ** 2), 1e-12)
     planes = ycc(b)
     return rate, [10 * math.log10(255 ** 2 / mse)] + [
-        grid_measure(planes[c], g) for c in (1, 2, 0) for g in (8, 16)]
+        grid_measure(planes[c], g) for c in (1, 2, 0) for g in GRIDS]
 
 
 def main():
@@ -66,8 +76,11 @@ def main():
         rows = list(ex.map(lambda t: one(pifs, work, *t), [(i, r) for r in rates for i in images]))
     for rate in rates:
         m = np.mean([r for q, r in rows if q == rate], axis=0)
-        print(f"{rate} bpp: PSNR-RGB {m[0]:.3f}  Cb B_8 {m[1]:.3f} B_16 {m[2]:.3f}  "
-              f"Cr B_8 {m[3]:.3f} B_16 {m[4]:.3f}  Y B_8 {m[5]:.3f} B_16 {m[6]:.3f}")
+        n = len(GRIDS)
+        planes = "  ".join(
+            name + " " + " ".join(f"B_{g} {m[1 + k * n + j]:.3f}" for j, g in enumerate(GRIDS))
+            for k, name in enumerate(("Cb", "Cr", "Y")))
+        print(f"{rate} bpp: PSNR-RGB {m[0]:.3f}  {planes}")
 
 
 if __name__ == "__main__":

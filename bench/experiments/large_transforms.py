@@ -14,15 +14,13 @@ crude coder on both sides, so only the transform size differs. See docs/decision
 Needs numpy and Pillow.
 """
 
-import glob
 import os
 import sys
 
 import numpy as np
-from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from block_transforms import entropy_bits  # noqa: E402
+from block_transforms import entropy_bits, image_blocks  # noqa: E402
 
 STEPS = [3, 4, 6, 8, 12, 16, 24, 32, 48, 64]
 
@@ -67,22 +65,14 @@ def bits_at(curve_points, psnr):
 
 
 def main():
-    paths = sys.argv[1:] or sorted(
-        glob.glob(os.path.join(os.path.dirname(__file__), "../../../shared/images/kodak/*.png"))
-    )
-    blocks = []
-    for path in paths:
-        image = np.asarray(Image.open(path).convert("L"), dtype=float)
-        h, w = (s - s % 16 for s in image.shape)
-        b = image[:h, :w].reshape(h // 16, 16, w // 16, 16).transpose(0, 2, 1, 3)
-        blocks.append(b.reshape(-1, 16, 16))
+    blocks = image_blocks(sys.argv[1:], 16)
     x = np.concatenate(blocks) - 128.0
     activity = np.abs(np.diff(x, axis=1)).mean(axis=(1, 2)) + np.abs(np.diff(x, axis=2)).mean(
         axis=(1, 2)
     )
     edges = np.quantile(activity, [0.25, 0.5, 0.75])
     group = np.searchsorted(edges, activity)
-    print(f"{len(paths)} images, {len(x)} blocks of 16 x 16")
+    print(f"{len(blocks)} images, {len(x)} blocks of 16 x 16")
     print("| blocks (activity quartile) | PSNR (dB) | bpp, four 8-point DCTs | bpp, one 16-point DCT | change |")
     print("|---|---:|---:|---:|---:|")
     for g, name in enumerate(["smoothest", "second", "third", "busiest"]):

@@ -15,6 +15,10 @@
 //! they pay, as for luma), so that rate control splits where colour, not only luma, pays for
 //! it.
 //!
+//! The luma plane is not the pixels' plain luma: each pixel's is the luma that, with the chroma
+//! the decoder will draw there (the 2 x 2 means, upsampled), gives the RGB nearest the pixel's,
+//! so that the luma makes up for what 4:2:0 chroma cannot show.
+//!
 //! Above [`super::quantise`] (its forward grid transform); below the writer.
 
 use super::candidates::{ChromaCost, RatePoint};
@@ -56,7 +60,8 @@ pub struct ColourPlanes {
 
 impl ColourPlanes {
     /// The luma plane and the chroma planes of an RGB image (`3 * width * height` bytes),
-    /// converted by decoder-core's integer BT.601 conversion.
+    /// converted by decoder-core's integer BT.601 conversion; each pixel's luma is then the one
+    /// whose RGB, with the chroma the decoder draws there, is nearest the pixel's.
     pub fn from_rgb(width: u32, height: u32, rgb: Vec<u8>) -> (Plane, ColourPlanes) {
         let (w, h) = (width as usize, height as usize);
         assert_eq!(rgb.len(), 3 * w * h, "RGB size mismatch");
@@ -87,8 +92,87 @@ impl ColourPlanes {
             Plane::new(cw, ch, out)
         };
         let chroma = [half(&full[0]), half(&full[1])];
-        (Plane::new(width, height, y), ColourPlanes { chroma, rgb })
+        let luma = luma_under(&chroma, width, &rgb, &y);
+        (
+            Plane::new(width, height, luma),
+            ColourPlanes { chroma, rgb },
+        )
     }
+}
+
+/// The luma plane the encoder codes: at each pixel, the luma whose RGB, with the chroma
+/// `chroma` drawn there as the decoder upsamples it, is nearest the image's pixel (least
+/// squares over R, G and B, the conversion's clamping included), ties going to the plain luma
+/// `plain`. With 4:2:0 chroma the plain luma is not that: the chroma drawn at a pixel is not
+/// the pixel's own, and part of the difference is luma's to make up (docs/decisions.md,
+/// "Luma that makes up for the chroma drawn").
+fn luma_under(chroma: &[Plane; 2], width: u32, rgb: &[u8], plain: &[u8]) -> Vec<u8> {
+    let w = width as usize;
+    rgb.chunks_exact(3)
+        .zip(plain)
+        .enumerate()
+        .map(|(i, (pixel, &plain))| {
+            let (x, y) = ((i % w) as u32, (i / w) as u32);
+            let offsets = rgb_offsets(upsampled(&chroma[0], x, y), upsampled(&chroma[1], x, y));
+            nearest_luma([pixel[0], pixel[1], pixel[2]], offsets, plain)
+        })
+        .collect()
+}
+
+/// What chroma `(cb, cr)` adds to each of R, G and B before the clamping of decoder-core's
+/// conversion (`ycbcr_to_rgb`: `clamp(Y + offset)` per channel).
+fn rgb_offsets(cb: u8, cr: u8) -> [i32; 3] {
+    let (cb, cr) = (i32::from(cb) - 128, i32::from(cr) - 128);
+    [
+        (91881 * cr + 32768) >> 16,
+        (-22554 * cb - 46802 * cr + 32768) >> 16,
+        (116130 * cb + 32768) >> 16,
+    ]
+}
+
+/// The 8-bit luma `l` that minimises the squared RGB error of `clamp(l + offsets[c])` against
+/// `pixel`, ties to `plain`. Each channel's error falls until `l = pixel[c] - offsets[c]` and
+/// then rises, so the minimum lies between the smallest and the largest of those.
+fn nearest_luma(pixel: [u8; 3], offsets: [i32; 3], plain: u8) -> u8 {
+    let wanted = [0, 1, 2].map(|c| i32::from(pixel[c]) - offsets[c]);
+    let low = wanted.iter().copied().min().unwrap_or(0).clamp(0, 255);
+    let high = wanted.iter().copied().max().unwrap_or(0).clamp(0, 255);
+    let error = |l: i32| -> i32 {
+        (0..3)
+            .map(|c| {
+                let d = (l + offsets[c]).clamp(0, 255) - i32::from(pixel[c]);
+                d * d
+            })
+            .sum()
+    };
+    let plain = i32::from(plain);
+    let best = (low..=high)
+        .min_by_key(|&l| (error(l), (l - plain).abs()))
+        .unwrap_or(plain);
+    if error(plain) <= error(best) {
+        plain as u8
+    } else {
+        best as u8
+    }
+}
+
+/// The chroma the decoder draws under luma pixel `(x, y)` from a whole chroma plane: the
+/// bilinear interpolation at the pixel's centre, `(x / 2 - 1/4, y / 2 - 1/4)` chroma pixels
+/// (0 for the first row and column; the last chroma row and column extended), rounded.
+fn upsampled(plane: &Plane, x: u32, y: u32) -> u8 {
+    let (cw, ch) = (plane.width, plane.height);
+    // Quarter chroma pixels: the cell and the weight of the next sample in it.
+    let cell = |v: u32, n: u32| {
+        let q = (2 * v).saturating_sub(1);
+        let a = (q >> 2).min(n - 1);
+        (a, (a + 1).min(n - 1), q & 3)
+    };
+    let (a, a1, f) = cell(x, cw);
+    let (b, b1, e) = cell(y, ch);
+    let at = |c: u32, r: u32| plane.data[(r * cw + c) as usize] as u32;
+    let top = (4 - f) * at(a, b) + f * at(a1, b);
+    let bottom = (4 - f) * at(a, b1) + f * at(a1, b1);
+    (((4 - e) * top + e * bottom + 8) >> 4) as u8
 }
 
 /// The chosen syntax of one chroma plane of a leaf and its estimated bits.
@@ -829,10 +913,88 @@ mod tests {
         // A 3x1 image: red, red, blue.
         let rgb = vec![255, 0, 0, 255, 0, 0, 0, 0, 255];
         let (y, c) = ColourPlanes::from_rgb(3, 1, rgb);
-        assert_eq!(y.data, vec![76, 76, 29]);
         assert_eq!((c.chroma[0].width, c.chroma[0].height), (2, 1));
         assert_eq!(c.chroma[0].data, vec![85, 255]);
         assert_eq!(c.chroma[1].data, vec![255, 107]);
+        // The first red pixel has its own chroma drawn under it and keeps its plain luma
+        // (76); the other two are drawn with a quarter of their neighbour's chroma
+        // (`upsampled`), and their luma makes up for some of it.
+        assert_eq!(y.data[0], 76);
+        assert_ne!(y.data[1], 76);
+        assert_ne!(y.data[2], 29);
+    }
+
+    /// The conversion's offsets are decoder-core's: `clamp(l + offset)` is its RGB.
+    #[test]
+    fn rgb_offsets_are_the_conversions() {
+        use decoder_core::internal::colour::ycbcr_to_rgb;
+        for cb in (0..=255u8).step_by(3) {
+            for cr in (0..=255u8).step_by(5) {
+                let offsets = rgb_offsets(cb, cr);
+                for l in (0..=255u8).step_by(7) {
+                    let rgb = ycbcr_to_rgb(l, cb, cr);
+                    for c in 0..3 {
+                        assert_eq!(
+                            (i32::from(l) + offsets[c]).clamp(0, 255),
+                            i32::from(rgb[c]),
+                            "l {l}, cb {cb}, cr {cr}, channel {c}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// `nearest_luma` is the best 8-bit luma for the RGB error, found by trying every one, and
+    /// keeps the plain luma when that is as good.
+    #[test]
+    fn the_nearest_luma_is_the_best_of_all() {
+        let mut seed = 0x2545_f491_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        for _ in 0..5000 {
+            let pixel = [0, 1, 2].map(|_| (next() % 256) as u8);
+            let (cb, cr) = ((next() % 256) as u8, (next() % 256) as u8);
+            let plain = (next() % 256) as u8;
+            let offsets = rgb_offsets(cb, cr);
+            let error = |l: i32| -> i32 {
+                (0..3)
+                    .map(|c| ((l + offsets[c]).clamp(0, 255) - i32::from(pixel[c])).pow(2))
+                    .sum()
+            };
+            let got = i32::from(nearest_luma(pixel, offsets, plain));
+            let best = (0..=255).map(error).min().unwrap_or(0);
+            assert_eq!(error(got), best, "{pixel:?} {cb} {cr}");
+            if error(i32::from(plain)) == best {
+                assert_eq!(got, i32::from(plain));
+            }
+        }
+    }
+
+    /// A gray image has neutral chroma: its luma is the plain luma, its own grey.
+    #[test]
+    fn a_gray_image_keeps_its_luma() {
+        let (w, h) = (9u32, 7u32);
+        let grey: Vec<u8> = (0..w * h).map(|k| (k * 37 % 256) as u8).collect();
+        let rgb = grey.iter().flat_map(|&v| [v, v, v]).collect();
+        let (y, c) = ColourPlanes::from_rgb(w, h, rgb);
+        assert_eq!(y.data, grey);
+        assert!(c.chroma.iter().all(|p| p.data.iter().all(|&v| v == 128)));
+    }
+
+    /// The chroma under a luma pixel is the plane's linear interpolation at the pixel's centre
+    /// (`x / 2 - 1/4`), the first pixel at the first sample, the last sample extended.
+    #[test]
+    fn chroma_is_upsampled_at_the_pixel_centres() {
+        // A ramp of 16 per chroma column, constant down.
+        let plane = Plane::new(4, 2, vec![100, 116, 132, 148, 100, 116, 132, 148]);
+        let drawn: Vec<u8> = (0..8).map(|x| upsampled(&plane, x, 3)).collect();
+        // x / 2 - 1/4 chroma pixels: 0 (clamped), 1/4, 3/4, 5/4, ..., 13/4 (clamped to 3).
+        assert_eq!(drawn, vec![100, 104, 112, 120, 128, 136, 144, 148]);
     }
 
     #[test]

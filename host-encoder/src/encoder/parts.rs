@@ -183,7 +183,8 @@ impl AnalysisInParts {
                 )
             }
             Source::Rgb { width, height, rgb } => {
-                // The luma alone, as `ColourPlanes::from_rgb` makes it: no copy of the RGB.
+                // The plain luma, for the contrast statistics and the header (the coded luma,
+                // `ColourPlanes::from_rgb`'s, also needs the chroma planes): no copy of the RGB.
                 let luma = rgb
                     .chunks_exact(3)
                     .map(|p| rgb_to_ycbcr(p[0], p[1], p[2])[0])
