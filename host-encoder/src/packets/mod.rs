@@ -306,7 +306,7 @@ pub fn parity_for_loss(
     // Without a preview a lost region is interpolated from the ones around it: counted as
     // the flat picture.
     let preview = match base.previews {
-        1 => mse(base.data_size.saturating_sub(header)),
+        1 => mse(base.preview_size.saturating_sub(header)),
         _ => flat,
     };
     let layouts: Vec<(usize, Layout)> = (0..=usize::from(base.count) / 2)
@@ -417,6 +417,9 @@ struct Layout {
     /// Largest data packet, bytes (less than the packet size when parity packets must hold
     /// them).
     data_size: usize,
+    /// Largest preview packet, bytes: `data_size`, or what the region packets leave of the
+    /// budget.
+    preview_size: usize,
 }
 
 impl Layout {
@@ -436,21 +439,33 @@ impl Layout {
         let repeat = options.preview
             && options.repeat_preview
             && for_data / data_size >= MIN_PACKETS_TO_REPEAT;
-        let count = (for_data / data_size).saturating_sub(usize::from(repeat));
+        let mut count = (for_data / data_size).saturating_sub(usize::from(repeat));
         if count == 0 {
             return Err(PacketError::BudgetTooSmall {
                 budget,
                 packet: size,
             });
         }
+        let previews = usize::from(options.preview && count > 1);
+        // What the whole packets leave of the budget, when it is half a packet or more (and
+        // at least `MIN_SHORT_PREVIEW`), is the preview, and the packet the preview would have taken is one more region: a
+        // budget of a few packets (a small picture) then goes to the regions, not to a
+        // preview a quarter of it, nor to nothing.
+        let left = for_data - (for_data / data_size) * data_size;
+        let mut preview_size = data_size;
+        if previews == 1 && !repeat && left >= (data_size / 2).max(MIN_SHORT_PREVIEW) {
+            count += 1;
+            preview_size = left;
+        }
         if k > 0 && count + k > MAX_SHARDS {
             return Err(PacketError::TooManyForParity { packets: count + k });
         }
         Ok(Layout {
             count: u16::try_from(count).map_err(|_| PacketError::TooManyPackets)?,
-            previews: usize::from(options.preview && count > 1),
+            previews,
             repeat,
             data_size,
+            preview_size,
         })
     }
 
@@ -484,7 +499,7 @@ fn data_packets(
     let region_config = EncoderConfig { ..config.clone() };
     let mut packets = Vec::with_capacity(usize::from(layout.count));
     if layout.previews == 1 {
-        packets.push(fill_packet(base, size, |capacity| {
+        packets.push(fill_packet(base, layout.preview_size, |capacity| {
             analysis.encode_plain(capacity)
         })?);
     }
@@ -506,6 +521,10 @@ fn data_packets(
     }
     Ok(packets)
 }
+
+/// The smallest preview packet made of what the region packets leave of a budget, bytes:
+/// below it, the preview is a whole packet as usual.
+const MIN_SHORT_PREVIEW: usize = 128;
 
 /// The fewest packets of which one is given to a second copy of the preview.
 const MIN_PACKETS_TO_REPEAT: usize = 8;
@@ -1102,6 +1121,52 @@ mod tests {
             .map(|&k| expected_psnr(50, k, 0.1, full, lost))
             .collect();
         assert!(by_parity.windows(2).all(|w| w[0] < w[1]), "{by_parity:?}");
+    }
+
+    /// A budget's bytes past its whole packets go to the preview when they are half a packet
+    /// or more, and the packet the preview would have taken to a region; otherwise, and with
+    /// a repeated preview, the layout is whole packets, the first a preview.
+    #[test]
+    fn what_whole_packets_leave_of_a_budget_is_the_preview() {
+        let options = PacketOptions::default();
+        let layout = |budget: usize, options: &PacketOptions| {
+            let l = Layout::of(budget, options).expect("a layout");
+            (
+                usize::from(l.count),
+                l.previews,
+                l.regions(),
+                l.preview_size,
+            )
+        };
+        // 1200 bytes: four regions of 255 and a preview of the 180 left (before: a preview
+        // and three regions, 180 bytes unused).
+        assert_eq!(layout(1200, &options), (5, 1, 4, 180));
+        // Less than half a packet left: whole packets as before.
+        assert_eq!(layout(1100, &options), (4, 1, 3, 255));
+        assert_eq!(layout(12_288, &options), (48, 1, 47, 255));
+        // Without a preview, or with it sent twice, the rule does not apply.
+        let plain = PacketOptions {
+            preview: false,
+            ..options
+        };
+        assert_eq!(layout(1200, &plain), (4, 0, 4, 255));
+        let twice = PacketOptions {
+            repeat_preview: true,
+            ..options
+        };
+        assert_eq!(layout(2200, &twice), (7, 1, 6, 255));
+        // Small packets never make a preview under `MIN_SHORT_PREVIEW` bytes.
+        let small = PacketOptions {
+            size: 200,
+            ..options
+        };
+        assert_eq!(layout(1000 + 120, &small), (5, 1, 4, 200));
+        // Every layout stays within its budget.
+        for budget in (300..5000).step_by(37) {
+            let l = Layout::of(budget, &options).expect("a layout");
+            let bytes = l.regions() * l.data_size + l.previews * l.preview_size;
+            assert!(bytes <= budget, "{budget}: {bytes}");
+        }
     }
 
     #[test]
