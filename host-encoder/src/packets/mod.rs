@@ -448,10 +448,10 @@ impl Layout {
         }
         let previews = usize::from(options.preview && count > 1);
         // What the whole packets leave of the budget, when it is half a packet or more (and
-        // at least `MIN_SHORT_PREVIEW`), is the preview, and the packet the preview would have taken is one more region: a
-        // budget of a few packets (a small picture) then goes to the regions, not to a
-        // preview a quarter of it, nor to nothing.
-        let left = for_data - (for_data / data_size) * data_size;
+        // at least `MIN_SHORT_PREVIEW`), is the preview, and the packet the preview would
+        // have taken is one more region: a budget of a few packets (a small picture) then
+        // goes to the regions, not to a preview a quarter of it, nor to nothing.
+        let left = for_data % data_size;
         let mut preview_size = data_size;
         if previews == 1 && !repeat && left >= (data_size / 2).max(MIN_SHORT_PREVIEW) {
             count += 1;
