@@ -9,8 +9,7 @@ linearly to nothing `T` luma pixels into the leaf (`T = S * t`, `S` the luma lea
 most `tmax`). Kept inside the leaf that touches the edge, a ramp needs nothing a decoder
 without a frame buffer lacks: the chroma frontier holds the chroma beside the leaf.
 Steps larger than `L` chroma levels taper off to no correction at `4 L` (a colour edge, not a
-seam). `--both` also ramps the neighbour's side (an upper bound: a decoder without a frame
-buffer has drawn it already). The RGB change is the chroma change through the BT.601
+seam). The RGB change is the chroma change through the BT.601
 inverse, so a zero correction leaves the decode's pixels exactly as they were.
 
 Prints, per rate, the mean PSNR-RGB and B_16 / B_32 / B_64 of the decoded Cb and Cr
@@ -35,7 +34,7 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(__file__))
-from chroma_seams import grid_measure, ycc  # noqa: E402
+from chroma_seams import grid_measure, grid_steps, ycc  # noqa: E402
 
 
 def taper(d, limit):
@@ -57,7 +56,7 @@ def edges(nodes):
     return out
 
 
-def ramps(planes, nodes, a, t, tmax, limit, both):
+def ramps(planes, nodes, a, t, tmax, limit):
     h, w = planes[0].shape
     delta = [np.zeros((h, w)), np.zeros((h, w))]
     for x0, y0, side, top, left in edges(nodes):
@@ -70,16 +69,10 @@ def ramps(planes, nodes, a, t, tmax, limit, both):
                 d = taper(c[y0, x0:x1] - c[y0 - 1, x0:x1], limit)
                 k = min(n, y1 - y0)
                 delta[p][y0:y0 + k, x0:x1] -= a * fall[:k, None] * d[None, :]
-                if both:
-                    k = min(n, y0)
-                    delta[p][y0 - k:y0, x0:x1] += a * fall[:k][::-1, None] * d[None, :]
             if left and x0 > 0:
                 d = taper(c[y0:y1, x0] - c[y0:y1, x0 - 1], limit)
                 k = min(n, x1 - x0)
                 delta[p][y0:y1, x0:x0 + k] -= a * fall[None, :k] * d[:, None]
-                if both:
-                    k = min(n, x0)
-                    delta[p][y0:y1, x0 - k:x0] += a * fall[None, :k][:, ::-1] * d[:, None]
     return delta
 
 
@@ -94,12 +87,7 @@ def apply(rgb, delta):
 
 def excess(p, g=32):
     """Mean absolute step across the lines of a g-pixel grid less the mean step elsewhere."""
-    dx = np.abs(np.diff(p, axis=1))
-    dy = np.abs(np.diff(p, axis=0))
-    mx = np.arange(1, p.shape[1]) % g == 0
-    my = np.arange(1, p.shape[0]) % g == 0
-    on = (dx[:, mx].sum() + dy[my, :].sum()) / (mx.sum() * p.shape[0] + my.sum() * p.shape[1])
-    off = (dx[:, ~mx].sum() + dy[~my, :].sum()) / ((~mx).sum() * p.shape[0] + (~my).sum() * p.shape[1])
+    on, off = grid_steps(p, g)
     return on - off
 
 
@@ -109,13 +97,13 @@ def psnr(a, b):
 
 
 SETTINGS = [
-    # (a, t, tmax, limit, both)
-    (0.5, 0.5, 16, 1e9, False),
-    (0.75, 0.25, 16, 1e9, False),
-    (0.75, 0.5, 16, 1e9, False),
-    (0.75, 0.5, 16, 16, False),
-    (1.0, 0.25, 16, 1e9, False),
-    (1.0, 0.5, 16, 1e9, False),
+    # (a, t, tmax, limit)
+    (0.5, 0.5, 16, 1e9),
+    (0.75, 0.25, 16, 1e9),
+    (0.75, 0.5, 16, 1e9),
+    (0.75, 0.5, 16, 16),
+    (1.0, 0.25, 16, 1e9),
+    (1.0, 0.5, 16, 1e9),
 ]
 
 
@@ -147,8 +135,8 @@ def main():
         m = np.mean(np.array(rows), axis=0)
         print(f"{rate} bpp ({len(rows)} images): PSNR-RGB, Cb B_16/32/64, Cr B_16/32/64")
         for setting, r in zip([None] + SETTINGS, m):
-            label = "decoded" if setting is None else "a %.2f t %.2f tmax %d L %g%s" % (
-                setting[0], setting[1], setting[2], setting[3], " both" if setting[4] else "")
+            label = "decoded" if setting is None else "a %.2f t %.2f tmax %d L %g" % (
+                setting[0], setting[1], setting[2], setting[3])
             print(f"  {label:36s} {r[0]:.3f}  {r[1]:.2f} {r[2]:.2f} {r[3]:.2f}  {r[4]:.2f} {r[5]:.2f} {r[6]:.2f}"
                   f"  excess steps Y / Cb / Cr {r[7]:.2f} / {r[8]:.2f} / {r[9]:.2f}")
 

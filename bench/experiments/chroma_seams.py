@@ -39,13 +39,20 @@ def ycc(a):
 GRIDS = (8, 16, 32, 64)
 
 
-def grid_measure(p, g):
+def grid_steps(p, g):
+    """Mean absolute step between neighbouring pixels across the lines of a g-pixel grid, and
+    elsewhere."""
     dx = np.abs(np.diff(p, axis=1))
     dy = np.abs(np.diff(p, axis=0))
     mx = np.arange(1, p.shape[1]) % g == 0
     my = np.arange(1, p.shape[0]) % g == 0
     on = (dx[:, mx].sum() + dy[my, :].sum()) / (mx.sum() * p.shape[0] + my.sum() * p.shape[1])
     off = (dx[:, ~mx].sum() + dy[~my, :].sum()) / ((~mx).sum() * p.shape[0] + (~my).sum() * p.shape[1])
+    return on, off
+
+
+def grid_measure(p, g):
+    on, off = grid_steps(p, g)
     return on / off
 
 

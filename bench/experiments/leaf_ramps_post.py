@@ -20,7 +20,7 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(__file__))
-from chroma_ramps import ycc  # noqa: E402
+from chroma_seams import ycc  # noqa: E402
 
 TMAX, LIMIT, MIN_SIDE = 16, 6.0, 8
 

@@ -11,7 +11,6 @@
 use decoder_core::internal::colour::CHROMA_GRIDS;
 use decoder_core::internal::entropy::{Coder, PayloadError, Prob, RangeDecoder, PROB_ONE};
 use decoder_core::internal::format::MAX_LEAF_LOG2;
-use decoder_core::internal::model::MODEL_COUNT;
 use decoder_core::internal::prediction::{Frontier, SamplePrediction};
 use decoder_core::internal::syntax::{
     control::CONTROL_STEPS, control_step, ChromaContexts, Header, LeafSyntax,
@@ -129,8 +128,6 @@ impl TreeVisitor for Reader {
         Ok(())
     }
 
-    fn prepare_leaf<P: SamplePrediction>(&mut self, _: &Node, _: &P, _: &mut LeafSyntax) {}
-
     fn prepare_chroma<P: SamplePrediction>(
         &mut self,
         _node: &Node,
@@ -178,7 +175,6 @@ fn shadow_cost(indices: &[ChromaIndex], key: &dyn Fn(&ChromaIndex) -> usize) -> 
 }
 
 fn main() {
-    let _ = MODEL_COUNT;
     type Key = fn(&ChromaIndex) -> usize;
     let alternatives: [(&str, Key); 6] = [
         ("by plane", |ix| ix.model * 2 + ix.plane),
