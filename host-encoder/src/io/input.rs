@@ -8,7 +8,7 @@
 //! TIFF of several pages, the first page taken.
 
 use super::{input_name, is_std_stream, FileError};
-use crate::encoder::Plane;
+use crate::encoder::{analyse, analyse_colour, Analysis, EncodeError, EncoderConfig, Plane};
 use decoder_core::internal::model::SAMPLE_ONE;
 use decoder_core::SampleRange;
 use image::metadata::Orientation;
@@ -439,6 +439,42 @@ pub enum Loaded {
         /// Row-major RGB, 3 bytes a pixel.
         data: Vec<u8>,
     },
+}
+
+impl Loaded {
+    /// Width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        match self {
+            Loaded::Gray(plane) => (plane.width, plane.height),
+            Loaded::Surface(surface) => (surface.width, surface.height),
+            Loaded::Rgb { width, height, .. } => (*width, *height),
+        }
+    }
+
+    /// Analyses the image for the streams it makes ([`crate::analyse`] for grayscale,
+    /// [`crate::analyse_colour`] for colour; a surface with its range in `config`, for 16-bit
+    /// streams). `progress` as theirs.
+    pub fn analyse(
+        self,
+        config: &EncoderConfig,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<Analysis, EncodeError> {
+        match self {
+            Loaded::Gray(plane) => analyse(plane, config, progress),
+            Loaded::Surface(surface) => {
+                let config = EncoderConfig {
+                    range: Some(surface.range()),
+                    ..config.clone()
+                };
+                analyse(surface.plane(), &config, progress)
+            }
+            Loaded::Rgb {
+                width,
+                height,
+                data,
+            } => analyse_colour(width, height, data, config, progress),
+        }
+    }
 }
 
 /// Loads an image file as the encoder takes it ([`DecodedImage::into_loaded`]), its

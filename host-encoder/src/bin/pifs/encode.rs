@@ -14,8 +14,8 @@ use crate::say;
 use clap::Args;
 use host_encoder::io::{self, Content, ImageLimits, ImageProbe, Output};
 use host_encoder::{
-    analyse, analyse_colour, analyse_colour_in_parts, analyse_in_parts, Analysis, EncodeError,
-    Encoded, EncoderConfig, Plane, Target, Tune,
+    analyse_colour_in_parts, analyse_in_parts, Analysis, EncodeError, Encoded, EncoderConfig,
+    Target, Tune,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -438,56 +438,27 @@ impl Analysed {
     }
 }
 
-/// Analyses `plane` once for `targets`, with a progress display on a terminal.
-pub fn analyse_plane(plane: Plane, args: &AnalysisArgs, targets: &[Target]) -> Result<Analysed> {
-    let config = args.config(plane.data.len(), targets);
-    analyse_with(plane, config)
-}
-
-/// Analyses a 16-bit surface once for `targets`: its samples mapped onto grey, its range in
-/// the streams' headers.
-pub fn analyse_surface(
-    surface: &io::Surface,
-    args: &AnalysisArgs,
-    targets: &[Target],
-) -> Result<Analysed> {
-    let plane = surface.plane();
-    let config = EncoderConfig {
-        range: Some(surface.range()),
-        ..args.config(plane.data.len(), targets)
-    };
-    Ok(Analysed {
-        surface: Some(surface.clone()),
-        ..analyse_with(plane, config)?
-    })
-}
-
-/// Analyses `plane` under `config`, with a progress display on a terminal.
-fn analyse_with(plane: Plane, config: EncoderConfig) -> Result<Analysed> {
-    let (width, height) = (plane.width, plane.height);
-    with_progress((width, height), &config, |report| {
-        analyse(plane, &config, report)
-    })
-}
-
-/// Analyses a loaded image ([`analyse_plane`]), in colour when it is colour.
+/// Analyses a loaded image once for `targets` ([`io::Loaded::analyse`]: grayscale, colour or a
+/// 16-bit surface), with a progress display on a terminal.
 pub fn analyse_loaded(
     image: &io::Loaded,
     args: &AnalysisArgs,
     targets: &[Target],
 ) -> Result<Analysed> {
-    let (width, height, data) = match image {
-        io::Loaded::Gray(plane) => return analyse_plane(plane.clone(), args, targets),
-        io::Loaded::Surface(surface) => return analyse_surface(surface, args, targets),
-        io::Loaded::Rgb {
-            width,
-            height,
-            data,
-        } => (*width, *height, data),
+    let (width, height) = image.size();
+    let mut config = args.config(width as usize * height as usize, targets);
+    let surface = match image {
+        io::Loaded::Surface(surface) => {
+            config.range = Some(surface.range());
+            Some(surface.clone())
+        }
+        _ => None,
     };
-    let config = args.config(width as usize * height as usize, targets);
-    with_progress((width, height), &config, |report| {
-        analyse_colour(width, height, data.clone(), &config, report)
+    Ok(Analysed {
+        surface,
+        ..with_progress((width, height), &config, |report| {
+            image.clone().analyse(&config, report)
+        })?
     })
 }
 
