@@ -20,20 +20,20 @@ docs/decisions.md ("Leaf edges: what did not work", chroma lattice) quotes it wi
 0.05,0.1 and settings 16/4,32/4,32/8 on kodim01, 03, 05, 13, 19 and 23. Needs numpy and
 Pillow.
 """
-import sys, math, subprocess, os
+import math
+import os
+import subprocess
+import sys
+
 import numpy as np
 from PIL import Image
+
+sys.path.insert(0, os.path.dirname(__file__))
+from chroma_seams import ycc  # noqa: E402
+from plane_swap import psnr, rgb as rgb_of  # noqa: E402
+
 P = 'pifs'
 
-def ycc(rgb):
-    r, g, b = [rgb[..., i].astype(float) for i in range(3)]
-    y = 0.299*r + 0.587*g + 0.114*b
-    cb = 128 - 0.168736*r - 0.331264*g + 0.5*b
-    cr = 128 + 0.5*r - 0.418688*g - 0.081312*b
-    return y, cb, cr
-
-def rgb_of(y, cb, cr):
-    return np.clip(np.rint(np.stack([y + 1.402*(cr-128), y - 0.344136*(cb-128) - 0.714136*(cr-128), y + 1.772*(cb-128)], -1)), 0, 255)
 
 def interp_matrix(n, f):
     """n pixels, lattice points at 0, f, 2f, ... covering n-1 (pixel centres at integer positions)."""
@@ -71,8 +71,6 @@ def lattice(plane, f, q):
             R[i, j] = pred + k * q
     return Ay @ R @ Ax.T, ideal_bits(syms)
 
-def psnr(a, b): return 10*math.log10(255**2/np.mean((a.astype(float)-b.astype(float))**2))
-
 def hybrid(img, o, budget, cbytes, lattice_planes, work, tag):
     """The bound of the docstring: (PSNR-RGB, nodes that took the lattice, nodes)."""
     c = f'{work}/{tag}_h'
@@ -100,7 +98,7 @@ def hybrid(img, o, budget, cbytes, lattice_planes, work, tag):
 
 
 def run(img, bpp, f, q, work):
-    o = np.asarray(Image.open(img).convert('RGB'))
+    o = np.asarray(Image.open(img).convert('RGB')).astype(np.float64)
     H, W = o.shape[:2]
     budget = int(bpp * H * W / 8)
     y, cb, cr = ycc(o)
@@ -117,7 +115,7 @@ def run(img, bpp, f, q, work):
     if not os.path.exists(c + '.png'):
         subprocess.run([P, 'encode', img, '-o', c + '.pifs', '--bytes', str(budget)], check=True, capture_output=True)
         subprocess.run([P, 'decode', c + '.pifs', '-o', c + '.png'], check=True, capture_output=True)
-    cd = np.asarray(Image.open(c + '.png').convert('RGB'))
+    cd = np.asarray(Image.open(c + '.png').convert('RGB')).astype(np.float64)
     mixed = hybrid(img, o, budget, cbytes, (cbr, crr), work, f'{name}_{bpp}_{f}_{q}') if os.environ.get('HYBRID') else None
     return psnr(o, out), psnr(o, cd), cbytes, budget, mixed
 

@@ -451,23 +451,30 @@ impl Loaded {
         }
     }
 
+    /// The configuration [`Loaded::analyse`] runs with `config`: a surface's range set in it
+    /// (16-bit streams), `config` as it is for any other image.
+    pub fn config(&self, config: &EncoderConfig) -> EncoderConfig {
+        match self {
+            Loaded::Surface(surface) => EncoderConfig {
+                range: Some(surface.range()),
+                ..config.clone()
+            },
+            _ => config.clone(),
+        }
+    }
+
     /// Analyses the image for the streams it makes ([`crate::analyse`] for grayscale,
-    /// [`crate::analyse_colour`] for colour; a surface with its range in `config`, for 16-bit
+    /// [`crate::analyse_colour`] for colour, a surface under [`Loaded::config`] for 16-bit
     /// streams). `progress` as theirs.
     pub fn analyse(
         self,
         config: &EncoderConfig,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<Analysis, EncodeError> {
+        let config = &self.config(config);
         match self {
             Loaded::Gray(plane) => analyse(plane, config, progress),
-            Loaded::Surface(surface) => {
-                let config = EncoderConfig {
-                    range: Some(surface.range()),
-                    ..config.clone()
-                };
-                analyse(surface.plane(), &config, progress)
-            }
+            Loaded::Surface(surface) => analyse(surface.plane(), config, progress),
             Loaded::Rgb {
                 width,
                 height,

@@ -446,12 +446,9 @@ pub fn analyse_loaded(
     targets: &[Target],
 ) -> Result<Analysed> {
     let (width, height) = image.size();
-    let mut config = args.config(width as usize * height as usize, targets);
+    let config = image.config(&args.config(width as usize * height as usize, targets));
     let surface = match image {
-        io::Loaded::Surface(surface) => {
-            config.range = Some(surface.range());
-            Some(surface.clone())
-        }
+        io::Loaded::Surface(surface) => Some(surface.clone()),
         _ => None,
     };
     Ok(Analysed {
