@@ -839,6 +839,36 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
         .unwrap();
     ok(&out);
     assert_eq!(png_pixels(&whole), png_pixels(&from_stdin));
+    // Without --packets, standard input is read as a stream: refused in one line that says
+    // what to give, and no output left.
+    let unsaid = dir.join("unsaid.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_pifs"))
+        .args(["decode", "-", "-o", &s(&unsaid)])
+        .stdin(std::fs::File::open(&framed).unwrap())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("not a PIFS stream") && err.contains("--packets"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(!unsaid.exists());
+    // `pifs info --packets` describes the framed packets on standard input.
+    let out = Command::new(env!("CARGO_BIN_EXE_pifs"))
+        .args(["info", "-", "--packets", "--json"])
+        .stdin(std::fs::File::open(&framed).unwrap())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let described: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(described["count"], 15);
+    assert_eq!(described["missing"], serde_json::json!([]));
     // Loss: the survivors decode, and the report names the missing packets.
     let lossy = dir.join("lossy");
     let line = ok(&pifs(&[

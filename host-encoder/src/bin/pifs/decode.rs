@@ -27,6 +27,16 @@ pub fn open_stream(path: &Path, limits: &Limits) -> Result<StreamInput> {
             source,
             hint: Some("--max-pixels"),
         },
+        // Standard input and devices are read as a stream, header first: framed packets
+        // there need saying so.
+        io::FileError::Stream {
+            path,
+            source: source @ decoder_core::DecodeError::BadMagic,
+        } if !path.is_file() => CliError::Stream {
+            path,
+            source,
+            hint: Some("--packets, for framed packets"),
+        },
         other => other.into(),
     })
 }

@@ -181,12 +181,18 @@ impl Stats {
 /// the description as one JSON object. The stream's header is checked against `limits` before
 /// anything else; only with `svg` are pixels made: the figures need nothing but the
 /// entropy-decoded syntax.
-pub fn run(input: &Path, svg: Option<&Path>, limits: &Limits, json: bool) -> Result<()> {
+pub fn run(
+    input: &Path,
+    svg: Option<&Path>,
+    limits: &Limits,
+    json: bool,
+    packets: bool,
+) -> Result<()> {
     if json {
         // Standard output carries the object: any status line goes to standard error.
         crate::say::stdout_is_data();
     }
-    if crate::packets::is_packet_input(input) && svg.is_none() {
+    if (packets || crate::packets::is_packet_input(input)) && svg.is_none() {
         return crate::packets::info(input, limits.max_pixels, json);
     }
     if let Some(svg) = svg {

@@ -80,7 +80,7 @@ enum Command {
         #[arg(long, default_value = "1", value_parser = decode::parse_scale)]
         scale: decoder_core::Scale,
         /// Read the input as packets even when it could be a stream: for framed packets on
-        /// standard input ("-").
+        /// standard input ("-") or from a serial device.
         #[arg(long)]
         packets: bool,
         /// Write the decoded heightmap as a hillshaded relief (light from the north-west, 45
@@ -123,6 +123,10 @@ enum Command {
         /// gateways: a packet set's `missing` indices are the packets to ask for again).
         #[arg(long)]
         json: bool,
+        /// Read the input as packets even when it could be a stream: for framed packets on
+        /// standard input ("-") or from a serial device.
+        #[arg(long, conflicts_with = "svg")]
+        packets: bool,
     },
     /// Rate/distortion curve of an image from one analysis: bytes, bpp and PSNR per rate.
     ///
@@ -218,11 +222,13 @@ fn main() -> ExitCode {
             svg,
             max_pixels,
             json,
+            packets,
         }) => info::run(
             &input,
             svg.as_deref(),
             &decoder_core::Limits::pixels(max_pixels),
             json,
+            packets,
         ),
         Some(Command::Rd(args)) => rd::run(&args),
         Some(Command::Packets(PacketsCommand::Drop(args))) => packets::drop_packets(&args),
