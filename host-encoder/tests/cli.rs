@@ -15,6 +15,23 @@ fn pifs(args: &[&str]) -> Output {
         .expect("pifs runs")
 }
 
+/// `pifs ARGS` with `input` on its standard input.
+fn pifs_with_stdin(args: &[&str], input: &[u8]) -> Output {
+    use std::io::Write;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pifs"))
+        .args(args)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("pifs runs");
+    let mut stdin = child.stdin.take().expect("a pipe");
+    // A refusal may come before the input is read: a broken pipe then is no failure.
+    let _ = stdin.write_all(input);
+    drop(stdin);
+    child.wait_with_output().expect("pifs ends")
+}
+
 fn scratch(name: &str) -> Scratch {
     Scratch::new(&format!("cli-{name}"))
 }
@@ -869,6 +886,64 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     let described: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(described["count"], 15);
     assert_eq!(described["missing"], serde_json::json!([]));
+    // --follow: the picture written again after each packet that adds to it (a repeated
+    // packet adds nothing), ending as the whole set's.
+    let frames = host_encoder::packets::unframe(&std::fs::read(&framed).unwrap());
+    let mut repeated = frames.clone();
+    repeated.insert(3, frames[2].clone());
+    let followed = dir.join("followed.png");
+    let out = pifs_with_stdin(
+        &["decode", "-", "--follow", "-o", &s(&followed)],
+        &host_encoder::packets::frame(&repeated),
+    );
+    let lines = ok(&out);
+    assert_eq!(lines.lines().count(), 15, "{lines}");
+    assert!(
+        lines.lines().next().unwrap().contains("from 1 of 15"),
+        "{lines}"
+    );
+    assert_eq!(png_pixels(&whole), png_pixels(&followed));
+    // Cut after three packets (the third one short): the picture of the first two.
+    let two = dir.join("two.png");
+    let mut cut = host_encoder::packets::frame(&frames[..3]);
+    cut.truncate(cut.len() - 5);
+    let lines = ok(&pifs_with_stdin(
+        &["decode", "-", "--follow", "-o", &s(&two)],
+        &cut,
+    ));
+    assert_eq!(lines.lines().count(), 2, "{lines}");
+    let first_two = dir.join("first-two.pifsp");
+    std::fs::write(&first_two, host_encoder::packets::frame(&frames[..2])).unwrap();
+    let expected = dir.join("expected-two.png");
+    ok(&pifs(&["decode", &s(&first_two), "-o", &s(&expected)]));
+    assert_eq!(png_pixels(&expected), png_pixels(&two));
+    // Nothing valid, or an output it cannot rewrite: refused in one line, nothing written.
+    for (args, input) in [
+        (vec!["decode", "-", "--follow", "-o", "NEVER"], &b""[..]),
+        (
+            vec!["decode", "-", "--follow", "-o", "NEVER"],
+            &b"\x03\x00abc"[..],
+        ),
+        (vec!["decode", "-", "--follow", "-o", "-"], &cut[..]),
+    ] {
+        let never = dir.join("never.png");
+        let args: Vec<String> = args
+            .iter()
+            .map(|a| {
+                if *a == "NEVER" {
+                    s(&never)
+                } else {
+                    a.to_string()
+                }
+            })
+            .collect();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = pifs_with_stdin(&args, input);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(!never.exists());
+    }
     // Loss: the survivors decode, and the report names the missing packets.
     let lossy = dir.join("lossy");
     let line = ok(&pifs(&[

@@ -507,6 +507,22 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/d3.png"),
         ),
         refuse(
+            "decode --follow: a PNG read as framed packets",
+            &[
+                "decode",
+                "{dir}/good.png",
+                "--follow",
+                "-o",
+                "{dir}/d3f.png",
+            ],
+            Some("{dir}/d3f.png"),
+        ),
+        refuse(
+            "decode --follow: into standard output",
+            &["decode", "{dir}/good.png", "--follow", "-o", "-"],
+            None,
+        ),
+        refuse(
             "decode: empty file",
             &["decode", "{dir}/empty.pifs", "-o", "{dir}/d4.png"],
             Some("{dir}/d4.png"),

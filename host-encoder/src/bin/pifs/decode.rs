@@ -132,6 +132,8 @@ pub struct Drawing {
     pub scale: Scale,
     /// Read the input as packets.
     pub packets: bool,
+    /// Read framed packets as they arrive, writing the picture after each.
+    pub follow: bool,
     /// Draw the heights as a hillshaded relief, with this vertical exaggeration.
     pub hillshade: Option<ZFactor>,
     /// Draw the picture as a panel shows it.
@@ -150,6 +152,7 @@ pub fn run(
     let Drawing {
         scale,
         packets,
+        follow,
         hillshade,
         display,
     } = drawing;
@@ -168,7 +171,8 @@ pub fn run(
     if io::is_std_stream(output) {
         say::stdout_is_data();
     }
-    let from_packets = packets || inputs.len() > 1 || crate::packets::is_packet_input(input);
+    let from_packets =
+        packets || follow || inputs.len() > 1 || crate::packets::is_packet_input(input);
     if let Some(showing) = display {
         if hillshade.is_some() {
             return Err(CliError::Refused(
@@ -192,6 +196,9 @@ pub fn run(
             return Err(CliError::Refused(
                 "packets decode at their coded size only".into(),
             ));
+        }
+        if follow {
+            return crate::packets::follow(inputs, output, format, limits.max_pixels, display);
         }
         return crate::packets::decode(inputs, output, format, limits.max_pixels, display);
     }

@@ -51,6 +51,7 @@ pub fn run() -> Result<()> {
             crate::decode::Drawing {
                 scale: decoder_core::Scale::One,
                 packets: false,
+                follow: false,
                 hillshade: None,
                 display: None,
             },

@@ -83,6 +83,12 @@ enum Command {
         /// standard input ("-") or from a serial device.
         #[arg(long)]
         packets: bool,
+        /// Read framed packets as they arrive (standard input, a FIFO or a serial device) and
+        /// write the picture again after each one that adds to it, as a gateway shows a
+        /// picture filling in; the output is always a whole image (replaced atomically). Ends
+        /// at the end of the input. Implies --packets.
+        #[arg(long)]
+        follow: bool,
         /// Write the decoded heightmap as a hillshaded relief (light from the north-west, 45
         /// degrees up), for a quick look at a terrain: a grayscale stream's values are the
         /// heights. Optional value: the vertical exaggeration in height units per pixel
@@ -202,6 +208,7 @@ fn main() -> ExitCode {
             max_pixels,
             scale,
             packets,
+            follow,
             hillshade,
             display,
             dither,
@@ -213,6 +220,7 @@ fn main() -> ExitCode {
             decode::Drawing {
                 scale,
                 packets,
+                follow,
                 hillshade,
                 display: display.map(|panel| display::Showing { panel, dither }),
             },

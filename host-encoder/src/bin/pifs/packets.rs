@@ -273,6 +273,19 @@ pub fn decode(
     display: Option<crate::display::Showing>,
 ) -> Result<()> {
     let (_, mut assembled) = assemble_at(inputs, max_pixels)?;
+    let name = write_assembled(&mut assembled, output, format, display)?;
+    say!("{}: {}", name.display(), describe(&assembled));
+    Ok(())
+}
+
+/// Writes the picture of `assembled` (its pixels taken) to `output`, as `display` shows it if
+/// given; the name the output goes by.
+fn write_assembled(
+    assembled: &mut Assembled,
+    output: &Path,
+    format: OutputFormat,
+    display: Option<crate::display::Showing>,
+) -> Result<PathBuf> {
     let mut picture = crate::display::Picture {
         width: assembled.width,
         height: assembled.height,
@@ -289,9 +302,116 @@ pub fn decode(
         picture.channels,
         &picture.pixels,
     )?;
-    let name = crate::decode::write_image(output, &bytes)?;
-    say!("{}: {}", name.display(), describe(&assembled));
-    Ok(())
+    crate::decode::write_image(output, &bytes)
+}
+
+/// `pifs decode --follow`: framed packets read from `inputs` (one stream) as they arrive; after
+/// each packet that adds to the picture (of the image most packets so far belong to), the
+/// picture is written to `output` again and reported in one line. Ends at the end of the input;
+/// refused, with nothing written, if no valid packet came.
+pub fn follow(
+    inputs: &[PathBuf],
+    output: &Path,
+    format: OutputFormat,
+    max_pixels: u64,
+    display: Option<crate::display::Showing>,
+) -> Result<()> {
+    let [input] = inputs else {
+        return Err(CliError::Refused(
+            "--follow reads one stream of framed packets".into(),
+        ));
+    };
+    if input.is_dir() || io::is_std_stream(output) {
+        return Err(CliError::Refused(
+            "--follow reads framed packets (standard input, a FIFO, a device or a file) and \
+             rewrites an image file: give -o FILE"
+                .into(),
+        ));
+    }
+    let name = io::input_name(input);
+    let mut source = open_packet_stream(input)?;
+    let mut packets: Vec<Vec<u8>> = Vec::new();
+    let mut total = 0u64;
+    // What the last picture written was made of: the image and its packets.
+    let mut shown: Option<(u16, usize)> = None;
+    let mut last_error = None;
+    while let Some(packet) = next_frame(&mut source, &name)? {
+        total += packet.len() as u64 + 2;
+        if total > MAX_PACKET_INPUT {
+            return Err(CliError::Refused(format!(
+                "{}: more than {MAX_PACKET_INPUT} bytes of packets",
+                name.display()
+            )));
+        }
+        packets.push(packet);
+        let mut assembled = match assemble(packets.iter().map(Vec::as_slice), max_pixels) {
+            Ok(a) => a,
+            Err(e) => {
+                last_error = Some(e);
+                continue;
+            }
+        };
+        let state = (
+            assembled.image_id,
+            assembled.received.len() + assembled.recovered.len(),
+        );
+        if shown == Some(state) {
+            continue;
+        }
+        let written = write_assembled(&mut assembled, output, format, display)?;
+        say!("{}: {}", written.display(), describe(&assembled));
+        shown = Some(state);
+    }
+    match (shown, last_error) {
+        (Some(_), _) => Ok(()),
+        (None, Some(e)) => Err(CliError::Refused(format!("{}: {e}", name.display()))),
+        (None, None) => Err(CliError::Refused(format!(
+            "{}: no packet (the input was empty)",
+            name.display()
+        ))),
+    }
+}
+
+/// The stream of framed packets at `path` (standard input for "-").
+fn open_packet_stream(path: &Path) -> Result<Box<dyn std::io::Read>> {
+    if io::is_std_stream(path) {
+        return Ok(Box::new(std::io::stdin().lock()));
+    }
+    let file = std::fs::File::open(path).map_err(|source| io::FileError::Open {
+        path: io::input_name(path),
+        source,
+    })?;
+    Ok(Box::new(file))
+}
+
+/// The next framed packet of `source` (its two length bytes, then the packet), `None` at the
+/// end of the input; a last frame cut short is returned as it is (it fails its check like any
+/// damaged packet), and the input ends there.
+fn next_frame(source: &mut dyn std::io::Read, name: &Path) -> Result<Option<Vec<u8>>> {
+    let failed = |e: std::io::Error| CliError::Refused(format!("{}: {e}", name.display()));
+    let mut length = [0u8; 2];
+    let got = read_full(source, &mut length).map_err(failed)?;
+    if got < length.len() {
+        return Ok(None);
+    }
+    let mut packet = vec![0u8; usize::from(u16::from_le_bytes(length))];
+    let got = read_full(source, &mut packet).map_err(failed)?;
+    packet.truncate(got);
+    Ok(Some(packet))
+}
+
+/// Reads until `buf` is full or the input ends; how many bytes were read.
+fn read_full(source: &mut dyn std::io::Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match source.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
 }
 
 /// What a receiver got, in one line.
