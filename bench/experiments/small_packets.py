@@ -1,11 +1,11 @@
 """Packets of small pictures: the 24 Kodak images scaled to 240x160 (portrait ones 160x240,
-Pillow's Lanczos filter, as bench/small.sh), sent as 255-byte packets at byte budgets of
-0.25, 0.5 and 1.0 bpp by one or two `pifs` binaries. For each: the packets and bytes sent,
-mean PSNR-RGB with every packet, with 10% and 20% of them lost (`pifs packets drop --loss L
---seed S`, seeds 1-5, each image's own patterns; a pattern that loses everything is left
-out) and from the first packet alone.
+Pillow's Lanczos filter, as bench/small.sh), sent as packets of at most 255 bytes (or SIZE)
+at byte budgets of 0.25, 0.5 and 1.0 bpp by one or more `pifs` binaries. For each: the
+packets and bytes sent, mean PSNR-RGB with every packet, with 10% and 20% of them lost (`pifs
+packets drop --loss L --seed S`, seeds 1-5, each image's own patterns; a pattern that loses
+everything is left out) and from the first packet alone.
 
-    python3 bench/experiments/small_packets.py WORKDIR NAME=PIFS [NAME=PIFS...]
+    python3 bench/experiments/small_packets.py WORKDIR NAME=PIFS[,SIZE] [NAME=PIFS[,SIZE]...]
 
 docs/decisions.md ("Packets": what whole packets leave of a budget) quotes it with the
 binary before and after that change. Needs numpy and Pillow.
@@ -42,11 +42,13 @@ def small_images(work):
 
 
 def one(work, name, pifs, image, rate):
+    pifs, _, size = pifs.partition(",")
     original = np.asarray(Image.open(image).convert("RGB")).astype(float)
     w, h = Image.open(image).size
     base = os.path.join(work, f"{name}_{os.path.basename(image)[:-4]}_{rate}")
     run = lambda *args: subprocess.run([pifs, *args], check=True, capture_output=True)
-    run("encode", image, "--bytes", str(int(rate * w * h / 8)), "--packets", base)
+    run("encode", image, "--bytes", str(int(rate * w * h / 8)), "--packets", base,
+        "--packet-size", size or "255")
     packets = sorted(os.listdir(base))
 
     def decoded(directory):
