@@ -33,19 +33,21 @@ pub const DEFAULT_BPP: f64 = 0.25;
 /// Arguments of `pifs encode`.
 #[derive(Args, Debug)]
 pub struct EncodeArgs {
-    /// Input images (PNG, JPEG, PGM/PPM, BMP, TIFF; the EXIF orientation applied, the first
-    /// page of a TIFF taken); "-" reads standard input. A colour image gives a colour stream
-    /// (YCbCr 4:2:0) unless --gray; a gray one (or a colour image whose pixels are all gray) a
-    /// grayscale stream. Several images need --out-dir.
+    /// Input images (PNG, JPEG, PGM/PPM, BMP, TIFF); "-" reads standard input.
+    ///
+    /// The EXIF orientation is applied, the first page of a TIFF taken. A colour image gives a
+    /// colour stream (YCbCr 4:2:0) unless --gray; a gray one (or a colour image whose pixels are
+    /// all gray) a grayscale stream. Several images need --out-dir.
     #[arg(required = true, num_args = 1..)]
     pub input: Vec<PathBuf>,
     /// Encode in grayscale (the image's luma), even from a colour image.
     #[arg(long)]
     pub gray: bool,
-    /// Output stream. Any name but an image format's (.png, .jpg, ... are refused, so that a
-    /// stream never poses as an image); .pifs by convention; "-" writes standard output. An
-    /// existing file is replaced atomically and keeps its permissions, a symbolic link is
-    /// followed, a device or a FIFO is written through.
+    /// Output stream (.pifs by convention; "-" writes standard output).
+    ///
+    /// Any name but an image format's (.png, .jpg, ... are refused, so that a stream never poses as
+    /// an image). An existing file is replaced atomically and keeps its permissions, a symbolic
+    /// link is followed, a device or a FIFO is written through.
     #[arg(
         short,
         long,
@@ -53,9 +55,10 @@ pub struct EncodeArgs {
         conflicts_with = "out_dir"
     )]
     pub output: Option<PathBuf>,
-    /// Batch: writes each input's stream to DIR/NAME.pifs, NAME its file name without the
-    /// extension (DIR is made if missing), the images spread over the cores, one summary line
-    /// each; a failure is reported and the others go on (the exit status says whether any
+    /// Batch: each input's stream to DIR/NAME.pifs, the images spread over the cores.
+    ///
+    /// NAME is the input's file name without the extension; DIR is made if missing. One summary
+    /// line each; a failure is reported and the others go on (the exit status says whether any
     /// failed).
     #[arg(long, value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
@@ -66,12 +69,15 @@ pub struct EncodeArgs {
     /// Largest file size in bytes, header included, never exceeded.
     #[arg(long, group = "target")]
     pub bytes: Option<usize>,
-    /// Smallest file reaching this PSNR (dB; of a 16-bit surface, the PSNR of its range); if
-    /// no stream does, the error says the best reachable.
+    /// Smallest file reaching this PSNR (dB).
+    ///
+    /// Of a 16-bit surface, the PSNR of its range. If no stream reaches it, the error says the best
+    /// reachable.
     #[arg(long, group = "target")]
     pub psnr: Option<f64>,
-    /// Smallest file whose every pixel is within this of the image: in grey levels, or in a
-    /// 16-bit surface's own units (metres of a heightmap); 0 for lossless. Grayscale images
+    /// Smallest file whose every pixel is within this of the image (0: lossless).
+    ///
+    /// In grey levels, or in a 16-bit surface's own units (metres of a heightmap). Grayscale images
     /// and surfaces.
     #[arg(long, group = "target", value_name = "ERROR")]
     pub max_error: Option<f64>,
@@ -87,18 +93,20 @@ pub struct EncodeArgs {
 /// decoded, and the size it is scaled to.
 #[derive(Args, Debug, Clone, Default)]
 pub struct InputLimits {
-    /// Scale the image to fit within WxH pixels, keeping its shape (enlarging too), before it
-    /// is encoded: the size of the display it is for, such as 240x240 or 128x64. --bpp then
-    /// counts the scaled pixels.
+    /// Scale the image to fit within WxH pixels first, such as 240x240 or 128x64.
+    ///
+    /// The size of the display it is for: the shape is kept (enlarging too), and --bpp then counts
+    /// the scaled pixels.
     #[arg(long, value_name = "WxH", value_parser = io::Fit::parse)]
     pub resize: Option<io::Fit>,
     /// Refuse images of more pixels than this [default: 33554432, 2^25].
     #[arg(long, value_name = "PIXELS")]
     pub max_pixels: Option<u64>,
-    /// Memory the encode may use, such as 800M or 4G [default: what the system has available
-    /// (Linux: free memory, cgroup and ulimit)]. An 8-bit image whose analysis would need more
-    /// is analysed in parts (one band of the image at a time, for twice the time); one that
-    /// would need more even so is refused before it is decoded.
+    /// Memory the encode may use, such as 800M or 4G [default: what the system has available].
+    ///
+    /// Linux: free memory, cgroup and ulimit. An 8-bit image whose analysis would need more is
+    /// analysed in parts (one band of the image at a time, for twice the time); one that would need
+    /// more even so is refused before it is decoded.
     #[arg(long, value_name = "SIZE", value_parser = memory::parse_size)]
     pub max_memory: Option<u64>,
 }
@@ -288,32 +296,40 @@ impl Checked {
 /// The analysis settings of `encode` and `rd`.
 #[derive(Args, Debug, Clone)]
 pub struct AnalysisArgs {
-    /// Smallest leaf side as a power of two. Leaves of 2 px make encoding much longer for
-    /// little gain: 4 px leaves already code each pixel with a pixel grid.
+    /// Smallest leaf side as a power of two.
+    ///
+    /// Leaves of 2 px make encoding much longer for little gain: 4 px leaves already code each
+    /// pixel with a pixel grid.
     #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub min_leaf_log2: u8,
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub max_leaf_log2: u8,
-    /// Width of the stripes the image is coded in, in pixels (a multiple of 128), or `full`
-    /// for one stripe as wide as the image [default: full; packets: 512]. Prediction and edge
-    /// smoothing stop at a stripe's left edge, which shows at low rates; a decoder holds one
-    /// byte per column of a stripe (two in colour) and decoder-core's default one holds 512:
-    /// give 512 for it when the image is wider.
+    /// Width of the stripes the image is coded in: pixels (a multiple of 128), or `full` [default:
+    /// full; packets: 512].
+    ///
+    /// Prediction and edge smoothing stop at a stripe's left edge, which shows at low rates. A
+    /// decoder holds one byte per column of a stripe (two in colour) and decoder-core's default one
+    /// holds 512: give 512 for it when the image is wider.
     #[arg(long, value_parser = parse_stripe)]
     pub stripe_width: Option<u8>,
-    /// Strength of the smoothing of leaf edges: `auto` (the strongest that does not add to
-    /// the error), or 0 (none) to 16.
+    /// Strength of the smoothing of leaf edges: `auto`, or 0 (none) to 16.
+    ///
+    /// `auto` is the strongest that does not add to the error.
     #[arg(long, default_value = "auto", value_parser = parse_deblock)]
     pub deblock: Deblock,
-    /// What the encoder minimises with the bytes: `ssim`, the error weighted by local contrast
-    /// as the eye sees it (an error on a smooth surface counts more than in texture), or
-    /// `psnr`, the plain squared error (a few hundredths of a dB more PSNR, less SSIM).
+    /// What the encoder minimises with the bytes: `ssim` or `psnr`.
+    ///
+    /// `ssim`: the error weighted by local contrast as the eye sees it (an error on a smooth
+    /// surface counts more than in texture). `psnr`: the plain squared error (a few hundredths of a
+    /// dB more PSNR, less SSIM).
     #[arg(long, default_value = "ssim", value_parser = parse_tune)]
     pub tune: Tune,
-    /// Bit depth of the stream: `auto` (16 for a 16-bit grayscale image such as a heightmap:
-    /// its range goes in the header and it decodes to values in its own units; 8 for any
-    /// other image) or `8` (a 16-bit image mapped to 8 bits from its type's full range).
+    /// Bit depth of the stream: `auto` or `8`.
+    ///
+    /// `auto`: 16 for a 16-bit grayscale image such as a heightmap (its range goes in the header
+    /// and it decodes to values in its own units), 8 for any other image. `8`: a 16-bit image
+    /// mapped to 8 bits from its type's full range.
     #[arg(long, default_value = "auto", value_parser = parse_depth)]
     pub depth: io::Depth,
     /// The bound on each pixel's error the analysis works to (`--max-error`'s), if any.

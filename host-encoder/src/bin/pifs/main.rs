@@ -54,58 +54,72 @@ enum Command {
     /// .ppm repeats the grey in three channels, for tools that read colour only. The image is
     /// written band by band: memory follows the width, not the image.
     Decode {
-        /// Input stream; "-" reads standard input. Its header is checked before anything else is
-        /// read, and no more than the stream it declares is read. Packets instead: a directory
-        /// of .pkt files, a framed packet file, or several packet files; whatever subset is
-        /// there is decoded, and what is missing is reported.
+        /// Input stream, "-" for standard input; or packets: a directory of .pkt files, a framed
+        /// packet file or several packet files.
+        ///
+        /// A stream's header is checked before anything else is read, and no more than the stream
+        /// it declares is read. Of packets, whatever subset is there is decoded, and what is
+        /// missing is reported.
         #[arg(required = true, num_args = 1..)]
         input: Vec<PathBuf>,
-        /// Output image: .png, .pgm, .pnm or .ppm (anything else is refused before decoding);
-        /// "-" writes standard output (PNG unless --format says otherwise). An existing file is
-        /// replaced atomically and keeps its permissions, a symbolic link is followed, a
-        /// device or a FIFO is written through.
+        /// Output image: .png, .pgm, .pnm or .ppm; "-" writes standard output (PNG unless --format
+        /// says otherwise).
+        ///
+        /// Anything else is refused before decoding. An existing file is replaced atomically and
+        /// keeps its permissions, a symbolic link is followed, a device or a FIFO is written
+        /// through.
         #[arg(short, long)]
         output: PathBuf,
         /// Image format, whatever the output's name: png, pgm, pnm or ppm.
         #[arg(long, value_parser = parse_format)]
         format: Option<OutputFormat>,
-        /// Refuse streams of more pixels than this (checked on the header, before anything is
-        /// allocated).
+        /// Refuse streams of more pixels than this.
+        ///
+        /// Checked on the header, before anything is allocated.
         #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
         max_pixels: u64,
-        /// Decode at this scale of the coded size: 1/8, 1/4, 1/2 (the full decode's pixels at
-        /// even, fourth or eighth positions, for a fraction of the work), 1, 2 or 4 (the
-        /// patches refined below the pixel). The image is ceil(width x scale) by
-        /// ceil(height x scale).
+        /// Decode at this scale of the coded size: 1/8, 1/4, 1/2, 1, 2 or 4.
+        ///
+        /// 1/8 to 1/2: the full decode's pixels at even, fourth or eighth positions, for a fraction
+        /// of the work; 2 and 4: the patches refined below the pixel. The image is ceil(width x
+        /// scale) by ceil(height x scale).
         #[arg(long, default_value = "1", value_parser = decode::parse_scale)]
         scale: decoder_core::Scale,
-        /// Read the input as packets even when it could be a stream: for framed packets on
-        /// standard input ("-") or from a serial device.
+        /// Read the input as packets even when it could be a stream.
+        ///
+        /// For framed packets on standard input ("-") or from a serial device.
         #[arg(long)]
         packets: bool,
-        /// Read framed packets as they arrive (standard input, a FIFO or a serial device) and
-        /// write the picture again after each one that adds to it, as a gateway shows a
-        /// picture filling in; the output is always a whole image (replaced atomically). Ends
-        /// at the end of the input. Implies --packets.
+        /// Read framed packets as they arrive and write the picture again after each one that adds
+        /// to it.
+        ///
+        /// From standard input, a FIFO or a serial device, as a gateway shows a picture filling in;
+        /// the output is always a whole image (replaced atomically). Ends at the end of the input.
+        /// Implies --packets.
         #[arg(long)]
         follow: bool,
-        /// Write the decoded heightmap as a hillshaded relief (light from the north-west, 45
-        /// degrees up), for a quick look at a terrain: a grayscale stream's values are the
-        /// heights. Optional value: the vertical exaggeration in height units per pixel
-        /// [default: auto, the median slope drawn at 20 degrees].
+        /// Write the decoded heightmap as a hillshaded relief, for a quick look at a terrain.
+        ///
+        /// Light from the north-west, 45 degrees up; a grayscale stream's values are the heights.
+        /// Optional value: the vertical exaggeration in height units per pixel [default: auto, the
+        /// median slope drawn at 20 degrees].
         #[arg(long, value_name = "Z", num_args = 0..=1, default_missing_value = "auto",
               value_parser = decode::parse_z_factor)]
         hillshade: Option<decode::ZFactor>,
-        /// Write the picture as a small display of fewer levels shows it, each pixel converted
-        /// to the panel's colours as the device's embedded-graphics drawing converts it
-        /// (dithering included): rgb565 (ST7789, ILI9341,
-        /// SSD1351), rgb666 (ILI9488), gray4 (16-grey OLEDs), gray2 (4-grey e-paper) or mono
-        /// (SSD1306/SH1106 OLEDs, memory LCDs); with --scale for a thumbnail. A packet set:
-        /// the picture assembled from what arrived, each pixel as the device draws it.
+        /// Write the picture as a small display of fewer levels shows it: rgb565, rgb666, gray4,
+        /// gray2 or mono.
+        ///
+        /// Each pixel converted to the panel's colours as the device's embedded-graphics drawing
+        /// converts it (dithering included): rgb565 (ST7789, ILI9341, SSD1351), rgb666 (ILI9488),
+        /// gray4 (16-grey OLEDs), gray2 (4-grey e-paper) or mono (SSD1306/SH1106 OLEDs, memory
+        /// LCDs); with --scale for a thumbnail. A packet set: the picture assembled from what
+        /// arrived, each pixel as the device draws it.
         #[arg(long, value_name = "PANEL", value_parser = display::parse_panel)]
         display: Option<display::Panel>,
-        /// How --display reaches the panel's levels: ordered (a 4x4 Bayer dither, the device's
-        /// default: shades kept, no bands) or nearest (each pixel to its nearest level).
+        /// How --display reaches the panel's levels: ordered or nearest.
+        ///
+        /// ordered: a 4x4 Bayer dither, the device's default (shades kept, no bands); nearest: each
+        /// pixel to its nearest level.
         #[arg(long, requires = "display", default_value = "ordered",
               value_parser = display::parse_dither)]
         dither: decoder_core::graphics::Dither,
@@ -115,22 +129,28 @@ enum Command {
     /// Dimensions, size, leaves per size, model and quantiser use, read from the entropy-coded
     /// syntax without drawing a pixel (unless --svg asks for the drawing).
     Info {
-        /// Input stream; "-" reads standard input.
+        /// Input stream, "-" for standard input; or packets: a directory of .pkt files or a framed
+        /// packet file.
         input: PathBuf,
-        /// Also draw the quadtree over the decoded image, leaves outlined in a colour per
-        /// model, into this SVG file.
+        /// Also draw the quadtree over the decoded image into this SVG file.
+        ///
+        /// Leaves are outlined in a colour per model.
         #[arg(long, value_name = "FILE")]
         svg: Option<PathBuf>,
-        /// Refuse streams of more pixels than this (checked on the header, before the payload
-        /// is read).
+        /// Refuse streams of more pixels than this.
+        ///
+        /// Checked on the header, before the payload is read.
         #[arg(long, default_value_t = DEFAULT_MAX_PIXELS)]
         max_pixels: u64,
-        /// Print the description as one JSON object on standard output (for scripts and
-        /// gateways: a packet set's `missing` indices are the packets to ask for again).
+        /// Print the description as one JSON object on standard output.
+        ///
+        /// For scripts and gateways: a packet set's `missing` indices are the packets to ask for
+        /// again.
         #[arg(long)]
         json: bool,
-        /// Read the input as packets even when it could be a stream: for framed packets on
-        /// standard input ("-") or from a serial device.
+        /// Read the input as packets even when it could be a stream.
+        ///
+        /// For framed packets on standard input ("-") or from a serial device.
         #[arg(long, conflicts_with = "svg")]
         packets: bool,
     },

@@ -22,35 +22,44 @@ use std::path::{Path, PathBuf};
 /// The packet options of `pifs encode`.
 #[derive(Args, Debug, Clone)]
 pub struct PacketArgs {
-    /// Cut the image into self-contained packets and write one file per packet into DIR
-    /// (0000.pkt, 0001.pkt, ...; DIR must not exist or be empty). A receiver decodes any
-    /// subset of them, in any order.
+    /// Cut the image into self-contained packets, one file per packet in DIR.
+    ///
+    /// Files 0000.pkt, 0001.pkt, ...; DIR must not exist or be empty. A receiver decodes any subset
+    /// of them, in any order.
     #[arg(long, value_name = "DIR")]
     pub packets: Option<PathBuf>,
-    /// Largest packet in bytes, 48 to 1024 [default: 255, a LoRa payload; 233 for
-    /// Meshtastic]. With -o instead of --packets, the packets are written one after the
-    /// other into one file, each behind its length (2 bytes, little-endian).
+    /// Largest packet in bytes, 48 to 1024 [default: 255, a LoRa payload; 233 for Meshtastic].
+    ///
+    /// With -o instead of --packets, the packets are written one after the other into one file,
+    /// each behind its length (2 bytes, little-endian).
     #[arg(long, value_name = "BYTES")]
     pub packet_size: Option<usize>,
-    /// The image's number in every packet (0 to 65535), which tells a receiver's images
-    /// apart.
+    /// The image's number in every packet (0 to 65535).
+    ///
+    /// It tells a receiver's images apart.
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub image_id: u16,
-    /// No preview packet: every packet codes a region (a lost one is then interpolated from
-    /// the regions around it).
+    /// No preview packet: every packet codes a region.
+    ///
+    /// A lost one is then interpolated from the regions around it.
     #[arg(long)]
     pub no_preview: bool,
-    /// Send the preview twice, first and half way (from 8 packets on; one packet of the
-    /// budget), so that a receiver loses it only when it loses both copies.
+    /// Send the preview twice, first and half way.
+    ///
+    /// From 8 packets on, for one packet of the budget: a receiver then loses it only when it loses
+    /// both copies.
     #[arg(long)]
     pub repeat_preview: bool,
-    /// Parity packets to send after the others, within the target: any N of the N + K
-    /// packets rebuild them all (a receiver that holds the whole set, such as a gateway or
-    /// `pifs decode`, rebuilds what was lost).
+    /// Parity packets to send after the others, within the target.
+    ///
+    /// Any N of the N + K packets rebuild them all (a receiver that holds the whole set, such as a
+    /// gateway or `pifs decode`, rebuilds what was lost).
     #[arg(long, default_value_t = 0, value_name = "K")]
     pub parity: usize,
-    /// The share of packets the link loses (0 to 0.5; 0.1 for a tenth): as many parity
-    /// packets as give the best picture on average over such losses (instead of --parity).
+    /// The share of packets the link loses (0 to 0.5): parity sized for it (instead of --parity).
+    ///
+    /// As many parity packets as give the best picture on average over such losses; 0.1 for a
+    /// tenth.
     #[arg(long, value_name = "SHARE", conflicts_with = "parity")]
     pub expect_loss: Option<f64>,
 }

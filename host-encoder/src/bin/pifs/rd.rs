@@ -27,9 +27,10 @@ pub struct RdArgs {
     /// Draw PSNR against bpp as an SVG.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-    /// Other codecs' points to draw beside ours: a CSV with a header row and the columns codec,
-    /// bpp, psnr (optional: status, image, target_bpp), as anchors.py writes. Rows of this
-    /// image are drawn when the image column names it, else each codec's mean per target.
+    /// Other codecs' points to draw beside ours: a CSV as anchors.py writes.
+    ///
+    /// A header row and the columns codec, bpp, psnr (optional: status, image, target_bpp). Rows of
+    /// this image are drawn when the image column names it, else each codec's mean per target.
     #[arg(long, value_name = "CSV", requires = "plot")]
     pub compare: Option<PathBuf>,
     /// Also write each stream into this directory (created if missing) as
