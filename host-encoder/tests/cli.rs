@@ -887,10 +887,12 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     assert_eq!(described["count"], 15);
     assert_eq!(described["missing"], serde_json::json!([]));
     // --follow: the picture written again after each packet that adds to it (a repeated
-    // packet adds nothing), ending as the whole set's.
+    // packet adds nothing), ending as the whole set's once nothing is missing (what follows,
+    // here a damaged frame, is not read).
     let frames = host_encoder::packets::unframe(&std::fs::read(&framed).unwrap());
     let mut repeated = frames.clone();
     repeated.insert(3, frames[2].clone());
+    repeated.push(vec![0x70; 40]);
     let followed = dir.join("followed.png");
     let out = pifs_with_stdin(
         &["decode", "-", "--follow", "-o", &s(&followed)],

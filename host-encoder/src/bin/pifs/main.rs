@@ -94,8 +94,8 @@ enum Command {
         /// to it.
         ///
         /// From standard input, a FIFO or a serial device, as a gateway shows a picture filling in;
-        /// the output is always a whole image (replaced atomically). Ends at the end of the input.
-        /// Implies --packets.
+        /// the output is always a whole image (replaced atomically). Ends once no packet of the
+        /// picture is missing, or at the end of the input. Implies --packets.
         #[arg(long)]
         follow: bool,
         /// Write the decoded heightmap as a hillshaded relief, for a quick look at a terrain.

@@ -316,8 +316,9 @@ fn write_assembled(
 
 /// `pifs decode --follow`: framed packets read from `inputs` (one stream) as they arrive; after
 /// each packet that adds to the picture (of the image most packets so far belong to), the
-/// picture is written to `output` again and reported in one line. Ends at the end of the input;
-/// refused, with nothing written, if no valid packet came.
+/// picture is written to `output` again and reported in one line. Ends once the picture is
+/// whole (no packet missing) or at the end of the input; refused, with nothing written, if no
+/// valid packet came.
 pub fn follow(
     inputs: &[PathBuf],
     output: &Path,
@@ -370,6 +371,9 @@ pub fn follow(
         let written = write_assembled(&mut assembled, output, format, display)?;
         say!("{}: {}", written.display(), describe(&assembled));
         shown = Some(state);
+        if assembled.missing.is_empty() {
+            break;
+        }
     }
     match (shown, last_error) {
         (Some(_), _) => Ok(()),
