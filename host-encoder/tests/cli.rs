@@ -121,6 +121,17 @@ fn ok(out: &Output) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// The standard output of a command that succeeded.
+fn ok_bytes(out: &Output) -> Vec<u8> {
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout.clone()
+}
+
 /// The one line a refused command prints on stderr, after checking it is one line and the
 /// exit is non-zero.
 fn refused(out: &Output) -> String {
@@ -964,6 +975,60 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     let partial = dir.join("partial.png");
     let line = ok(&pifs(&["decode", &s(&lossy), "-o", &s(&partial)]));
     assert!(line.contains("missing: "), "{line}");
+    // The missing packets sent again (`pifs packets resend`, the indices as the receiver
+    // reports them), merged with what arrived: the whole picture.
+    let out = pifs(&["info", &s(&lossy), "--json"]);
+    let described: serde_json::Value = serde_json::from_slice(&ok_bytes(&out)).unwrap();
+    let missing: Vec<String> = described["missing"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i.to_string())
+        .collect();
+    assert_eq!(missing.len(), 15 - kept);
+    let again = dir.join("again.pifsp");
+    ok(&pifs(&[
+        "packets",
+        "resend",
+        &s(&packets),
+        "--only",
+        &missing.join(","),
+        "-o",
+        &s(&again),
+    ]));
+    assert_eq!(
+        host_encoder::packets::unframe(&std::fs::read(&again).unwrap()).len(),
+        15 - kept
+    );
+    let merged = dir.join("merged.png");
+    let line = ok(&pifs(&[
+        "decode",
+        &s(&lossy),
+        &s(&again),
+        "-o",
+        &s(&merged),
+    ]));
+    assert!(line.contains("from 15 of 15 packets"), "{line}");
+    assert_eq!(png_pixels(&whole), png_pixels(&merged));
+    // An index the set does not hold, or no indices: refused, nothing written.
+    for only in ["3,15", "7-2", ""] {
+        let never = dir.join("never.pifsp");
+        let out = pifs(&[
+            "packets",
+            "resend",
+            &s(&packets),
+            "--only",
+            only,
+            "-o",
+            &s(&never),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.lines().count() == 1,
+            "{only}: {err}"
+        );
+        assert!(!never.exists());
+    }
     // A list of packet files: two regions alone.
     let two = dir.join("two.png");
     let line = ok(&pifs(&[

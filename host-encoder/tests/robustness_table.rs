@@ -145,6 +145,18 @@ fn make_inputs(dir: &Path) {
         String::from_utf8_lossy(&out.stderr)
     );
     let bytes = std::fs::read(&stream).unwrap();
+    // Packets, framed.
+    let out = pifs()
+        .args(["encode", "--bytes", "600", "--packet-size", "64", "-o"])
+        .arg(p("good.pifsp"))
+        .arg(p("good.png"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     std::fs::write(p("empty.pifs"), b"").unwrap();
     std::fs::write(p("truncated.pifs"), &bytes[..bytes.len() * 2 / 3]).unwrap();
     let mut flipped = bytes.clone();
@@ -516,6 +528,32 @@ fn cases(dir: &Path) -> Vec<Case> {
                 "{dir}/d3f.png",
             ],
             Some("{dir}/d3f.png"),
+        ),
+        refuse(
+            "packets resend: a packet the set does not hold",
+            &[
+                "packets",
+                "resend",
+                "{dir}/good.pifsp",
+                "--only",
+                "0,400",
+                "-o",
+                "{dir}/r1.pifsp",
+            ],
+            Some("{dir}/r1.pifsp"),
+        ),
+        refuse(
+            "packets resend: indices backwards",
+            &[
+                "packets",
+                "resend",
+                "{dir}/good.pifsp",
+                "--only",
+                "5-2",
+                "-o",
+                "{dir}/r2.pifsp",
+            ],
+            Some("{dir}/r2.pifsp"),
         ),
         refuse(
             "decode --follow: into standard output",

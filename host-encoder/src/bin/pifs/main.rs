@@ -93,9 +93,10 @@ enum Command {
         /// Read framed packets as they arrive and write the picture again after each one that adds
         /// to it.
         ///
-        /// From standard input, a FIFO or a serial device, as a gateway shows a picture filling in;
-        /// the output is always a whole image (replaced atomically). Ends once no packet of the
-        /// picture is missing, or at the end of the input. Implies --packets.
+        /// From standard input, a FIFO or a serial device (its line in raw mode: `stty -F DEV
+        /// raw`), as a gateway shows a picture filling in; the output is always a whole image
+        /// (replaced atomically). Ends once no packet of the picture is missing, or at the end of
+        /// the input. Implies --packets.
         #[arg(long)]
         follow: bool,
         /// Write the decoded heightmap as a hillshaded relief, for a quick look at a terrain.
@@ -178,6 +179,12 @@ enum PacketsCommand {
     /// Copy the packets of a directory that survive a simulated loss into another (for
     /// testing what a receiver shows).
     Drop(packets::DropArgs),
+    /// Frame the packets a receiver asks for again (by index), for the link.
+    ///
+    /// The indices are the `missing` of `pifs info --json` or of `pifs decode`'s line, such as
+    /// 2,5-7; the packets go out framed as `pifs encode -o` frames them (each behind its length,
+    /// two bytes, little-endian), in the order of their indices.
+    Resend(packets::ResendArgs),
 }
 
 /// One line on stderr for an argument error (`--help` has the details), clap's own output
@@ -260,6 +267,7 @@ fn main() -> ExitCode {
         ),
         Some(Command::Rd(args)) => rd::run(&args),
         Some(Command::Packets(PacketsCommand::Drop(args))) => packets::drop_packets(&args),
+        Some(Command::Packets(PacketsCommand::Resend(args))) => packets::resend(&args),
         Some(Command::Curve(command)) => curve::run(&command),
         Some(Command::Demo) | None => demo::run(),
     };

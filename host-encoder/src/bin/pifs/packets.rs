@@ -532,7 +532,7 @@ pub fn info(input: &Path, max_pixels: u64, json: bool) -> Result<()> {
         a.count
     );
     println!(
-        "  here: {} files, {total} bytes ({} to {} bytes each), {previews} preview(s), {bpp:.4} bpp",
+        "  here: {} packets, {total} bytes ({} to {} bytes each), {previews} preview(s), {bpp:.4} bpp",
         packets.len(),
         sizes.iter().min().unwrap_or(&0),
         sizes.iter().max().unwrap_or(&0),
@@ -558,6 +558,87 @@ pub struct DropArgs {
     /// with probability 1 - 1/BURST); 1 for independent losses.
     #[arg(long, default_value_t = 1.0)]
     pub burst: f64,
+}
+
+/// `pifs packets resend`: which packets, from where, to where.
+#[derive(Args, Debug)]
+pub struct ResendArgs {
+    /// The packets sent: a directory of .pkt files or a framed packet file ("-": standard
+    /// input).
+    pub input: PathBuf,
+    /// The packets to send again, by index: such as 2,5-7.
+    #[arg(long, value_name = "INDICES", value_parser = parse_indices)]
+    pub only: Indices,
+    /// Output: the packets framed for a serial link; "-" writes standard output.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Packet indices, ascending, each once.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Indices(pub Vec<u16>);
+
+/// Parses packet indices: numbers and ranges `a-b`, separated by commas (`2,5-7`), as the
+/// `missing` of `pifs decode`'s line writes them.
+pub fn parse_indices(text: &str) -> std::result::Result<Indices, String> {
+    let bad = || format!("not packet indices: {text} (such as 2,5-7)");
+    let mut out = std::collections::BTreeSet::new();
+    for part in text.split(',') {
+        let (a, b) = part.split_once('-').unwrap_or((part, part));
+        let (Ok(a), Ok(b)) = (a.trim().parse::<u16>(), b.trim().parse::<u16>()) else {
+            return Err(bad());
+        };
+        if a > b {
+            return Err(bad());
+        }
+        out.extend(a..=b);
+    }
+    Ok(Indices(out.into_iter().collect()))
+}
+
+/// `pifs packets resend`: the data packets of `args.input` with the indices asked for, framed,
+/// in the order of their indices; refused in one line, nothing written, when one of them is
+/// not there.
+pub fn resend(args: &ResendArgs) -> Result<()> {
+    if io::is_std_stream(&args.output) {
+        crate::say::stdout_is_data();
+    }
+    let mut by_index = std::collections::BTreeMap::new();
+    for packet in read_packets(&args.input)? {
+        if let Ok(parsed) = Packet::parse(&packet) {
+            by_index.entry(parsed.index).or_insert(packet);
+        }
+    }
+    let absent: Vec<u16> = (args.only.0.iter())
+        .copied()
+        .filter(|i| !by_index.contains_key(i))
+        .collect();
+    if !absent.is_empty() {
+        return Err(CliError::Refused(format!(
+            "{}: no packet {} (it holds {})",
+            args.input.display(),
+            ranges(&absent),
+            match by_index.keys().copied().collect::<Vec<u16>>() {
+                held if held.is_empty() => "no valid packet".to_string(),
+                held => ranges(&held),
+            }
+        )));
+    }
+    let chosen: Vec<Vec<u8>> = (args.only.0.iter())
+        .filter_map(|i| by_index.remove(i))
+        .collect();
+    let mut out = Output::create(&args.output, Content::Binary("PIFS packets"))?;
+    out.write_all(&frame(&chosen)).map_err(|e| out.error(e))?;
+    let name = out.name().to_path_buf();
+    out.commit()?;
+    say!(
+        "{}: {} packets ({}), {} bytes framed",
+        name.display(),
+        chosen.len(),
+        ranges(&args.only.0),
+        chosen.iter().map(|p| p.len() + 2).sum::<usize>()
+    );
+    Ok(())
 }
 
 /// `pifs packets drop`: copies the packets that survive a simulated loss.
