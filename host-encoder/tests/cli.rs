@@ -1010,6 +1010,10 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     ]));
     assert!(line.contains("from 15 of 15 packets"), "{line}");
     assert_eq!(png_pixels(&whole), png_pixels(&merged));
+    let out = pifs(&["info", &s(&lossy), &s(&again), "--json"]);
+    let described: serde_json::Value = serde_json::from_slice(&ok_bytes(&out)).unwrap();
+    assert_eq!(described["missing"], serde_json::json!([]));
+    assert_eq!(described["received"].as_array().unwrap().len(), 15);
     // An index the set does not hold, or no indices: refused, nothing written.
     for only in ["3,15", "7-2", ""] {
         let never = dir.join("never.pifsp");

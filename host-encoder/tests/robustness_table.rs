@@ -530,6 +530,17 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/d3f.png"),
         ),
         refuse(
+            "info: --svg of several inputs",
+            &[
+                "info",
+                "{dir}/good.pifsp",
+                "{dir}/good.pifsp",
+                "--svg",
+                "{dir}/i9.svg",
+            ],
+            Some("{dir}/i9.svg"),
+        ),
+        refuse(
             "packets resend: a packet the set does not hold",
             &[
                 "packets",

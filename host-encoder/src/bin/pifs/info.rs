@@ -1,7 +1,7 @@
 //! `pifs info`: what a stream holds, from its entropy-decoded syntax (no pixels are drawn for
 //! the statistics); with `--svg`, its quadtree drawn over the decoded image.
 
-use crate::error::Result;
+use crate::error::{CliError, Result};
 use crate::output::{self, Kind};
 use decoder_core::internal::model::{MODELS, MODEL_COUNT};
 use decoder_core::internal::syntax::control::{CONTROL_QUANTISERS, CONTROL_STEPS};
@@ -10,7 +10,7 @@ use decoder_core::{Header, LeafInfo, Limits};
 use host_encoder::io::{Content, Output};
 use std::collections::BTreeMap;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The models' names, by model index.
 pub const MODEL_NAMES: [&str; MODEL_COUNT] = ["2x2 bilinear", "3x3/2x2", "5x5/2x2", "9x9/4x4"];
@@ -177,12 +177,13 @@ impl Stats {
     }
 }
 
-/// `pifs info`; with `svg`, also the drawing of the leaves over the decoded image; with `json`,
-/// the description as one JSON object. The stream's header is checked against `limits` before
+/// `pifs info` of a stream or of packets (several inputs: their packets merged); with `svg`,
+/// also the drawing of a stream's leaves over the decoded image; with `json`, the description
+/// as one JSON object. The stream's header is checked against `limits` before
 /// anything else; only with `svg` are pixels made: the figures need nothing but the
 /// entropy-decoded syntax.
 pub fn run(
-    input: &Path,
+    inputs: &[PathBuf],
     svg: Option<&Path>,
     limits: &Limits,
     json: bool,
@@ -192,8 +193,14 @@ pub fn run(
         // Standard output carries the object: any status line goes to standard error.
         crate::say::stdout_is_data();
     }
+    let [input] = inputs else {
+        if svg.is_some() {
+            return Err(CliError::Refused("--svg draws one stream".into()));
+        }
+        return crate::packets::info(inputs, limits.max_pixels, json);
+    };
     if (packets || crate::packets::is_packet_input(input)) && svg.is_none() {
-        return crate::packets::info(input, limits.max_pixels, json);
+        return crate::packets::info(inputs, limits.max_pixels, json);
     }
     if let Some(svg) = svg {
         output::check(svg, Some(input), Kind::Svg)?;

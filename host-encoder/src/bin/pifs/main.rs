@@ -130,9 +130,10 @@ enum Command {
     /// Dimensions, size, leaves per size, model and quantiser use, read from the entropy-coded
     /// syntax without drawing a pixel (unless --svg asks for the drawing).
     Info {
-        /// Input stream, "-" for standard input; or packets: a directory of .pkt files or a framed
-        /// packet file.
-        input: PathBuf,
+        /// Input stream, "-" for standard input; or packets: directories of .pkt files or framed
+        /// packet files (several: packets heard by several receivers, merged).
+        #[arg(required = true, num_args = 1..)]
+        input: Vec<PathBuf>,
         /// Also draw the quadtree over the decoded image into this SVG file.
         ///
         /// Leaves are outlined in a colour per model.

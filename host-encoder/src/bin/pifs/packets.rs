@@ -483,9 +483,14 @@ fn ranges(indices: &[u16]) -> String {
     parts.join(",")
 }
 
-/// `pifs info` of packets: count, sizes, coverage; as one JSON object with `json`.
-pub fn info(input: &Path, max_pixels: u64, json: bool) -> Result<()> {
-    let (packets, assembled) = assemble_at(&[input.to_path_buf()], max_pixels)?;
+/// `pifs info` of packets (those at `inputs`, merged): count, sizes, coverage; as one JSON
+/// object with `json`.
+pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
+    let (packets, assembled) = assemble_at(inputs, max_pixels)?;
+    let input = (inputs.iter())
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
     let sizes: Vec<usize> = packets.iter().map(Vec::len).collect();
     let total: usize = sizes.iter().sum();
     let previews = packets
@@ -497,7 +502,7 @@ pub fn info(input: &Path, max_pixels: u64, json: bool) -> Result<()> {
     let bpp = total as f64 * 8.0 / (f64::from(a.width) * f64::from(a.height));
     if json {
         let object = serde_json::json!({
-            "path": input.display().to_string(),
+            "path": input,
             "kind": "packets",
             "image_id": a.image_id,
             "width": a.width,
@@ -522,7 +527,7 @@ pub fn info(input: &Path, max_pixels: u64, json: bool) -> Result<()> {
         println!("{object}");
         return Ok(());
     }
-    println!("{}: PIFS packets", input.display());
+    println!("{input}: PIFS packets");
     println!(
         "  image {}: {}x{} {}, sent as {} packets",
         a.image_id,
