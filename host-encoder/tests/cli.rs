@@ -870,11 +870,8 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     // Without --packets, standard input is read as a stream: refused in one line that says
     // what to give, and no output left.
     let unsaid = dir.join("unsaid.png");
-    let out = Command::new(env!("CARGO_BIN_EXE_pifs"))
-        .args(["decode", "-", "-o", &s(&unsaid)])
-        .stdin(std::fs::File::open(&framed).unwrap())
-        .output()
-        .unwrap();
+    let framed_bytes = std::fs::read(&framed).unwrap();
+    let out = pifs_with_stdin(&["decode", "-", "-o", &s(&unsaid)], &framed_bytes);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
@@ -884,23 +881,14 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(!unsaid.exists());
     // `pifs info --packets` describes the framed packets on standard input.
-    let out = Command::new(env!("CARGO_BIN_EXE_pifs"))
-        .args(["info", "-", "--packets", "--json"])
-        .stdin(std::fs::File::open(&framed).unwrap())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let described: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let out = pifs_with_stdin(&["info", "-", "--packets", "--json"], &framed_bytes);
+    let described: serde_json::Value = serde_json::from_slice(&ok_bytes(&out)).unwrap();
     assert_eq!(described["count"], 15);
     assert_eq!(described["missing"], serde_json::json!([]));
     // --follow: the picture written again after each packet that adds to it (a repeated
     // packet adds nothing), ending as the whole set's once nothing is missing (what follows,
     // here a damaged frame, is not read).
-    let frames = host_encoder::packets::unframe(&std::fs::read(&framed).unwrap());
+    let frames = host_encoder::packets::unframe(&framed_bytes);
     let mut repeated = frames.clone();
     repeated.insert(3, frames[2].clone());
     repeated.push(vec![0x70; 40]);

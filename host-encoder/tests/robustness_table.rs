@@ -132,31 +132,26 @@ fn make_inputs(dir: &Path) {
     )
     .unwrap();
     // Streams.
+    let encode = |args: &[&str], output: &Path| {
+        let out = pifs()
+            .arg("encode")
+            .args(args)
+            .arg("-o")
+            .arg(output)
+            .arg(p("good.png"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
     let stream = p("good.pifs");
-    let out = pifs()
-        .args(["encode", "--bytes", "300", "-o"])
-        .arg(&stream)
-        .arg(p("good.png"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    encode(&["--bytes", "300"], &stream);
     let bytes = std::fs::read(&stream).unwrap();
     // Packets, framed.
-    let out = pifs()
-        .args(["encode", "--bytes", "600", "--packet-size", "64", "-o"])
-        .arg(p("good.pifsp"))
-        .arg(p("good.png"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    encode(&["--bytes", "600", "--packet-size", "64"], &p("good.pifsp"));
     std::fs::write(p("empty.pifs"), b"").unwrap();
     std::fs::write(p("truncated.pifs"), &bytes[..bytes.len() * 2 / 3]).unwrap();
     let mut flipped = bytes.clone();
