@@ -80,13 +80,20 @@ for bpp in 0.1 0.5; do
     python3 - "$d" "$out/kodim23s_320x240_${bpp}bpp.pifs" <<'PY'
 import sys, zlib
 s = bytearray(open(sys.argv[1], "rb").read())
-assert s[6] == 16, "not a 16-bit stream"
-pos = 19
-while s[pos] & 0x80:
-    pos += 1
-twin = s[:pos + 1] + s[pos + 5:]
-twin[6] = 8
-twin[15:19] = zlib.crc32(bytes(twin[:15] + twin[19:])).to_bytes(4, "little")
+# docs/bitstream.md, section 1: tag, flags, CRC-32, width and height less one (LEB128), the
+# coding fields if flag bit 2, the payload length (LEB128), a 16-bit stream's value range.
+assert s[1] & 2, "not a 16-bit stream"
+def skip_leb128(pos):
+    while s[pos] & 0x80:
+        pos += 1
+    return pos + 1
+pos = skip_leb128(skip_leb128(6))
+if s[1] & 4:
+    pos += 2
+pos = skip_leb128(pos)
+twin = s[:pos] + s[pos + 4:]
+twin[1] &= ~2 & 0xFF
+twin[2:6] = zlib.crc32(bytes(twin[:2] + twin[6:])).to_bytes(4, "little")
 open(sys.argv[2], "wb").write(twin)
 PY
     streams+=("$d" "$out/kodim23s_320x240_${bpp}bpp.pifs")

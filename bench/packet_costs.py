@@ -41,16 +41,16 @@ def varint(data, at):
 def overhead(packet):
     """Bytes of a packet that are not its payload: header fields and checksum; and whether it is
     the preview."""
-    if packet[0] != 0x70:
-        raise ValueError("not a packet (sync byte)")
-    flags = packet[4]
+    if packet[0] >> 6 != 3:
+        raise ValueError("not a packet (its first byte)")
+    flags = packet[3]
     preview = bool(flags & 2)
-    at = 5
-    for _ in range(4 if preview else 8):  # index, count, width, height [, x, y, w, h]
+    at = 4
+    for _ in range(4 if preview else 8):  # index, count, width - 1, height - 1 [, x, y, w, h]
         _, at = varint(packet, at)
     if flags & 4:
         at += 2
-    return at + 4, preview
+    return at + 2, preview
 
 
 def measure(pifs, image, rate, args, work):

@@ -22,7 +22,7 @@ use crate::geometry::Rect;
 use crate::prediction::{Frontier, RECORD_WHOLE};
 use crate::syntax::control_step;
 use crate::syntax::{
-    stream_checksum, Header, SampleRange, CHECKSUM_BYTES, FIXED_HEADER_LEN, MAX_HEADER_LEN,
+    stream_checksum, Header, SampleRange, CHECKSUM_BYTES, MAX_HEADER_LEN, MIN_HEADER_LEN,
 };
 use crate::synthesis::{
     Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE,
@@ -486,7 +486,7 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
 /// Reads exactly the header's bytes from `source` and parses them; returns the header and the
 /// CRC-32 state after its checksummed bytes.
 ///
-/// The fixed part is read first; further bytes (the payload length) are pulled one at a time
+/// The shortest header's bytes are read first; further bytes are pulled one at a time
 /// only while [`Header::parse`] reports the header as truncated, so the source is left at the
 /// first payload byte. Errors are those of [`Header::parse`] on the same bytes; a source that
 /// ends early gives [`DecodeError::Truncated`] (or [`DecodeError::BadMagic`], like a short
@@ -494,7 +494,7 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
 fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeError> {
     let mut buf = [0u8; MAX_HEADER_LEN];
     let mut len = 0;
-    while len < FIXED_HEADER_LEN {
+    while len < MIN_HEADER_LEN {
         match source.next_byte() {
             Some(b) => {
                 buf[len] = b;
@@ -513,7 +513,7 @@ fn read_header<B: ByteSource>(source: &mut B) -> Result<(Header, Crc32), DecodeE
                 crc.update(read.get(CHECKSUM_BYTES.end..).unwrap_or_default());
                 return Ok((header, crc));
             }
-            Err(DecodeError::Truncated) if (FIXED_HEADER_LEN..MAX_HEADER_LEN).contains(&len) => {
+            Err(DecodeError::Truncated) if (MIN_HEADER_LEN..MAX_HEADER_LEN).contains(&len) => {
                 buf[len] = source.next_byte().ok_or(DecodeError::Truncated)?;
                 len += 1;
             }
@@ -912,7 +912,6 @@ mod tests {
     extern crate std;
 
     use super::*;
-    use crate::syntax::VERSION;
     use std::path::PathBuf;
     use std::string::String;
     use std::vec::Vec;
@@ -990,18 +989,18 @@ mod tests {
         out
     }
 
-    /// The longest header: a payload length of `2^32 - 1` (five LEB128 bytes).
-    /// The longest header this decoder reads: a 16-bit stream's (an 8-bit one's without the
-    /// `deep` feature).
+    /// The longest header this decoder reads: sides of 65535 and a payload length of `2^32 -
+    /// 1` (three and five LEB128 bytes), the coding fields, and a 16-bit stream's value range
+    /// (an 8-bit stream's header without the `deep` feature).
     fn longest_header() -> Vec<u8> {
         let deep = cfg!(feature = "deep");
-        let mut h = Vec::from(*b"PIFS");
-        // Version, channels, depth, flags, width, height, leaf sizes, stripe, deblocking.
-        let depth = if deep { 16 } else { 8 };
-        h.extend_from_slice(&[VERSION, 1, depth, 0, 5, 0, 3, 0, 0x42, 0, 0]);
-        // Checksum (not checked by the header parser), the payload length, a 16-bit stream's
-        // range.
-        h.extend_from_slice(&[1, 2, 3, 4, 0xFF, 0xFF, 0xFF, 0xFF, 0x0F]);
+        // Tag; flags: smoothing 0, coding fields follow, 16-bit when built in.
+        let flags = 4 | if deep { 2 } else { 0 };
+        let mut h = Vec::from([crate::format::STREAM_TAG, flags]);
+        // Checksum (not checked by the header parser), width and height less one, leaf sizes,
+        // stripe, the payload length, a 16-bit stream's range.
+        h.extend_from_slice(&[1, 2, 3, 4, 0xFE, 0xFF, 0x03, 0xFE, 0xFF, 0x03, 0x42, 0]);
+        h.extend_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF, 0x0F]);
         if deep {
             h.extend_from_slice(&[0x10, 0, 0x20, 0]);
         }
@@ -1057,14 +1056,14 @@ mod tests {
             let mut src = ByteByByte::new(data);
             let r_stream = decode_streamed(&mut src, &mut streamed);
             assert_eq!(r_stream, r_slice, "{name}");
-            // The header's channel count (byte 5).
-            if data.get(5) == Some(&3) && !cfg!(feature = "colour") {
+            // The header's flags (byte 1): colour, 16-bit samples.
+            let flags = data.get(1).copied().unwrap_or_default();
+            if flags & crate::syntax::FLAG_COLOUR != 0 && !cfg!(feature = "colour") {
                 // Without the `colour` feature: refused on the header, by both.
                 assert_eq!(r_slice, Err(DecodeError::UnsupportedChannels(3)), "{name}");
                 continue;
             }
-            // The header's bit depth (byte 6).
-            if data.get(6) == Some(&16) && !cfg!(feature = "deep") {
+            if flags & crate::syntax::FLAG_DEEP != 0 && !cfg!(feature = "deep") {
                 // Without the `deep` feature: refused on the header, by both.
                 assert_eq!(r_slice, Err(DecodeError::UnsupportedBitDepth(16)), "{name}");
                 continue;

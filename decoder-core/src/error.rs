@@ -18,7 +18,7 @@ use crate::format::VERSION;
 pub enum DecodeError {
     /// The stream ended before the header or the payload was complete.
     Truncated,
-    /// The first four bytes are not `PIFS`.
+    /// The first byte is not a stream's (or, for a packet, a packet's) of any version.
     BadMagic,
     /// The stream was written by another (or an unknown) version of the format.
     UnsupportedVersion(u8),
@@ -32,7 +32,8 @@ pub enum DecodeError {
     /// The payload decoded to a value the syntax forbids (the arithmetic decoder lost
     /// synchronisation, or the stream was damaged).
     InvalidData(SyntaxElement),
-    /// The stream's CRC-32 does not match its bytes: it was damaged on the way.
+    /// The checksum (a stream's CRC-32, a packet's CRC-16) does not match the bytes: they were
+    /// damaged on the way.
     ChecksumMismatch {
         /// The checksum the header carries.
         stored: u32,
@@ -63,15 +64,16 @@ pub enum DecodeError {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum HeaderField {
-    /// Flag bits the format reserves are set.
-    ReservedFlags,
-    /// Width or height is zero.
+    /// Width or height is not 1 to 65535.
     Dimensions,
     /// The smallest or largest leaf size is outside the format's range, or they are in the
     /// wrong order.
     LeafSizes,
     /// The payload length is badly encoded or too large.
     PayloadLength,
+    /// The coding fields (leaf sizes and stripe) are written though they are the defaults: a
+    /// header has one encoding.
+    CodingFields,
     /// Bytes follow the payload the header declares.
     TrailingBytes,
     /// The edge-smoothing strength is above the format's largest.
@@ -87,10 +89,10 @@ pub enum HeaderField {
 impl HeaderField {
     fn describe(self) -> &'static str {
         match self {
-            HeaderField::ReservedFlags => "reserved flag bits are set",
-            HeaderField::Dimensions => "width and height must be at least 1",
+            HeaderField::Dimensions => "width and height must be 1 to 65535",
             HeaderField::LeafSizes => "leaf sizes",
             HeaderField::PayloadLength => "payload length",
+            HeaderField::CodingFields => "coding fields (written, though they are the defaults)",
             HeaderField::TrailingBytes => "payload length (bytes follow the payload)",
             HeaderField::Deblock => "edge-smoothing strength",
             HeaderField::Region => "packet region (outside the image)",
@@ -175,7 +177,7 @@ impl fmt::Display for DecodeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             DecodeError::Truncated => write!(f, "the stream is truncated"),
-            DecodeError::BadMagic => write!(f, "not a PIFS stream (bad magic bytes)"),
+            DecodeError::BadMagic => write!(f, "not a PIFS stream or packet (unknown first byte)"),
             DecodeError::UnsupportedVersion(v) => write!(
                 f,
                 "unsupported PIFS version {v} (this decoder reads version {VERSION})"
@@ -186,7 +188,7 @@ impl fmt::Display for DecodeError {
             DecodeError::InvalidData(element) => write!(f, "corrupt payload: invalid {element}"),
             DecodeError::ChecksumMismatch { stored, computed } => write!(
                 f,
-                "the stream is damaged: its CRC-32 is {computed:08x}, the header says {stored:08x}"
+                "damaged on the way: its checksum is {computed:08x}, the header says {stored:08x}"
             ),
             DecodeError::TooLarge { width, height } => write!(
                 f,

@@ -1,11 +1,47 @@
-//! The format's shared vocabulary, below every other module: its identity (magic bytes and
-//! version), the bounds on leaf sizes, and the small integer helpers both prediction and syntax
-//! use.
+//! The format's shared vocabulary, below every other module: its identity (the first byte of
+//! a stream or packet: kind and version), the bounds on leaf sizes, and the small integer
+//! helpers both prediction and syntax use.
 
-/// The four magic bytes that open every stream.
-pub const MAGIC: [u8; 4] = *b"PIFS";
-/// The format version this crate reads and writes.
-pub const VERSION: u8 = 21;
+/// The format version this crate reads and writes: the low six bits of the first byte of
+/// every stream and packet.
+pub const VERSION: u8 = 22;
+/// The first byte of a stream: kind 2 in its top two bits, [`VERSION`] below them. One byte
+/// both recognises the bytes (with the checksum behind it) and versions them.
+pub const STREAM_TAG: u8 = 0x80 | VERSION;
+/// The first byte of a packet (`docs/bitstream.md`, section 9): kind 3, [`VERSION`].
+pub const PACKET_TAG: u8 = 0xC0 | VERSION;
+/// The first byte of a parity packet: kind 1, [`VERSION`].
+pub const PARITY_TAG: u8 = 0x40 | VERSION;
+/// The bytes that opened a stream up to format version 21, before its version byte. A decoder
+/// refuses such a stream as unknown bytes ([`STREAM_TAG`] is not there); a tool that meets
+/// files may name their version.
+pub const LEGACY_MAGIC: [u8; 4] = *b"PIFS";
+const _: () = assert!(VERSION < 64, "the version must fit the tag's six bits");
+
+/// What a first byte says about the bytes behind it, against the `tag` expected
+/// ([`STREAM_TAG`], [`PACKET_TAG`]): the same kind of a later version gives that version.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TagCheck {
+    /// The expected kind and version.
+    Expected,
+    /// The expected kind, written by the later format version `.0`.
+    LaterVersion(u8),
+    /// Not the expected kind, or a version before this one (no version before 22 opened with a
+    /// tag: such a byte is not PIFS's).
+    Unknown,
+}
+
+/// Checks `byte` against `tag` ([`TagCheck`]).
+pub fn check_tag(byte: u8, tag: u8) -> TagCheck {
+    if byte == tag {
+        TagCheck::Expected
+    } else if byte >> 6 == tag >> 6 && byte & 0x3F > VERSION {
+        TagCheck::LaterVersion(byte & 0x3F)
+    } else {
+        TagCheck::Unknown
+    }
+}
+
 /// Smallest allowed leaf side, as a power of two.
 pub const MIN_LEAF_LOG2: u8 = 1;
 /// Largest allowed leaf side, as a power of two.
@@ -28,8 +64,8 @@ pub enum Leb128Error {
 
 /// Reads an unsigned LEB128 value (7 bits a byte, least significant group first, bit 7 set on
 /// every byte but the last) of at most `max_bytes` bytes at `*pos`, advancing `*pos`; a
-/// redundant final zero group (a last byte of 0 after others) is malformed. The header's
-/// payload length and the packet header's fields are such values.
+/// redundant final zero group (a last byte of 0 after others) is malformed. The headers' sizes
+/// and payload length and the packet header's fields are such values.
 pub fn read_leb128(data: &[u8], pos: &mut usize, max_bytes: usize) -> Result<u64, Leb128Error> {
     let mut value = 0u64;
     for k in 0..max_bytes {

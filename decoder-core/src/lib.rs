@@ -103,7 +103,7 @@ pub mod graphics;
 pub use decoder::{Decoder, InMemory, Input, Limits, Streamed};
 pub use entropy::{ByteSource, SliceSource};
 pub use error::{DecodeError, DrawError, HeaderField, SyntaxElement};
-pub use format::{MAGIC, VERSION};
+pub use format::{PACKET_TAG, STREAM_TAG, VERSION};
 pub use geometry::{Node, Rect};
 pub use packet::{Packet, PacketKind, REGION_UNIT};
 pub use syntax::{ControlCoding, Header, SampleRange, MAX_HEADER_LEN};

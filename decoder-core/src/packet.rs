@@ -1,37 +1,33 @@
 //! Packets for lossy links (`docs/bitstream.md`, section 9): an image sent as self-contained
 //! packets of a few hundred bytes, each a rectangle of the image coded as its own stream
 //! (fresh contexts, nothing predicted from outside it) behind a compact header and its own
-//! CRC-32. Any subset, in any order, decodes: each packet draws its region and nothing else; a
+//! CRC-16. Any subset, in any order, decodes: each packet draws its region and nothing else; a
 //! *preview* packet codes the whole image coarsely, to show first and to fill the regions of
 //! lost packets.
 //!
 //! Where a packet's bytes are parsed: [`Packet::parse`]. Where its pixels are made: the
 //! ordinary walk of its region's stream, through [`Packet::decode`].
 
-use crate::checksum::Crc32;
+use crate::checksum::crc16;
 use crate::decoder::Decoder;
 use crate::error::{DecodeError, DrawError, HeaderField};
-use crate::format::{read_leb128, write_leb128, Leb128Error, VERSION};
+use crate::format::{read_leb128, write_leb128, Leb128Error, PACKET_TAG};
 use crate::geometry::Rect;
-use crate::syntax::{check_coding_fields, Header};
+use crate::syntax::{
+    check_coding_fields, check_first_byte, read_side, side_error, write_side, Header, CODING_BYTES,
+    DEBLOCK_SHIFT, FLAG_CODING, FLAG_COLOUR,
+};
 use crate::synthesis::{PixelSink, Tile};
 
-/// The byte that opens every packet (`p`).
-pub const PACKET_SYNC: u8 = b'p';
 /// Regions are placed and sized in units of this many pixels.
 pub const REGION_UNIT: u32 = 8;
-/// The packet's CRC-32 trails it.
-const CRC_LEN: usize = 4;
-/// Flag bit: a colour image (3 channels; else grayscale).
-const FLAG_COLOUR: u8 = 1;
-/// Flag bit: a preview packet (the whole image, coarse; no region fields).
+/// The packet's CRC-16 trails it.
+pub const CRC_LEN: usize = 2;
+/// Flag bit: a preview packet (the whole image, coarse; no region fields). The other bits are
+/// a stream's ([`FLAG_COLOUR`], [`FLAG_CODING`], the smoothing strength).
 const FLAG_PREVIEW: u8 = 2;
-/// Flag bit: the leaf sizes and the stripe follow (else they are [`DEFAULT_CODING`]'s).
-const FLAG_CODING: u8 = 4;
-/// The flags byte's bits 3 to 7 hold the region stream's edge-smoothing strength.
-const DEBLOCK_SHIFT: u32 = 3;
 /// The leaf sizes (`max << 4 | min`) and the stripe of a packet without its coding flag: the
-/// reference encoder's defaults (leaves of 4 to 128 pixels, stripes of 512).
+/// reference encoder's defaults for packets (leaves of 4 to 128 pixels, stripes of 512).
 pub const DEFAULT_CODING: [u8; 2] = [0x72, 4];
 /// A varint of the packet header holds at most 16 bits: three LEB128 bytes.
 const MAX_VARINT_BYTES: usize = 3;
@@ -72,29 +68,20 @@ pub struct Packet<'a> {
 }
 
 impl<'a> Packet<'a> {
-    /// Parses and checks one packet: its CRC-32 first (a damaged packet is refused before
+    /// Parses and checks one packet: its CRC-16 first (a damaged packet is refused before
     /// anything else is read), then every field.
     pub fn parse(data: &'a [u8]) -> Result<Self, DecodeError> {
-        if data.len() < 2 + CRC_LEN {
+        check_first_byte(data, PACKET_TAG)?;
+        if data.len() < 1 + CRC_LEN {
             return Err(DecodeError::Truncated);
         }
-        if data[0] != PACKET_SYNC {
-            return Err(DecodeError::BadMagic);
-        }
-        if data[1] != VERSION {
-            return Err(DecodeError::UnsupportedVersion(data[1]));
-        }
         let (body, crc) = data.split_at(data.len() - CRC_LEN);
-        let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-        let mut running = Crc32::default();
-        running.update(body);
-        if running.value() != stored {
-            return Err(DecodeError::ChecksumMismatch {
-                stored,
-                computed: running.value(),
-            });
+        let stored = u32::from(u16::from_le_bytes([crc[0], crc[1]]));
+        let computed = u32::from(crc16(body));
+        if computed != stored {
+            return Err(DecodeError::ChecksumMismatch { stored, computed });
         }
-        let mut reader = Reader { data: body, pos: 2 };
+        let mut reader = Reader { data: body, pos: 1 };
         let image_id = u16::from_le_bytes([reader.byte()?, reader.byte()?]);
         let flags = reader.byte()?;
         let channels = if flags & FLAG_COLOUR != 0 { 3 } else { 1 };
@@ -106,11 +93,8 @@ impl<'a> Packet<'a> {
         if index >= count {
             return Err(DecodeError::InvalidHeader(HeaderField::PacketField));
         }
-        let width = reader.varint()?;
-        let height = reader.varint()?;
-        if width == 0 || height == 0 {
-            return Err(DecodeError::InvalidHeader(HeaderField::Dimensions));
-        }
+        let width = read_side(reader.data, &mut reader.pos).map_err(side_error)?;
+        let height = read_side(reader.data, &mut reader.pos).map_err(side_error)?;
         let (kind, region) = if flags & FLAG_PREVIEW != 0 {
             let whole = Rect::of_size(width.into(), height.into());
             (PacketKind::Preview, whole)
@@ -122,7 +106,13 @@ impl<'a> Packet<'a> {
             (PacketKind::Region, region_of(units, width, height)?)
         };
         let [leaf_sizes, stripe] = if flags & FLAG_CODING != 0 {
-            [reader.byte()?, reader.byte()?]
+            // Written only when not the defaults, as in a stream's header.
+            match [reader.byte()?, reader.byte()?] {
+                DEFAULT_CODING => {
+                    return Err(DecodeError::InvalidHeader(HeaderField::CodingFields))
+                }
+                fields => fields,
+            }
         } else {
             DEFAULT_CODING
         };
@@ -363,8 +353,9 @@ pub struct PacketHeader {
     pub deblock: u8,
 }
 
-/// The longest packet header: the fixed bytes, eight three-byte varints and the coding fields.
-pub const MAX_PACKET_HEADER_LEN: usize = 5 + 8 * MAX_VARINT_BYTES + 2;
+/// The longest packet header: the tag, the image id, the flags, eight three-byte varints and
+/// the coding fields.
+pub const MAX_PACKET_HEADER_LEN: usize = 4 + 8 * MAX_VARINT_BYTES + CODING_BYTES;
 
 impl PacketHeader {
     /// Writes the header into `out` (at least [`MAX_PACKET_HEADER_LEN`] bytes); returns its
@@ -382,11 +373,11 @@ impl PacketHeader {
         if custom {
             flags |= FLAG_CODING;
         }
-        out[..5].copy_from_slice(&[PACKET_SYNC, VERSION, id[0], id[1], flags]);
-        let mut pos = 5;
-        for v in [self.index, self.count, self.width, self.height] {
-            pos = write_field(out, pos, v);
-        }
+        out[..4].copy_from_slice(&[PACKET_TAG, id[0], id[1], flags]);
+        let mut pos = write_field(out, 4, self.index);
+        pos = write_field(out, pos, self.count);
+        pos = write_side(out, pos, self.width);
+        pos = write_side(out, pos, self.height);
         for v in self.region_units.into_iter().flatten() {
             pos = write_field(out, pos, v);
         }
@@ -399,9 +390,9 @@ impl PacketHeader {
 }
 
 impl PacketHeader {
-    /// Writes the whole packet into `out`: this header, `payload`, the CRC-32; returns its
+    /// Writes the whole packet into `out`: this header, `payload`, the CRC-16; returns its
     /// length, or `None` when `out` is too short (it needs [`MAX_PACKET_HEADER_LEN`] + the
-    /// payload + 4 bytes at most).
+    /// payload + [`CRC_LEN`] bytes at most).
     pub fn write_packet(&self, payload: &[u8], out: &mut [u8]) -> Option<usize> {
         let mut head = [0u8; MAX_PACKET_HEADER_LEN];
         let len = self.write(&mut head);
@@ -414,11 +405,9 @@ impl PacketHeader {
     }
 }
 
-/// The CRC-32 that completes `packet` (its header and payload), to append to it.
-pub fn packet_crc(packet: &[u8]) -> [u8; 4] {
-    let mut crc = Crc32::default();
-    crc.update(packet);
-    crc.value().to_le_bytes()
+/// The CRC-16 that completes `packet` (its header and payload), to append to it.
+pub fn packet_crc(packet: &[u8]) -> [u8; CRC_LEN] {
+    crc16(packet).to_le_bytes()
 }
 
 #[cfg(test)]
@@ -479,7 +468,7 @@ mod tests {
     }
 
     fn seal(header: &PacketHeader, payload: &[u8]) -> Vec<u8> {
-        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN + payload.len() + 4];
+        let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN + payload.len() + CRC_LEN];
         let len = header.write_packet(payload, &mut packet).unwrap();
         packet.truncate(len);
         packet
@@ -539,7 +528,11 @@ mod tests {
             let mut bad = packet.clone();
             bad[i] ^= 0x10;
             let e = Packet::parse(&bad).unwrap_err();
-            let want_checksum = i >= 2;
+            // Byte 0 is the tag: damaged, it names another kind or version.
+            let want_checksum = i >= 1;
+            if i == 0 {
+                assert_eq!(e, DecodeError::BadMagic, "tag damaged");
+            }
             assert_eq!(
                 matches!(e, DecodeError::ChecksumMismatch { .. }),
                 want_checksum,
@@ -592,9 +585,18 @@ mod tests {
             field(h),
             Err(DecodeError::InvalidHeader(HeaderField::PacketField))
         );
-        let h = PacketHeader { width: 0, ..base };
+        // A width less one of 65535 (the tag, the image id, the flags, the index and the count
+        // come first).
+        let reseal = |splice: &[u8], at: core::ops::Range<usize>| {
+            let mut packet = seal(&base, payload);
+            packet.truncate(packet.len() - CRC_LEN);
+            packet.splice(at, splice.iter().copied());
+            let crc = packet_crc(&packet);
+            packet.extend_from_slice(&crc);
+            Packet::parse(&packet).map(|p| p.index)
+        };
         assert_eq!(
-            field(h),
+            reseal(&[0xFF, 0xFF, 0x03], 6..7),
             Err(DecodeError::InvalidHeader(HeaderField::Dimensions))
         );
         let h = PacketHeader {
@@ -613,15 +615,38 @@ mod tests {
             field(h),
             Err(DecodeError::InvalidHeader(HeaderField::Deblock))
         );
-        // A redundant final zero group in a varint.
-        let mut redundant = seal(&base, payload);
-        redundant.truncate(redundant.len() - 4);
-        redundant.splice(5..6, [0x80, 0x00]);
-        let crc = packet_crc(&redundant);
-        redundant.extend_from_slice(&crc);
+        // A redundant final zero group in a varint (the index).
         assert_eq!(
-            Packet::parse(&redundant).map(|p| p.index),
+            reseal(&[0x80, 0x00], 4..5),
             Err(DecodeError::InvalidHeader(HeaderField::PacketField))
         );
+        // The coding fields written though they are the defaults: one packet, one encoding.
+        let defaults = PacketHeader {
+            coding: DEFAULT_CODING,
+            ..base
+        };
+        let mut head = [0u8; MAX_PACKET_HEADER_LEN];
+        let len = defaults.write(&mut head);
+        let mut explicit = head[..len].to_vec();
+        explicit[3] |= FLAG_CODING;
+        explicit.extend_from_slice(&DEFAULT_CODING);
+        explicit.extend_from_slice(payload);
+        let crc = packet_crc(&explicit);
+        explicit.extend_from_slice(&crc);
+        assert_eq!(
+            Packet::parse(&explicit).err(),
+            Some(DecodeError::InvalidHeader(HeaderField::CodingFields))
+        );
+        // Another kind's tag, a later version's, an earlier one's (which had no tags).
+        let mut other = seal(&base, payload);
+        other[0] = crate::format::STREAM_TAG;
+        assert_eq!(Packet::parse(&other).err(), Some(DecodeError::BadMagic));
+        other[0] = PACKET_TAG + 1;
+        assert_eq!(
+            Packet::parse(&other).err(),
+            Some(DecodeError::UnsupportedVersion(crate::format::VERSION + 1))
+        );
+        other[0] = PACKET_TAG - 1;
+        assert_eq!(Packet::parse(&other).err(), Some(DecodeError::BadMagic));
     }
 }

@@ -13,9 +13,12 @@ use crate::colour::{chroma_models, ChromaPlane, CHROMA_GRIDS};
 use crate::entropy::{code_tree, code_unary, Coder, IntContexts, Prob};
 use crate::error::{DecodeError, HeaderField, PayloadError, SyntaxElement};
 use crate::format::{
-    div_round, load, med, read_leb128, store, write_leb128, Leb128Error, CODING_TILE,
+    check_tag, div_round, load, med, read_leb128, store, write_leb128, Leb128Error, TagCheck,
+    CODING_TILE,
 };
-pub use crate::format::{SampleRange, MAGIC, MAX_LEAF_LOG2, MIN_LEAF_LOG2, VERSION};
+pub use crate::format::{
+    SampleRange, MAX_LEAF_LOG2, MIN_LEAF_LOG2, PACKET_TAG, PARITY_TAG, STREAM_TAG, VERSION,
+};
 use crate::geometry::Node;
 use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN};
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
@@ -26,19 +29,80 @@ use control::{
 };
 use initial_contexts::{CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES};
 
-/// Size of the fixed part of the header, in bytes (the checksum included).
-pub const FIXED_HEADER_LEN: usize = 19;
+/// Size of the fixed part of the header, in bytes: the tag, the flags and the checksum.
+pub const FIXED_HEADER_LEN: usize = 6;
 /// Where the stream's CRC-32 sits: the only bytes of a stream that its checksum does not cover.
-pub const CHECKSUM_BYTES: core::ops::Range<usize> = 15..19;
+pub const CHECKSUM_BYTES: core::ops::Range<usize> = 2..6;
+/// Shortest possible header: the fixed part and one byte each for the width, the height and
+/// the payload length. A decoder reading a sequential source reads this much at once.
+pub const MIN_HEADER_LEN: usize = FIXED_HEADER_LEN + 3;
 /// Largest edge-smoothing strength ([`Header::deblock`]).
 pub const MAX_DEBLOCK: u8 = 16;
 /// Longest encoding of the payload length (LEB128 of a `u32`).
 pub const MAX_LENGTH_BYTES: usize = 5;
+/// Longest encoding of a width or height less one (LEB128 of at most 16 bits).
+pub const MAX_SIZE_BYTES: usize = 3;
+/// Bytes of the optional coding fields: the leaf sizes and the stripe.
+pub const CODING_BYTES: usize = 2;
 /// Bytes of the value range a 16-bit stream's header ends with ([`SampleRange`]).
 pub const RANGE_BYTES: usize = 4;
-/// Longest possible header: the fixed part, the longest payload length and a 16-bit stream's
-/// value range (28 bytes). A decoder reading a sequential source never buffers more.
-pub const MAX_HEADER_LEN: usize = FIXED_HEADER_LEN + MAX_LENGTH_BYTES + RANGE_BYTES;
+/// Longest possible header: the fixed part, the longest width, height and payload length, the
+/// coding fields and a 16-bit stream's value range (23 bytes). A decoder reading a sequential
+/// source never buffers more.
+pub const MAX_HEADER_LEN: usize =
+    FIXED_HEADER_LEN + 2 * MAX_SIZE_BYTES + CODING_BYTES + MAX_LENGTH_BYTES + RANGE_BYTES;
+/// The leaf sizes (`max << 4 | min`) and the stripe of a stream whose flags do not say they
+/// follow: leaves of 4 to 128 pixels, one stripe as wide as the image.
+pub const DEFAULT_STREAM_CODING: [u8; 2] = [0x72, 0];
+
+/// Flag bit of a stream's or a packet's flags byte: colour (3 channels; else grayscale).
+pub const FLAG_COLOUR: u8 = 1;
+/// Flag bit of a stream's flags byte: 16-bit samples (else 8-bit). A packet's bit 1 says
+/// "preview" instead.
+pub const FLAG_DEEP: u8 = 2;
+/// Flag bit of a stream's or a packet's flags byte: the coding fields (leaf sizes, stripe)
+/// follow; else they are the defaults of the kind.
+pub const FLAG_CODING: u8 = 4;
+/// The flags byte's bits 3 to 7 hold the edge-smoothing strength.
+pub const DEBLOCK_SHIFT: u32 = 3;
+
+/// Reads a width or height at `*pos` (advanced past it): the side less one, unsigned LEB128 in
+/// at most three bytes; the side must be 1..=65535 (else [`Leb128Error::Malformed`]). The
+/// error is a byte wide: the caller names the field ([`side_error`]).
+pub fn read_side(data: &[u8], pos: &mut usize) -> Result<u16, Leb128Error> {
+    match read_leb128(data, pos, MAX_SIZE_BYTES)? {
+        v if v < 0xFFFF => Ok(v as u16 + 1),
+        _ => Err(Leb128Error::Malformed),
+    }
+}
+
+/// The error of a width or height that [`read_side`] refused.
+pub fn side_error(e: Leb128Error) -> DecodeError {
+    match e {
+        Leb128Error::Truncated => DecodeError::Truncated,
+        Leb128Error::Malformed => DecodeError::InvalidHeader(HeaderField::Dimensions),
+    }
+}
+
+/// Writes a width or height (1..=65535) as [`read_side`] reads it; returns the position after.
+pub fn write_side(out: &mut [u8], pos: usize, side: u16) -> usize {
+    write_leb128(out, pos, u32::from(side.max(1)) - 1)
+}
+
+/// Checks the first byte of `data` against `tag` ([`STREAM_TAG`] or a packet's): the same
+/// kind of a later version is [`DecodeError::UnsupportedVersion`], anything else
+/// [`DecodeError::BadMagic`] (a random first byte is a stream's of some later version one time
+/// in six); no byte at all, [`DecodeError::Truncated`].
+pub fn check_first_byte(data: &[u8], tag: u8) -> Result<(), DecodeError> {
+    let Some(&first) = data.first() else {
+        return Err(DecodeError::Truncated);
+    };
+    match check_tag(first, tag) {
+        TagCheck::Expected => Ok(()),
+        TagCheck::LaterVersion(v) => Err(DecodeError::UnsupportedVersion(v)),
+        TagCheck::Unknown => Err(DecodeError::BadMagic),
+    }
+}
 
 /// The stream header.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -146,10 +210,32 @@ impl Header {
         usize::from(self.width) * usize::from(self.height)
     }
 
+    /// Whether the leaf sizes and the stripe differ from [`DEFAULT_STREAM_CODING`], and so are
+    /// written.
+    fn custom_coding(&self) -> bool {
+        self.coding_fields() != DEFAULT_STREAM_CODING
+    }
+
+    /// The leaf sizes (`max << 4 | min`) and the stripe, as written.
+    fn coding_fields(&self) -> [u8; 2] {
+        [(self.max_leaf_log2 << 4) | self.min_leaf_log2, self.stripe]
+    }
+
     /// Length of the serialised header in bytes.
     pub fn encoded_len(&self) -> usize {
+        let side = |v: u16| leb128_len(u32::from(v.max(1)) - 1);
+        let coding = if self.custom_coding() {
+            CODING_BYTES
+        } else {
+            0
+        };
         let range = if self.range.is_some() { RANGE_BYTES } else { 0 };
-        FIXED_HEADER_LEN + leb128_len(self.payload_len) + range
+        FIXED_HEADER_LEN
+            + side(self.width)
+            + side(self.height)
+            + coding
+            + leb128_len(self.payload_len)
+            + range
     }
 
     /// Length of the whole stream: header and payload.
@@ -165,36 +251,38 @@ impl Header {
 
     /// Parses the header at the start of `data`; returns it and the offset of the payload.
     pub fn parse(data: &[u8]) -> Result<(Header, usize), DecodeError> {
-        let fixed =
-            data.get(..FIXED_HEADER_LEN)
-                .ok_or(if data.len() >= 4 && data[..4] != MAGIC {
-                    DecodeError::BadMagic
-                } else {
-                    DecodeError::Truncated
-                })?;
-        if fixed[..4] != MAGIC {
-            return Err(DecodeError::BadMagic);
-        }
-        if fixed[4] != VERSION {
-            return Err(DecodeError::UnsupportedVersion(fixed[4]));
-        }
-        let channels = fixed[5];
-        if channels != 1 && (channels != 3 || !cfg!(feature = "colour")) {
+        check_first_byte(data, STREAM_TAG)?;
+        let fixed = data.get(..FIXED_HEADER_LEN).ok_or(DecodeError::Truncated)?;
+        let flags = fixed[1];
+        let channels = if flags & FLAG_COLOUR != 0 { 3 } else { 1 };
+        if channels == 3 && !cfg!(feature = "colour") {
             return Err(DecodeError::UnsupportedChannels(channels));
         }
-        let bit_depth = fixed[6];
-        if bit_depth != 8 && (bit_depth != 16 || channels != 1 || !cfg!(feature = "deep")) {
+        let bit_depth = if flags & FLAG_DEEP != 0 { 16 } else { 8 };
+        if bit_depth == 16 && (channels != 1 || !cfg!(feature = "deep")) {
             return Err(DecodeError::UnsupportedBitDepth(bit_depth));
         }
-        if fixed[7] != 0 {
-            return Err(DecodeError::InvalidHeader(HeaderField::ReservedFlags));
-        }
-        let width = u16::from_le_bytes([fixed[8], fixed[9]]);
-        let height = u16::from_le_bytes([fixed[10], fixed[11]]);
-        if width == 0 || height == 0 {
-            return Err(DecodeError::InvalidHeader(HeaderField::Dimensions));
-        }
-        let (min_leaf_log2, max_leaf_log2) = check_coding_fields(fixed[12], fixed[14])?;
+        let deblock = flags >> DEBLOCK_SHIFT;
+        let mut pos = FIXED_HEADER_LEN;
+        let width = read_side(data, &mut pos).map_err(side_error)?;
+        let height = read_side(data, &mut pos).map_err(side_error)?;
+        let [leaf_sizes, stripe] = match flags & FLAG_CODING != 0 {
+            true => {
+                let fields = data
+                    .get(pos..pos + CODING_BYTES)
+                    .ok_or(DecodeError::Truncated)?;
+                pos += CODING_BYTES;
+                // Written only when not the defaults: one header, one encoding.
+                match [fields[0], fields[1]] {
+                    DEFAULT_STREAM_CODING => {
+                        return Err(DecodeError::InvalidHeader(HeaderField::CodingFields))
+                    }
+                    fields => fields,
+                }
+            }
+            false => DEFAULT_STREAM_CODING,
+        };
+        let (min_leaf_log2, max_leaf_log2) = check_coding_fields(leaf_sizes, deblock)?;
         let mut header = Header {
             width,
             height,
@@ -202,13 +290,12 @@ impl Header {
             bit_depth,
             min_leaf_log2,
             max_leaf_log2,
-            stripe: fixed[13],
-            deblock: fixed[14],
+            stripe,
+            deblock,
             payload_len: 0,
-            checksum: u32::from_le_bytes([fixed[15], fixed[16], fixed[17], fixed[18]]),
+            checksum: u32::from_le_bytes([fixed[2], fixed[3], fixed[4], fixed[5]]),
             range: None,
         };
-        let mut pos = FIXED_HEADER_LEN;
         // Payload length: LEB128, at most five bytes, no redundant trailing zero group.
         let len = read_leb128(data, &mut pos, MAX_LENGTH_BYTES).map_err(|e| match e {
             Leb128Error::Truncated => DecodeError::Truncated,
@@ -239,28 +326,27 @@ impl Header {
     /// Serialises the header into `out` (which must hold [`Header::encoded_len`] bytes);
     /// returns the number of bytes written.
     pub fn write(&self, out: &mut [u8]) -> usize {
-        let w = self.width.to_le_bytes();
-        let h = self.height.to_le_bytes();
-        let fixed = [
-            MAGIC[0],
-            MAGIC[1],
-            MAGIC[2],
-            MAGIC[3],
-            VERSION,
-            self.channels,
-            self.bit_depth,
-            0,
-            w[0],
-            w[1],
-            h[0],
-            h[1],
-            (self.max_leaf_log2 << 4) | self.min_leaf_log2,
-            self.stripe,
-            self.deblock,
-        ];
-        out[..CHECKSUM_BYTES.start].copy_from_slice(&fixed);
+        let mut flags = self.deblock << DEBLOCK_SHIFT;
+        if self.channels == 3 {
+            flags |= FLAG_COLOUR;
+        }
+        if self.bit_depth == 16 {
+            flags |= FLAG_DEEP;
+        }
+        let custom = self.custom_coding();
+        if custom {
+            flags |= FLAG_CODING;
+        }
+        out[0] = STREAM_TAG;
+        out[1] = flags;
         out[CHECKSUM_BYTES].copy_from_slice(&self.checksum.to_le_bytes());
-        let mut len = write_leb128(out, FIXED_HEADER_LEN, self.payload_len);
+        let mut len = write_side(out, FIXED_HEADER_LEN, self.width);
+        len = write_side(out, len, self.height);
+        if custom {
+            out[len..len + CODING_BYTES].copy_from_slice(&self.coding_fields());
+            len += CODING_BYTES;
+        }
+        len = write_leb128(out, len, self.payload_len);
         if let Some(SampleRange { low, step }) = self.range {
             out[len..len + 2].copy_from_slice(&low.to_le_bytes());
             out[len + 2..len + RANGE_BYTES].copy_from_slice(&step.to_le_bytes());
@@ -1087,6 +1173,75 @@ mod tests {
                 assert_eq!(parsed, Err(DecodeError::UnsupportedChannels(3)));
             }
         }
+    }
+
+    /// Every side from 1 to 65535 survives the header in one to three bytes; the default coding
+    /// fields are left out; the header is as long as it says; another version's tag is refused
+    /// for its version.
+    #[test]
+    fn headers_round_trip_at_their_encoded_length() {
+        let base = Header {
+            width: 1,
+            height: 1,
+            channels: 1,
+            bit_depth: 8,
+            min_leaf_log2: 2,
+            max_leaf_log2: 7,
+            stripe: 0,
+            deblock: 16,
+            payload_len: 127,
+            checksum: 0xDEAD_BEEF,
+            range: None,
+        };
+        assert_eq!(base.encoded_len(), MIN_HEADER_LEN);
+        for (side, bytes) in [
+            (1, 1),
+            (128, 1),
+            (129, 2),
+            (16384, 2),
+            (16385, 3),
+            (65535, 3),
+        ] {
+            for stripe in [0, 4] {
+                let header = Header {
+                    width: side,
+                    height: 200,
+                    stripe,
+                    ..base
+                };
+                let mut out = [0u8; MAX_HEADER_LEN];
+                let n = header.write(&mut out);
+                let coding = if stripe == 0 { 0 } else { CODING_BYTES };
+                assert_eq!(n, FIXED_HEADER_LEN + bytes + 2 + coding + 1, "side {side}");
+                assert_eq!(n, header.encoded_len());
+                assert_eq!(Header::parse(&out[..n]), Ok((header, n)));
+                assert_eq!(Header::parse(&out[..n - 1]), Err(DecodeError::Truncated));
+            }
+        }
+        // A stream of format 21 or earlier opens with `PIFS`: not a stream's tag.
+        assert_eq!(
+            Header::parse(b"PIFS\x15\x01\x08"),
+            Err(DecodeError::BadMagic)
+        );
+        let mut out = [0u8; MAX_HEADER_LEN];
+        let n = base.write(&mut out);
+        out[0] = STREAM_TAG + 1;
+        assert_eq!(
+            Header::parse(&out[..n]),
+            Err(DecodeError::UnsupportedVersion(VERSION + 1))
+        );
+        // A side less one of 65535 would be a side of 65536: refused. So is a smoothing of 17.
+        let mut big = [STREAM_TAG, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0x03, 0, 0];
+        assert_eq!(
+            Header::parse(&big),
+            Err(DecodeError::InvalidHeader(HeaderField::Dimensions))
+        );
+        big[1] = 17 << DEBLOCK_SHIFT;
+        big[6] = 0;
+        assert_eq!(
+            Header::parse(&big[..9]),
+            Err(DecodeError::InvalidHeader(HeaderField::Deblock))
+        );
     }
 
     /// Plays the encoder's part (records every bit) or the decoder's (replays them).

@@ -159,14 +159,23 @@ fn make_inputs(dir: &Path) {
     flipped[at] ^= 0x10;
     std::fs::write(p("bit-flip.pifs"), &flipped).unwrap();
     let mut newer = bytes.clone();
-    newer[4] = decoder_core::internal::format::VERSION + 1;
+    newer[0] = decoder_core::STREAM_TAG + 1;
     std::fs::write(p("version-next.pifs"), &newer).unwrap();
+    // Format 21's opening: `PIFS`, its version byte, then what its header held.
+    let mut older = b"PIFS".to_vec();
+    older.push(21);
+    older.extend_from_slice(&bytes[1..]);
+    std::fs::write(p("version-21.pifs"), &older).unwrap();
     let mut longer = bytes.clone();
     longer.extend_from_slice(b"trailing");
     std::fs::write(p("trailing-bytes.pifs"), &longer).unwrap();
     // A valid, checksummed header announcing 65535 x 65535 pixels, with a tiny payload.
-    let mut huge = bytes.clone();
-    huge[8..12].copy_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF]);
+    let (mut header, offset) = decoder_core::Header::parse(&bytes).unwrap();
+    header.width = 65535;
+    header.height = 65535;
+    let mut huge = vec![0u8; header.encoded_len()];
+    header.write(&mut huge);
+    huge.extend_from_slice(&bytes[offset..]);
     decoder_core::internal::syntax::seal(&mut huge);
     std::fs::write(p("huge-header.pifs"), &huge).unwrap();
 }
@@ -587,6 +596,11 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/d7.png"),
         ),
         refuse(
+            "decode: stream of format 21",
+            &["decode", "{dir}/version-21.pifs", "-o", "{dir}/d7b.png"],
+            Some("{dir}/d7b.png"),
+        ),
+        refuse(
             "decode: bytes after the stream",
             &["decode", "{dir}/trailing-bytes.pifs", "-o", "{dir}/d8.png"],
             Some("{dir}/d8.png"),
@@ -962,7 +976,7 @@ pub fn mask_encoder_figures(message: &str) -> String {
     for (marker, end) in [
         ("smallest stream for this image is ", " bytes"),
         ("reaches is ", " dB"),
-        ("its CRC-32 is ", ","),
+        ("its checksum is ", ","),
         ("the header says ", ""),
         ("is N bytes: use --bpp ", " or more"),
         ("or more, or --bytes ", ""),

@@ -467,14 +467,14 @@ const MAX_PACKETS: usize = 16;
 
 /// Check (f): see the module's list.
 pub fn decode_packets(data: &[u8]) {
-    use decoder_core::internal::packet::packet_crc;
+    use decoder_core::internal::packet::{packet_crc, CRC_LEN};
     use decoder_core::Packet;
     let frames = host_encoder::packets::unframe(data);
     let mut inputs: Vec<Vec<u8>> = Vec::new();
     for frame in frames.into_iter().take(MAX_PACKETS) {
         let mut sealed = frame.clone();
-        if sealed.len() > 4 {
-            let body = sealed.len() - 4;
+        if sealed.len() > CRC_LEN {
+            let body = sealed.len() - CRC_LEN;
             let crc = packet_crc(&sealed[..body]);
             sealed[body..].copy_from_slice(&crc);
         }

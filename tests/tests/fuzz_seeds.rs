@@ -24,7 +24,7 @@ mod common;
 use decoder_core::internal::model::MODELS;
 use decoder_core::internal::syntax::control::CONTROL_QUANTISERS;
 use decoder_core::internal::syntax::ControlCoding;
-use decoder_core::{Header, LeafInfo, VERSION};
+use decoder_core::{Header, LeafInfo, STREAM_TAG, VERSION};
 use host_encoder::{EncoderConfig, Plane, Target};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -700,8 +700,8 @@ fn seed_streams_are_current_and_use_every_model_and_quantiser() {
     let mut usage = Usage::default();
     for (name, bytes) in &streams {
         assert_eq!(
-            bytes.get(4).copied(),
-            Some(VERSION),
+            bytes.first().copied(),
+            Some(STREAM_TAG),
             "fuzz/seeds/streams/{name} is not format version {VERSION}: regenerate the seeds \
              (cargo test -p pifs-tests --test fuzz_seeds -- --ignored regenerate)"
         );

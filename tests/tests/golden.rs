@@ -19,7 +19,7 @@ use common::{
     analyse_with, decode_all, decode_values, golden_dir, golden_list, golden_values, sha256_hex,
     CoverageSink,
 };
-use decoder_core::internal::format::{MAGIC, VERSION};
+use decoder_core::internal::format::{STREAM_TAG, VERSION};
 use decoder_core::internal::model::MODELS;
 use decoder_core::internal::syntax::ControlCoding;
 use decoder_core::{LeafInfo, SampleRange};
@@ -304,7 +304,12 @@ fn golden_packets_assemble_to_the_recorded_pixels() {
     for g in &list {
         let (all, kept) = common::golden_packet_set(g);
         for p in &all {
-            assert_eq!(p[1], VERSION, "{}: packet version", g.file);
+            assert_eq!(
+                p[0],
+                decoder_core::PACKET_TAG,
+                "{}: not a packet of version {VERSION}",
+                g.file
+            );
         }
         let whole = assemble(all.iter().map(Vec::as_slice), u64::MAX).unwrap();
         assert_eq!(
@@ -340,12 +345,11 @@ fn golden_streams_decode_to_the_recorded_pixels() {
     let mut failures = Vec::new();
     for g in &list {
         let bytes = std::fs::read(golden_dir().join(&g.file)).unwrap();
-        assert_eq!(bytes[..4], MAGIC, "{}: magic", g.file);
         assert_eq!(
-            bytes[4], VERSION,
-            "{}: the golden stream is bitstream version {} but decoder-core is version {VERSION}: \
-             regenerate the golden vectors after a version bump",
-            g.file, bytes[4]
+            bytes[0], STREAM_TAG,
+            "{}: the golden stream opens with {:#04x}, not decoder-core's stream tag (version \
+             {VERSION}): regenerate the golden vectors after a version bump",
+            g.file, bytes[0]
         );
         let (header, pixels) = match decode_all(&bytes) {
             Ok(r) => r,

@@ -97,8 +97,7 @@ fn reader<'a>(bytes: &'a [u8], path: &Path) -> Result<ImageReader<Cursor<&'a [u8
             source,
         })?;
     if reader.format().is_none() {
-        let is_pifs = bytes.starts_with(&decoder_core::MAGIC);
-        return Err(if is_pifs {
+        return Err(if is_pifs(bytes) {
             FileError::AlreadyPifs {
                 path: path.to_path_buf(),
             }
@@ -109,6 +108,14 @@ fn reader<'a>(bytes: &'a [u8], path: &Path) -> Result<ImageReader<Cursor<&'a [u8
         });
     }
     Ok(reader)
+}
+
+/// Whether `bytes` are PIFS data rather than an image: a whole stream or packet of this
+/// format version (its check passes), or a stream of format 21 or earlier.
+fn is_pifs(bytes: &[u8]) -> bool {
+    decoder_core::Decoder::new(bytes).is_ok()
+        || decoder_core::Packet::parse(bytes).is_ok()
+        || bytes.starts_with(&decoder_core::internal::format::LEGACY_MAGIC)
 }
 
 /// What an image's header says, read without decoding its pixels.

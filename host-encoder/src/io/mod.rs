@@ -289,7 +289,7 @@ mod tests {
         );
         assert!(err.source().is_some());
 
-        let mut stream = decoder_core::internal::format::MAGIC.to_vec();
+        let mut stream = decoder_core::internal::format::LEGACY_MAGIC.to_vec();
         stream.extend_from_slice(&[0; 16]);
         let err = decode_luma(&stream, Path::new("s.bin")).unwrap_err();
         assert!(matches!(err, FileError::AlreadyPifs { .. }), "{err}");

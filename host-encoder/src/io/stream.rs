@@ -316,9 +316,29 @@ enum HeaderRead {
     Stream(DecodeError),
 }
 
+/// What bytes that are not a stream of this version are, once `head` (the bytes read so far)
+/// failed as a stream: a stream of format 21 or earlier (`PIFS` and its version byte, read from
+/// `reader` as far as it takes to tell) is [`DecodeError::UnsupportedVersion`], anything else
+/// [`DecodeError::BadMagic`].
+fn legacy_version(reader: &mut dyn Read, mut head: Vec<u8>) -> DecodeError {
+    let magic = decoder_core::internal::format::LEGACY_MAGIC;
+    // Read on while the bytes so far agree with `PIFS`, up to the version byte after it.
+    while head.len() <= magic.len() && magic.iter().zip(&head).all(|(a, b)| a == b) {
+        let mut one = [0u8; 1];
+        match reader.read(&mut one) {
+            Ok(1) => head.push(one[0]),
+            _ => return DecodeError::BadMagic,
+        }
+    }
+    match head.get(magic.len()) {
+        Some(&version) if head.starts_with(&magic) => DecodeError::UnsupportedVersion(version),
+        _ => DecodeError::BadMagic,
+    }
+}
+
 /// Reads a header's bytes one at a time while [`Header::parse`] asks for more, so that input
-/// that is not a stream is refused as soon as it shows (at the fourth byte if the magic is
-/// wrong) and nothing past the header is read. Returns the header and its bytes.
+/// that is not a stream is refused as soon as it shows (at its first byte, unless that byte
+/// opens a stream) and nothing past the header is read. Returns the header and its bytes.
 fn read_header(reader: &mut dyn Read) -> Result<(Header, Vec<u8>), HeaderRead> {
     let mut head = Vec::with_capacity(MAX_HEADER_LEN);
     loop {
@@ -340,6 +360,9 @@ fn read_header(reader: &mut dyn Read) -> Result<(Header, Vec<u8>), HeaderRead> {
                     return Err(HeaderRead::Stream(DecodeError::Truncated));
                 }
                 head.push(one[0]);
+            }
+            Err(DecodeError::BadMagic) => {
+                return Err(HeaderRead::Stream(legacy_version(reader, head)))
             }
             Err(e) => return Err(HeaderRead::Stream(e)),
         }
@@ -611,7 +634,7 @@ mod tests {
     }
 
     #[test]
-    fn what_is_not_a_stream_is_refused_after_four_bytes() {
+    fn what_is_not_a_stream_is_refused_at_its_first_byte() {
         let zeros = vec![0u8; 1 << 16];
         let mut source = Counting {
             data: &zeros,
@@ -628,7 +651,7 @@ mod tests {
             ),
             "{err}"
         );
-        assert_eq!(source.pulled, 4);
+        assert_eq!(source.pulled, 1);
     }
 
     #[test]

@@ -15,8 +15,8 @@
 //! image are counted and ignored.
 
 use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Target};
-use decoder_core::internal::packet::{PacketHeader, MAX_PACKET_HEADER_LEN};
-use decoder_core::internal::syntax::{Header, FIXED_HEADER_LEN};
+use decoder_core::internal::packet::{PacketHeader, CRC_LEN, MAX_PACKET_HEADER_LEN};
+use decoder_core::internal::syntax::Header;
 use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Tile, REGION_UNIT};
 use parity::Parity;
 use rayon::prelude::*;
@@ -26,7 +26,7 @@ use std::fmt;
 
 mod parity;
 
-pub use parity::{MAX_SHARDS, PARITY_SYNC};
+pub use parity::{MAX_SHARDS, PARITY_TAG};
 
 /// The smallest packet size [`packetise`] accepts, bytes.
 pub const MIN_PACKET_SIZE: usize = 48;
@@ -548,9 +548,8 @@ fn fill_packet(
 ) -> Result<Vec<u8>, PacketError> {
     let mut head = [0u8; MAX_PACKET_HEADER_LEN];
     let capacity = size - header.write(&mut head) - CRC_LEN;
-    // The stream's own header is counted by its budget, not by the packet:
-    // its payload-length field takes one byte more from 128 bytes on.
-    let stream_header = FIXED_HEADER_LEN + 1 + usize::from(capacity >= 128);
+    // The stream's own header is counted by its budget, not by the packet.
+    let stream_header = region_stream_header(header, capacity).encoded_len();
     for extra in [FLUSH_SAVING, 0] {
         let encoded = encode(capacity + extra + stream_header)?;
         let (stream, offset) = Header::parse(&encoded.bytes).map_err(EncodeError::Syntax)?;
@@ -573,14 +572,43 @@ fn fill_packet(
     Err(EncodeError::Internal("a region's stream does not fit its packet").into())
 }
 
+/// The header of the stream of `packet`'s region with a payload of `payload_len` bytes: what
+/// the region's encoder writes before the packet's fields replace it.
+fn region_stream_header(packet: &PacketHeader, payload_len: usize) -> Header {
+    let (width, height) = match packet.region_units {
+        None => (packet.width, packet.height),
+        Some([x, y, w, h]) => {
+            let unit = REGION_UNIT as u16;
+            let side = |start: u16, size: u16, whole: u16| {
+                (size * unit).min(whole.saturating_sub(start * unit))
+            };
+            (side(x, w, packet.width), side(y, h, packet.height))
+        }
+    };
+    Header {
+        width,
+        height,
+        channels: packet.channels,
+        bit_depth: 8,
+        min_leaf_log2: packet.coding[0] & 0x0F,
+        max_leaf_log2: packet.coding[0] >> 4,
+        stripe: packet.coding[1],
+        deblock: packet.deblock,
+        payload_len: payload_len as u32,
+        checksum: 0,
+        range: None,
+    }
+}
+
 /// Bytes the shortest ending of the range coder usually saves ([`shortest_packet`]).
 const FLUSH_SAVING: usize = 2;
 
-/// Bytes of a packet's CRC.
-const CRC_LEN: usize = 4;
+/// The most bytes of a range coder's final flush that a packet's end may cut: a receiver reads
+/// zeros past the payload.
+const FLUSH_BYTES: usize = 4;
 
 /// The packet of `header` and `payload`, its payload cut by as many of its last bytes (at
-/// most four, the range coder's final flush) as leave its pixels unchanged.
+/// most [`FLUSH_BYTES`], the range coder's final flush) as leave its pixels unchanged.
 fn shortest_packet(header: &PacketHeader, payload: &[u8]) -> Result<Vec<u8>, PacketError> {
     let make = |payload: &[u8]| {
         let mut packet = vec![0u8; MAX_PACKET_HEADER_LEN + payload.len() + CRC_LEN];
@@ -601,7 +629,7 @@ fn shortest_packet(header: &PacketHeader, payload: &[u8]) -> Result<Vec<u8>, Pac
         return Err(EncodeError::Internal("a packet does not decode").into());
     };
     let mut best = full;
-    for cut in 1..=CRC_LEN.min(payload.len()) {
+    for cut in 1..=FLUSH_BYTES.min(payload.len()) {
         let shorter = make(&payload[..payload.len() - cut]);
         if pixels(&shorter).as_ref() != Some(&reference) {
             break;
@@ -765,6 +793,37 @@ pub fn unframe(data: &[u8]) -> Vec<Vec<u8>> {
         rest = &rest[end..];
     }
     out
+}
+
+/// Whether `data` (a whole file) is a stream rather than packets: it opens as a stream of any
+/// version does (format 21 and earlier: `PIFS`), and it is not an exact framing of packets (a
+/// frame's two length bytes may begin the way a stream does: its third byte then is a
+/// packet's first).
+pub fn is_stream_data(data: &[u8]) -> bool {
+    use decoder_core::internal::syntax::check_first_byte;
+    let stream_like = matches!(
+        check_first_byte(data, decoder_core::STREAM_TAG),
+        Ok(()) | Err(decoder_core::DecodeError::UnsupportedVersion(_))
+    ) || data.starts_with(&decoder_core::internal::format::LEGACY_MAGIC);
+    stream_like && !is_framing(data)
+}
+
+/// Whether `data` is exactly a sequence of frames, each holding what opens as a packet or a
+/// parity packet of any version.
+fn is_framing(data: &[u8]) -> bool {
+    let kind = |b: u8| b >> 6;
+    let mut rest = data;
+    while rest.len() >= 2 {
+        let len = usize::from(u16::from_le_bytes([rest[0], rest[1]]));
+        match rest.get(2..2 + len) {
+            Some([first, ..])
+                if kind(*first) == kind(decoder_core::PACKET_TAG)
+                    || kind(*first) == kind(parity::PARITY_TAG) => {}
+            _ => return false,
+        }
+        rest = &rest[2 + len..];
+    }
+    rest.is_empty() && !data.is_empty()
 }
 
 /// What a receiver made of a set of packets.
@@ -1178,5 +1237,23 @@ mod tests {
         let cut = unframe(&framed[..framed.len() - 10]);
         assert_eq!(cut.len(), 3);
         assert_eq!(cut[2].len(), 290);
+    }
+
+    /// A framed file whose first packet is 150 bytes opens with a stream's tag (`0x96`): the
+    /// framing, not the first byte, says it is packets; a stream, of this version or of format
+    /// 21 (`PIFS`), is a stream.
+    #[test]
+    fn a_framed_file_is_told_from_a_stream_by_its_framing() {
+        let mut packet = vec![decoder_core::PACKET_TAG];
+        packet.resize(150, 7);
+        let framed = frame(&[packet.clone(), packet]);
+        assert_eq!(framed[0], decoder_core::STREAM_TAG);
+        assert!(!is_stream_data(&framed));
+        let mut stream = framed.clone();
+        stream[2] = 0;
+        assert!(is_stream_data(&stream));
+        assert!(is_stream_data(b"PIFS\x15\x01\x08\x00"));
+        assert!(!is_stream_data(&[decoder_core::PACKET_TAG, 1, 2]));
+        assert!(!is_stream_data(&[]));
     }
 }

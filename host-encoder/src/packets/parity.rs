@@ -3,20 +3,19 @@
 //! rebuild every one. A receiver needs them all in memory to rebuild: this is for gateways and
 //! hosts, not for a microcontroller drawing packets as they come.
 
-use decoder_core::internal::checksum::Crc32;
-use decoder_core::internal::packet::{packet_crc, read_field, write_field};
-use decoder_core::VERSION;
+use decoder_core::internal::packet::{packet_crc, read_field, write_field, CRC_LEN};
+pub use decoder_core::internal::syntax::PARITY_TAG;
 use reed_solomon_erasure::galois_8::ReedSolomon;
-
-/// The byte that opens every parity packet (`q`).
-pub const PARITY_SYNC: u8 = b'q';
 
 /// The most packets, data and parity, one code covers (the field's size).
 pub const MAX_SHARDS: usize = 256;
 
-/// The most bytes a parity packet adds to its shard: sync, version, image id, four fields of
-/// at most three bytes, the checksum.
-const MAX_PARITY_OVERHEAD: usize = 4 + 4 * 3 + 4;
+/// The bytes of a parity packet before its fields: the tag and the image id.
+const PARITY_HEAD: usize = 3;
+
+/// The most bytes a parity packet adds to its shard: tag, image id, four fields of at most
+/// three bytes, the checksum.
+const MAX_PARITY_OVERHEAD: usize = PARITY_HEAD + 4 * 3 + CRC_LEN;
 
 /// The largest data packet that `parity` parity packets over `count` data packets of at most
 /// `size` bytes each leave room for: each parity packet carries a shard two bytes longer than
@@ -31,7 +30,7 @@ pub fn data_packet_size(size: usize, count: usize, parity: usize) -> usize {
             3
         }
     };
-    let overhead = 4 + field(parity) * 2 + field(count) + field(size) + 4;
+    let overhead = PARITY_HEAD + field(parity) * 2 + field(count) + field(size) + CRC_LEN;
     size.saturating_sub(overhead + LENGTH_PREFIX)
 }
 
@@ -54,19 +53,17 @@ pub struct Parity<'a> {
 }
 
 impl<'a> Parity<'a> {
-    /// Parses a parity packet, its CRC-32 first; `None` for anything else.
+    /// Parses a parity packet, its CRC-16 first; `None` for anything else.
     pub fn parse(data: &'a [u8]) -> Option<Self> {
-        if data.len() < 8 || data[0] != PARITY_SYNC || data[1] != VERSION {
+        if data.len() < PARITY_HEAD + 4 + CRC_LEN || data[0] != PARITY_TAG {
             return None;
         }
-        let (body, crc) = data.split_at(data.len() - 4);
-        let mut running = Crc32::default();
-        running.update(body);
-        if running.value().to_le_bytes() != crc {
+        let (body, crc) = data.split_at(data.len() - CRC_LEN);
+        if packet_crc(body) != crc {
             return None;
         }
-        let image_id = u16::from_le_bytes([body[2], body[3]]);
-        let mut pos = 4;
+        let image_id = u16::from_le_bytes([body[1], body[2]]);
+        let mut pos = PARITY_HEAD;
         let mut fields = [0u16; 4];
         for field in fields.iter_mut() {
             *field = read_field(body, &mut pos).ok()?;
@@ -113,9 +110,9 @@ pub fn parity_packets(packets: &[Vec<u8>], parity: usize, image_id: u16) -> Opti
         .iter()
         .enumerate()
         .map(|(k, shard)| {
-            let mut packet = vec![0u8; MAX_PARITY_OVERHEAD - 4];
-            packet[..4].copy_from_slice(&[PARITY_SYNC, VERSION, id[0], id[1]]);
-            let mut pos = 4;
+            let mut packet = vec![0u8; MAX_PARITY_OVERHEAD - CRC_LEN];
+            packet[..PARITY_HEAD].copy_from_slice(&[PARITY_TAG, id[0], id[1]]);
+            let mut pos = PARITY_HEAD;
             for v in [k, parity, n, len] {
                 pos = write_field(&mut packet, pos, v as u16);
             }

@@ -530,7 +530,7 @@ fn decode_and_info_refuse_dev_zero_at_once() {
             &dir,
             &format!("`pifs {}` on endless zeros", args[0]),
             &format!("pifs {}", args.join(" ")),
-            &format!("refused in < 0.1 s, peak < 10 MB, after reading four bytes: {msg}"),
+            &format!("refused in < 0.1 s, peak < 10 MB, after reading one byte: {msg}"),
         ));
     }
     record("decode_and_info_refuse_dev_zero_at_once", &rows);
@@ -899,7 +899,7 @@ fn pipes_carry_streams_and_images() {
 
     let out = piped(&[s(&png)], &["encode", "--bytes", "300", "-", "-o", "-"]);
     ok(&out);
-    assert!(out.stdout.starts_with(b"PIFS"));
+    assert_eq!(out.stdout.first(), Some(&decoder_core::STREAM_TAG));
     assert_eq!(decoded(&out.stdout).2.len(), pixels.len());
     assert!(String::from_utf8_lossy(&out.stderr).contains("standard output: 64x48"));
     rows.push(row(
@@ -1134,7 +1134,7 @@ fn target_messages_say_what_to_ask_for() {
         ),
         (
             "a budget above a header's but below the smallest stream",
-            vec!["encode", s(&png), "-o", s(&out), "--bytes", "20"],
+            vec!["encode", s(&png), "-o", s(&out), "--bytes", "12"],
         ),
     ] {
         let result = pifs().args(&args).output().unwrap();

@@ -702,9 +702,9 @@ fn explain(e: CliError, job: Job, size: (u32, u32)) -> CliError {
     }
 }
 
-/// The fewest bytes any stream takes: its header with a one-byte payload length.
+/// The fewest bytes any stream takes: its shortest header.
 fn smallest_possible_stream() -> usize {
-    decoder_core::internal::syntax::FIXED_HEADER_LEN + 1
+    decoder_core::internal::syntax::MIN_HEADER_LEN
 }
 
 /// Refuses a target that is not a positive number, naming the option.
@@ -1053,7 +1053,7 @@ mod tests {
         let err = check_target_fits(job(Target::Bpp(1.0)), 3, 3).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "--bpp 1 allows 1 byte for this 3x3 image, and no stream is smaller than 20 bytes (its header): use --bpp 17.8 or more"
+            "--bpp 1 allows 1 byte for this 3x3 image, and no stream is smaller than 9 bytes (its header): use --bpp 8 or more"
         );
         assert!(check_target_fits(job(Target::Bpp(1.0)), 64, 48).is_ok());
         assert!(check_target_fits(job(Target::Psnr(30.0)), 1, 1).is_ok());

@@ -193,9 +193,9 @@ fn packet_name(index: usize) -> String {
     format!("{index:04}.pkt")
 }
 
-/// Whether `path` holds packets rather than a stream: a directory, or a regular file that
-/// does not start with a stream's magic bytes (devices, pipes and standard input are read as
-/// streams, header first).
+/// Whether `path` holds packets rather than a stream: a directory, or a regular file that is
+/// not a stream ([`host_encoder::packets::is_stream_data`]); devices, pipes and standard input
+/// are read as streams, header first.
 pub fn is_packet_input(path: &Path) -> bool {
     if path.is_dir() {
         return true;
@@ -203,11 +203,13 @@ pub fn is_packet_input(path: &Path) -> bool {
     if io::is_std_stream(path) || !path.metadata().is_ok_and(|m| m.is_file()) {
         return false;
     }
+    use std::io::Read;
     match std::fs::File::open(path) {
-        Ok(mut f) => {
-            let mut magic = [0u8; 4];
-            use std::io::Read;
-            f.read_exact(&mut magic).is_ok() && magic != decoder_core::MAGIC
+        Ok(f) => {
+            let mut data = Vec::new();
+            f.take(MAX_PACKET_INPUT).read_to_end(&mut data).is_ok()
+                && !data.is_empty()
+                && !host_encoder::packets::is_stream_data(&data)
         }
         Err(_) => false,
     }
