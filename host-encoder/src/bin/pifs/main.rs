@@ -161,7 +161,7 @@ enum Command {
     /// One analysis serves every rate. Optionally writes the points as CSV, draws them beside
     /// other codecs' points as SVG, and writes the streams.
     Rd(rd::RdArgs),
-    /// Tools for packets: simulate their loss on a link.
+    /// Tools for packets: simulate a lossy link, send the missing packets again.
     #[command(subcommand)]
     Packets(PacketsCommand),
     /// Fractal curves: fit a projected-IFS curve to a polyline or a sampled function, draw it,

@@ -1,0 +1,218 @@
+//! `docs/depacketise.py`, a depacketiser written from the specification's section 9 alone,
+//! reads the reference encoder's packets as `pifs info --json` does: the specification says
+//! enough for a gateway author. Needs `python3` (any Python 3, no modules beyond its own).
+
+#[path = "common/scratch.rs"]
+mod scratch;
+
+use scratch::Scratch;
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+
+fn run(program: &str, args: &[&str]) -> Vec<u8> {
+    let out = Command::new(program)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("{program} runs ({e}; python3 is needed by this test)"));
+    assert!(
+        out.status.success(),
+        "{program} {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
+fn pifs(args: &[&str]) -> Vec<u8> {
+    run(env!("CARGO_BIN_EXE_pifs"), args)
+}
+
+/// The depacketiser's one image of `paths`, and how many packets it refused.
+fn depacketise(paths: &[&Path]) -> (Value, u64) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/depacketise.py");
+    let mut args = vec![script.to_str().unwrap(), "--json"];
+    args.extend(paths.iter().map(|p| p.to_str().unwrap()));
+    let out: Value = serde_json::from_slice(&run("python3", &args)).expect("JSON");
+    let images = out["images"].as_array().expect("a list of images");
+    assert_eq!(images.len(), 1, "{out}");
+    (images[0].clone(), out["damaged"].as_u64().unwrap())
+}
+
+fn info(paths: &[&Path]) -> Value {
+    let mut args = vec!["info", "--json"];
+    args.extend(paths.iter().map(|p| p.to_str().unwrap()));
+    serde_json::from_slice(&pifs(&args)).expect("JSON")
+}
+
+/// A colour picture with texture, so that its regions differ in size.
+fn write_png(path: &Path, w: u32, h: u32) {
+    image::RgbImage::from_fn(w, h, |x, y| {
+        let t = ((x * 7 + y * 13) % 64) as u8;
+        image::Rgb([(x * 2) as u8 ^ t, (y * 3) as u8, 200 - t])
+    })
+    .save(path)
+    .unwrap();
+}
+
+fn indices(v: &Value) -> Vec<u64> {
+    v.as_array()
+        .expect("a list")
+        .iter()
+        .map(|i| i.as_u64().unwrap())
+        .collect()
+}
+
+fn assert_same_image(ours: &Value, reference: &Value) {
+    for field in [
+        "image_id", "count", "width", "height", "channels", "previews",
+    ] {
+        assert_eq!(
+            ours[field], reference[field],
+            "{field}: {ours} / {reference}"
+        );
+    }
+}
+
+/// Packets with non-default coding fields, a lossy subset with a duplicate and a damaged packet:
+/// the same image, packets, missing packets and region coverage as the reference tool says.
+#[test]
+fn the_specification_suffices_to_sort_packets() {
+    let dir = Scratch::new("depacketise-sort");
+    let png = dir.join("in.png");
+    write_png(&png, 203, 141);
+    let sent = dir.join("sent");
+    pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--bpp",
+        "1.5",
+        "--packets",
+        sent.to_str().unwrap(),
+        "--packet-size",
+        "96",
+        "--image-id",
+        "40001",
+        "--min-leaf-log2",
+        "3",
+    ]);
+    let received = dir.join("received");
+    pifs(&[
+        "packets",
+        "drop",
+        "--loss",
+        "0.3",
+        "--seed",
+        "5",
+        sent.to_str().unwrap(),
+        received.to_str().unwrap(),
+    ]);
+    let all = |d: &Path| -> Vec<std::path::PathBuf> {
+        let mut v: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        v.sort();
+        v
+    };
+    let kept = all(&received);
+    assert!(kept.len() >= 4, "{} packets kept", kept.len());
+    // A duplicate of one packet and a damaged copy of another, beside the set.
+    let extra = dir.join("extra");
+    std::fs::create_dir(&extra).unwrap();
+    std::fs::copy(&kept[1], extra.join("again.pkt")).unwrap();
+    let mut damaged = std::fs::read(&kept[2]).unwrap();
+    damaged[8] ^= 0x10;
+    std::fs::write(extra.join("damaged.pkt"), damaged).unwrap();
+
+    let (whole, refused) = depacketise(&[&sent]);
+    let reference = info(&[&sent]);
+    assert_same_image(&whole, &reference);
+    assert_eq!(refused, 0);
+    assert_eq!(whole["missing"], Value::Array(vec![]), "{whole}");
+    assert_eq!(whole["region_coverage"].as_f64(), Some(1.0));
+
+    let (ours, refused) = depacketise(&[&received, &extra]);
+    let reference = info(&[&received, &extra]);
+    assert_same_image(&ours, &reference);
+    assert_eq!(indices(&ours["received"]), indices(&reference["received"]));
+    assert_eq!(indices(&ours["missing"]), indices(&reference["missing"]));
+    assert!(!indices(&ours["missing"]).is_empty(), "{ours}");
+    let coverage = ours["region_coverage"].as_f64().unwrap();
+    assert!(
+        (coverage - reference["coverage"].as_f64().unwrap()).abs() < 1e-9,
+        "{ours} / {reference}"
+    );
+    assert_eq!(refused, reference["ignored"]["damaged"].as_u64().unwrap());
+    assert_eq!(refused, 1);
+    assert_eq!(ours["duplicates"], reference["ignored"]["duplicates"]);
+    assert_eq!(ours["duplicates"].as_u64(), Some(1));
+}
+
+/// Framed packets with parity: every data and parity packet read from the framing; what the
+/// depacketiser lacks is what the reference tool rebuilt from parity.
+#[test]
+fn framed_packets_and_parity_are_read_as_specified() {
+    let dir = Scratch::new("depacketise-framed");
+    let png = dir.join("in.png");
+    write_png(&png, 120, 96);
+    let framed = dir.join("photo.pifsp");
+    pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--bpp",
+        "2",
+        "--packet-size",
+        "120",
+        "--parity",
+        "3",
+        "-o",
+        framed.to_str().unwrap(),
+    ]);
+    let (ours, refused) = depacketise(&[&framed]);
+    let reference = info(&[&framed]);
+    assert_same_image(&ours, &reference);
+    assert_eq!(refused, 0);
+    assert_eq!(indices(&ours["parity"]), vec![0, 1, 2]);
+    assert_eq!(indices(&ours["received"]), indices(&reference["received"]));
+
+    let sent = dir.join("sent");
+    pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "--bpp",
+        "2",
+        "--packet-size",
+        "120",
+        "--parity",
+        "3",
+        "--packets",
+        sent.to_str().unwrap(),
+    ]);
+    let received = dir.join("received");
+    pifs(&[
+        "packets",
+        "drop",
+        "--loss",
+        "0.1",
+        "--seed",
+        "1",
+        sent.to_str().unwrap(),
+        received.to_str().unwrap(),
+    ]);
+    let (ours, _) = depacketise(&[&received]);
+    let reference = info(&[&received]);
+    assert_same_image(&ours, &reference);
+    let rebuilt = indices(&reference["rebuilt_from_parity"]);
+    assert!(!rebuilt.is_empty(), "{reference}");
+    assert!(rebuilt
+        .iter()
+        .all(|i| indices(&ours["missing"]).contains(i)));
+    let mut held = indices(&ours["received"]);
+    held.extend(rebuilt);
+    held.sort();
+    assert_eq!(
+        held,
+        indices(&reference["received"]),
+        "{ours} / {reference}"
+    );
+}
