@@ -11,11 +11,15 @@ damaged and the duplicated ones, and see which to ask for again, before handing 
 
     python3 docs/depacketise.py FILE_OR_DIR...            one line per image
     python3 docs/depacketise.py --json FILE_OR_DIR...     the same as JSON, one object per image
+    python3 docs/depacketise.py --write DIR FILE_OR_DIR... also each image's data packets,
+                                                            rebuilt from parity where they can be,
+                                                            to DIR/ID/NNNN.pkt
 
 A directory is read as one file per packet; a file ending in .pifsp (or standard input, "-")
 as framed packets (each behind its length, two bytes little-endian); any other file as one
-packet. It reads headers and checksums only: it does not decode pictures or rebuild packets
-from parity (that is `pifs decode`'s work).
+packet. It reads headers and checksums and rebuilds lost packets from parity packets (the
+Reed-Solomon erasure code of section 9); it does not decode pictures (that is `pifs decode`'s
+work, or a device's).
 """
 
 import json
@@ -42,6 +46,81 @@ def crc16(data):
 
 
 assert crc16(b"123456789") == 0x29B1
+
+# GF(2^8) with the field polynomial x^8 + x^4 + x^3 + x^2 + 1 (0x11D); x (2) generates it.
+EXP, LOG = [0] * 510, [0] * 256
+_value = 1
+for _power in range(255):
+    EXP[_power] = EXP[_power + 255] = _value
+    LOG[_value] = _power
+    _value <<= 1
+    if _value & 0x100:
+        _value ^= 0x11D
+
+
+def gf_mul(a, b):
+    return 0 if a == 0 or b == 0 else EXP[LOG[a] + LOG[b]]
+
+
+def gf_pow(a, n):
+    if n == 0:
+        return 1
+    return 0 if a == 0 else EXP[(LOG[a] * n) % 255]
+
+
+def gf_inverse(matrix):
+    """The inverse of a square matrix over GF(2^8) (Gauss-Jordan); None if it is singular."""
+    n = len(matrix)
+    rows = [list(row) + [int(i == j) for j in range(n)] for i, row in enumerate(matrix)]
+    for col in range(n):
+        pivot = next((r for r in range(col, n) if rows[r][col]), None)
+        if pivot is None:
+            return None
+        rows[col], rows[pivot] = rows[pivot], rows[col]
+        scale = EXP[255 - LOG[rows[col][col]]]
+        rows[col] = [gf_mul(v, scale) for v in rows[col]]
+        for r in range(n):
+            factor = rows[r][col]
+            if r != col and factor:
+                rows[r] = [v ^ gf_mul(factor, p) for v, p in zip(rows[r], rows[col])]
+    return [row[n:] for row in rows]
+
+
+def gf_product(a, b):
+    return [[_dot(row, [b[k][j] for k in range(len(b))]) for j in range(len(b[0]))] for row in a]
+
+
+def _dot(u, v):
+    total = 0
+    for x, y in zip(u, v):
+        total ^= gf_mul(x, y)
+    return total
+
+
+def encoding_matrix(data_count, parity_count):
+    """Section 9's systematic code: V T^-1, V[r][c] = r^c over N + K rows, T its top N rows."""
+    v = [[gf_pow(r, c) for c in range(data_count)] for r in range(data_count + parity_count)]
+    return gf_product(v, gf_inverse(v[:data_count]))
+
+
+def rebuild(shards, data_count, parity_count):
+    """The N data shards from any N of the N + K (`shards`: index -> bytes), or None."""
+    if len(shards) < data_count:
+        return None
+    rows = sorted(shards)[:data_count]
+    code = encoding_matrix(data_count, parity_count)
+    decode = gf_inverse([code[r] for r in rows])
+    length = len(shards[rows[0]])
+    data = []
+    for i in range(data_count):
+        coefficients = [(c, shards[r]) for c, r in zip(decode[i], rows) if c]
+        shard = bytearray(length)
+        for c, source in coefficients:
+            for at, byte in enumerate(source):
+                if byte:
+                    shard[at] ^= gf_mul(c, byte)
+        data.append(bytes(shard))
+    return data
 
 
 class Reader:
@@ -99,7 +178,8 @@ def parse(data):
         if len(data) - 2 - body.at != shard:
             raise Refused("a parity shard of the wrong length")
         return {"kind": "parity", "image_id": image_id, "parity_index": k,
-                "parity_count": parity, "count": data_count, "shard_length": shard}
+                "parity_count": parity, "count": data_count, "shard_length": shard,
+                "shard": bytes(data[body.at:-2])}
     flags = body.byte()
     colour, preview, coding = bool(flags & 1), bool(flags & 2), bool(flags & 4)
     smoothing = flags >> 3
@@ -133,7 +213,8 @@ def parse(data):
             "index": index, "count": count, "width": width, "height": height,
             "channels": 3 if colour else 1, "region": region, "smoothing": smoothing,
             "leaf_log2": (low, high), "stripe_tiles": stripe,
-            "header_bytes": body.at, "payload_bytes": len(data) - 2 - body.at}
+            "header_bytes": body.at, "payload_bytes": len(data) - 2 - body.at,
+            "bytes": bytes(data)}
 
 
 def frames(data):
@@ -159,6 +240,10 @@ def packets_of(path):
         yield from (frames(data) if path.endswith(".pifsp") else [data])
 
 
+def new_image(count):
+    return {"count": count, "packets": {}, "parity": {}, "duplicates": 0}
+
+
 def gather(paths):
     """Packets sorted by image (id, count and geometry): what each image holds and lacks."""
     images, damaged = {}, 0
@@ -171,14 +256,13 @@ def gather(paths):
                 continue
             if packet["kind"] == "parity":
                 key = (packet["image_id"], packet["count"])
-                images.setdefault(key, {"packets": {}, "parity": {}, "duplicates": 0})
-                image = images[key]
+                image = images.setdefault(key, new_image(packet["count"]))
                 if packet["parity_index"] in image["parity"]:
                     image["duplicates"] += 1
                 image["parity"][packet["parity_index"]] = packet
                 continue
             key = (packet["image_id"], packet["count"])
-            image = images.setdefault(key, {"packets": {}, "parity": {}, "duplicates": 0})
+            image = images.setdefault(key, new_image(packet["count"]))
             shape = (packet["width"], packet["height"], packet["channels"])
             if image.setdefault("shape", shape) != shape:
                 damaged += 1  # the same id and count but another picture: not this image's
@@ -190,7 +274,43 @@ def gather(paths):
     return images, damaged
 
 
-def summary(key, image):
+def complete(image):
+    """Rebuilds the image's missing data packets from its parity packets where any N of its
+    N + K shards are held (section 9); returns the indices rebuilt."""
+    parity = list(image["parity"].values())
+    missing = [i for i in range(image["count"]) if i not in image["packets"]]
+    if not parity or not missing:
+        return []
+    parity_count, length = parity[0]["parity_count"], parity[0]["shard_length"]
+    if any((p["parity_count"], p["shard_length"]) != (parity_count, length) for p in parity):
+        return []
+    shards = {}
+    for index, packet in image["packets"].items():
+        data = packet["bytes"]
+        if len(data) + 2 > length:
+            return []
+        shards[index] = bytes([len(data) & 0xFF, len(data) >> 8]) + data
+        shards[index] += bytes(length - len(shards[index]))
+    for k, p in image["parity"].items():
+        shards[image["count"] + k] = p["shard"]
+    data = rebuild(shards, image["count"], parity_count)
+    if data is None:
+        return []
+    rebuilt = []
+    for index in missing:
+        shard = data[index]
+        size = shard[0] | shard[1] << 8
+        try:
+            packet = parse(shard[2:2 + size])
+        except Refused:
+            continue
+        if packet["kind"] != "parity" and packet["index"] == index:
+            image["packets"][index] = packet
+            rebuilt.append(index)
+    return rebuilt
+
+
+def summary(key, image, rebuilt):
     """One image's summary, named as `pifs info --json` names the same things."""
     image_id, count = key
     held = image["packets"]
@@ -199,7 +319,7 @@ def summary(key, image):
                   if p["kind"] == "region")
     return {
         "image_id": image_id, "count": count, "width": width, "height": height,
-        "channels": channels, "received": sorted(held),
+        "channels": channels, "received": sorted(held), "rebuilt_from_parity": rebuilt,
         "missing": [i for i in range(count) if i not in held],
         "previews": sum(p["kind"] == "preview" for p in held.values()),
         "parity": sorted(image["parity"]),
@@ -208,15 +328,36 @@ def summary(key, image):
     }
 
 
+def write(directory, key, image):
+    """The image's data packets, as held or rebuilt, to DIRECTORY/ID/NNNN.pkt."""
+    folder = os.path.join(directory, str(key[0]))
+    os.makedirs(folder, exist_ok=True)
+    for index, packet in image["packets"].items():
+        with open(os.path.join(folder, f"{index:04}.pkt"), "wb") as f:
+            f.write(packet["bytes"])
+
+
 def main(argv):
     as_json = "--json" in argv
-    paths = [a for a in argv if a != "--json"]
+    argv = [a for a in argv if a != "--json"]
+    out = None
+    if "--write" in argv:
+        at = argv.index("--write")
+        out = argv[at + 1] if at + 1 < len(argv) else None
+        argv = argv[:at] + argv[at + 2:]
+        if out is None:
+            argv = []
+    paths = argv
     if not paths:
         print(__doc__.strip().splitlines()[0], file=sys.stderr)
-        print("usage: depacketise.py [--json] FILE_OR_DIR...", file=sys.stderr)
+        print("usage: depacketise.py [--json] [--write DIR] FILE_OR_DIR...", file=sys.stderr)
         return 2
     images, damaged = gather(paths)
-    rows = [summary(key, image) for key, image in sorted(images.items())]
+    rows = []
+    for key, image in sorted(images.items()):
+        rows.append(summary(key, image, complete(image)))
+        if out is not None:
+            write(out, key, image)
     if as_json:
         print(json.dumps({"images": rows, "damaged": damaged}, sort_keys=True))
         return 0
@@ -224,7 +365,8 @@ def main(argv):
         missing = row["missing"]
         print(f"image {row['image_id']}: {row['width']}x{row['height']}, "
               f"{len(row['received'])} of {row['count']} packets, "
-              f"{len(row['parity'])} parity, regions cover {100 * row['region_coverage']:.1f}%, "
+              f"{len(row['parity'])} parity, {len(row['rebuilt_from_parity'])} rebuilt, "
+              f"regions cover {100 * row['region_coverage']:.1f}%, "
               f"missing {','.join(map(str, missing)) if missing else 'none'}")
     if damaged:
         print(f"{damaged} packets refused (damaged, or not packets of this format)")
