@@ -17,7 +17,7 @@ use crate::syntax::{
     check_coding_fields, check_first_byte, read_side, side_error, write_side, Header, CODING_BYTES,
     DEBLOCK_SHIFT, FLAG_CODING, FLAG_COLOUR,
 };
-use crate::synthesis::{PixelSink, Tile};
+use crate::synthesis::{PixelSink, Scale, Tile};
 
 /// Regions are placed and sized in units of this many pixels.
 pub const REGION_UNIT: u32 = 8;
@@ -65,6 +65,8 @@ pub struct Packet<'a> {
     stream: Header,
     /// ... and its arithmetic-coded payload.
     payload: &'a [u8],
+    /// The scale it draws at ([`Packet::scale`]).
+    scale: Scale,
 }
 
 impl<'a> Packet<'a> {
@@ -144,6 +146,7 @@ impl<'a> Packet<'a> {
             region,
             stream,
             payload,
+            scale: Scale::One,
         })
     }
 
@@ -153,8 +156,40 @@ impl<'a> Packet<'a> {
         &self.stream
     }
 
+    /// The packet drawn at `scale` of the image's size (see [`Scale`]): its drawing methods
+    /// then take and give coordinates of the scaled image, where its region is
+    /// [`Packet::output_region`]. Regions start on multiples of [`REGION_UNIT`] pixels, so
+    /// at every scale they meet exactly and their pixels are those of the whole picture
+    /// decoded at that scale.
+    pub fn scale(mut self, scale: Scale) -> Self {
+        self.scale = scale;
+        self
+    }
+
+    /// Width and height of the whole image at the packet's scale ([`Packet::scale`]), rounded
+    /// up as a scaled decode's ([`Scale::apply`]).
+    pub fn output_size(&self) -> (u32, u32) {
+        (
+            self.scale.apply(self.width.into()),
+            self.scale.apply(self.height.into()),
+        )
+    }
+
+    /// The pixels this packet draws at its scale ([`Packet::scale`]; at the coded size,
+    /// [`Packet::region`]).
+    pub fn output_region(&self) -> Rect {
+        let k = self.scale.log2();
+        let place = |v: u32| if k >= 0 { v << k } else { v >> -k };
+        Rect {
+            x: place(self.region.x),
+            y: place(self.region.y),
+            w: self.scale.apply(self.region.w),
+            h: self.scale.apply(self.region.h),
+        }
+    }
+
     /// Draws the packet's region into `sink`, in image coordinates: every pixel of
-    /// [`Packet::region`], tile by tile.
+    /// [`Packet::output_region`], tile by tile.
     pub fn decode<S: PixelSink + ?Sized>(&self, sink: &mut S) -> Result<(), DrawError<S::Error>> {
         self.decode_clipped(Rect::EVERYTHING, sink)
     }
@@ -167,18 +202,20 @@ impl<'a> Packet<'a> {
         area: Rect,
         sink: &mut S,
     ) -> Result<(), DrawError<S::Error>> {
-        let inside = area.intersect(&self.region);
+        let region = self.output_region();
+        let inside = area.intersect(&region);
         let local = Rect {
-            x: inside.x.saturating_sub(self.region.x),
-            y: inside.y.saturating_sub(self.region.y),
+            x: inside.x.saturating_sub(region.x),
+            y: inside.y.saturating_sub(region.y),
             ..inside
         };
         let mut placed = Placed {
             sink,
-            dx: self.region.x,
-            dy: self.region.y,
+            dx: region.x,
+            dy: region.y,
         };
         Decoder::packet(self.stream, self.payload)
+            .scale(self.scale)
             .clip(local)
             .decode(&mut placed)?;
         Ok(())
@@ -187,8 +224,9 @@ impl<'a> Packet<'a> {
 
 impl Packet<'_> {
     /// Draws the packet's pixels that lie outside every rectangle of `drawn` (image
-    /// coordinates): how a preview that arrives after some regions fills only the rest,
-    /// whatever the order the packets came in. Tiles reach `sink` cut into runs of a row.
+    /// coordinates at the packet's scale: the regions' [`Packet::output_region`]): how a
+    /// preview that arrives after some regions fills only the rest, whatever the order the
+    /// packets came in. Tiles reach `sink` cut into runs of a row.
     pub fn decode_around<S: PixelSink + ?Sized>(
         &self,
         drawn: &[Rect],

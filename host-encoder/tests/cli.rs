@@ -843,6 +843,23 @@ fn packets_are_written_lost_and_decoded_from_any_subset() {
     let from_framed = dir.join("framed.png");
     ok(&pifs(&["decode", &s(&framed), "-o", &s(&from_framed)]));
     assert_eq!(png_pixels(&whole), png_pixels(&from_framed));
+    // At half size: the whole picture's even pixels.
+    let half = dir.join("half.png");
+    let line = ok(&pifs(&[
+        "decode",
+        &s(&packets),
+        "-o",
+        &s(&half),
+        "--scale",
+        "1/2",
+    ]));
+    assert!(line.contains("48x32"), "{line}");
+    let full = image::open(&whole).unwrap().to_luma8();
+    let halved = image::open(&half).unwrap().to_luma8();
+    assert_eq!(halved.dimensions(), (48, 32));
+    for (x, y, p) in halved.enumerate_pixels() {
+        assert_eq!(p, full.get_pixel(2 * x, 2 * y), "({x}, {y})");
+    }
     // The framed form on standard output holds the packets alone (the summary goes to
     // standard error).
     let out = pifs(&[

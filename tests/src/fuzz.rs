@@ -18,9 +18,10 @@
 //!   band exactly as `decode_into` decodes it, or fails with the same error.
 //! - [`decode_packets`]: a framed set of packets as a receiver gets them: each packet alone
 //!   (also with its CRC made to match) draws only inside its region, no pixel twice, every one
-//!   when it decodes; drawn around the other packets' regions, nothing inside them; and the
-//!   host's assembly of the whole set never panics and gives an image of the size its packets
-//!   declare.
+//!   when it decodes, at the coded size and at a scale the input's length chooses; drawn around
+//!   the other packets' regions, nothing inside them; and the host's assembly of the whole set,
+//!   at the coded size and at that scale, never panics and gives an image of the size its
+//!   packets declare.
 
 use crate::CoverageSink;
 use decoder_core::internal::syntax::seal;
@@ -489,11 +490,18 @@ pub fn decode_packets(data: &[u8]) {
         .filter_map(|b| Packet::parse(b).ok())
         .collect();
     let regions: Vec<decoder_core::Rect> = parsed.iter().map(|p| p.region).collect();
+    // A scale for the input, from its length (the bytes themselves are the packets').
+    let scale = decoder_core::Scale::ALL[data.len() % decoder_core::Scale::ALL.len()];
     for (i, p) in parsed.iter().enumerate() {
         if u64::from(p.width) * u64::from(p.height) > MAX_PIXELS {
             continue;
         }
         check_packet_alone(p);
+        let scaled = p.scale(scale);
+        let (w, h) = scaled.output_size();
+        if u64::from(w) * u64::from(h) <= MAX_PIXELS {
+            check_packet_alone(&scaled);
+        }
         // Around the others' regions: nothing inside them.
         let others: Vec<decoder_core::Rect> = regions
             .iter()
@@ -517,25 +525,28 @@ pub fn decode_packets(data: &[u8]) {
             }
         }
     }
-    if let Ok(image) = host_encoder::packets::assemble(inputs.iter().map(Vec::as_slice), MAX_PIXELS)
-    {
-        let expected = image.width as usize * image.height as usize * usize::from(image.channels);
-        assert_eq!(image.pixels.len(), expected);
-        assert!(image.received.len() <= usize::from(image.count));
+    for scale in [decoder_core::Scale::One, scale] {
+        let set = inputs.iter().map(Vec::as_slice);
+        if let Ok(image) = host_encoder::packets::assemble_at(set, MAX_PIXELS, scale) {
+            let expected =
+                image.width as usize * image.height as usize * usize::from(image.channels);
+            assert_eq!(image.pixels.len(), expected);
+            assert!(image.received.len() <= usize::from(image.count));
+        }
     }
 }
 
-/// One packet alone: draws only inside its region, no pixel twice, all of it on success.
+/// One packet alone, at its scale: draws only inside its region, no pixel twice, all of it
+/// on success.
 fn check_packet_alone(p: &decoder_core::Packet<'_>) {
-    let mut sink = CoverageSink::new(u32::from(p.width), u32::from(p.height));
+    let region = p.output_region();
+    let (width, height) = p.output_size();
+    let mut sink = CoverageSink::new(width, height);
     let result = p.decode(&mut sink);
     assert!(sink.violations.is_empty(), "{:?}", sink.violations[0]);
     for (at, &count) in sink.counts.iter().enumerate() {
-        let (x, y) = (
-            (at % usize::from(p.width)) as u32,
-            (at / usize::from(p.width)) as u32,
-        );
-        let inside = p.region.contains_point(x, y);
+        let (x, y) = ((at % width as usize) as u32, (at / width as usize) as u32);
+        let inside = region.contains_point(x, y);
         assert!(
             count <= u32::from(inside),
             "packet pixel ({x}, {y}) drawn {count} times"

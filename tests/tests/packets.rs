@@ -4,9 +4,10 @@
 
 mod common;
 
-use decoder_core::{Packet, PacketKind, Rect};
+use decoder_core::{Packet, PacketKind, Rect, Scale};
 use host_encoder::packets::{
-    assemble, packetise, parity_for_loss, PacketError, PacketOptions, Packetised,
+    assemble, assemble_at, packetise, parity_for_loss, AssembleError, PacketError, PacketOptions,
+    Packetised,
 };
 use host_encoder::{EncoderConfig, Target};
 use proptest::prelude::*;
@@ -320,4 +321,71 @@ fn parity_sized_for_a_link_grows_with_its_losses() {
             Err(PacketError::BadLoss(_))
         ));
     }
+}
+
+/// A receiver drawing at a scale ([`assemble_at`], [`Packet::scale`]): smaller pictures are
+/// the full one subsampled, exactly (regions start on multiples of 8 pixels), lost regions
+/// and the preview included; larger ones hold the full picture at multiples of the scale
+/// when the stream smooths no edges (a larger decode is not smoothed, `docs/bitstream.md`
+/// section 6).
+#[test]
+fn packets_draw_at_every_scale_as_the_whole_picture_does() {
+    let (with, _, _) = sets();
+    let kept = || {
+        (with.packets.iter().enumerate())
+            .filter(|&(i, _)| i != 3 && i != 8)
+            .map(|(_, p)| p.as_slice())
+    };
+    let full = assemble(kept(), u64::MAX).unwrap();
+    assert_eq!(full.missing, vec![3, 8]);
+    for scale in [Scale::Eighth, Scale::Quarter, Scale::Half] {
+        let small = assemble_at(kept(), u64::MAX, scale).unwrap();
+        let step = 1 << -scale.log2();
+        assert_eq!(
+            (small.width, small.height),
+            (WIDTH.div_ceil(step), HEIGHT.div_ceil(step))
+        );
+        let subsampled: Vec<u8> = (0..small.height)
+            .flat_map(|y| (0..small.width).map(move |x| (x * step, y * step)))
+            .map(|(x, y)| full.pixels[(y * WIDTH + x) as usize])
+            .collect();
+        assert_eq!(small.pixels, subsampled, "{scale:?}");
+        assert_eq!((&small.received, small.preview), (&full.received, true));
+    }
+
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let unsmoothed = EncoderConfig {
+        deblock: Some(0),
+        ..config()
+    };
+    let analysis = common::analyse_with(plane, &unsmoothed);
+    let options = PacketOptions {
+        size: SIZE,
+        image_id: 3,
+        preview: true,
+        repeat_preview: false,
+        parity: 0,
+    };
+    let set = packetise(&analysis, &unsmoothed, Target::Bytes(14 * SIZE), &options).unwrap();
+    let full = assemble(set.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
+    for scale in [Scale::Double, Scale::Quadruple] {
+        let large = assemble_at(set.packets.iter().map(Vec::as_slice), u64::MAX, scale).unwrap();
+        let step = 1 << scale.log2();
+        assert_eq!((large.width, large.height), (WIDTH * step, HEIGHT * step));
+        let on_grid: Vec<u8> = (0..HEIGHT)
+            .flat_map(|y| (0..WIDTH).map(move |x| (x * step, y * step)))
+            .map(|(x, y)| large.pixels[(y * large.width + x) as usize])
+            .collect();
+        assert_eq!(on_grid, full.pixels, "{scale:?}");
+    }
+    // A picture too large at that scale is refused before anything is drawn.
+    let pixels = u64::from(WIDTH * HEIGHT);
+    assert!(assemble_at(kept(), pixels, Scale::One).is_ok());
+    assert_eq!(
+        assemble_at(kept(), pixels, Scale::Double).unwrap_err(),
+        AssembleError::TooLarge {
+            width: 2 * WIDTH,
+            height: 2 * HEIGHT
+        }
+    );
 }

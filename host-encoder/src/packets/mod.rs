@@ -17,7 +17,7 @@
 use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Target};
 use decoder_core::internal::packet::{PacketHeader, CRC_LEN, MAX_PACKET_HEADER_LEN};
 use decoder_core::internal::syntax::Header;
-use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Tile, REGION_UNIT};
+use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Scale, Tile, REGION_UNIT};
 use parity::Parity;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -866,6 +866,13 @@ pub struct Assembled {
 pub enum AssembleError {
     /// No input was a valid packet; the first input's error is given.
     NoValidPacket(Option<DecodeError>),
+    /// The image at the scale asked for would have more pixels than allowed.
+    TooLarge {
+        /// Width at that scale, pixels.
+        width: u32,
+        /// Height at that scale, pixels.
+        height: u32,
+    },
 }
 
 impl fmt::Display for AssembleError {
@@ -873,6 +880,12 @@ impl fmt::Display for AssembleError {
         match self {
             AssembleError::NoValidPacket(Some(e)) => write!(f, "no valid packet ({e})"),
             AssembleError::NoValidPacket(None) => write!(f, "no packet"),
+            AssembleError::TooLarge { width, height } => {
+                write!(
+                    f,
+                    "{width}x{height} pixels at that scale: more than allowed"
+                )
+            }
         }
     }
 }
@@ -886,6 +899,18 @@ impl std::error::Error for AssembleError {}
 pub fn assemble<'a>(
     inputs: impl IntoIterator<Item = &'a [u8]>,
     max_pixels: u64,
+) -> Result<Assembled, AssembleError> {
+    assemble_at(inputs, max_pixels, Scale::One)
+}
+
+/// [`assemble`] at `scale` of the image's size, every packet drawn at that scale
+/// ([`Packet::scale`]): the picture a smaller (or larger) display shows, made without the
+/// full-size one. The result's size and pixels are the scaled image's, which must also be
+/// within `max_pixels`.
+pub fn assemble_at<'a>(
+    inputs: impl IntoIterator<Item = &'a [u8]>,
+    max_pixels: u64,
+    scale: Scale,
 ) -> Result<Assembled, AssembleError> {
     let mut valid: Vec<(Packet<'a>, &'a [u8])> = Vec::new();
     let mut parities = Vec::new();
@@ -913,6 +938,13 @@ pub fn assemble<'a>(
         return Err(AssembleError::NoValidPacket(first_error));
     };
     let (image_id, width, height, channels, count) = chosen;
+    let (w, h) = (scale.apply(width.into()), scale.apply(height.into()));
+    if u64::from(w) * u64::from(h) > max_pixels {
+        return Err(AssembleError::TooLarge {
+            width: w,
+            height: h,
+        });
+    }
     let mut foreign = 0;
     let mut duplicates = 0;
     let mut raw: BTreeMap<u16, &'a [u8]> = BTreeMap::new();
@@ -939,19 +971,19 @@ pub fn assemble<'a>(
     let mut by_index: BTreeMap<u16, Packet<'_>> = BTreeMap::new();
     for (index, data) in &raw {
         if let Ok(p) = Packet::parse(data) {
-            by_index.insert(*index, p);
+            by_index.insert(*index, p.scale(scale));
         }
     }
     let mut recovered = Vec::new();
     for (index, data) in &rebuilt {
         if let Ok(p) = parse_within(data, max_pixels) {
             if identity(&p) == chosen && p.index == *index {
-                by_index.insert(*index, p);
+                by_index.insert(*index, p.scale(scale));
                 recovered.push(*index);
             }
         }
     }
-    let (w, h, ch) = (u32::from(width), u32::from(height), usize::from(channels));
+    let ch = usize::from(channels);
     let mut canvas = Canvas {
         width: w as usize,
         channels: ch,
@@ -1027,7 +1059,7 @@ impl Canvas {
     /// Draws packet `p`: into a buffer of its own first, so that a packet that fails to
     /// decode leaves nothing behind.
     fn draw(&mut self, p: &Packet<'_>) -> Result<(), DecodeError> {
-        let area = p.region;
+        let area = p.output_region();
         let mut local = RegionBuffer::of(p);
         p.decode(&mut local)?;
         let row = area.w as usize * self.channels;
@@ -1115,13 +1147,14 @@ struct RegionBuffer {
 }
 
 impl RegionBuffer {
-    /// An empty buffer for packet `p`'s region.
+    /// An empty buffer for packet `p`'s region (at the packet's scale).
     fn of(p: &Packet<'_>) -> RegionBuffer {
         let channels = usize::from(p.channels);
+        let area = p.output_region();
         RegionBuffer {
-            area: p.region,
+            area,
             channels,
-            pixels: vec![0; p.region.w as usize * p.region.h as usize * channels],
+            pixels: vec![0; area.w as usize * area.h as usize * channels],
         }
     }
 }

@@ -192,15 +192,11 @@ pub fn run(
         return relief(input, output, format, limits, z_factor);
     }
     if from_packets {
-        if scale != Scale::One {
-            return Err(CliError::Refused(
-                "packets decode at their coded size only".into(),
-            ));
-        }
+        let max_pixels = limits.max_pixels;
         if follow {
-            return crate::packets::follow(inputs, output, format, limits.max_pixels, display);
+            return crate::packets::follow(inputs, output, format, max_pixels, scale, display);
         }
-        return crate::packets::decode(inputs, output, format, limits.max_pixels, display);
+        return crate::packets::decode(inputs, output, format, max_pixels, scale, display);
     }
     let stream = open_stream(input, limits)?;
     if stream.header().range.is_some() {

@@ -82,7 +82,7 @@ enum Command {
         ///
         /// 1/8 to 1/2: the full decode's pixels at even, fourth or eighth positions, for a fraction
         /// of the work; 2 and 4: the patches refined below the pixel. The image is ceil(width x
-        /// scale) by ceil(height x scale).
+        /// scale) by ceil(height x scale). Packets too: each region drawn at that scale.
         #[arg(long, default_value = "1", value_parser = decode::parse_scale)]
         scale: decoder_core::Scale,
         /// Read the input as packets even when it could be a stream.

@@ -9,11 +9,11 @@
 use crate::encode::{Analysed, AnalysisArgs};
 use crate::error::{CliError, Result};
 use clap::Args;
-use decoder_core::{Packet, PacketKind};
+use decoder_core::{Packet, PacketKind, Scale};
 use host_encoder::io::{self, Content, Output, OutputFormat};
 use host_encoder::packets::{
-    assemble, frame, packetise, parity_for_loss, unframe, Assembled, PacketOptions, Packetised,
-    ParityChoice,
+    assemble_at, frame, packetise, parity_for_loss, unframe, AssembleError, Assembled,
+    PacketOptions, Packetised, ParityChoice,
 };
 use host_encoder::Target;
 use std::io::Write;
@@ -251,9 +251,13 @@ pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
     Ok(unframe(&data))
 }
 
-/// Assembles the packets at `inputs` (of an image of at most `max_pixels`), refusing a set
-/// with no valid packet in one line.
-fn assemble_at(inputs: &[PathBuf], max_pixels: u64) -> Result<(Vec<Vec<u8>>, Assembled)> {
+/// Assembles the packets at `inputs` at `scale` (an image of at most `max_pixels` at its
+/// coded size and at that scale), refusing a set with no valid packet in one line.
+fn assemble_inputs(
+    inputs: &[PathBuf],
+    max_pixels: u64,
+    scale: Scale,
+) -> Result<(Vec<Vec<u8>>, Assembled)> {
     let mut packets = Vec::new();
     for input in inputs {
         packets.extend(read_packets(input)?);
@@ -262,15 +266,17 @@ fn assemble_at(inputs: &[PathBuf], max_pixels: u64) -> Result<(Vec<Vec<u8>>, Ass
         [one] => one.display().to_string(),
         _ => format!("{} files", inputs.len()),
     };
-    let assembled = assemble(packets.iter().map(Vec::as_slice), max_pixels).map_err(|e| {
-        let hint = match e {
-            host_encoder::packets::AssembleError::NoValidPacket(Some(
-                decoder_core::DecodeError::TooLarge { .. },
-            )) => " (see --max-pixels)",
-            _ => "",
-        };
-        CliError::Refused(format!("{input}: {e}{hint}"))
-    })?;
+    let assembled =
+        assemble_at(packets.iter().map(Vec::as_slice), max_pixels, scale).map_err(|e| {
+            let hint = match e {
+                AssembleError::NoValidPacket(Some(decoder_core::DecodeError::TooLarge {
+                    ..
+                }))
+                | AssembleError::TooLarge { .. } => " (see --max-pixels)",
+                _ => "",
+            };
+            CliError::Refused(format!("{input}: {e}{hint}"))
+        })?;
     Ok((packets, assembled))
 }
 
@@ -281,9 +287,10 @@ pub fn decode(
     output: &Path,
     format: OutputFormat,
     max_pixels: u64,
+    scale: Scale,
     display: Option<crate::display::Showing>,
 ) -> Result<()> {
-    let (_, mut assembled) = assemble_at(inputs, max_pixels)?;
+    let (_, mut assembled) = assemble_inputs(inputs, max_pixels, scale)?;
     let name = write_assembled(&mut assembled, output, format, display)?;
     say!("{}: {}", name.display(), describe(&assembled));
     Ok(())
@@ -326,6 +333,7 @@ pub fn follow(
     output: &Path,
     format: OutputFormat,
     max_pixels: u64,
+    scale: Scale,
     display: Option<crate::display::Showing>,
 ) -> Result<()> {
     let [input] = inputs else {
@@ -356,7 +364,8 @@ pub fn follow(
             )));
         }
         packets.push(packet);
-        let mut assembled = match assemble(packets.iter().map(Vec::as_slice), max_pixels) {
+        let mut assembled = match assemble_at(packets.iter().map(Vec::as_slice), max_pixels, scale)
+        {
             Ok(a) => a,
             Err(e) => {
                 last_error = Some(e);
@@ -488,7 +497,7 @@ fn ranges(indices: &[u16]) -> String {
 /// `pifs info` of packets (those at `inputs`, merged): count, sizes, coverage; as one JSON
 /// object with `json`.
 pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
-    let (packets, assembled) = assemble_at(inputs, max_pixels)?;
+    let (packets, assembled) = assemble_inputs(inputs, max_pixels, Scale::One)?;
     let input = (inputs.iter())
         .map(|p| p.display().to_string())
         .collect::<Vec<_>>()
