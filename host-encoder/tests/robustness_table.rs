@@ -623,6 +623,20 @@ fn cases(dir: &Path) -> Vec<Case> {
             Some("{dir}/d10.png"),
         ),
         refuse(
+            "decode: packets whose picture at --scale 4 is above --max-pixels",
+            &[
+                "decode",
+                "{dir}/good.pifsp",
+                "-o",
+                "{dir}/d10s.png",
+                "--scale",
+                "4",
+                "--max-pixels",
+                "10000",
+            ],
+            Some("{dir}/d10s.png"),
+        ),
+        refuse(
             "decode: unsupported output format .jpg",
             &["decode", "{dir}/good.pifs", "-o", "{dir}/d11.jpg"],
             Some("{dir}/d11.jpg"),
