@@ -352,7 +352,11 @@ def main(argv):
         print(__doc__.strip().splitlines()[0], file=sys.stderr)
         print("usage: depacketise.py [--json] [--write DIR] FILE_OR_DIR...", file=sys.stderr)
         return 2
-    images, damaged = gather(paths)
+    try:
+        images, damaged = gather(paths)
+    except OSError as e:
+        print(f"depacketise.py: {e.filename}: {e.strerror}", file=sys.stderr)
+        return 1
     rows = []
     for key, image in sorted(images.items()):
         rows.append(summary(key, image, complete(image)))
