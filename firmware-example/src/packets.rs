@@ -8,13 +8,15 @@
 //! drawn). The same packets are then received again onto a display through
 //! `graphics::DrawSink`, colour sets on RGB565, gray sets on a 1-bit panel, dithered
 //! (`PIFS-PACKETS-DRAWN name=<file> sha256=<hex>`: each pixel's RGB565 value, little-endian, or
-//! its bit as a byte), which the host computes from its assembly.
+//! its bit as a byte), which the host computes from its assembly; and once more at half size,
+//! every packet drawn at `Scale::Half` (`PIFS-PACKETS-HALF name=<file> sha256=<hex>`), which
+//! must equal the host's assembly at that scale.
 
 use core::convert::Infallible;
 
 use cortex_m_semihosting::heprintln;
 use decoder_core::graphics::DrawSink;
-use decoder_core::{Packet, PacketKind, PixelSink, Rect, Tile};
+use decoder_core::{Packet, PacketKind, PixelSink, Rect, Scale, Tile};
 use embedded_graphics::pixelcolor::{BinaryColor, Rgb565};
 use embedded_graphics::prelude::*;
 use sha2::{Digest, Sha256};
@@ -103,7 +105,7 @@ fn receive(set: &PacketSet) -> bool {
         width: set.width,
         channels: set.channels,
     };
-    let Some((received, stack)) = receive_into(set, &mut frame) else {
+    let Some((received, stack)) = receive_into(set, Scale::One, &mut frame) else {
         return false;
     };
     let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
@@ -124,6 +126,18 @@ fn receive(set: &PacketSet) -> bool {
         return false;
     };
     heprintln!("PIFS-PACKETS-DRAWN name={} sha256={}", set.name, Hex(hash));
+    // At half size, as a panel half the picture's size receives it.
+    let (width, height) = (set.width.div_ceil(2), set.height.div_ceil(2));
+    let mut half = Frame {
+        pixels: &mut pixels[..width * height * set.channels],
+        width,
+        channels: set.channels,
+    };
+    if receive_into(set, Scale::Half, &mut half).is_none() {
+        return false;
+    }
+    let hash: [u8; 32] = Sha256::digest(&half.pixels[..]).into();
+    heprintln!("PIFS-PACKETS-HALF name={} sha256={}", set.name, Hex(hash));
     true
 }
 
@@ -136,7 +150,7 @@ fn on_display<C: Hashed>(set: &PacketSet, memory: &mut [u8]) -> Option<[u8; 32]>
         size: Size::new(set.width as u32, set.height as u32),
         colour: core::marker::PhantomData,
     };
-    receive_into(set, &mut DrawSink::new(&mut panel))?;
+    receive_into(set, Scale::One, &mut DrawSink::new(&mut panel))?;
     Some(Sha256::digest(&panel.pixels[..]).into())
 }
 
@@ -170,10 +184,11 @@ impl<C: Hashed> DrawTarget for Panel<'_, C> {
     }
 }
 
-/// Receives `set` into `sink`: every packet but the lost ones, last first. Returns the packets
-/// received and the largest peak stack of one, or `None` after reporting an error.
+/// Receives `set` into `sink` at `scale`: every packet but the lost ones, last first. Returns
+/// the packets received and the largest peak stack of one, or `None` after reporting an error.
 fn receive_into<S: PixelSink<Error = Infallible>>(
     set: &PacketSet,
+    scale: Scale,
     sink: &mut S,
 ) -> Option<(usize, usize)> {
     let mut buffer = [0u8; MAX_PACKET];
@@ -197,7 +212,7 @@ fn receive_into<S: PixelSink<Error = Infallible>>(
         }
         measure::paint();
         let base = measure::sp();
-        let result = draw(&buffer[..n], sink, &mut drawn, &mut regions);
+        let result = draw(&buffer[..n], scale, sink, &mut drawn, &mut regions);
         stack = stack.max(measure::peak(base));
         if let Err(e) = result {
             heprintln!("PIFS-ERROR name={} packet {}: {}", set.name, index, e);
@@ -208,20 +223,21 @@ fn receive_into<S: PixelSink<Error = Infallible>>(
     Some((received, stack))
 }
 
-/// One received packet, parsed and drawn: a region as it is (and remembered), a preview
-/// around the regions already drawn. Not inlined, so that its stack is measured alone.
+/// One received packet, parsed and drawn at `scale`: a region as it is (and remembered), a
+/// preview around the regions already drawn. Not inlined, so that its stack is measured alone.
 #[inline(never)]
 fn draw<S: PixelSink<Error = Infallible>>(
     bytes: &[u8],
+    scale: Scale,
     frame: &mut S,
     drawn: &mut [Rect; MAX_REGIONS],
     regions: &mut usize,
 ) -> Result<(), decoder_core::DrawError<Infallible>> {
-    let packet = Packet::parse(bytes)?;
+    let packet = Packet::parse(bytes)?.scale(scale);
     match packet.kind {
         PacketKind::Region => {
             if *regions < MAX_REGIONS {
-                drawn[*regions] = packet.region;
+                drawn[*regions] = packet.output_region();
                 *regions += 1;
             }
             packet.decode(frame)

@@ -470,7 +470,7 @@ fn check_values(context: &str, lines: &[&str]) {
 }
 
 /// Every golden packet set, received by the firmware out of order and without its lost
-/// packets, draws what the host assembles from the same packets.
+/// packets, draws what the host assembles from the same packets, at full and at half size.
 fn check_packets(context: &str, lines: &[&str]) {
     let sets = common::golden_packets();
     let mut seen = 0;
@@ -505,6 +505,22 @@ fn check_packets(context: &str, lines: &[&str]) {
             fields(drawn)["sha256"],
             sha256_hex(&panel_bytes(&host)),
             "{context}: {}: the packets drawn through DrawSink differ from the host's",
+            g.file
+        );
+        let half = lines
+            .iter()
+            .find(|l| l.starts_with("PIFS-PACKETS-HALF ") && fields(l)["name"] == f["name"].trim())
+            .unwrap_or_else(|| panic!("{context}: {}: not drawn at half size", g.file));
+        let host_half = host_encoder::packets::assemble_at(
+            kept.iter().map(Vec::as_slice),
+            u64::MAX,
+            decoder_core::Scale::Half,
+        )
+        .unwrap();
+        assert_eq!(
+            fields(half)["sha256"],
+            sha256_hex(&host_half.pixels),
+            "{context}: {}: the packets drawn at half size differ from the host's",
             g.file
         );
         seen += 1;
