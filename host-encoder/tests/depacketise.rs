@@ -46,6 +46,21 @@ fn depacketise_into(paths: &[&Path], out: Option<&Path>) -> (Value, u64) {
     (images[0].clone(), out["damaged"].as_u64().unwrap())
 }
 
+/// `pifs packets drop`: the packets of `sent` that survive a loss of `loss` (random seed
+/// `seed`), copied into `received`.
+fn lose(sent: &Path, received: &Path, loss: &str, seed: &str) {
+    pifs(&[
+        "packets",
+        "drop",
+        "--loss",
+        loss,
+        "--seed",
+        seed,
+        sent.to_str().unwrap(),
+        received.to_str().unwrap(),
+    ]);
+}
+
 fn info(paths: &[&Path]) -> Value {
     let mut args = vec!["info", "--json"];
     args.extend(paths.iter().map(|p| p.to_str().unwrap()));
@@ -104,16 +119,7 @@ fn the_specification_suffices_to_sort_packets() {
         "3",
     ]);
     let received = dir.join("received");
-    pifs(&[
-        "packets",
-        "drop",
-        "--loss",
-        "0.3",
-        "--seed",
-        "5",
-        sent.to_str().unwrap(),
-        received.to_str().unwrap(),
-    ]);
+    lose(&sent, &received, "0.3", "5");
     let all = |d: &Path| -> Vec<std::path::PathBuf> {
         let mut v: Vec<_> = std::fs::read_dir(d)
             .unwrap()
@@ -164,19 +170,14 @@ fn framed_packets_and_parity_are_read_as_specified() {
     let dir = Scratch::new("depacketise-framed");
     let png = dir.join("in.png");
     write_png(&png, 120, 96);
+    let encode = |output: &[&str]| {
+        let mut args = vec!["encode", png.to_str().unwrap(), "--bpp", "2"];
+        args.extend(["--packet-size", "120", "--parity", "3"]);
+        args.extend(output);
+        pifs(&args);
+    };
     let framed = dir.join("photo.pifsp");
-    pifs(&[
-        "encode",
-        png.to_str().unwrap(),
-        "--bpp",
-        "2",
-        "--packet-size",
-        "120",
-        "--parity",
-        "3",
-        "-o",
-        framed.to_str().unwrap(),
-    ]);
+    encode(&["-o", framed.to_str().unwrap()]);
     let (ours, refused) = depacketise(&[&framed]);
     let reference = info(&[&framed]);
     assert_same_image(&ours, &reference);
@@ -185,29 +186,9 @@ fn framed_packets_and_parity_are_read_as_specified() {
     assert_eq!(indices(&ours["received"]), indices(&reference["received"]));
 
     let sent = dir.join("sent");
-    pifs(&[
-        "encode",
-        png.to_str().unwrap(),
-        "--bpp",
-        "2",
-        "--packet-size",
-        "120",
-        "--parity",
-        "3",
-        "--packets",
-        sent.to_str().unwrap(),
-    ]);
+    encode(&["--packets", sent.to_str().unwrap()]);
     let received = dir.join("received");
-    pifs(&[
-        "packets",
-        "drop",
-        "--loss",
-        "0.1",
-        "--seed",
-        "1",
-        sent.to_str().unwrap(),
-        received.to_str().unwrap(),
-    ]);
+    lose(&sent, &received, "0.1", "1");
     let rebuilt_dir = dir.join("rebuilt");
     let (ours, _) = depacketise_into(&[&received], Some(&rebuilt_dir));
     let reference = info(&[&received]);
