@@ -26,7 +26,8 @@ import json
 import os
 import sys
 
-FORMAT_VERSION = 22
+FORMAT_VERSION = 23
+FIRST_TAGGED_VERSION = 22
 KIND_PARITY, KIND_STREAM, KIND_PACKET = 1, 2, 3
 
 
@@ -163,27 +164,27 @@ def parse(data):
     kind, version = data[0] >> 6, data[0] & 0x3F
     if kind == KIND_STREAM:
         raise Refused("a stream, not a packet")
-    if kind not in (KIND_PACKET, KIND_PARITY) or version < FORMAT_VERSION:
+    if kind not in (KIND_PACKET, KIND_PARITY) or version < FIRST_TAGGED_VERSION:
         raise Refused("not a packet (bad magic)")
-    if version > FORMAT_VERSION:
-        raise Refused(f"a packet of a later format version ({version})")
+    if version != FORMAT_VERSION:
+        raise Refused(f"a packet of another format version ({version})")
     if len(data) < 3 or crc16(data[:-2]) != data[-2] | data[-1] << 8:
         raise Refused("checksum mismatch")
     body = Reader(data[:-2], 1)
     image_id = body.u16()
     if kind == KIND_PARITY:
-        k, parity, data_count, shard = (body.varint() for _ in range(4))
-        if not (k < parity and data_count >= 1 and data_count + parity <= 256):
+        k, data_count = body.varint(), body.varint()
+        if not (data_count >= 1 and data_count + k < 256):
             raise Refused("parity fields out of range")
-        if len(data) - 2 - body.at != shard:
-            raise Refused("a parity shard of the wrong length")
+        if len(data) - 2 - body.at < 1:
+            raise Refused("an empty parity shard")
         return {"kind": "parity", "image_id": image_id, "parity_index": k,
-                "parity_count": parity, "count": data_count, "shard_length": shard,
-                "shard": bytes(data[body.at:-2])}
+                "count": data_count, "shard": bytes(data[body.at:-2])}
     flags = body.byte()
     colour, preview, coding = bool(flags & 1), bool(flags & 2), bool(flags & 4)
     smoothing = flags >> 3
     index, count = body.varint(), body.varint()
+    after_count = body.at
     width, height = body.varint() + 1, body.varint() + 1
     if index >= count:
         raise Refused("an index not below the count")
@@ -214,7 +215,30 @@ def parse(data):
             "channels": 3 if colour else 1, "region": region, "smoothing": smoothing,
             "leaf_log2": (low, high), "stripe_tiles": stripe,
             "header_bytes": body.at, "payload_bytes": len(data) - 2 - body.at,
-            "bytes": bytes(data)}
+            "bytes": bytes(data), "content": bytes([flags]) + bytes(data[after_count:-2])}
+
+
+def varint(value):
+    """Unsigned LEB128: seven bits a byte, least significant group first."""
+    out = bytearray()
+    while True:
+        byte, value = value & 0x7F, value >> 7
+        out.append(byte | (0x80 if value else 0))
+        if not value:
+            return bytes(out)
+
+
+def unshard(shard, image_id, index, count):
+    """A data packet from its shard (section 9): the content before the end byte 0x80 and the
+    zeros, with the tag, image id, index and count put back and the checksum computed."""
+    content = shard.rstrip(b"\0")
+    if len(content) < 2 or content[-1] != 0x80:
+        return None
+    content = content[:-1]
+    body = (bytes([KIND_PACKET << 6 | FORMAT_VERSION, image_id & 0xFF, image_id >> 8,
+                   content[0]]) + varint(index) + varint(count) + content[1:])
+    crc = crc16(body)
+    return body + bytes([crc & 0xFF, crc >> 8])
 
 
 def frames(data):
@@ -240,8 +264,8 @@ def packets_of(path):
         yield from (frames(data) if path.endswith(".pifsp") else [data])
 
 
-def new_image(count):
-    return {"count": count, "packets": {}, "parity": {}, "duplicates": 0}
+def new_image(image_id, count):
+    return {"image_id": image_id, "count": count, "packets": {}, "parity": {}, "duplicates": 0}
 
 
 def gather(paths):
@@ -256,13 +280,13 @@ def gather(paths):
                 continue
             if packet["kind"] == "parity":
                 key = (packet["image_id"], packet["count"])
-                image = images.setdefault(key, new_image(packet["count"]))
+                image = images.setdefault(key, new_image(*key))
                 if packet["parity_index"] in image["parity"]:
                     image["duplicates"] += 1
                 image["parity"][packet["parity_index"]] = packet
                 continue
             key = (packet["image_id"], packet["count"])
-            image = images.setdefault(key, new_image(packet["count"]))
+            image = images.setdefault(key, new_image(*key))
             shape = (packet["width"], packet["height"], packet["channels"])
             if image.setdefault("shape", shape) != shape:
                 damaged += 1  # the same id and count but another picture: not this image's
@@ -281,27 +305,28 @@ def complete(image):
     missing = [i for i in range(image["count"]) if i not in image["packets"]]
     if not parity or not missing:
         return []
-    parity_count, length = parity[0]["parity_count"], parity[0]["shard_length"]
-    if any((p["parity_count"], p["shard_length"]) != (parity_count, length) for p in parity):
+    length = len(parity[0]["shard"])
+    if any(len(p["shard"]) != length for p in parity):
         return []
     shards = {}
     for index, packet in image["packets"].items():
-        data = packet["bytes"]
-        if len(data) + 2 > length:
+        content = packet["content"]
+        if len(content) + 1 > length:
             return []
-        shards[index] = bytes([len(data) & 0xFF, len(data) >> 8]) + data
-        shards[index] += bytes(length - len(shards[index]))
+        shards[index] = content + b"\x80" + bytes(length - len(content) - 1)
     for k, p in image["parity"].items():
         shards[image["count"] + k] = p["shard"]
-    data = rebuild(shards, image["count"], parity_count)
+    # The code's rows do not depend on how many parity packets were sent.
+    data = rebuild(shards, image["count"], 1 + max(image["parity"]))
     if data is None:
         return []
     rebuilt = []
     for index in missing:
-        shard = data[index]
-        size = shard[0] | shard[1] << 8
+        data_packet = unshard(data[index], image["image_id"], index, image["count"])
+        if data_packet is None:
+            continue
         try:
-            packet = parse(shard[2:2 + size])
+            packet = parse(data_packet)
         except Refused:
             continue
         if packet["kind"] != "parity" and packet["index"] == index:

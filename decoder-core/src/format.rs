@@ -4,7 +4,10 @@
 
 /// The format version this crate reads and writes: the low six bits of the first byte of
 /// every stream and packet.
-pub const VERSION: u8 = 22;
+pub const VERSION: u8 = 23;
+/// The first format version whose streams and packets open with a tag byte (earlier ones
+/// opened with [`LEGACY_MAGIC`]).
+pub const FIRST_TAGGED_VERSION: u8 = 22;
 /// The first byte of a stream: kind 2 in its top two bits, [`VERSION`] below them. One byte
 /// both recognises the bytes (with the checksum behind it) and versions them.
 pub const STREAM_TAG: u8 = 0x80 | VERSION;
@@ -19,15 +22,15 @@ pub const LEGACY_MAGIC: [u8; 4] = *b"PIFS";
 const _: () = assert!(VERSION < 64, "the version must fit the tag's six bits");
 
 /// What a first byte says about the bytes behind it, against the `tag` expected
-/// ([`STREAM_TAG`], [`PACKET_TAG`]): the same kind of a later version gives that version.
+/// ([`STREAM_TAG`], [`PACKET_TAG`]): the same kind of another tagged version gives that version.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TagCheck {
     /// The expected kind and version.
     Expected,
-    /// The expected kind, written by the later format version `.0`.
-    LaterVersion(u8),
-    /// Not the expected kind, or a version before this one (no version before 22 opened with a
-    /// tag: such a byte is not PIFS's).
+    /// The expected kind, written by another tagged format version `.0` (earlier or later).
+    OtherVersion(u8),
+    /// Not the expected kind, or a version before [`FIRST_TAGGED_VERSION`] (no such version
+    /// opened with a tag: the byte is not PIFS's).
     Unknown,
 }
 
@@ -35,8 +38,8 @@ pub enum TagCheck {
 pub fn check_tag(byte: u8, tag: u8) -> TagCheck {
     if byte == tag {
         TagCheck::Expected
-    } else if byte >> 6 == tag >> 6 && byte & 0x3F > VERSION {
-        TagCheck::LaterVersion(byte & 0x3F)
+    } else if byte >> 6 == tag >> 6 && byte & 0x3F >= FIRST_TAGGED_VERSION {
+        TagCheck::OtherVersion(byte & 0x3F)
     } else {
         TagCheck::Unknown
     }

@@ -675,7 +675,7 @@ mod tests {
             Packet::parse(&explicit).err(),
             Some(DecodeError::InvalidHeader(HeaderField::CodingFields))
         );
-        // Another kind's tag, a later version's, an earlier one's (which had no tags).
+        // Another kind's tag, a later version's, an earlier tagged one's, one before tags.
         let mut other = seal(&base, payload);
         other[0] = crate::format::STREAM_TAG;
         assert_eq!(Packet::parse(&other).err(), Some(DecodeError::BadMagic));
@@ -685,6 +685,11 @@ mod tests {
             Some(DecodeError::UnsupportedVersion(crate::format::VERSION + 1))
         );
         other[0] = PACKET_TAG - 1;
+        assert_eq!(
+            Packet::parse(&other).err(),
+            Some(DecodeError::UnsupportedVersion(crate::format::VERSION - 1))
+        );
+        other[0] = 0xC0 | (crate::format::FIRST_TAGGED_VERSION - 1);
         assert_eq!(Packet::parse(&other).err(), Some(DecodeError::BadMagic));
     }
 }

@@ -90,16 +90,16 @@ pub fn write_side(out: &mut [u8], pos: usize, side: u16) -> usize {
 }
 
 /// Checks the first byte of `data` against `tag` ([`STREAM_TAG`] or a packet's): the same
-/// kind of a later version is [`DecodeError::UnsupportedVersion`], anything else
-/// [`DecodeError::BadMagic`] (a random first byte is a stream's of some later version one time
-/// in six); no byte at all, [`DecodeError::Truncated`].
+/// kind of another tagged version is [`DecodeError::UnsupportedVersion`], anything else
+/// [`DecodeError::BadMagic`] (a random first byte is a stream's of some other version about
+/// one time in six); no byte at all, [`DecodeError::Truncated`].
 pub fn check_first_byte(data: &[u8], tag: u8) -> Result<(), DecodeError> {
     let Some(&first) = data.first() else {
         return Err(DecodeError::Truncated);
     };
     match check_tag(first, tag) {
         TagCheck::Expected => Ok(()),
-        TagCheck::LaterVersion(v) => Err(DecodeError::UnsupportedVersion(v)),
+        TagCheck::OtherVersion(v) => Err(DecodeError::UnsupportedVersion(v)),
         TagCheck::Unknown => Err(DecodeError::BadMagic),
     }
 }
@@ -1230,6 +1230,16 @@ mod tests {
             Header::parse(&out[..n]),
             Err(DecodeError::UnsupportedVersion(VERSION + 1))
         );
+        // The first tagged version's tag names that version; the byte before it is unknown.
+        out[0] = 0x80 | crate::format::FIRST_TAGGED_VERSION;
+        assert_eq!(
+            Header::parse(&out[..n]),
+            Err(DecodeError::UnsupportedVersion(
+                crate::format::FIRST_TAGGED_VERSION
+            ))
+        );
+        out[0] = 0x80 | (crate::format::FIRST_TAGGED_VERSION - 1);
+        assert_eq!(Header::parse(&out[..n]), Err(DecodeError::BadMagic));
         // A side less one of 65535 would be a side of 65536: refused. So is a smoothing of 17.
         let mut big = [STREAM_TAG, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0x03, 0, 0];
         assert_eq!(

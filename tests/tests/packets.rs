@@ -248,16 +248,19 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
         parity: 3,
     };
     let made = packetise(&analysis, &config(), Target::Bytes(12 * 96), &options).unwrap();
-    // Ten data packets of at most 81 bytes (room for the parity packets' fields), three
-    // parity packets of 96.
-    assert_eq!((made.packets.len(), made.parity), (13, 3));
-    assert!(made.packets.iter().all(|p| p.len() <= 96));
+    // Nine data packets of at most 95 bytes (a parity packet is at most one byte longer than
+    // the longest), three parity packets of at most 96.
+    assert_eq!((made.packets.len(), made.parity), (12, 3));
+    let (data, parity) = made.packets.split_at(9);
+    assert!(data.iter().all(|p| p.len() <= 95));
+    let longest = data.iter().map(Vec::len).max().unwrap();
+    assert!(parity.iter().all(|p| p.len() == longest + 1), "{longest}");
     assert!(made.total_bytes() <= 12 * 96);
-    assert_eq!(Packet::parse(&made.packets[0]).unwrap().count, 10);
+    assert_eq!(Packet::parse(&made.packets[0]).unwrap().count, 9);
     let all = assemble(made.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
     assert_eq!(all.pixels, made.reconstruction);
-    // Any three lost (data or parity): everything rebuilt.
-    for lost in [[0, 1, 2], [3, 7, 8], [2, 10, 12], [10, 11, 12]] {
+    // Any three lost (data or parity): everything rebuilt, byte for byte.
+    for lost in [[0, 1, 2], [3, 7, 8], [2, 9, 11], [9, 10, 11], [6, 8, 10]] {
         let kept = made
             .packets
             .iter()
@@ -267,11 +270,7 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
         let image = assemble(kept, u64::MAX).unwrap();
         assert!(image.missing.is_empty(), "{lost:?}: {:?}", image.missing);
         assert_eq!(image.pixels, made.reconstruction, "{lost:?}");
-        let data_lost: Vec<u16> = lost
-            .iter()
-            .filter(|&&i| i < 10)
-            .map(|&i| i as u16)
-            .collect();
+        let data_lost: Vec<u16> = lost.iter().filter(|&&i| i < 9).map(|&i| i as u16).collect();
         assert_eq!(image.recovered, data_lost);
     }
     // Four lost: nothing rebuilt, the data packets that came are drawn.
@@ -279,6 +278,36 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
     let image = assemble(kept, u64::MAX).unwrap();
     assert_eq!(image.missing, vec![0, 1, 2, 3]);
     assert!(image.recovered.is_empty());
+}
+
+#[test]
+fn parity_packets_past_128_keep_to_the_packet_size() {
+    // 130 parity packets: the last two's index fields take two bytes, and the data packets
+    // leave room for them (two bytes shorter than the packet size).
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let analysis = common::analyse_with(plane, &config());
+    let options = PacketOptions {
+        size: SIZE,
+        image_id: 9,
+        preview: false,
+        repeat_preview: false,
+        parity: 130,
+    };
+    let made = packetise(&analysis, &config(), Target::Bytes(150 * SIZE), &options).unwrap();
+    let n = made.packets.len() - made.parity;
+    assert_eq!((n, made.parity), (20, 130));
+    assert!(made.packets[..n].iter().all(|p| p.len() <= SIZE - 2));
+    assert!(made.packets.iter().all(|p| p.len() <= SIZE));
+    // Every data packet lost: the parity packets alone rebuild them all.
+    let image = assemble(made.packets[n..].iter().map(Vec::as_slice), u64::MAX);
+    // Without a data packet the image is unknown (its size and mode are in data packets
+    // only), so nothing is drawn; with one, the rest is rebuilt.
+    assert!(matches!(image, Err(AssembleError::NoValidPacket(None))));
+    let one_data = made.packets[n - 1..].iter().map(Vec::as_slice);
+    let image = assemble(one_data, u64::MAX).unwrap();
+    assert!(image.missing.is_empty(), "{:?}", image.missing);
+    assert_eq!(image.recovered, (0..n as u16 - 1).collect::<Vec<_>>());
+    assert_eq!(image.pixels, made.reconstruction);
 }
 
 #[test]

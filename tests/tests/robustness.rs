@@ -6,7 +6,7 @@
 mod common;
 
 use common::{golden_streams, sealed_stream, CoverageSink};
-use decoder_core::internal::format::{PACKET_TAG, STREAM_TAG, VERSION};
+use decoder_core::internal::format::{FIRST_TAGGED_VERSION, PACKET_TAG, STREAM_TAG, VERSION};
 use decoder_core::internal::syntax::{
     seal, Header, CHECKSUM_BYTES, FLAG_CODING, FLAG_COLOUR, FLAG_DEEP,
 };
@@ -185,10 +185,16 @@ fn header_errors_are_typed() {
             },
             DecodeError::BadMagic,
         ),
-        // No version before 22 opened with a tag: such a byte is unknown.
+        // The version before is named; no version before the first tagged one had a tag: such
+        // a byte is unknown.
         (
             "the version before",
             with(0, STREAM_TAG - 1),
+            DecodeError::UnsupportedVersion(VERSION - 1),
+        ),
+        (
+            "the version before tags",
+            with(0, 0x80 | (FIRST_TAGGED_VERSION - 1)),
             DecodeError::BadMagic,
         ),
         (
@@ -349,15 +355,15 @@ fn header_errors_are_typed() {
             }
         }),
     ];
-    // Every other version's stream tag: a later one is that version, an earlier one (no
-    // version before 22 had a tag) unknown bytes.
+    // Every other version's stream tag: a tagged one is that version, an earlier one (no
+    // version before the first tagged one had a tag) unknown bytes.
     let others: Vec<(String, Vec<u8>)> = (0..64)
         .filter(|&v| v != VERSION)
         .map(|v| (format!("version {v}'s tag"), with(0, 0x80 | v)))
         .collect();
     for (what, bytes) in &others {
         let v = bytes[0] & 0x3F;
-        let expected = match v > VERSION {
+        let expected = match v >= FIRST_TAGGED_VERSION {
             true => DecodeError::UnsupportedVersion(v),
             false => DecodeError::BadMagic,
         };

@@ -51,7 +51,7 @@ pub struct PacketOptions {
     pub repeat_preview: bool,
     /// Parity packets sent after the others (part of the budget): any `N` of the `N + K`
     /// packets rebuild all `N` data packets (a Reed–Solomon erasure code; the data packets are
-    /// then about 15 bytes shorter, the parity packets' own fields). 0 for none.
+    /// then one byte shorter, the end of a parity packet's shard). 0 for none.
     pub parity: usize,
 }
 
@@ -287,8 +287,9 @@ pub fn parity_for_loss(
         ..*options
     };
     let base = Layout::of(budget, &plain)?;
-    // A region's header and checksum, about (what `data_packets` writes for a small image).
-    let header = 19;
+    // A region's header and checksum, about (a 768x512 image's region packet in at most 127
+    // packets: 14 bytes and 2; `docs/bitstream.md`, section 9).
+    let header = 16;
     // The image as one flat grey (or colour): its squared error is the pixels' variance.
     let source = analysis.source();
     let mean = source.iter().map(|&v| f64::from(v)).sum::<f64>() / source.len().max(1) as f64;
@@ -433,7 +434,7 @@ impl Layout {
         let k = options.parity;
         let data_size = match k {
             0 => size,
-            k => parity::data_packet_size(size, MAX_SHARDS, k),
+            k => parity::data_packet_size(size, k),
         };
         let for_data = budget.saturating_sub(k * size);
         let repeat = options.preview
@@ -966,7 +967,7 @@ pub fn assemble_at<'a>(
         Vec::new()
     } else {
         let by_index: Vec<Option<&[u8]>> = (0..count).map(|i| raw.get(&i).copied()).collect();
-        parity::rebuild(&by_index, &ours)
+        parity::rebuild(&by_index, &ours, image_id)
     };
     let mut by_index: BTreeMap<u16, Packet<'_>> = BTreeMap::new();
     for (index, data) in &raw {
@@ -1272,13 +1273,13 @@ mod tests {
         assert_eq!(cut[2].len(), 290);
     }
 
-    /// A framed file whose first packet is 150 bytes opens with a stream's tag (`0x96`): the
-    /// framing, not the first byte, says it is packets; a stream, of this version or of format
-    /// 21 (`PIFS`), is a stream.
+    /// A framed file whose first packet is as many bytes as a stream's tag says (151 in format
+    /// 23) opens with that tag: the framing, not the first byte, says it is packets; a stream,
+    /// of this version or of format 21 (`PIFS`), is a stream.
     #[test]
     fn a_framed_file_is_told_from_a_stream_by_its_framing() {
         let mut packet = vec![decoder_core::PACKET_TAG];
-        packet.resize(150, 7);
+        packet.resize(usize::from(decoder_core::STREAM_TAG), 7);
         let framed = frame(&[packet.clone(), packet]);
         assert_eq!(framed[0], decoder_core::STREAM_TAG);
         assert!(!is_stream_data(&framed));
