@@ -5,10 +5,13 @@ packets and bytes sent, mean PSNR-RGB with every packet, with 10% and 20% of the
 packets drop --loss L --seed S`, seeds 1-5, each image's own patterns; a pattern that loses
 everything is left out) and from the first packet alone.
 
-    python3 bench/experiments/small_packets.py WORKDIR NAME=PIFS[,SIZE] [NAME=PIFS[,SIZE]...]
+    python3 bench/experiments/small_packets.py WORKDIR NAME=PIFS[,SIZE[,ARGS]] [NAME=...]
 
-docs/decisions.md ("Packets": what whole packets leave of a budget) quotes it with the
-binary before and after that change. Needs numpy and Pillow.
+ARGS: more `pifs encode` options for that binary, separated by spaces (`--expect-loss 0.1`).
+
+docs/decisions.md quotes it with the binaries before and after a change ("Packets": what
+whole packets leave of a budget; "Parity shards without the repeated fields"). Needs numpy
+and Pillow.
 """
 import concurrent.futures as cf
 import glob
@@ -42,13 +45,17 @@ def small_images(work):
 
 
 def one(work, name, pifs, image, rate):
-    pifs, _, size = pifs.partition(",")
+    pifs, _, rest = pifs.partition(",")
+    size, _, extra = rest.partition(",")
     original = np.asarray(Image.open(image).convert("RGB")).astype(float)
     w, h = Image.open(image).size
     base = os.path.join(work, f"{name}_{os.path.basename(image)[:-4]}_{rate}")
     run = lambda *args: subprocess.run([pifs, *args], check=True, capture_output=True)
-    run("encode", image, "--bytes", str(int(rate * w * h / 8)), "--packets", base,
-        "--packet-size", size or "255")
+    try:
+        run("encode", image, "--bytes", str(int(rate * w * h / 8)), "--packets", base,
+            "--packet-size", size or "255", *extra.split())
+    except subprocess.CalledProcessError:
+        return name, rate, None  # refused (a budget too small for its packets)
     packets = sorted(os.listdir(base))
 
     def decoded(directory):
@@ -82,7 +89,12 @@ def main():
         rows = list(ex.map(lambda j: one(work, *j), jobs))
     for rate in RATES:
         for name in binaries:
-            rs = [row for n, r, row in rows if n == name and r == rate]
+            rs = [row for n, r, row in rows if n == name and r == rate and row]
+            refused = sum(1 for n, r, row in rows if n == name and r == rate and not row)
+            if refused:
+                print(f"{rate} bpp {name}: {refused} images refused, the means are over the rest")
+            if not rs:
+                continue
             mean = lambda key: np.mean([v for row in rs for v in (row[key] if isinstance(row[key], list) else [row[key]])])
             print(f"{rate} bpp {name}: {mean('packets'):.1f} packets, {mean('bytes'):.0f} bytes; "
                   f"PSNR-RGB every packet {mean('all'):.2f}, 10% lost {mean(0.1):.2f}, "
