@@ -35,6 +35,7 @@ fn main() {
     let mut generated = generate(&vectors);
     if env::var_os("CARGO_FEATURE_BENCH").is_none() {
         generated += &packet_sets(&manifest.join("../tests/golden"));
+        generated += &parity_sets(&manifest.join("../tests/golden"));
     }
     fs::write(out.join("vectors.rs"), generated).unwrap();
 }
@@ -78,6 +79,42 @@ fn packet_sets(dir: &Path) -> String {
         "/// Bytes of the frame buffer of the largest packet set.\npub const PACKET_FRAME_LEN: usize = {frame};"
     )
     .unwrap();
+    s
+}
+
+/// The golden parity sets of `tests/golden/parity.txt`: each framed file (data packets, then
+/// parity packets) with the data packets the firmware is to lose and rebuild.
+fn parity_sets(dir: &Path) -> String {
+    let list = dir.join("parity.txt");
+    println!("cargo:rerun-if-changed={}", list.display());
+    let text = fs::read_to_string(&list).unwrap_or_else(|e| panic!("{}: {e}", list.display()));
+    let mut s =
+        String::from("/// The golden parity sets.\npub static PARITY_SETS: &[PacketSet] = &[\n");
+    for line in text.lines().map(str::trim) {
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = line.split_whitespace().collect();
+        assert!(f.len() >= 4, "parity.txt: bad line {line:?}");
+        let path = dir.join(f[0]);
+        println!("cargo:rerun-if-changed={}", path.display());
+        let bytes = fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let len = usize::from(u16::from_le_bytes([bytes[0], bytes[1]]));
+        let first = decoder_core::Packet::parse(&bytes[2..2 + len])
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        writeln!(
+            s,
+            "    PacketSet {{ name: {:?}, width: {}, height: {}, channels: {}, lost: &[{}], data: include_bytes!({:?}) }},",
+            f[0],
+            f[1],
+            f[2],
+            first.channels,
+            f[3],
+            path.canonicalize().unwrap().to_str().expect("UTF-8 path")
+        )
+        .unwrap();
+    }
+    s.push_str("];\n");
     s
 }
 

@@ -92,6 +92,7 @@ mod format;
 mod geometry;
 mod model;
 mod packet;
+mod parity;
 mod prediction;
 mod syntax;
 mod synthesis;
@@ -106,6 +107,7 @@ pub use error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 pub use format::{PACKET_TAG, STREAM_TAG, VERSION};
 pub use geometry::{Node, Rect};
 pub use packet::{Packet, PacketKind, REGION_UNIT};
+pub use parity::{ParityPacket, Rebuild, RebuildError};
 pub use syntax::{ControlCoding, Header, SampleRange, MAX_HEADER_LEN};
 pub use synthesis::{PixelSink, Scale, Tile, TILE};
 pub use walk::LeafInfo;
@@ -143,6 +145,10 @@ pub mod internal {
     /// See the crate's `packet` module.
     pub mod packet {
         pub use crate::packet::*;
+    }
+    /// See the crate's `parity` module.
+    pub mod parity {
+        pub use crate::parity::*;
     }
     /// See the crate's `prediction` module.
     pub mod prediction {

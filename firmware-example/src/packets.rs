@@ -11,18 +11,24 @@
 //! its bit as a byte), which the host computes from its assembly; and once more at half size,
 //! every packet drawn at `Scale::Half` (`PIFS-PACKETS-HALF name=<file> sha256=<hex>`), which
 //! must equal the host's assembly at that scale.
+//!
+//! Each golden parity set is received (parity packets first, then the data packets, last
+//! first, without the lost ones) into a `Rebuild` held in a fixed buffer, the lost packets
+//! are rebuilt, and every data packet is drawn into the frame buffer: `PIFS-PARITY name=<file>
+//! rebuilt=<n> stack=<bytes> sha256=<hex>` must equal the host's picture of the whole set, and
+//! `stack` is the rebuild's peak stack.
 
 use core::convert::Infallible;
 
 use cortex_m_semihosting::heprintln;
 use decoder_core::graphics::DrawSink;
-use decoder_core::{Packet, PacketKind, PixelSink, Rect, Scale, Tile};
+use decoder_core::{Packet, PacketKind, ParityPacket, PixelSink, Rebuild, Rect, Scale, Tile};
 use embedded_graphics::pixelcolor::{BinaryColor, Rgb565};
 use embedded_graphics::prelude::*;
 use sha2::{Digest, Sha256};
 
 use crate::targets::Hashed;
-use crate::{measure, Hex, PACKET_FRAME_LEN, PACKET_SETS};
+use crate::{measure, Hex, PACKET_FRAME_LEN, PACKET_SETS, PARITY_SETS};
 
 /// A framed packet set (`tests/golden/packets.txt`).
 pub struct PacketSet {
@@ -71,13 +77,108 @@ impl PixelSink for Frame<'_> {
     }
 }
 
-/// Receives every golden packet set; true when all decoded.
+/// Receives every golden packet set, and every parity set; true when all decoded.
 pub fn check_all() -> bool {
     let mut ok = true;
     for set in PACKET_SETS {
         ok &= receive(set);
     }
+    for set in PARITY_SETS {
+        ok &= rebuild(set);
+    }
     ok
+}
+
+/// The bytes a receiver lends the rebuild: every shard of a golden parity set.
+const REBUILD_BUFFER: usize = 1024;
+
+/// Receives `set` with its lost data packets missing, rebuilds them from its parity packets
+/// and draws every data packet into a frame buffer (see the module's documentation).
+fn rebuild(set: &PacketSet) -> bool {
+    let mut shards = [0u8; REBUILD_BUFFER];
+    // A parity packet says which code the packets are of (and how long its shards are).
+    let first = frames_reversed(set.data).find_map(|bytes| ParityPacket::parse(bytes).ok());
+    let code = first.map(|first| Rebuild::new(&first, &mut shards));
+    let mut code = match code {
+        Some(Ok(code)) => code,
+        Some(Err(e)) => {
+            heprintln!("PIFS-ERROR name={} rebuild: {}", set.name, e);
+            return false;
+        }
+        None => {
+            heprintln!("PIFS-ERROR name={} rebuild: no parity packet", set.name);
+            return false;
+        }
+    };
+    let mut lost = 0;
+    for bytes in frames_reversed(set.data) {
+        let added = match ParityPacket::parse(bytes) {
+            Ok(parity) => code.add_parity(&parity),
+            Err(_) => match Packet::parse(bytes) {
+                Ok(p) if set.lost.contains(&p.index) => {
+                    lost += 1;
+                    Ok(())
+                }
+                _ => code.add_packet(bytes),
+            },
+        };
+        if let Err(e) = added {
+            heprintln!("PIFS-ERROR name={} rebuild: {}", set.name, e);
+            return false;
+        }
+    }
+    measure::paint();
+    let base = measure::sp();
+    let rebuilt = rebuild_lost(&mut code);
+    let stack = measure::peak(base);
+    if let Err(e) = rebuilt {
+        heprintln!("PIFS-ERROR name={} rebuild: {}", set.name, e);
+        return false;
+    }
+    let mut pixels = [0u8; PACKET_FRAME_LEN];
+    let len = set.width * set.height * set.channels;
+    let Some(pixels) = pixels.get_mut(..len) else {
+        heprintln!("PIFS-ERROR name={} rebuild: frame too small", set.name);
+        return false;
+    };
+    let mut frame = Frame {
+        pixels,
+        width: set.width,
+        channels: set.channels,
+    };
+    let mut buffer = [0u8; MAX_PACKET];
+    let mut drawn = [Rect::of_size(0, 0); MAX_REGIONS];
+    let mut regions = 0;
+    // The preview (packet 0) first, then the regions over it.
+    let mut index = 0;
+    while code.has(index) {
+        let result = match code.packet(index, &mut buffer) {
+            Ok(n) => draw(
+                &buffer[..n],
+                Scale::One,
+                &mut frame,
+                &mut drawn,
+                &mut regions,
+            )
+            .map_err(|_| "a rebuilt packet does not decode"),
+            Err(_) => Err("a packet missing after the rebuild"),
+        };
+        if let Err(e) = result {
+            heprintln!("PIFS-ERROR name={} packet {}: {}", set.name, index, e);
+            return false;
+        }
+        index += 1;
+    }
+    let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
+    heprintln!(
+        "PIFS-PARITY name={} rebuilt={} packets={} stack={} sha256={}",
+        set.name,
+        lost,
+        index,
+        stack,
+        Hex(hash)
+    );
+    true
 }
 
 /// The frames of `data`, last first.
@@ -221,6 +322,12 @@ fn receive_into<S: PixelSink<Error = Infallible>>(
         received += 1;
     }
     Some((received, stack))
+}
+
+/// The rebuild, not inlined, so that its stack is measured alone.
+#[inline(never)]
+fn rebuild_lost(code: &mut Rebuild<'_>) -> Result<(), decoder_core::RebuildError> {
+    code.rebuild()
 }
 
 /// One received packet, parsed and drawn at `scale`: a region as it is (and remembered), a

@@ -4,7 +4,7 @@
 
 mod common;
 
-use decoder_core::{Packet, PacketKind, Rect, Scale};
+use decoder_core::{Packet, PacketKind, ParityPacket, Rebuild, RebuildError, Rect, Scale};
 use host_encoder::packets::{
     assemble, assemble_at, packetise, parity_for_loss, AssembleError, PacketError, PacketOptions,
     Packetised,
@@ -278,6 +278,89 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
     let image = assemble(kept, u64::MAX).unwrap();
     assert_eq!(image.missing, vec![0, 1, 2, 3]);
     assert!(image.recovered.is_empty());
+}
+
+/// decoder-core's rebuild, as a device runs it (one fixed buffer, no allocation), against the
+/// parity packets the encoder makes with the `reed-solomon-erasure` crate: every way of losing
+/// up to three of twelve packets gives back the lost data packets byte for byte.
+#[test]
+fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let analysis = common::analyse_with(plane, &config());
+    let options = PacketOptions {
+        size: 96,
+        image_id: 4,
+        preview: true,
+        repeat_preview: false,
+        parity: 3,
+    };
+    let made = packetise(&analysis, &config(), Target::Bytes(12 * 96), &options).unwrap();
+    let sent = &made.packets;
+    let n = sent.len() - made.parity;
+    let mut buf = [0u8; 12 * 96];
+    let mut out = [0u8; 96];
+    let mut checked = 0;
+    for lost in 1u32..1 << sent.len() {
+        if lost.count_ones() > 3 {
+            continue;
+        }
+        let kept = |i: usize| lost >> i & 1 == 0;
+        let first = (n..sent.len()).find(|&i| kept(i)).unwrap_or(n);
+        let Ok(parity) = ParityPacket::parse(&sent[first]) else {
+            unreachable!("a parity packet");
+        };
+        let mut code = Rebuild::new(&parity, &mut buf).unwrap();
+        for (i, packet) in sent.iter().enumerate().filter(|&(i, _)| kept(i)) {
+            match ParityPacket::parse(packet) {
+                Ok(p) => code.add_parity(&p).unwrap(),
+                Err(_) => code.add_packet(packet).unwrap(),
+            }
+            assert!(i >= n || code.has(i as u16));
+        }
+        if !kept(first) {
+            // Every parity packet lost: nothing to rebuild from but what the first one held.
+            continue;
+        }
+        code.rebuild().unwrap();
+        assert_eq!(code.missing(), 0);
+        for (i, packet) in sent[..n].iter().enumerate() {
+            let len = code.packet(i as u16, &mut out).unwrap();
+            assert_eq!(&out[..len], &packet[..], "packet {i}, lost {lost:b}");
+        }
+        checked += 1;
+    }
+    assert!(checked > 250, "{checked}");
+    // Four lost data packets, three parity packets: not enough, and said so.
+    let parity = ParityPacket::parse(&sent[n]).unwrap();
+    let mut code = Rebuild::new(&parity, &mut buf).unwrap();
+    for packet in &sent[4..n] {
+        code.add_packet(packet).unwrap();
+    }
+    for packet in &sent[n + 1..] {
+        code.add_parity(&ParityPacket::parse(packet).unwrap())
+            .unwrap();
+    }
+    assert_eq!(
+        code.rebuild(),
+        Err(RebuildError::NotEnough {
+            missing: 4,
+            parity: 3
+        })
+    );
+    assert_eq!(code.packet(0, &mut out), Err(RebuildError::NotHeld));
+    // Another image's packet, and a buffer without a slot for the last parity packet.
+    let mut other = sent[5].clone();
+    other[1] ^= 1;
+    let crc = decoder_core::internal::packet::packet_crc(&other[..other.len() - 2]);
+    let at = other.len() - 2;
+    other[at..].copy_from_slice(&crc);
+    assert_eq!(code.add_packet(&other), Err(RebuildError::OtherImage));
+    let last = ParityPacket::parse(&sent[n + 2]).unwrap();
+    let small = Rebuild::buffer_len(n, 2, last.shard.len());
+    assert_eq!(
+        Rebuild::new(&last, &mut buf[..small]).err(),
+        Some(RebuildError::NoSlot)
+    );
 }
 
 #[test]

@@ -13,6 +13,9 @@
 //!   order with some packets lost, hashed from a frame buffer; `PIFS-PACKETS-DRAWN`: the same
 //!   received onto a display through `graphics::DrawSink` (RGB565 for colour, 1-bit for gray,
 //!   dithered);
+//! - `PIFS-PARITY`: the golden parity set of `tests/golden/parity.txt`, its lost data packets
+//!   rebuilt on the device from its parity packets (`decoder_core::Rebuild`) and drawn: the
+//!   whole set's picture;
 //! - `PIFS-SCALED`: the row-major hash of every vector decoded at 1/4, 1/2 and 2 times its size
 //!   (`PifsImage::with_scale`);
 //! - `PIFS-VALUES`: the values of every 16-bit vector (`tests/golden/values.txt`), row-major,
@@ -426,6 +429,7 @@ fn check_board(board: &Board) {
     );
 
     check_packets(&context, &lines);
+    check_parity(&context, &lines);
     check_values(&context, &lines);
 
     let fb: Vec<&&str> = lines.iter().filter(|l| l.starts_with("PIFS-FB ")).collect();
@@ -467,6 +471,32 @@ fn check_values(context: &str, lines: &[&str]) {
         );
     }
     assert_eq!(got.len(), expected.len(), "{context}: values of {got:?}");
+}
+
+/// The golden parity set, received by the firmware without its lost data packets, rebuilt in
+/// a fixed buffer and drawn: the picture of the whole set, as the host assembles it.
+fn check_parity(context: &str, lines: &[&str]) {
+    let g = common::golden_parity();
+    let found: Vec<&&str> = lines
+        .iter()
+        .filter(|l| l.starts_with("PIFS-PARITY "))
+        .collect();
+    assert_eq!(found.len(), 1, "{context}: parity lines {found:?}");
+    let f = fields(found[0]);
+    assert_eq!(f["name"], g.file, "{context}");
+    assert_eq!(
+        f["rebuilt"],
+        g.lost.len().to_string(),
+        "{context}: {}",
+        g.file
+    );
+    assert_eq!(
+        f["sha256"], g.sha256_all,
+        "{context}: {}: the packets rebuilt on the device draw other pixels than the whole set",
+        g.file
+    );
+    let stack: usize = f["stack"].parse().expect("stack");
+    assert!(stack > 0, "{context}: {}: no stack measured", g.file);
 }
 
 /// Every golden packet set, received by the firmware out of order and without its lost

@@ -18,7 +18,6 @@ use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Targe
 use decoder_core::internal::packet::{PacketHeader, CRC_LEN, MAX_PACKET_HEADER_LEN};
 use decoder_core::internal::syntax::Header;
 use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Scale, Tile, REGION_UNIT};
-use parity::Parity;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::convert::Infallible;
@@ -918,7 +917,7 @@ pub fn assemble_at<'a>(
     let mut rejected = 0;
     let mut first_error = None;
     for data in inputs {
-        if let Some(parity) = Parity::parse(data) {
+        if let Ok(parity) = decoder_core::ParityPacket::parse(data) {
             parities.push(parity);
             continue;
         }
@@ -959,7 +958,7 @@ pub fn assemble_at<'a>(
         }
     }
     // Missing packets rebuilt from the image's parity packets, when enough arrived.
-    let ours: Vec<Parity<'_>> = parities
+    let ours: Vec<decoder_core::ParityPacket<'_>> = parities
         .into_iter()
         .filter(|p| p.image_id == image_id && p.count == count)
         .collect();

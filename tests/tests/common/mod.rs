@@ -269,6 +269,31 @@ pub fn golden_packets() -> Vec<GoldenPackets> {
         .collect()
 }
 
+/// `tests/golden/parity.txt`: a packet set with parity packets, the data packets lost, the
+/// picture of the whole set.
+pub struct GoldenParity {
+    pub file: String,
+    pub width: u16,
+    pub height: u16,
+    pub lost: Vec<u16>,
+    pub sha256_all: String,
+}
+
+/// Parses `tests/golden/parity.txt` (`<file> <width> <height> <lost,indices> <sha256 of
+/// all>`, one line).
+pub fn golden_parity() -> GoldenParity {
+    let mut lines = list_lines("parity.txt", 5);
+    assert_eq!(lines.len(), 1, "parity.txt: one set");
+    let f = lines.remove(0);
+    GoldenParity {
+        file: f[0].clone(),
+        width: f[1].parse().expect("width"),
+        height: f[2].parse().expect("height"),
+        lost: f[3].split(',').map(|i| i.parse().expect("index")).collect(),
+        sha256_all: f[4].to_string(),
+    }
+}
+
 /// The packets of a framed golden set, and those left when `lost` are lost.
 pub fn golden_packet_set(g: &GoldenPackets) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     let path = golden_dir().join(&g.file);

@@ -1,0 +1,461 @@
+//! Rebuilding lost packets from parity packets (`docs/bitstream.md`, section 9), without
+//! allocating: for a receiver that can hold an image's packets (a gateway, or a device with
+//! the RAM for them), not for one drawing packets as they come in 4 KiB.
+//!
+//! The code is the systematic Reed–Solomon erasure code of section 9: its shards are, byte by
+//! byte, the values at the points `0 .. N + K` of the polynomial of degree below `N` that takes
+//! the data shards' bytes at the points `0 .. N` (over GF(2^8)). So any `N` shards held give
+//! every other one by Lagrange interpolation, with no matrix of the code and no system to
+//! solve. Where a parity packet's bytes are parsed: [`ParityPacket::parse`]; where a lost
+//! packet is made again: [`Rebuild::rebuild`] and [`Rebuild::packet`].
+
+use crate::checksum::crc16;
+use crate::error::{DecodeError, HeaderField};
+use crate::format::{PACKET_TAG, PARITY_TAG};
+use crate::packet::{packet_crc, read_field, Packet, CRC_LEN};
+use crate::syntax::check_first_byte;
+use core::fmt;
+
+/// The most shards, data and parity, one code covers: the field's elements.
+pub const MAX_SHARDS: usize = 256;
+/// The bytes before a packet's fields: the tag and the image id.
+const HEAD: usize = 3;
+/// The byte that ends a shard's content, before its zeros.
+const CONTENT_END: u8 = 0x80;
+
+/// One parity packet, parsed and checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ParityPacket<'a> {
+    /// The image's number.
+    pub image_id: u16,
+    /// This parity packet's number `k`: the code's point `count + k`.
+    pub index: u16,
+    /// How many data packets the code protects (the data packets' `count`).
+    pub count: u16,
+    /// The shard.
+    pub shard: &'a [u8],
+}
+
+impl<'a> ParityPacket<'a> {
+    /// Parses and checks a parity packet: its tag, its CRC-16, its fields.
+    pub fn parse(data: &'a [u8]) -> Result<Self, DecodeError> {
+        check_first_byte(data, PARITY_TAG)?;
+        if data.len() < HEAD + 2 + 1 + CRC_LEN {
+            return Err(DecodeError::Truncated);
+        }
+        let (body, crc) = data
+            .split_at_checked(data.len().saturating_sub(CRC_LEN))
+            .ok_or(DecodeError::Truncated)?;
+        let (&[c0, c1], &[_, id0, id1, ..]) = (crc, body) else {
+            return Err(DecodeError::Truncated);
+        };
+        let stored = u32::from(u16::from_le_bytes([c0, c1]));
+        let computed = u32::from(crc16(body));
+        if computed != stored {
+            return Err(DecodeError::ChecksumMismatch { stored, computed });
+        }
+        let image_id = u16::from_le_bytes([id0, id1]);
+        let mut pos = HEAD;
+        let index = read_field(body, &mut pos)?;
+        let count = read_field(body, &mut pos)?;
+        let shard = body.get(pos..).unwrap_or_default();
+        if count == 0 || usize::from(count) + usize::from(index) >= MAX_SHARDS || shard.is_empty() {
+            return Err(DecodeError::InvalidHeader(HeaderField::PacketField));
+        }
+        Ok(ParityPacket {
+            image_id,
+            index,
+            count,
+            shard,
+        })
+    }
+}
+
+/// Why a packet could not be added or rebuilt ([`Rebuild`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RebuildError {
+    /// The packet belongs to another image, or to another code (its count, its shard's
+    /// length).
+    OtherImage,
+    /// The packet's bytes do not read as a packet.
+    Decode(DecodeError),
+    /// The buffer has no slot for this parity packet (slots for `count + index + 1` shards
+    /// are needed).
+    NoSlot,
+    /// Fewer parity packets than lost data packets arrived.
+    NotEnough {
+        /// Data packets missing.
+        missing: usize,
+        /// Parity packets held.
+        parity: usize,
+    },
+    /// A rebuilt shard has no end byte: the packets held were not all of one code.
+    Inconsistent,
+    /// That data packet is neither held nor rebuilt.
+    NotHeld,
+    /// The output buffer is too small for the packet.
+    OutputTooSmall,
+}
+
+impl fmt::Display for RebuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RebuildError::OtherImage => write!(f, "a packet of another image or code"),
+            RebuildError::Decode(e) => write!(f, "{e}"),
+            RebuildError::NoSlot => write!(f, "no room for that parity packet"),
+            RebuildError::NotEnough { missing, parity } => write!(
+                f,
+                "{missing} data packets missing and {parity} parity packets held"
+            ),
+            RebuildError::Inconsistent => write!(f, "the packets held are not of one code"),
+            RebuildError::NotHeld => write!(f, "that packet is neither held nor rebuilt"),
+            RebuildError::OutputTooSmall => write!(f, "the output buffer is too small"),
+        }
+    }
+}
+
+impl core::error::Error for RebuildError {}
+
+impl From<DecodeError> for RebuildError {
+    fn from(e: DecodeError) -> Self {
+        RebuildError::Decode(e)
+    }
+}
+
+/// An image's packets gathered to rebuild the lost ones, in a buffer the caller lends: one
+/// slot of the shard's length per shard, the data packets' first (by index), then the parity
+/// packets' (`(count + parity) * shard_len` bytes for `parity` parity packets:
+/// [`Rebuild::buffer_len`]). A receiver that stores data packets before any parity packet
+/// arrives adds them once one has: the parity packet says the shards' length.
+#[derive(Debug)]
+pub struct Rebuild<'b> {
+    buf: &'b mut [u8],
+    image_id: u16,
+    /// The data packets' count (below 256: `count + index < 256`).
+    count: u8,
+    shard_len: usize,
+    /// Which slots hold a shard (a slot's number is its point of the code).
+    held: Points,
+}
+
+impl<'b> Rebuild<'b> {
+    /// A rebuild for the image and code of `parity` (any of its parity packets), holding that
+    /// packet. [`RebuildError::NoSlot`] when `buf` cannot hold the data shards and this one.
+    pub fn new(parity: &ParityPacket<'_>, buf: &'b mut [u8]) -> Result<Self, RebuildError> {
+        let count = u8::try_from(parity.count).map_err(|_| RebuildError::OtherImage)?;
+        let mut rebuild = Rebuild {
+            buf,
+            image_id: parity.image_id,
+            count,
+            shard_len: parity.shard.len(),
+            held: Points::default(),
+        };
+        rebuild.add_parity(parity)?;
+        Ok(rebuild)
+    }
+
+    /// The bytes of buffer a rebuild needs for `count` data packets, `parity` parity packets
+    /// and shards of `shard_len` bytes (a parity packet's shard).
+    pub const fn buffer_len(count: usize, parity: usize, shard_len: usize) -> usize {
+        (count + parity) * shard_len
+    }
+
+    /// Adds a parity packet of the same image and code.
+    pub fn add_parity(&mut self, parity: &ParityPacket<'_>) -> Result<(), RebuildError> {
+        let same = parity.image_id == self.image_id
+            && parity.count == u16::from(self.count)
+            && parity.shard.len() == self.shard_len;
+        let point = usize::from(self.count) + usize::from(parity.index);
+        let point = u8::try_from(point).map_err(|_| RebuildError::OtherImage)?;
+        if !same {
+            return Err(RebuildError::OtherImage);
+        }
+        copy(self.slot_mut(point)?, parity.shard);
+        self.held.insert(point);
+        Ok(())
+    }
+
+    /// Adds a data packet of the image (its bytes as received; checked as [`Packet::parse`]
+    /// checks them).
+    pub fn add_packet(&mut self, data: &[u8]) -> Result<(), RebuildError> {
+        let packet = Packet::parse(data)?;
+        if packet.image_id != self.image_id || packet.count != u16::from(self.count) {
+            return Err(RebuildError::OtherImage);
+        }
+        // Below the count, so below 256.
+        let point = packet.index as u8;
+        shard_of(data, self.slot_mut(point)?).map_err(|_| RebuildError::OtherImage)?;
+        self.held.insert(point);
+        Ok(())
+    }
+
+    /// Whether data packet `index` is held (received, or rebuilt).
+    pub fn has(&self, index: u16) -> bool {
+        index < u16::from(self.count) && self.held.contains(index as u8)
+    }
+
+    /// How many data packets are missing.
+    pub fn missing(&self) -> usize {
+        (0..self.count).filter(|&i| !self.held.contains(i)).count()
+    }
+
+    /// Makes every missing data packet again from the packets held (any `count` of the
+    /// `count + parity` shards): each lost shard is the code's polynomial at its point,
+    /// interpolated (Lagrange) from `count` points whose shards are held. It needs a few
+    /// hundred bytes of stack, whatever is lost.
+    pub fn rebuild(&mut self) -> Result<(), RebuildError> {
+        let missing = self.missing();
+        if missing == 0 {
+            return Ok(());
+        }
+        // The points whose shards are known: the data held and the first `missing` parity
+        // shards held.
+        let mut known = Points::default();
+        let (mut used, mut held) = (0, 0);
+        for point in self.held.iter() {
+            if point < self.count {
+                known.insert(point);
+            } else {
+                held += 1;
+                if used < missing {
+                    known.insert(point);
+                    used += 1;
+                }
+            }
+        }
+        if used < missing {
+            return Err(RebuildError::NotEnough {
+                missing,
+                parity: held,
+            });
+        }
+        // The logarithm of each known point's denominator, `prod (q - q')` over the others.
+        let mut denominator = [0u8; MAX_SHARDS];
+        for q in known.iter() {
+            let sum: usize = known
+                .iter()
+                .filter(|&other| other != q)
+                .map(|other| usize::from(LOG[usize::from(q ^ other)]))
+                .sum();
+            denominator[usize::from(q)] = (sum % 255) as u8;
+        }
+        for m in (0..self.count).filter(|&m| !known.contains(m)) {
+            // The Lagrange basis of `q` at `m`: `prod (m - q') / (q - q')` over `q' != q`.
+            let numerator: usize = known
+                .iter()
+                .map(|q| usize::from(LOG[usize::from(m ^ q)]))
+                .sum();
+            self.slot_mut(m)?.fill(0);
+            for q in known.iter() {
+                let log = numerator % 255 + 2 * 255
+                    - usize::from(LOG[usize::from(m ^ q)])
+                    - usize::from(denominator[usize::from(q)]);
+                self.add_scaled(m, q, EXP[log % 255]);
+            }
+            self.held.insert(m);
+        }
+        Ok(())
+    }
+
+    /// Writes data packet `index` (held or rebuilt) to `out`; returns its length. The bytes
+    /// are the packet as sent: tag, image id, flags, index and count put back around the
+    /// shard's content, and the checksum.
+    pub fn packet(&self, index: u16, out: &mut [u8]) -> Result<usize, RebuildError> {
+        if !self.has(index) {
+            return Err(RebuildError::NotHeld);
+        }
+        let shard = self.slot(index as u8).ok_or(RebuildError::NotHeld)?;
+        let end = shard.iter().rposition(|&b| b != 0).unwrap_or(0);
+        let (Some((&flags, rest)), Some(&CONTENT_END)) = (
+            shard.get(..end).and_then(<[u8]>::split_first),
+            shard.get(end),
+        ) else {
+            return Err(RebuildError::Inconsistent);
+        };
+        let (index_field, index_len) = leb128(index);
+        let (count_field, count_len) = leb128(self.count.into());
+        let id = self.image_id.to_le_bytes();
+        let head = [PACKET_TAG, id[0], id[1], flags];
+        let parts = [
+            &head[..],
+            index_field.get(..index_len).unwrap_or_default(),
+            count_field.get(..count_len).unwrap_or_default(),
+            rest,
+        ];
+        let body_len: usize = parts.iter().map(|p| p.len()).sum();
+        let out = out
+            .get_mut(..body_len + CRC_LEN)
+            .ok_or(RebuildError::OutputTooSmall)?;
+        let mut at = 0;
+        for part in parts {
+            copy(out.get_mut(at..).unwrap_or_default(), part);
+            at += part.len();
+        }
+        let (body, crc) = out.split_at_mut(body_len.min(out.len()));
+        copy(crc, &packet_crc(body));
+        Ok(body_len + CRC_LEN)
+    }
+
+    fn slot(&self, point: u8) -> Option<&[u8]> {
+        let start = usize::from(point) * self.shard_len;
+        self.buf.get(start..start + self.shard_len)
+    }
+
+    fn slot_mut(&mut self, point: u8) -> Result<&mut [u8], RebuildError> {
+        let start = usize::from(point) * self.shard_len;
+        self.buf
+            .get_mut(start..start + self.shard_len)
+            .ok_or(RebuildError::NoSlot)
+    }
+
+    /// Slot `to` plus `factor` times slot `from`.
+    fn add_scaled(&mut self, to: u8, from: u8, factor: u8) {
+        let len = self.shard_len;
+        let (to, from) = (usize::from(to) * len, usize::from(from) * len);
+        for b in 0..len {
+            let v = self.buf.get(from + b).map_or(0, |&v| mul(factor, v));
+            if let Some(t) = self.buf.get_mut(to + b) {
+                *t ^= v;
+            }
+        }
+    }
+}
+
+/// A set of the code's points (`0..256`).
+#[derive(Debug, Default)]
+struct Points([u32; MAX_SHARDS / 32]);
+
+impl Points {
+    fn insert(&mut self, point: u8) {
+        self.0[usize::from(point >> 5)] |= 1 << (point & 31);
+    }
+
+    fn contains(&self, point: u8) -> bool {
+        self.0[usize::from(point >> 5)] >> (point & 31) & 1 != 0
+    }
+
+    fn iter(&self) -> impl Iterator<Item = u8> + '_ {
+        (0..=u8::MAX).filter(|&p| self.contains(p))
+    }
+}
+
+/// Copies `src` to the start of `dst`, as much as fits.
+fn copy(dst: &mut [u8], src: &[u8]) {
+    for (d, s) in dst.iter_mut().zip(src) {
+        *d = *s;
+    }
+}
+
+/// `value` as unsigned LEB128: its bytes and how many.
+fn leb128(value: u16) -> ([u8; 3], usize) {
+    let mut out = [0u8; 3];
+    let mut rest = value;
+    let mut len = 0;
+    for byte in out.iter_mut() {
+        *byte = (rest & 0x7F) as u8;
+        rest >>= 7;
+        len += 1;
+        if rest == 0 {
+            break;
+        }
+        *byte |= 0x80;
+    }
+    (out, len)
+}
+
+/// A data packet's content: its flags byte and its bytes from the width field up to the
+/// checksum (section 9).
+struct Content<'a> {
+    flags: u8,
+    rest: &'a [u8],
+}
+
+impl<'a> Content<'a> {
+    fn of(data: &'a [u8]) -> Result<Self, DecodeError> {
+        let body = data
+            .get(..data.len().saturating_sub(CRC_LEN))
+            .ok_or(DecodeError::Truncated)?;
+        let flags = *body.get(HEAD).ok_or(DecodeError::Truncated)?;
+        let mut pos = HEAD + 1;
+        read_field(body, &mut pos)?;
+        read_field(body, &mut pos)?;
+        Ok(Content {
+            flags,
+            rest: body.get(pos..).unwrap_or_default(),
+        })
+    }
+
+    fn len(&self) -> usize {
+        1 + self.rest.len()
+    }
+}
+
+/// The shard of data packet `packet`, written to `out` (the shard's length): its content,
+/// the end byte, zeros. For encoders that make parity packets, and for [`Rebuild`].
+pub fn shard_of(packet: &[u8], out: &mut [u8]) -> Result<(), RebuildError> {
+    let content = Content::of(packet)?;
+    let len = content.len();
+    if len >= out.len() {
+        return Err(RebuildError::OutputTooSmall);
+    }
+    out.fill(0);
+    copy(out, &[content.flags]);
+    copy(out.get_mut(1..).unwrap_or_default(), content.rest);
+    copy(out.get_mut(len..).unwrap_or_default(), &[CONTENT_END]);
+    Ok(())
+}
+
+/// GF(2^8) with the field polynomial `x^8 + x^4 + x^3 + x^2 + 1`: powers of its generator 2,
+/// twice over (so that a sum of two logarithms needs no reduction), and two unused entries.
+const EXP: [u8; 512] = {
+    let mut table = [0u8; 512];
+    let mut value: u16 = 1;
+    let mut power = 0;
+    while power < 255 {
+        table[power] = value as u8;
+        table[power + 255] = value as u8;
+        value <<= 1;
+        if value & 0x100 != 0 {
+            value ^= 0x11D;
+        }
+        power += 1;
+    }
+    table
+};
+
+/// The logarithms to base 2 of the field's elements (0's is unused).
+const LOG: [u8; 256] = {
+    let mut table = [0u8; 256];
+    let mut power = 0;
+    while power < 255 {
+        table[EXP[power] as usize] = power as u8;
+        power += 1;
+    }
+    table
+};
+
+fn mul(a: u8, b: u8) -> u8 {
+    if a == 0 || b == 0 {
+        0
+    } else {
+        EXP[(usize::from(LOG[usize::from(a)]) + usize::from(LOG[usize::from(b)])) & 511]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_field_is_the_specifications() {
+        // x^8 = x^4 + x^3 + x^2 + 1: 2^8 is 0x1D; every element but 0 is a power of 2.
+        assert_eq!(EXP[8], 0x1D);
+        let mut seen = [false; 256];
+        for &v in &EXP[..255] {
+            seen[usize::from(v)] = true;
+        }
+        assert!(seen[1..].iter().all(|&s| s) && !seen[0]);
+        assert_eq!(mul(0, 7), 0);
+        assert_eq!(mul(2, 0x80), 0x1D);
+    }
+}
