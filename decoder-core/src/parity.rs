@@ -209,18 +209,18 @@ impl<'b> Rebuild<'b> {
             return Ok(());
         }
         // The points whose shards are known: the data held and the first `missing` parity
-        // shards held.
-        let mut known = Points::default();
-        let (mut used, mut held) = (0, 0);
+        // shards held, listed (`known[..n]`).
+        let mut known = [0u8; MAX_SHARDS];
+        let (mut n, mut used, mut held) = (0, 0, 0);
         for point in self.held.iter() {
-            if point < self.count {
-                known.insert(point);
-            } else {
+            let take = point < self.count || used < missing;
+            if point >= self.count {
                 held += 1;
-                if used < missing {
-                    known.insert(point);
-                    used += 1;
-                }
+                used += usize::from(take);
+            }
+            if let (true, Some(slot)) = (take, known.get_mut(n)) {
+                *slot = point;
+                n += 1;
             }
         }
         if used < missing {
@@ -229,29 +229,35 @@ impl<'b> Rebuild<'b> {
                 parity: held,
             });
         }
+        let known = known.get(..n).unwrap_or_default();
         // The logarithm of each known point's denominator, `prod (q - q')` over the others.
         let mut denominator = [0u8; MAX_SHARDS];
-        for q in known.iter() {
+        for (d, &q) in denominator.iter_mut().zip(known) {
             let sum: usize = known
                 .iter()
-                .filter(|&other| other != q)
-                .map(|other| usize::from(LOG[usize::from(q ^ other)]))
+                .filter(|&&other| other != q)
+                .map(|&other| usize::from(LOG[usize::from(q ^ other)]))
                 .sum();
-            denominator[usize::from(q)] = (sum % 255) as u8;
+            *d = (sum % 255) as u8;
         }
-        for m in (0..self.count).filter(|&m| !known.contains(m)) {
+        for m in 0..self.count {
+            if self.held.contains(m) {
+                continue;
+            }
             // The Lagrange basis of `q` at `m`: `prod (m - q') / (q - q')` over `q' != q`.
             let numerator: usize = known
                 .iter()
-                .map(|q| usize::from(LOG[usize::from(m ^ q)]))
+                .map(|&q| usize::from(LOG[usize::from(m ^ q)]))
                 .sum();
             self.slot_mut(m)?.fill(0);
-            for q in known.iter() {
+            for (&q, &d) in known.iter().zip(&denominator) {
                 let log = numerator % 255 + 2 * 255
                     - usize::from(LOG[usize::from(m ^ q)])
-                    - usize::from(denominator[usize::from(q)]);
-                self.add_scaled(m, q, EXP[log % 255]);
+                    - usize::from(d);
+                self.add_scaled(m, q, (log % 255) as u8);
             }
+        }
+        for m in 0..self.count {
             self.held.insert(m);
         }
         Ok(())
@@ -308,14 +314,25 @@ impl<'b> Rebuild<'b> {
             .ok_or(RebuildError::NoSlot)
     }
 
-    /// Slot `to` plus `factor` times slot `from`.
-    fn add_scaled(&mut self, to: u8, from: u8, factor: u8) {
+    /// Slot `to` plus `2^log` times slot `from` (two different slots).
+    fn add_scaled(&mut self, to: u8, from: u8, log: u8) {
         let len = self.shard_len;
         let (to, from) = (usize::from(to) * len, usize::from(from) * len);
-        for b in 0..len {
-            let v = self.buf.get(from + b).map_or(0, |&v| mul(factor, v));
-            if let Some(t) = self.buf.get_mut(to + b) {
-                *t ^= v;
+        let (low, high) = (to.min(from), to.max(from));
+        let (first, second) = self.buf.split_at_mut(high.min(self.buf.len()));
+        let (Some(low_slot), Some(high_slot)) =
+            (first.get_mut(low..low + len), second.get_mut(..len))
+        else {
+            return;
+        };
+        let (dst, src) = if to < from {
+            (low_slot, &*high_slot)
+        } else {
+            (high_slot, &*low_slot)
+        };
+        for (d, &v) in dst.iter_mut().zip(src) {
+            if v != 0 {
+                *d ^= EXP[(usize::from(LOG[usize::from(v)]) + usize::from(log)) & 511];
             }
         }
     }
@@ -434,6 +451,7 @@ const LOG: [u8; 256] = {
     table
 };
 
+#[cfg(test)]
 fn mul(a: u8, b: u8) -> u8 {
     if a == 0 || b == 0 {
         0

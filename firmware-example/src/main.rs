@@ -126,7 +126,7 @@ fn run(counter: &measure::Counter) -> bool {
     for v in VECTORS {
         ok &= targets::check_vector(v, counter);
     }
-    ok &= packets::check_all();
+    ok &= packets::check_all(counter);
     if ok {
         defmt::info!("all vectors decoded");
     } else {

@@ -16,7 +16,7 @@
 //! first, without the lost ones) into a `Rebuild` held in a fixed buffer, the lost packets
 //! are rebuilt, and every data packet is drawn into the frame buffer: `PIFS-PARITY name=<file>
 //! rebuilt=<n> stack=<bytes> sha256=<hex>` must equal the host's picture of the whole set, and
-//! `stack` is the rebuild's peak stack.
+//! `stack` and `instr` are the rebuild's peak stack and instructions.
 
 use core::convert::Infallible;
 
@@ -78,13 +78,13 @@ impl PixelSink for Frame<'_> {
 }
 
 /// Receives every golden packet set, and every parity set; true when all decoded.
-pub fn check_all() -> bool {
+pub fn check_all(counter: &measure::Counter) -> bool {
     let mut ok = true;
     for set in PACKET_SETS {
         ok &= receive(set);
     }
     for set in PARITY_SETS {
-        ok &= rebuild(set);
+        ok &= rebuild(set, counter);
     }
     ok
 }
@@ -94,7 +94,7 @@ const REBUILD_BUFFER: usize = 1024;
 
 /// Receives `set` with its lost data packets missing, rebuilds them from its parity packets
 /// and draws every data packet into a frame buffer (see the module's documentation).
-fn rebuild(set: &PacketSet) -> bool {
+fn rebuild(set: &PacketSet, counter: &measure::Counter) -> bool {
     let mut shards = [0u8; REBUILD_BUFFER];
     // A parity packet says which code the packets are of (and how long its shards are).
     let first = frames_reversed(set.data).find_map(|bytes| ParityPacket::parse(bytes).ok());
@@ -129,8 +129,11 @@ fn rebuild(set: &PacketSet) -> bool {
     }
     measure::paint();
     let base = measure::sp();
+    let t0 = measure::ticks();
     let rebuilt = rebuild_lost(&mut code);
+    let t1 = measure::ticks();
     let stack = measure::peak(base);
+    let instr = counter.instructions(t1 - t0);
     if let Err(e) = rebuilt {
         heprintln!("PIFS-ERROR name={} rebuild: {}", set.name, e);
         return false;
@@ -171,11 +174,12 @@ fn rebuild(set: &PacketSet) -> bool {
     }
     let hash: [u8; 32] = Sha256::digest(&frame.pixels[..]).into();
     heprintln!(
-        "PIFS-PARITY name={} rebuilt={} packets={} stack={} sha256={}",
+        "PIFS-PARITY name={} rebuilt={} packets={} stack={} instr={} sha256={}",
         set.name,
         lost,
         index,
         stack,
+        instr,
         Hex(hash)
     );
     true

@@ -161,6 +161,9 @@ fn make_inputs(dir: &Path) {
     let mut newer = bytes.clone();
     newer[0] = decoder_core::STREAM_TAG + 1;
     std::fs::write(p("version-next.pifs"), &newer).unwrap();
+    let mut before = bytes.clone();
+    before[0] = decoder_core::STREAM_TAG - 1;
+    std::fs::write(p("version-before.pifs"), &before).unwrap();
     // Format 21's opening: `PIFS`, its version byte, then what its header held.
     let mut older = b"PIFS".to_vec();
     older.push(21);
@@ -594,6 +597,11 @@ fn cases(dir: &Path) -> Vec<Case> {
             "decode: stream from a newer format version",
             &["decode", "{dir}/version-next.pifs", "-o", "{dir}/d7.png"],
             Some("{dir}/d7.png"),
+        ),
+        refuse(
+            "decode: stream of the format version before",
+            &["decode", "{dir}/version-before.pifs", "-o", "{dir}/d7a.png"],
+            Some("{dir}/d7a.png"),
         ),
         refuse(
             "decode: stream of format 21",
