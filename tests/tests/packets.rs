@@ -273,11 +273,22 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
         let data_lost: Vec<u16> = lost.iter().filter(|&&i| i < 9).map(|&i| i as u16).collect();
         assert_eq!(image.recovered, data_lost);
     }
-    // Four lost: nothing rebuilt, the data packets that came are drawn.
+    // Four lost: nothing rebuilt, the data packets that came are drawn, and one more packet,
+    // any of the four, completes the set.
     let kept = made.packets[4..].iter().map(Vec::as_slice);
     let image = assemble(kept, u64::MAX).unwrap();
     assert_eq!(image.missing, vec![0, 1, 2, 3]);
     assert!(image.recovered.is_empty());
+    assert_eq!((image.parity, image.packets_short()), (3, 1));
+    for one_more in 0..4 {
+        let kept = made.packets[4..]
+            .iter()
+            .chain([&made.packets[one_more]])
+            .map(Vec::as_slice);
+        let image = assemble(kept, u64::MAX).unwrap();
+        assert!(image.missing.is_empty(), "{one_more}");
+        assert_eq!(image.pixels, made.reconstruction);
+    }
 }
 
 /// decoder-core's rebuild, as a device runs it (one fixed buffer, no allocation), against the

@@ -848,6 +848,8 @@ pub struct Assembled {
     /// Indices of the packets that did not arrive but were rebuilt from parity packets
     /// (among `received`).
     pub recovered: Vec<u16>,
+    /// Parity packets of the image held (distinct ones).
+    pub parity: usize,
     /// Whether the preview was drawn.
     pub preview: bool,
     /// Share of the image's pixels that a region packet drew (the rest is preview or
@@ -859,6 +861,15 @@ pub struct Assembled {
     pub foreign: usize,
     /// Packets received more than once (the copies beyond the first).
     pub duplicates: usize,
+}
+
+impl Assembled {
+    /// How many more packets, any of the image's data or parity packets not held, would
+    /// complete it: the data packets missing, less the parity packets held when any were sent
+    /// (without parity, exactly the missing ones are needed).
+    pub fn packets_short(&self) -> usize {
+        self.missing.len().saturating_sub(self.parity)
+    }
 }
 
 /// Why no image could be assembled.
@@ -962,6 +973,10 @@ pub fn assemble_at<'a>(
         .into_iter()
         .filter(|p| p.image_id == image_id && p.count == count)
         .collect();
+    let mut parity_indices: Vec<u16> = ours.iter().map(|p| p.index).collect();
+    parity_indices.sort_unstable();
+    parity_indices.dedup();
+    let parity = parity_indices.len();
     let rebuilt = if ours.is_empty() || raw.len() == usize::from(count) {
         Vec::new()
     } else {
@@ -1022,6 +1037,7 @@ pub fn assemble_at<'a>(
         received,
         missing,
         recovered,
+        parity,
         preview,
         coverage,
         rejected,

@@ -1,7 +1,7 @@
 //! Parity packets (`docs/bitstream.md`, section 9): `K` packets computed over an image's `N`
 //! packets by a Reed–Solomon erasure code over GF(2^8), so that any `N` of the `N + K`
-//! rebuild every one. A receiver needs them all in memory to rebuild: this is for gateways and
-//! hosts, not for a microcontroller drawing packets as they come.
+//! rebuild every one. Made here with the `reed-solomon-erasure` crate; rebuilt with
+//! decoder-core's [`Rebuild`], which a device with the RAM for the packets runs too.
 
 use decoder_core::internal::packet::{packet_crc, write_field};
 use decoder_core::internal::parity::shard_of;

@@ -460,6 +460,13 @@ fn describe(a: &Assembled) -> String {
     }
     if !a.missing.is_empty() {
         text += &format!("; missing: {}", ranges(&a.missing));
+        if a.parity > 0 {
+            text += &format!(
+                " ({} parity held: any {} more of the image's packets rebuild them)",
+                a.parity,
+                a.packets_short()
+            );
+        }
     }
     for (n, what) in [
         (a.rejected, "damaged or not packets"),
@@ -528,6 +535,8 @@ pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
             "received": a.received,
             "missing": a.missing,
             "rebuilt_from_parity": a.recovered,
+            "parity_held": a.parity,
+            "packets_short": a.packets_short(),
             "coverage": a.coverage,
             "ignored": {
                 "damaged": a.rejected,
