@@ -43,18 +43,35 @@ fn main() {
 /// The golden packet sets of `tests/golden/packets.txt`: each framed file with the packets
 /// the firmware is to lose, and the largest frame buffer one needs.
 fn packet_sets(dir: &Path) -> String {
-    let list = dir.join("packets.txt");
+    let (mut s, frame) = set_list(dir, "packets.txt", "PACKET_SETS", "The golden packet sets.");
+    writeln!(
+        s,
+        "/// Bytes of the frame buffer of the largest packet set.\npub const PACKET_FRAME_LEN: usize = {frame};"
+    )
+    .unwrap();
+    s
+}
+
+/// The golden parity sets of `tests/golden/parity.txt`: each framed file (data packets, then
+/// parity packets) with the data packets the firmware is to lose and rebuild.
+fn parity_sets(dir: &Path) -> String {
+    set_list(dir, "parity.txt", "PARITY_SETS", "The golden parity sets.").0
+}
+
+/// A static `name` of `PacketSet`s from the list `list` (`<file> <width> <height> <lost>
+/// ...` per line), and the largest frame buffer one needs (bytes).
+fn set_list(dir: &Path, list: &str, name: &str, doc: &str) -> (String, usize) {
+    let list = dir.join(list);
     println!("cargo:rerun-if-changed={}", list.display());
     let text = fs::read_to_string(&list).unwrap_or_else(|e| panic!("{}: {e}", list.display()));
-    let mut s =
-        String::from("/// The golden packet sets.\npub static PACKET_SETS: &[PacketSet] = &[\n");
+    let mut s = format!("/// {doc}\npub static {name}: &[PacketSet] = &[\n");
     let mut frame = 1usize;
     for line in text.lines().map(str::trim) {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
         let f: Vec<&str> = line.split_whitespace().collect();
-        assert!(f.len() >= 4, "packets.txt: bad line {line:?}");
+        assert!(f.len() >= 4, "{}: bad line {line:?}", list.display());
         let path = dir.join(f[0]);
         println!("cargo:rerun-if-changed={}", path.display());
         let bytes = fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -74,48 +91,7 @@ fn packet_sets(dir: &Path) -> String {
         .unwrap();
     }
     s.push_str("];\n");
-    writeln!(
-        s,
-        "/// Bytes of the frame buffer of the largest packet set.\npub const PACKET_FRAME_LEN: usize = {frame};"
-    )
-    .unwrap();
-    s
-}
-
-/// The golden parity sets of `tests/golden/parity.txt`: each framed file (data packets, then
-/// parity packets) with the data packets the firmware is to lose and rebuild.
-fn parity_sets(dir: &Path) -> String {
-    let list = dir.join("parity.txt");
-    println!("cargo:rerun-if-changed={}", list.display());
-    let text = fs::read_to_string(&list).unwrap_or_else(|e| panic!("{}: {e}", list.display()));
-    let mut s =
-        String::from("/// The golden parity sets.\npub static PARITY_SETS: &[PacketSet] = &[\n");
-    for line in text.lines().map(str::trim) {
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let f: Vec<&str> = line.split_whitespace().collect();
-        assert!(f.len() >= 4, "parity.txt: bad line {line:?}");
-        let path = dir.join(f[0]);
-        println!("cargo:rerun-if-changed={}", path.display());
-        let bytes = fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let len = usize::from(u16::from_le_bytes([bytes[0], bytes[1]]));
-        let first = decoder_core::Packet::parse(&bytes[2..2 + len])
-            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        writeln!(
-            s,
-            "    PacketSet {{ name: {:?}, width: {}, height: {}, channels: {}, lost: &[{}], data: include_bytes!({:?}) }},",
-            f[0],
-            f[1],
-            f[2],
-            first.channels,
-            f[3],
-            path.canonicalize().unwrap().to_str().expect("UTF-8 path")
-        )
-        .unwrap();
-    }
-    s.push_str("];\n");
-    s
+    (s, frame)
 }
 
 struct Vector {

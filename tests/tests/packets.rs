@@ -236,18 +236,30 @@ fn a_repeated_preview_is_sent_twice_and_counted_once() {
     assert_eq!(all.duplicates, 1);
 }
 
-#[test]
-fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
+/// The test image in packets of `size` bytes, `packets` of them in all, `parity` of them
+/// parity packets.
+fn with_parity(size: usize, packets: usize, parity: usize, preview: bool) -> Packetised {
     let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
     let analysis = common::analyse_with(plane, &config());
     let options = PacketOptions {
-        size: 96,
+        size,
         image_id: 4,
-        preview: true,
+        preview,
         repeat_preview: false,
-        parity: 3,
+        parity,
     };
-    let made = packetise(&analysis, &config(), Target::Bytes(12 * 96), &options).unwrap();
+    packetise(
+        &analysis,
+        &config(),
+        Target::Bytes(packets * size),
+        &options,
+    )
+    .unwrap()
+}
+
+#[test]
+fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
+    let made = with_parity(96, 12, 3, true);
     // Nine data packets of at most 95 bytes (a parity packet is at most one byte longer than
     // the longest), three parity packets of at most 96.
     assert_eq!((made.packets.len(), made.parity), (12, 3));
@@ -296,16 +308,7 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
 /// up to three of twelve packets gives back the lost data packets byte for byte.
 #[test]
 fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
-    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
-    let analysis = common::analyse_with(plane, &config());
-    let options = PacketOptions {
-        size: 96,
-        image_id: 4,
-        preview: true,
-        repeat_preview: false,
-        parity: 3,
-    };
-    let made = packetise(&analysis, &config(), Target::Bytes(12 * 96), &options).unwrap();
+    let made = with_parity(96, 12, 3, true);
     let sent = &made.packets;
     let n = sent.len() - made.parity;
     let mut buf = [0u8; 12 * 96];
@@ -378,16 +381,7 @@ fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
 fn parity_packets_past_128_keep_to_the_packet_size() {
     // 130 parity packets: the last two's index fields take two bytes, and the data packets
     // leave room for them (two bytes shorter than the packet size).
-    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
-    let analysis = common::analyse_with(plane, &config());
-    let options = PacketOptions {
-        size: SIZE,
-        image_id: 9,
-        preview: false,
-        repeat_preview: false,
-        parity: 130,
-    };
-    let made = packetise(&analysis, &config(), Target::Bytes(150 * SIZE), &options).unwrap();
+    let made = with_parity(SIZE, 150, 130, false);
     let n = made.packets.len() - made.parity;
     assert_eq!((n, made.parity), (20, 130));
     assert!(made.packets[..n].iter().all(|p| p.len() <= SIZE - 2));
