@@ -123,80 +123,159 @@ impl From<DecodeError> for RebuildError {
 }
 
 /// An image's packets gathered to rebuild the lost ones, in a buffer the caller lends: one
-/// slot of the shard's length per shard, the data packets' first (by index), then the parity
-/// packets' (`(count + parity) * shard_len` bytes for `parity` parity packets:
-/// [`Rebuild::buffer_len`]). A receiver that stores data packets before any parity packet
-/// arrives adds them once one has: the parity packet says the shards' length.
+/// slot per shard, the data packets' first (by index), then the parity packets'
+/// ([`Rebuild::buffer_len`]). Packets are added as they arrive, data or parity, in any order:
+/// the first one added says which image and code the rebuild is for.
+///
+/// ```no_run
+/// use decoder_core::{Packet, ParityPacket, Rebuild};
+/// # struct NullSink;
+/// # impl decoder_core::PixelSink for NullSink {
+/// #     type Error = core::convert::Infallible;
+/// #     fn tile(&mut self, _: decoder_core::Tile<'_>) -> Result<(), Self::Error> { Ok(()) }
+/// # }
+/// # fn next_packet() -> Option<&'static [u8]> { None }
+/// # let mut sink = NullSink;
+/// const LINK_PACKET: usize = 255;
+/// // Room for 40 data packets and 8 parity packets of the link's largest size.
+/// let mut buf = [0u8; Rebuild::buffer_len(40, 8, LINK_PACKET)];
+/// let mut rebuild = Rebuild::new(LINK_PACKET, &mut buf);
+/// while let Some(bytes) = next_packet() {
+///     // A packet that fails its checks, or is another image's, counts as lost.
+///     let _ = match ParityPacket::parse(bytes) {
+///         Ok(parity) => rebuild.add_parity(&parity),
+///         Err(_) => rebuild.add_packet(bytes),
+///     };
+/// }
+/// rebuild.rebuild()?;
+/// let mut packet = [0u8; LINK_PACKET];
+/// let mut index = 0;
+/// while rebuild.has(index) {
+///     let len = rebuild.packet(index, &mut packet)?;
+///     if let Ok(p) = Packet::parse(&packet[..len]) {
+///         let _ = p.decode(&mut sink);
+///     }
+///     index += 1;
+/// }
+/// # Ok::<(), decoder_core::RebuildError>(())
+/// ```
 #[derive(Debug)]
 pub struct Rebuild<'b> {
     buf: &'b mut [u8],
-    image_id: u16,
-    /// The data packets' count (below 256: `count + index < 256`).
-    count: u8,
-    shard_len: usize,
+    /// The bytes of a slot: at least the code's shard length (shorter shards end in zeros,
+    /// which the code keeps: a shard's bytes past its length are zero in every shard).
+    slot_len: usize,
+    /// The image and code of the first packet added.
+    code: Option<Code>,
+    /// The code's shard length, once a parity packet has said it.
+    shard_len: Option<usize>,
     /// Which slots hold a shard (a slot's number is its point of the code).
     held: Points,
 }
 
+/// Which image and code a rebuild's packets belong to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Code {
+    image_id: u16,
+    /// The data packets' count (below 256: `count + index < 256`).
+    count: u8,
+}
+
 impl<'b> Rebuild<'b> {
-    /// A rebuild for the image and code of `parity` (any of its parity packets), holding that
-    /// packet. [`RebuildError::NoSlot`] when `buf` cannot hold the data shards and this one.
-    pub fn new(parity: &ParityPacket<'_>, buf: &'b mut [u8]) -> Result<Self, RebuildError> {
-        let count = u8::try_from(parity.count).map_err(|_| RebuildError::OtherImage)?;
-        let mut rebuild = Rebuild {
+    /// A rebuild with slots of `slot_len` bytes in `buf`. Any slot length from the code's shard
+    /// length up works; a receiver that knows only its link's largest packet gives that (a
+    /// shard is shorter than any packet of its code).
+    pub fn new(slot_len: usize, buf: &'b mut [u8]) -> Self {
+        Rebuild {
             buf,
-            image_id: parity.image_id,
-            count,
-            shard_len: parity.shard.len(),
+            slot_len,
+            code: None,
+            shard_len: None,
             held: Points::default(),
-        };
-        rebuild.add_parity(parity)?;
-        Ok(rebuild)
+        }
     }
 
     /// The bytes of buffer a rebuild needs for `count` data packets, `parity` parity packets
-    /// and shards of `shard_len` bytes (a parity packet's shard).
-    pub const fn buffer_len(count: usize, parity: usize, shard_len: usize) -> usize {
-        (count + parity) * shard_len
+    /// and slots of `slot_len` bytes.
+    pub const fn buffer_len(count: usize, parity: usize, slot_len: usize) -> usize {
+        (count + parity) * slot_len
     }
 
-    /// Adds a parity packet of the same image and code.
+    /// Adds a parity packet of the image and code (the first packet added sets them).
+    /// [`RebuildError::NoSlot`] when the buffer has no slot for it or its shard is longer
+    /// than a slot.
     pub fn add_parity(&mut self, parity: &ParityPacket<'_>) -> Result<(), RebuildError> {
-        let same = parity.image_id == self.image_id
-            && parity.count == u16::from(self.count)
-            && parity.shard.len() == self.shard_len;
-        let point = usize::from(self.count) + usize::from(parity.index);
-        let point = u8::try_from(point).map_err(|_| RebuildError::OtherImage)?;
-        if !same {
+        let code = self.code_of(parity.image_id, parity.count)?;
+        let len = parity.shard.len();
+        if self.shard_len.is_some_and(|known| known != len) {
             return Err(RebuildError::OtherImage);
         }
-        copy(self.slot_mut(point)?, parity.shard);
+        if len > self.slot_len {
+            return Err(RebuildError::NoSlot);
+        }
+        // Data shards held so far must end within this code's shard length.
+        let longer = (0..code.count).filter(|&i| self.held.contains(i)).any(|i| {
+            self.slot(i)
+                .and_then(|s| s.get(len..))
+                .is_some_and(|tail| tail.iter().any(|&b| b != 0))
+        });
+        if longer {
+            return Err(RebuildError::OtherImage);
+        }
+        let point = usize::from(code.count) + usize::from(parity.index);
+        let point = u8::try_from(point).map_err(|_| RebuildError::OtherImage)?;
+        let slot = self.slot_mut(point)?;
+        slot.fill(0);
+        copy(slot, parity.shard);
+        self.code = Some(code);
+        self.shard_len = Some(len);
         self.held.insert(point);
         Ok(())
     }
 
     /// Adds a data packet of the image (its bytes as received; checked as [`Packet::parse`]
-    /// checks them).
+    /// checks them; the first packet added sets the image and code).
     pub fn add_packet(&mut self, data: &[u8]) -> Result<(), RebuildError> {
         let packet = Packet::parse(data)?;
-        if packet.image_id != self.image_id || packet.count != u16::from(self.count) {
-            return Err(RebuildError::OtherImage);
-        }
+        let code = self.code_of(packet.image_id, packet.count)?;
+        let len = self.shard_len.unwrap_or(self.slot_len);
         // Below the count, so below 256.
         let point = packet.index as u8;
-        shard_of(data, self.slot_mut(point)?).map_err(|_| RebuildError::OtherImage)?;
+        let slot = self.slot_mut(point)?;
+        let (shard, rest) = slot.split_at_mut(len.min(slot.len()));
+        shard_of(data, shard).map_err(|_| RebuildError::OtherImage)?;
+        rest.fill(0);
+        self.code = Some(code);
         self.held.insert(point);
         Ok(())
     }
 
-    /// Whether data packet `index` is held (received, or rebuilt).
-    pub fn has(&self, index: u16) -> bool {
-        index < u16::from(self.count) && self.held.contains(index as u8)
+    /// The code of a packet of image `image_id` sent as `count` data packets, if it is the
+    /// rebuild's (or the rebuild has none yet).
+    fn code_of(&self, image_id: u16, count: u16) -> Result<Code, RebuildError> {
+        let count = u8::try_from(count).map_err(|_| RebuildError::NoSlot)?;
+        let code = Code { image_id, count };
+        match self.code {
+            Some(known) if known != code => Err(RebuildError::OtherImage),
+            _ => Ok(code),
+        }
     }
 
-    /// How many data packets are missing.
+    /// The data packets' count (0 before any packet is added).
+    fn count(&self) -> u8 {
+        self.code.map_or(0, |c| c.count)
+    }
+
+    /// Whether data packet `index` is held (received, or rebuilt).
+    pub fn has(&self, index: u16) -> bool {
+        index < u16::from(self.count()) && self.held.contains(index as u8)
+    }
+
+    /// How many data packets are missing (0 before any packet is added).
     pub fn missing(&self) -> usize {
-        (0..self.count).filter(|&i| !self.held.contains(i)).count()
+        (0..self.count())
+            .filter(|&i| !self.held.contains(i))
+            .count()
     }
 
     /// Makes every missing data packet again from the packets held (any `count` of the
@@ -208,13 +287,14 @@ impl<'b> Rebuild<'b> {
         if missing == 0 {
             return Ok(());
         }
+        let count = self.count();
         // The points whose shards are known: the data held and the first `missing` parity
         // shards held, listed (`known[..n]`).
         let mut known = [0u8; MAX_SHARDS];
         let (mut n, mut used, mut held) = (0, 0, 0);
         for point in self.held.iter() {
-            let take = point < self.count || used < missing;
-            if point >= self.count {
+            let take = point < count || used < missing;
+            if point >= count {
                 held += 1;
                 used += usize::from(take);
             }
@@ -240,7 +320,7 @@ impl<'b> Rebuild<'b> {
                 .sum();
             *d = (sum % 255) as u8;
         }
-        for m in 0..self.count {
+        for m in 0..count {
             if self.held.contains(m) {
                 continue;
             }
@@ -257,7 +337,7 @@ impl<'b> Rebuild<'b> {
                 self.add_scaled(m, q, (log % 255) as u8);
             }
         }
-        for m in 0..self.count {
+        for m in 0..count {
             self.held.insert(m);
         }
         Ok(())
@@ -279,8 +359,9 @@ impl<'b> Rebuild<'b> {
             return Err(RebuildError::Inconsistent);
         };
         let (index_field, index_len) = leb128(index);
-        let (count_field, count_len) = leb128(self.count.into());
-        let id = self.image_id.to_le_bytes();
+        let code = self.code.ok_or(RebuildError::NotHeld)?;
+        let (count_field, count_len) = leb128(code.count.into());
+        let id = code.image_id.to_le_bytes();
         let head = [PACKET_TAG, id[0], id[1], flags];
         let parts = [
             &head[..],
@@ -303,21 +384,23 @@ impl<'b> Rebuild<'b> {
     }
 
     fn slot(&self, point: u8) -> Option<&[u8]> {
-        let start = usize::from(point) * self.shard_len;
-        self.buf.get(start..start + self.shard_len)
+        let start = usize::from(point) * self.slot_len;
+        self.buf.get(start..start + self.slot_len)
     }
 
     fn slot_mut(&mut self, point: u8) -> Result<&mut [u8], RebuildError> {
-        let start = usize::from(point) * self.shard_len;
+        let start = usize::from(point) * self.slot_len;
         self.buf
-            .get_mut(start..start + self.shard_len)
+            .get_mut(start..start + self.slot_len)
             .ok_or(RebuildError::NoSlot)
     }
 
     /// Slot `to` plus `2^log` times slot `from` (two different slots).
+    /// Only the code's shard length is added: past it every slot is zero.
     fn add_scaled(&mut self, to: u8, from: u8, log: u8) {
-        let len = self.shard_len;
-        let (to, from) = (usize::from(to) * len, usize::from(from) * len);
+        let stride = self.slot_len;
+        let len = self.shard_len.unwrap_or(stride);
+        let (to, from) = (usize::from(to) * stride, usize::from(from) * stride);
         let (low, high) = (to.min(from), to.max(from));
         let (first, second) = self.buf.split_at_mut(high.min(self.buf.len()));
         let (Some(low_slot), Some(high_slot)) =

@@ -12,9 +12,9 @@
 //! every packet drawn at `Scale::Half` (`PIFS-PACKETS-HALF name=<file> sha256=<hex>`), which
 //! must equal the host's assembly at that scale.
 //!
-//! Each golden parity set is received (parity packets first, then the data packets, last
-//! first, without the lost ones) into a `Rebuild` held in a fixed buffer, the lost packets
-//! are rebuilt, and every data packet is drawn into the frame buffer: `PIFS-PARITY name=<file>
+//! Each golden parity set is received in the order it was sent (the data packets, then the
+//! parity packets), without the lost ones, each packet added as it arrives to a `Rebuild` held
+//! in a fixed buffer; the lost packets are rebuilt, and every data packet is drawn into the frame buffer: `PIFS-PARITY name=<file>
 //! rebuilt=<n> stack=<bytes> sha256=<hex>` must equal the host's picture of the whole set, and
 //! `stack` and `instr` are the rebuild's peak stack and instructions.
 
@@ -96,22 +96,11 @@ const REBUILD_BUFFER: usize = 1024;
 /// and draws every data packet into a frame buffer (see the module's documentation).
 fn rebuild(set: &PacketSet, counter: &measure::Counter) -> bool {
     let mut shards = [0u8; REBUILD_BUFFER];
-    // A parity packet says which code the packets are of (and how long its shards are).
-    let first = frames_reversed(set.data).find_map(|bytes| ParityPacket::parse(bytes).ok());
-    let code = first.map(|first| Rebuild::new(&first, &mut shards));
-    let mut code = match code {
-        Some(Ok(code)) => code,
-        Some(Err(e)) => {
-            heprintln!("PIFS-ERROR name={} rebuild: {}", set.name, e);
-            return false;
-        }
-        None => {
-            heprintln!("PIFS-ERROR name={} rebuild: no parity packet", set.name);
-            return false;
-        }
-    };
+    // A slot per packet as long as the link's largest packet (a shard is shorter).
+    let slot_len = frames(set.data).map(<[u8]>::len).max().unwrap_or(0);
+    let mut code = Rebuild::new(slot_len, &mut shards);
     let mut lost = 0;
-    for bytes in frames_reversed(set.data) {
+    for bytes in frames(set.data) {
         let added = match ParityPacket::parse(bytes) {
             Ok(parity) => code.add_parity(&parity),
             Err(_) => match Packet::parse(bytes) {
@@ -183,6 +172,17 @@ fn rebuild(set: &PacketSet, counter: &measure::Counter) -> bool {
         Hex(hash)
     );
     true
+}
+
+/// The packets of a framed file, in the file's order.
+fn frames(data: &'static [u8]) -> impl Iterator<Item = &'static [u8]> {
+    let mut at = 0;
+    core::iter::from_fn(move || {
+        let len = usize::from(u16::from_le_bytes([*data.get(at)?, *data.get(at + 1)?]));
+        let start = at + 2;
+        at = (start + len).min(data.len());
+        data.get(start..at)
+    })
 }
 
 /// The frames of `data`, last first.

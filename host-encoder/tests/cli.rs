@@ -1933,4 +1933,52 @@ fn info_describes_streams_and_packets_as_json() {
     assert_eq!(received, expected);
     let coverage = object["coverage"].as_f64().unwrap();
     assert!(coverage > 0.0 && coverage < 1.0, "{coverage}");
+
+    // Another picture of the same size, coded to the same packets and bytes, in the same
+    // directory: its packets carry another image id (made from their content), and the image
+    // most packets agree on (that one, all 15 of its packets here) is described with its own
+    // packets only, the others said to be there.
+    let other_png = dir.join("other.png");
+    image::imageops::flip_horizontal(&textured(96, 64))
+        .save(&other_png)
+        .unwrap();
+    let other = dir.join("pk2");
+    ok(&pifs(&[
+        "encode",
+        &s(&other_png),
+        "--packets",
+        &s(&other),
+        "--packet-size",
+        "64",
+        "--bytes",
+        "960",
+    ]));
+    let id_of = |p: &Path| {
+        let b = std::fs::read(p).unwrap();
+        u16::from_le_bytes([b[1], b[2]])
+    };
+    let (first_id, other_id) = (
+        id_of(&packets.join("0000.pkt")),
+        id_of(&other.join("0000.pkt")),
+    );
+    assert_ne!(first_id, other_id);
+    let mut other_bytes = 0;
+    for entry in std::fs::read_dir(&other).unwrap() {
+        let path = entry.unwrap().path();
+        other_bytes += std::fs::metadata(&path).unwrap().len();
+        let name = format!("b{}", path.file_name().unwrap().to_string_lossy());
+        std::fs::copy(&path, packets.join(name)).unwrap();
+    }
+    let mixed: serde_json::Value =
+        serde_json::from_str(&ok(&pifs(&["info", &s(&packets), "--json"]))).expect("JSON");
+    assert_eq!(mixed["image_id"], other_id);
+    assert_eq!(mixed["files"], 12 + 15);
+    assert_eq!(mixed["packets"], 15);
+    assert_eq!(mixed["bytes"], other_bytes);
+    assert_eq!(mixed["ignored"]["other_image"], 12);
+    let text = ok(&pifs(&["info", &s(&packets)]));
+    assert!(
+        text.contains("here: 15 packets of it (and 12 other files)"),
+        "{text}"
+    );
 }

@@ -534,6 +534,43 @@ pub fn decode_packets(data: &[u8]) {
             assert!(image.received.len() <= usize::from(image.count));
         }
     }
+    check_device_rebuild(&inputs);
+}
+
+/// The packets added to a device's rebuild as they come (slots as long as the longest, for
+/// the first 64 points of the code): no panic, and every data packet added comes back as it
+/// was, whatever was rebuilt around it.
+fn check_device_rebuild(inputs: &[Vec<u8>]) {
+    use decoder_core::{Packet, ParityPacket, Rebuild};
+    let slot_len = inputs.iter().map(Vec::len).max().unwrap_or(0);
+    let mut buf = vec![0u8; Rebuild::buffer_len(64, 0, slot_len)];
+    let mut code = Rebuild::new(slot_len, &mut buf);
+    let mut added: Vec<(u16, &[u8])> = Vec::new();
+    for input in inputs {
+        match ParityPacket::parse(input) {
+            Ok(parity) => {
+                let _ = code.add_parity(&parity);
+            }
+            Err(_) => {
+                if code.add_packet(input).is_ok() {
+                    let index = Packet::parse(input).map(|p| p.index).unwrap_or(u16::MAX);
+                    added.retain(|&(i, _)| i != index);
+                    added.push((index, input));
+                }
+            }
+        }
+    }
+    let _ = code.rebuild();
+    let mut out = vec![0u8; slot_len + 16];
+    for index in 0..64 {
+        let _ = code.packet(index, &mut out);
+    }
+    for (index, bytes) in added {
+        let len = code
+            .packet(index, &mut out)
+            .expect("a packet added is held");
+        assert_eq!(&out[..len], bytes, "packet {index} as added");
+    }
 }
 
 /// One packet alone, at its scale: draws only inside its region, no pixel twice, all of it

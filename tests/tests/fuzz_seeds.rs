@@ -637,7 +637,7 @@ fn packet_seeds() -> Files {
         };
         let options = PacketOptions {
             size: case.size,
-            image_id: w as u16,
+            image_id: Some(w as u16),
             preview: case.preview,
             repeat_preview: false,
             parity: case.parity,

@@ -257,7 +257,7 @@ fn regenerate_packets(dir: &std::path::Path) {
         };
         let options = PacketOptions {
             size: spec.size,
-            image_id: 7,
+            image_id: Some(7),
             preview: true,
             repeat_preview: false,
             parity: 0,
@@ -310,7 +310,7 @@ fn regenerate_parity(dir: &std::path::Path) {
     let analysis = analyse_with(plane.clone(), &config);
     let options = PacketOptions {
         size: 48,
-        image_id: 8,
+        image_id: Some(8),
         preview: true,
         repeat_preview: false,
         parity: 2,

@@ -42,7 +42,7 @@ fn sets() -> &'static (Packetised, Packetised, Vec<u8>) {
             };
             packetise(&analysis, &config(), Target::Bytes(14 * SIZE), &options).unwrap()
         };
-        (make(1, true), make(2, false), source)
+        (make(Some(1), true), make(Some(2), false), source)
     })
 }
 
@@ -218,7 +218,7 @@ fn a_repeated_preview_is_sent_twice_and_counted_once() {
     let analysis = common::analyse_with(plane, &config());
     let options = PacketOptions {
         size: SIZE,
-        image_id: 3,
+        image_id: Some(3),
         preview: true,
         repeat_preview: true,
         parity: 0,
@@ -236,6 +236,48 @@ fn a_repeated_preview_is_sent_twice_and_counted_once() {
     assert_eq!(all.duplicates, 1);
 }
 
+/// Without an image id given, each packet set gets one made from its content: pictures sent
+/// one after another differ, the same packets made again keep theirs, and every packet,
+/// parity packets included, carries it and passes its checks.
+#[test]
+fn image_ids_come_from_the_packets_unless_given() {
+    let made = |seed, image_id| {
+        let plane = common::synthetic(WIDTH, HEIGHT, seed, 6);
+        let analysis = common::analyse_with(plane, &config());
+        let options = PacketOptions {
+            size: SIZE,
+            image_id,
+            preview: true,
+            repeat_preview: false,
+            parity: 2,
+        };
+        packetise(&analysis, &config(), Target::Bytes(10 * SIZE), &options).unwrap()
+    };
+    let carried = |set: &Packetised| -> Vec<u16> {
+        set.packets
+            .iter()
+            .map(|p| match ParityPacket::parse(p) {
+                Ok(parity) => parity.image_id,
+                Err(_) => Packet::parse(p).unwrap().image_id,
+            })
+            .collect()
+    };
+    let first = made(31, None);
+    let second = made(32, None);
+    assert_eq!(carried(&first), vec![first.image_id; first.packets.len()]);
+    assert_eq!(
+        carried(&second),
+        vec![second.image_id; second.packets.len()]
+    );
+    assert_ne!(first.image_id, second.image_id);
+    assert_eq!(made(31, None).image_id, first.image_id);
+    let given = made(31, Some(9));
+    assert_eq!(carried(&given), vec![9; given.packets.len()]);
+    let image = assemble(first.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
+    assert_eq!(image.image_id, first.image_id);
+    assert_eq!(image.pixels, first.reconstruction);
+}
+
 /// The test image in packets of `size` bytes, `packets` of them in all, `parity` of them
 /// parity packets.
 fn with_parity(size: usize, packets: usize, parity: usize, preview: bool) -> Packetised {
@@ -243,7 +285,7 @@ fn with_parity(size: usize, packets: usize, parity: usize, preview: bool) -> Pac
     let analysis = common::analyse_with(plane, &config());
     let options = PacketOptions {
         size,
-        image_id: 4,
+        image_id: Some(4),
         preview,
         repeat_preview: false,
         parity,
@@ -305,13 +347,17 @@ fn parity_packets_rebuild_any_lost_packets_up_to_their_number() {
 
 /// decoder-core's rebuild, as a device runs it (one fixed buffer, no allocation), against the
 /// parity packets the encoder makes with the `reed-solomon-erasure` crate: every way of losing
-/// up to three of twelve packets gives back the lost data packets byte for byte.
+/// up to three of twelve packets gives back the lost data packets byte for byte, with the
+/// packets added in the order sent (data first) or the reverse, and slots as long as the
+/// shards or as the link's packets.
 #[test]
 fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
     let made = with_parity(96, 12, 3, true);
     let sent = &made.packets;
     let n = sent.len() - made.parity;
-    let mut buf = [0u8; 12 * 96];
+    let shard_len = ParityPacket::parse(&sent[n]).unwrap().shard.len();
+    assert!(shard_len < 96);
+    let mut buf = [0xA5u8; 12 * 96];
     let mut out = [0u8; 96];
     let mut checked = 0;
     for lost in 1u32..1 << sent.len() {
@@ -319,20 +365,32 @@ fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
             continue;
         }
         let kept = |i: usize| lost >> i & 1 == 0;
-        let first = (n..sent.len()).find(|&i| kept(i)).unwrap_or(n);
-        let Ok(parity) = ParityPacket::parse(&sent[first]) else {
-            unreachable!("a parity packet");
-        };
-        let mut code = Rebuild::new(&parity, &mut buf).unwrap();
-        for (i, packet) in sent.iter().enumerate().filter(|&(i, _)| kept(i)) {
-            match ParityPacket::parse(packet) {
+        // Slots of the link's packet size, or of the shard's length; packets in the order
+        // sent, or the reverse.
+        let slot_len = if lost % 2 == 0 { 96 } else { shard_len };
+        let mut order: Vec<usize> = (0..sent.len()).filter(|&i| kept(i)).collect();
+        if lost % 3 == 0 {
+            order.reverse();
+        }
+        buf.fill(0xA5);
+        let mut code = Rebuild::new(slot_len, &mut buf);
+        for &i in &order {
+            match ParityPacket::parse(&sent[i]) {
                 Ok(p) => code.add_parity(&p).unwrap(),
-                Err(_) => code.add_packet(packet).unwrap(),
+                Err(_) => code.add_packet(&sent[i]).unwrap(),
             }
             assert!(i >= n || code.has(i as u16));
         }
-        if !kept(first) {
-            // Every parity packet lost: nothing to rebuild from but what the first one held.
+        let data_lost = (0..n).filter(|&i| !kept(i)).count();
+        let parity_kept = (n..sent.len()).filter(|&i| kept(i)).count();
+        if data_lost > parity_kept {
+            assert_eq!(
+                code.rebuild(),
+                Err(RebuildError::NotEnough {
+                    missing: data_lost,
+                    parity: parity_kept
+                })
+            );
             continue;
         }
         code.rebuild().unwrap();
@@ -345,12 +403,11 @@ fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
     }
     assert!(checked > 250, "{checked}");
     // Four lost data packets, three parity packets: not enough, and said so.
-    let parity = ParityPacket::parse(&sent[n]).unwrap();
-    let mut code = Rebuild::new(&parity, &mut buf).unwrap();
+    let mut code = Rebuild::new(shard_len, &mut buf);
     for packet in &sent[4..n] {
         code.add_packet(packet).unwrap();
     }
-    for packet in &sent[n + 1..] {
+    for packet in &sent[n..] {
         code.add_parity(&ParityPacket::parse(packet).unwrap())
             .unwrap();
     }
@@ -370,11 +427,29 @@ fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
     other[at..].copy_from_slice(&crc);
     assert_eq!(code.add_packet(&other), Err(RebuildError::OtherImage));
     let last = ParityPacket::parse(&sent[n + 2]).unwrap();
-    let small = Rebuild::buffer_len(n, 2, last.shard.len());
-    assert_eq!(
-        Rebuild::new(&last, &mut buf[..small]).err(),
-        Some(RebuildError::NoSlot)
-    );
+    let small = Rebuild::buffer_len(n, 2, shard_len);
+    let mut code = Rebuild::new(shard_len, &mut buf[..small]);
+    assert_eq!(code.add_parity(&last), Err(RebuildError::NoSlot));
+    // Slots shorter than the shards: no room.
+    let mut code = Rebuild::new(shard_len - 1, &mut buf);
+    assert_eq!(code.add_parity(&last), Err(RebuildError::NoSlot));
+    // A data packet whose content is longer than the code's shards is of another code,
+    // whether it comes before the parity packet or after it.
+    let mut long = sent[5].clone();
+    long.splice(long.len() - 2.., vec![7u8; shard_len]);
+    let crc = decoder_core::internal::packet::packet_crc(&long);
+    long.extend_from_slice(&crc);
+    assert!(Packet::parse(&long).is_ok());
+    let mut wide = vec![0u8; Rebuild::buffer_len(n, 3, 2 * 96)];
+    let mut code = Rebuild::new(2 * 96, &mut wide);
+    code.add_packet(&long).unwrap();
+    assert_eq!(code.add_parity(&last), Err(RebuildError::OtherImage));
+    let mut code = Rebuild::new(2 * 96, &mut wide);
+    code.add_parity(&last).unwrap();
+    assert_eq!(code.add_packet(&long), Err(RebuildError::OtherImage));
+    // Before any packet the rebuild knows of no image: nothing missing, nothing held.
+    let code = Rebuild::new(96, &mut buf);
+    assert_eq!((code.missing(), code.has(0)), (0, false));
 }
 
 #[test]
@@ -404,7 +479,7 @@ fn parity_sized_for_a_link_grows_with_its_losses() {
     let analysis = common::analyse_with(plane, &config());
     let options = PacketOptions {
         size: SIZE,
-        image_id: 5,
+        image_id: Some(5),
         preview: true,
         repeat_preview: false,
         parity: 0,
@@ -478,7 +553,7 @@ fn packets_draw_at_every_scale_as_the_whole_picture_does() {
     let analysis = common::analyse_with(plane, &unsmoothed);
     let options = PacketOptions {
         size: SIZE,
-        image_id: 3,
+        image_id: Some(3),
         preview: true,
         repeat_preview: false,
         parity: 0,

@@ -15,7 +15,8 @@
 //! image are counted and ignored.
 
 use crate::encoder::{psnr, Analysis, EncodeError, EncoderConfig, LeafBits, Target};
-use decoder_core::internal::packet::{PacketHeader, CRC_LEN, MAX_PACKET_HEADER_LEN};
+use decoder_core::internal::checksum::crc16;
+use decoder_core::internal::packet::{packet_crc, PacketHeader, CRC_LEN, MAX_PACKET_HEADER_LEN};
 use decoder_core::internal::syntax::Header;
 use decoder_core::{DecodeError, Packet, PacketKind, PixelSink, Rect, Scale, Tile, REGION_UNIT};
 use rayon::prelude::*;
@@ -41,8 +42,10 @@ pub struct PacketOptions {
     /// for Meshtastic (LoRaWAN at SF12 carries 51, below the smallest: a packet's 19 bytes of
     /// header and checksum would leave too little for a picture).
     pub size: usize,
-    /// The image's number, which every packet carries (receivers tell images apart by it).
-    pub image_id: u16,
+    /// The image's number, which every packet carries (receivers tell images apart by it);
+    /// `None` for one made from the packets' content ([`content_id`]), so that images sent one
+    /// after another differ without the sender counting them.
+    pub image_id: Option<u16>,
     /// Whether the first packet is a preview of the whole image.
     pub preview: bool,
     /// Whether the preview is sent twice, first and half way (one packet of the budget), so
@@ -58,7 +61,7 @@ impl Default for PacketOptions {
     fn default() -> Self {
         PacketOptions {
             size: DEFAULT_PACKET_SIZE,
-            image_id: 0,
+            image_id: None,
             preview: true,
             repeat_preview: false,
             parity: 0,
@@ -72,6 +75,8 @@ pub struct Packetised {
     /// The packets, in sending order (packet `i` is `packets[i]`, but for a repeated preview,
     /// which is sent twice).
     pub packets: Vec<Vec<u8>>,
+    /// The image id every packet carries.
+    pub image_id: u16,
     /// How many of them are previews (the first ones).
     pub previews: usize,
     /// How many of them are parity packets (the last ones).
@@ -190,7 +195,7 @@ pub fn packetise(
     let budget = budget_of(analysis, target)?;
     let layout = Layout::of(budget, options)?;
     let base = PacketHeader {
-        image_id: options.image_id,
+        image_id: 0,
         index: 0,
         count: layout.count,
         width: analysis.width() as u16,
@@ -204,13 +209,17 @@ pub fn packetise(
         deblock: 0,
     };
     let mut packets = data_packets(analysis, config, &layout, &base)?;
+    let image_id = options.image_id.unwrap_or_else(|| content_id(&packets));
+    for packet in &mut packets {
+        set_image_id(packet, image_id);
+    }
     let parity_packets = match options.parity {
         0 => Vec::new(),
-        k => parity::parity_packets(&packets, k, options.image_id).ok_or(
-            PacketError::TooManyForParity {
+        k => {
+            parity::parity_packets(&packets, k, image_id).ok_or(PacketError::TooManyForParity {
                 packets: packets.len() + k,
-            },
-        )?,
+            })?
+        }
     };
     if layout.repeat {
         let again = packets[0].clone();
@@ -232,6 +241,7 @@ pub fn packetise(
         .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
         .sum();
     Ok(Packetised {
+        image_id,
         previews: layout.previews,
         parity,
         overhead_bytes,
@@ -520,6 +530,25 @@ fn data_packets(
         packets.push(packet?);
     }
     Ok(packets)
+}
+
+/// An image id made from an image's data packets (written with id 0): the CRC-16 of their
+/// bytes. Packets of different pictures, or of one picture coded differently, get different
+/// ids but for one chance in 65 536; the same packets get the same id.
+pub fn content_id(packets: &[Vec<u8>]) -> u16 {
+    crc16(&packets.concat())
+}
+
+/// Writes `id` into a packet's image id field and seals it again (its checksum).
+fn set_image_id(packet: &mut [u8], id: u16) {
+    let Some(body_len) = packet.len().checked_sub(CRC_LEN) else {
+        return;
+    };
+    let (body, crc) = packet.split_at_mut(body_len);
+    if let Some(field) = body.get_mut(1..3) {
+        field.copy_from_slice(&id.to_le_bytes());
+    }
+    crc.copy_from_slice(&packet_crc(body));
 }
 
 /// The smallest preview packet made of what the region packets leave of a budget, bytes:

@@ -100,9 +100,7 @@ pub fn rebuild(
             .max()
             .unwrap_or(0);
     let mut buf = vec![0u8; Rebuild::buffer_len(n, slots - n, first.shard.len())];
-    let Ok(mut code) = Rebuild::new(first, &mut buf) else {
-        return Vec::new();
-    };
+    let mut code = Rebuild::new(first.shard.len(), &mut buf);
     let added = parities.iter().all(|p| code.add_parity(p).is_ok())
         && received
             .iter()

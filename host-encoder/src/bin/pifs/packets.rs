@@ -34,11 +34,13 @@ pub struct PacketArgs {
     /// each behind its length (2 bytes, little-endian).
     #[arg(long, value_name = "BYTES")]
     pub packet_size: Option<usize>,
-    /// The image's number in every packet (0 to 65535).
+    /// The image's number in every packet (0 to 65535) [default: made from the packets' content].
     ///
-    /// It tells a receiver's images apart.
-    #[arg(long, default_value_t = 0, value_name = "N")]
-    pub image_id: u16,
+    /// It tells a receiver's images apart. Without it, a CRC-16 of the packets: different
+    /// pictures, or one picture coded differently, get different numbers (but for one chance in
+    /// 65 536), the same packets the same number.
+    #[arg(long, value_name = "N")]
+    pub image_id: Option<u16>,
     /// No preview packet: every packet codes a region.
     ///
     /// A lost one is then interpolated from the regions around it.
@@ -78,7 +80,7 @@ impl PacketArgs {
             (self.expect_loss.is_some(), "--expect-loss"),
             (self.no_preview, "--no-preview"),
             (self.repeat_preview, "--repeat-preview"),
-            (self.image_id != 0, "--image-id"),
+            (self.image_id.is_some(), "--image-id"),
         ]
         .into_iter()
         .find_map(|(given, name)| given.then_some(name))
@@ -163,8 +165,9 @@ fn summary(
     let (w, h) = analysed.size();
     let total = made.total_bytes();
     format!(
-        "{}: {w}x{h} -> {} packets of at most {} bytes ({} preview, {} parity), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
+        "{}: {w}x{h} -> image {}, {} packets of at most {} bytes ({} preview, {} parity), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
         shown.display(),
+        made.image_id,
         made.packets.len(),
         options.size,
         made.previews,
@@ -501,6 +504,23 @@ fn ranges(indices: &[u16]) -> String {
     parts.join(",")
 }
 
+/// Whether `packet` is one of the assembled image's: a data packet of its id, size,
+/// channels and count, or a parity packet of its id and count.
+fn of_image(packet: &[u8], a: &Assembled) -> bool {
+    if let Ok(parity) = decoder_core::ParityPacket::parse(packet) {
+        return parity.image_id == a.image_id && parity.count == a.count;
+    }
+    Packet::parse(packet).is_ok_and(|p| {
+        (
+            p.image_id,
+            p.count,
+            u32::from(p.width),
+            u32::from(p.height),
+            p.channels,
+        ) == (a.image_id, a.count, a.width, a.height, a.channels)
+    })
+}
+
 /// `pifs info` of packets (those at `inputs`, merged): count, sizes, coverage; as one JSON
 /// object with `json`.
 pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
@@ -509,14 +529,16 @@ pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
         .map(|p| p.display().to_string())
         .collect::<Vec<_>>()
         .join(", ");
-    let sizes: Vec<usize> = packets.iter().map(Vec::len).collect();
+    let a = &assembled;
+    // The image's own packets: others (damaged, another image's) are counted apart.
+    let own: Vec<&Vec<u8>> = packets.iter().filter(|p| of_image(p, a)).collect();
+    let sizes: Vec<usize> = own.iter().map(|p| p.len()).collect();
     let total: usize = sizes.iter().sum();
-    let previews = packets
+    let previews = own
         .iter()
         .filter_map(|p| Packet::parse(p).ok())
         .filter(|p| p.kind == PacketKind::Preview)
         .count();
-    let a = &assembled;
     let bpp = total as f64 * 8.0 / (f64::from(a.width) * f64::from(a.height));
     if json {
         let object = serde_json::json!({
@@ -528,6 +550,7 @@ pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
             "channels": a.channels,
             "count": a.count,
             "files": packets.len(),
+            "packets": own.len(),
             "bytes": total,
             "bpp": bpp,
             "previews": previews,
@@ -556,9 +579,13 @@ pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
         if a.channels == 3 { "colour" } else { "gray" },
         a.count
     );
+    let others = match packets.len() - own.len() {
+        0 => String::new(),
+        n => format!(" of it (and {n} other files)"),
+    };
     println!(
-        "  here: {} packets, {total} bytes ({} to {} bytes each), {previews} preview(s), {bpp:.4} bpp",
-        packets.len(),
+        "  here: {} packets{others}, {total} bytes ({} to {} bytes each), {previews} preview(s), {bpp:.4} bpp",
+        own.len(),
         sizes.iter().min().unwrap_or(&0),
         sizes.iter().max().unwrap_or(&0),
     );
