@@ -37,10 +37,12 @@
 //!   with the cargo feature `defmt` they implement `defmt::Format`, so a firmware that logs
 //!   with defmt prints them without `core::fmt`.
 //! - [`Packet`]: an image sent as self-contained packets for lossy links (`docs/bitstream.md`,
-//!   section 9): [`Packet::parse`] checks one (its CRC-32 first), [`Packet::decode`] draws its
+//!   section 9): [`Packet::parse`] checks one (its CRC-16 first), [`Packet::decode`] draws its
 //!   region, in image coordinates, into the same [`PixelSink`]s; a preview packet that arrives
 //!   after some regions is drawn around them ([`Packet::decode_around`]). A receiver needs one
-//!   packet's buffer and the decoder's usual fixed memory.
+//!   packet's buffer and the decoder's usual fixed memory. A receiver with room for an image's
+//!   packets rebuilds lost ones from parity packets ([`ParityPacket`]) with [`Rebuild`], in a
+//!   buffer it lends, the packets added as they arrive.
 //! - `graphics` (cargo feature `embedded-graphics`): a stream as an embedded-graphics
 //!   `ImageDrawable` in any colour type, ordered-dithered by default where the colour has
 //!   fewer than 8 bits a channel (a 1-bit OLED, RGB565); `graphics::DrawSink`, the same

@@ -147,6 +147,10 @@ impl From<DecodeError> for RebuildError {
 ///         Err(_) => rebuild.add_packet(bytes),
 ///     };
 /// }
+/// if rebuild.packets_short() > 0 {
+///     // Too few to rebuild: that many more of any of the image's packets would do.
+///     return Ok(());
+/// }
 /// rebuild.rebuild()?;
 /// let mut packet = [0u8; LINK_PACKET];
 /// let mut index = 0;
@@ -276,6 +280,18 @@ impl<'b> Rebuild<'b> {
         (0..self.count())
             .filter(|&i| !self.held.contains(i))
             .count()
+    }
+
+    /// How many parity packets are held.
+    pub fn parity_held(&self) -> usize {
+        let count = self.count();
+        self.held.iter().filter(|&p| p >= count).count()
+    }
+
+    /// How many more packets, any data or parity packets of the image not held, would let
+    /// [`Rebuild::rebuild`] make every missing one (0 when it can).
+    pub fn packets_short(&self) -> usize {
+        self.missing().saturating_sub(self.parity_held())
     }
 
     /// Makes every missing data packet again from the packets held (any `count` of the

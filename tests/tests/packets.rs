@@ -383,6 +383,8 @@ fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
         }
         let data_lost = (0..n).filter(|&i| !kept(i)).count();
         let parity_kept = (n..sent.len()).filter(|&i| kept(i)).count();
+        assert_eq!(code.parity_held(), parity_kept);
+        assert_eq!(code.packets_short(), data_lost.saturating_sub(parity_kept));
         if data_lost > parity_kept {
             assert_eq!(
                 code.rebuild(),
@@ -418,6 +420,7 @@ fn a_fixed_buffer_rebuilds_every_loss_the_parity_covers_byte_for_byte() {
             parity: 3
         })
     );
+    assert_eq!((code.parity_held(), code.packets_short()), (3, 1));
     assert_eq!(code.packet(0, &mut out), Err(RebuildError::NotHeld));
     // Another image's packet, and a buffer without a slot for the last parity packet.
     let mut other = sent[5].clone();
