@@ -101,15 +101,16 @@ done
 
 # 2. Firmware builds (one per target and variant, all streams embedded) and runs.
 build() { # target features streams... -> prints the ELF path (a copy under $out)
-    # features: cargo features of the firmware; "gray:..." builds without its default `colour`.
+    # features: cargo features of the firmware; "gray:..." builds without its defaults (`colour`,
+    # `deep`, `smooth-enlarged`).
     local target=$1 features=$2
     shift 2
-    # "nodeep:..." builds with `colour` but without `deep`.
+    # "nodeep:..." builds without `deep` alone.
     local list defaults=() wanted=${features#*:}
     list=$(IFS=:; echo "$*")
     case $features in
         gray:*) defaults=(--no-default-features) ;;
-        nodeep:*) defaults=(--no-default-features) wanted=colour,$wanted ;;
+        nodeep:*) defaults=(--no-default-features) wanted=colour,smooth-enlarged,$wanted ;;
     esac
     (cd "$fw" && env -u CARGO_TARGET_DIR -u CARGO_BUILD_TARGET -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS \
         PIFS_BENCH_STREAMS="$list" cargo build --release -q --target "$target" "${defaults[@]}" --features "$wanted") \
@@ -241,7 +242,7 @@ for s in "${streams[@]}"; do
     done
 done
 echo
-echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) | without the \`deep\` feature | grayscale-only decoder (no \`colour\`, no \`deep\`) |"
+echo "| target | firmware text+data, with decoder | without (baseline) | decoder flash (code + rodata) | without the \`deep\` feature | grayscale-only decoder (no \`colour\`, \`deep\` or \`smooth-enlarged\`) |"
 echo "|---|---:|---:|---:|---:|---:|"
 for t in $v7 $v6; do
     echo "| $t | ${flash[$t]} | ${base_flash[$t]} | $((flash[$t] - base_flash[$t])) | ${nodeep_flash[$t]} | ${gray_flash[$t]} |"

@@ -18,15 +18,21 @@ use crate::colour::{ChromaFrontier, ChromaPatch, ColourOut};
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 use crate::format::DEFAULT_STRIPE;
-use crate::geometry::Rect;
+#[cfg(feature = "smooth-enlarged")]
+use crate::format::{byte, CODING_TILE};
+use crate::geometry::{Node, Rect};
+#[cfg(feature = "smooth-enlarged")]
+use crate::model::SAMPLE_ONE;
+#[cfg(feature = "smooth-enlarged")]
+use crate::prediction::SamplePrediction;
 use crate::prediction::{Frontier, RECORD_WHOLE};
 use crate::syntax::control_step;
 use crate::syntax::{
     stream_checksum, Header, SampleRange, CHECKSUM_BYTES, MAX_HEADER_LEN, MIN_HEADER_LEN,
 };
-use crate::synthesis::{
-    Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE,
-};
+#[cfg(not(feature = "smooth-enlarged"))]
+use crate::synthesis::Discard;
+use crate::synthesis::{Catch, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE};
 use crate::walk::{self, LeafInfo, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -557,7 +563,8 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
     /// [`crate::prediction::Capture`]). At the coded size the whole leaf is drawn through it (or
     /// only its edges, when the clip misses the leaf). A smaller decode takes the edges at the
     /// coded size, keeping those on its pixel grid, and renders the rest of the leaf straight at
-    /// its scale; a larger one renders the leaf at its scale, unsmoothed. Not inlined: the
+    /// its scale; a larger one renders the leaf at its scale, closing the smoothed steps above
+    /// and left of it on its own side (`draw_enlarged`). Not inlined: the
     /// synthesis buffers then live only while a leaf is drawn, instead of in every frame of the
     /// quadtree walk.
     #[inline(never)]
@@ -657,9 +664,199 @@ fn draw_leaf<const CAPACITY: usize>(
         };
         patch.render_scaled(node, scale, clip.intersect(&interior), out)
     } else {
-        frontier.record(node, step, patch, &mut Discard);
-        patch.render_scaled(node, scale, clip, out)
+        draw_enlarged(node, step, patch, frontier, (clip, scale), out)
     };
+}
+
+/// A leaf of a decode larger than the coded size, without the `smooth-enlarged` feature: its
+/// edges recorded at the coded size, then the leaf drawn at its scale as tabulated.
+#[cfg(not(feature = "smooth-enlarged"))]
+fn draw_enlarged<const CAPACITY: usize>(
+    node: &Node,
+    step: i32,
+    patch: &Patch,
+    frontier: &mut Frontier<CAPACITY>,
+    (clip, scale): (Rect, Scale),
+    out: &mut dyn TileOut,
+) -> Result<(), Stop> {
+    frontier.record(node, step, patch, &mut Discard);
+    patch.render_scaled(node, scale, clip, out)
+}
+
+#[cfg(feature = "smooth-enlarged")]
+/// A leaf of a decode larger than the coded size: its edges recorded at the coded size, then
+/// the leaf drawn at its scale with what smoothing moved across the edges above and left of it
+/// ramped into its side ([`Ramp`]). Out of line: the shifts are on the stack only here.
+#[inline(never)]
+fn draw_enlarged<const CAPACITY: usize>(
+    node: &Node,
+    step: i32,
+    patch: &Patch,
+    frontier: &mut Frontier<CAPACITY>,
+    (clip, scale): (Rect, Scale),
+    out: &mut dyn TileOut,
+) -> Result<(), Stop> {
+    let mut shifts = EdgeShifts::before(frontier, node);
+    frontier.record(node, step, patch, &mut shifts);
+    shifts.finish();
+    let k = scale.log2().unsigned_abs();
+    let mut ramp = Ramp {
+        shifts: &shifts,
+        left: node.x << k,
+        top: node.y << k,
+        k,
+        out,
+    };
+    patch.render_scaled(node, scale, clip, &mut ramp)
+}
+
+#[cfg(feature = "smooth-enlarged")]
+/// What edge smoothing moved across the edges above and left of a leaf, for each pixel of its
+/// first row (by column from the leaf's left) and first column (by row from its top): the
+/// step's whole correction, twice the move of the pixel beside the leaf (smoothing moves the two
+/// pixels of a step towards each other alike), clamped to `i8`. Made while the leaf is
+/// recorded at the coded size: the pixels beside it as the frontier holds them before, and as
+/// the recording draws them smoothed (it takes the recording's tiles).
+#[derive(Debug)]
+struct EdgeShifts {
+    node: Node,
+    /// The pixels beside the leaf before smoothing, then (once [`EdgeShifts::finish`]ed) the
+    /// shifts as `i8` bits: above it, then left of it.
+    values: [[u8; CODING_TILE as usize]; 2],
+    /// Which pixels beside the leaf the recording drew: those were smoothed.
+    drawn: [[u32; CODING_TILE as usize / 32]; 2],
+}
+
+#[cfg(feature = "smooth-enlarged")]
+impl EdgeShifts {
+    /// Before the leaf `node` is recorded: the pixels above and left of it that the frontier
+    /// holds.
+    fn before<const CAPACITY: usize>(frontier: &Frontier<CAPACITY>, node: &Node) -> EdgeShifts {
+        let mut shifts = EdgeShifts {
+            node: *node,
+            values: [[0; CODING_TILE as usize]; 2],
+            drawn: [[0; CODING_TILE as usize / 32]; 2],
+        };
+        let n = node.size().min(CODING_TILE);
+        for i in 0..n {
+            let pixel = |v: Option<i32>| v.map_or(0, |v| (v / SAMPLE_ONE) as u8);
+            shifts.values[0][i as usize] = pixel(frontier.above(node.x + i, node.y));
+            shifts.values[1][i as usize] = pixel(frontier.left(node.x, node.y + i));
+        }
+        shifts
+    }
+
+    /// Turns the pixels the recording drew into shifts; the others shift nothing.
+    fn finish(&mut self) {
+        for (values, drawn) in self.values.iter_mut().zip(&self.drawn) {
+            for (i, v) in values.iter_mut().enumerate() {
+                if drawn[i / 32] & (1 << (i % 32)) == 0 {
+                    *v = 0;
+                }
+            }
+        }
+    }
+
+    /// The shift at `i` of edge `e` (0 above, 1 left).
+    fn get(&self, e: usize, i: u32) -> i32 {
+        let v = self.values[e].get(i as usize).copied().unwrap_or(0);
+        i32::from(v as i8)
+    }
+
+    /// A smoothed pixel beside the leaf, `i` along edge `e`, drawn as `now`.
+    fn smoothed(&mut self, e: usize, i: u32, now: u8) {
+        let (Some(v), Some(word)) = (
+            self.values[e].get_mut(i as usize),
+            self.drawn[e].get_mut(i as usize / 32),
+        ) else {
+            return;
+        };
+        let moved = -2 * (i32::from(now) - i32::from(*v));
+        *v = moved.clamp(-127, 127) as i8 as u8;
+        *word |= 1 << (i % 32);
+    }
+}
+
+#[cfg(feature = "smooth-enlarged")]
+/// The recording's tiles: the pixels drawn above and left of the leaf are the smoothed ones.
+impl TileOut for EdgeShifts {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+        let Rect { x, y, w, h } = tile.area;
+        let (left, top) = (self.node.x, self.node.y);
+        let n = (w * h) as usize;
+        let Some(pixels) = tile.pixels.get(..n) else {
+            return Ok(());
+        };
+        if h == 1 && top > 0 && y == top - 1 && x >= left {
+            for (i, &p) in pixels.iter().enumerate() {
+                self.smoothed(0, x - left + i as u32, p);
+            }
+        } else if w == 1 && left > 0 && x == left - 1 && y >= top {
+            for (j, &p) in pixels.iter().enumerate() {
+                self.smoothed(1, y - top + j as u32, p);
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(feature = "smooth-enlarged")]
+/// The tiles of a leaf of an enlarged decode, with each smoothed step's whole correction
+/// ([`EdgeShifts`]) applied to the leaf's side: the leaf's first output row (column) moves by
+/// it, the rows (columns) after it by less, down to nothing one coded pixel in. The leaves
+/// before it were drawn as tabulated, so the leaf alone closes the step; its pixels one coded
+/// pixel in and beyond are untouched.
+struct Ramp<'a> {
+    shifts: &'a EdgeShifts,
+    /// The leaf's top-left output pixel.
+    left: u32,
+    top: u32,
+    /// The scale's power of two.
+    k: u32,
+    out: &'a mut dyn TileOut,
+}
+
+#[cfg(feature = "smooth-enlarged")]
+impl TileOut for Ramp<'_> {
+    #[cfg(feature = "deep")]
+    fn depth(&self) -> crate::synthesis::Depth {
+        self.out.depth()
+    }
+
+    /// A 16-bit stream is not smoothed: its tiles go on as they are.
+    #[cfg(feature = "deep")]
+    fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        self.out.put_samples(tile, samples)
+    }
+
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+        let Rect { x, y, w, h } = tile.area;
+        let unit = 1u32 << self.k;
+        let (rows, columns) = (self.top + unit, self.left + unit);
+        if y < rows || x < columns {
+            for j in 0..h {
+                let oy = y + j;
+                for i in 0..w {
+                    let ox = x + i;
+                    let mut moved = 0i32;
+                    if oy < rows {
+                        let t = self.shifts.get(0, (ox - self.left) >> self.k);
+                        moved += t * (rows - oy) as i32;
+                    }
+                    if ox < columns {
+                        let l = self.shifts.get(1, (oy - self.top) >> self.k);
+                        moved += l * (columns - ox) as i32;
+                    }
+                    if moved != 0 {
+                        if let Some(v) = tile.pixels.get_mut((j * w + i) as usize) {
+                            *v = byte(i32::from(*v) + ((moved + (unit >> 1) as i32) >> self.k));
+                        }
+                    }
+                }
+            }
+        }
+        self.out.put(tile)
+    }
 }
 
 /// Hands on the pixels of full-size tiles that lie on the grid of a decode at `1 / 2^shift`
@@ -929,6 +1126,108 @@ mod tests {
             self.tiles.push((tile.area, tile.pixels.to_vec()));
             Ok(())
         }
+    }
+
+    #[cfg(feature = "smooth-enlarged")]
+    use crate::synthesis::Discard;
+
+    /// A flat patch of grey `value`.
+    #[cfg(feature = "smooth-enlarged")]
+    fn flat(value: i16) -> Patch {
+        let mut control = [0; crate::model::MAX_CONTROL];
+        control[..4].fill(value * SAMPLE_ONE as i16);
+        Patch {
+            model: crate::model::MODELS[0],
+            control,
+        }
+    }
+
+    /// An enlarged decode's record of a leaf gives, for each pixel of its first row and
+    /// column, the whole correction smoothing made to its step: twice its neighbour's move.
+    #[test]
+    #[cfg(feature = "smooth-enlarged")]
+    fn shifts_are_the_whole_smoothing_of_each_step() {
+        let node = |x, y| Node { x, y, log2: 2 };
+        let mut frontier = Frontier::<128>::EMPTY;
+        assert!(frontier.start(16, 16, 128, 4));
+        frontier.record(&node(0, 0), 64, &flat(100), &mut Discard);
+        frontier.record(&node(4, 0), 64, &flat(100), &mut Discard);
+        frontier.record(&node(0, 4), 64, &flat(106), &mut Discard);
+        // Below 100 and right of 106: 120 (steps of 20 and 14, each side moved by 1 and 2).
+        let leaf = node(4, 4);
+        let mut shifts = EdgeShifts::before(&frontier, &leaf);
+        frontier.record(&leaf, 64, &flat(120), &mut shifts);
+        shifts.finish();
+        let along = |e| (0..8).map(|i| shifts.get(e, i)).collect::<Vec<i32>>();
+        assert_eq!(along(0), [-2, -2, -2, -2, 0, 0, 0, 0]);
+        // The left neighbour's bottom-right pixel waits with its row (the leaf below it
+        // smooths it), so the last row has no step yet.
+        assert_eq!(along(1), [-4, -4, -4, 0, 0, 0, 0, 0]);
+        // A step past four limits is an edge: nothing smoothed, nothing shifted.
+        let leaf = node(8, 0);
+        let mut shifts = EdgeShifts::before(&frontier, &leaf);
+        frontier.record(&leaf, 64, &flat(200), &mut shifts);
+        shifts.finish();
+        assert!((0..4).all(|i| shifts.get(0, i) == 0 && shifts.get(1, i) == 0));
+    }
+
+    /// An enlarged leaf's first output rows and columns take the whole shift at the coded
+    /// grid's first pixel, less and less after it, and nothing one coded pixel in.
+    #[test]
+    #[cfg(feature = "smooth-enlarged")]
+    fn a_ramp_closes_the_step_on_the_leafs_side() {
+        struct Keep(Vec<u8>);
+        impl TileOut for Keep {
+            fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+                self.0 = tile.pixels.to_vec();
+                Ok(())
+            }
+        }
+        let leaf = Node {
+            x: 4,
+            y: 4,
+            log2: 2,
+        };
+        let mut shifts = EdgeShifts {
+            node: leaf,
+            values: [[0; CODING_TILE as usize]; 2],
+            drawn: [[0; CODING_TILE as usize / 32]; 2],
+        };
+        shifts.values[0][0] = -4i8 as u8;
+        shifts.values[0][1] = 6;
+        shifts.values[1][0] = -4i8 as u8;
+        let mut kept = Keep(Vec::new());
+        // The leaf drawn at 4x: output (16, 16); one 8 x 8 tile of 100.
+        let mut ramp = Ramp {
+            shifts: &shifts,
+            left: 16,
+            top: 16,
+            k: 2,
+            out: &mut kept,
+        };
+        let mut pixels = [100u8; 64];
+        let area = Rect {
+            x: 16,
+            y: 16,
+            w: 8,
+            h: 8,
+        };
+        ramp.put(TileMut {
+            area,
+            pixels: &mut pixels,
+            channels: 1,
+        })
+        .unwrap();
+        let row = |j: usize| kept.0[j * 8..j * 8 + 8].to_vec();
+        // Row 0: the top shift in full (-4 under coded column 0, +6 under column 1), and the
+        // left shift (coded row 0) in full at column 0 and by 3/4, 1/2, 1/4 after it.
+        assert_eq!(row(0), [92, 93, 94, 95, 106, 106, 106, 106]);
+        assert_eq!(row(1)[4..], [105, 105, 105, 105]);
+        assert_eq!(row(3)[4..], [102, 102, 102, 102]);
+        // Row 2, columns 0 to 3: half the top shift and the left one by 4/4 to 1/4.
+        assert_eq!(row(2)[..4], [94, 95, 96, 97]);
+        // One coded pixel in, nothing moves.
+        assert!((4..8).all(|j| row(j) == [100; 8]));
     }
 
     /// Fails at its `n`-th tile.

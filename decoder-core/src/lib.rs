@@ -52,8 +52,9 @@
 //!
 //! [`Decoder::scale`] decodes at 1/8, 1/4 or 1/2 of the coded size by stopping the subdivision
 //! early (pixel `(X, Y)` is pixel `(X 2^k, Y 2^k)` of the full decode), or at 2 or 4 times it by
-//! letting the subdivision continue below the pixel ([`Scale`]); the embedded-graphics image
-//! has `graphics::PifsImage::with_scale`.
+//! letting the subdivision continue below the pixel ([`Scale`]), each leaf closing the smoothed
+//! steps at its top and left edges on its own side (cargo feature `smooth-enlarged`, on by
+//! default); the embedded-graphics image has `graphics::PifsImage::with_scale`.
 //!
 //! ## The patches are IFS attractors
 //!
