@@ -81,8 +81,10 @@ enum Command {
         /// Decode at this scale of the coded size: 1/8, 1/4, 1/2, 1, 2 or 4.
         ///
         /// 1/8 to 1/2: the full decode's pixels at even, fourth or eighth positions, for a fraction
-        /// of the work; 2 and 4: the patches refined below the pixel. The image is ceil(width x
-        /// scale) by ceil(height x scale). Packets too: each region drawn at that scale.
+        /// of the work; 2 and 4: the patches refined below the pixel, their edges smoothed (for a
+        /// picture sent small and shown large; bicubic upscaling of the normal decode is a little
+        /// softer and closer). The image is ceil(width x scale) by ceil(height x scale). Packets
+        /// too: each region drawn at that scale.
         #[arg(long, default_value = "1", value_parser = decode::parse_scale)]
         scale: decoder_core::Scale,
         /// Read the input as packets even when it could be a stream.
