@@ -683,10 +683,10 @@ fn draw_enlarged<const CAPACITY: usize>(
     patch.render_scaled(node, scale, clip, out)
 }
 
-#[cfg(feature = "smooth-enlarged")]
 /// A leaf of a decode larger than the coded size: its edges recorded at the coded size, then
 /// the leaf drawn at its scale with what smoothing moved across the edges above and left of it
 /// ramped into its side ([`Ramp`]). Out of line: the shifts are on the stack only here.
+#[cfg(feature = "smooth-enlarged")]
 #[inline(never)]
 fn draw_enlarged<const CAPACITY: usize>(
     node: &Node,
@@ -710,13 +710,13 @@ fn draw_enlarged<const CAPACITY: usize>(
     patch.render_scaled(node, scale, clip, &mut ramp)
 }
 
-#[cfg(feature = "smooth-enlarged")]
 /// What edge smoothing moved across the edges above and left of a leaf, for each pixel of its
 /// first row (by column from the leaf's left) and first column (by row from its top): the
 /// step's whole correction, twice the move of the pixel beside the leaf (smoothing moves the two
 /// pixels of a step towards each other alike), clamped to `i8`. Made while the leaf is
 /// recorded at the coded size: the pixels beside it as the frontier holds them before, and as
 /// the recording draws them smoothed (it takes the recording's tiles).
+#[cfg(feature = "smooth-enlarged")]
 #[derive(Debug)]
 struct EdgeShifts {
     node: Node,
@@ -750,7 +750,10 @@ impl EdgeShifts {
     fn finish(&mut self) {
         for (values, drawn) in self.values.iter_mut().zip(&self.drawn) {
             for (i, v) in values.iter_mut().enumerate() {
-                if drawn[i / 32] & (1 << (i % 32)) == 0 {
+                if drawn
+                    .get(i / 32)
+                    .is_none_or(|word| word & (1 << (i % 32)) == 0)
+                {
                     *v = 0;
                 }
             }
@@ -759,15 +762,17 @@ impl EdgeShifts {
 
     /// The shift at `i` of edge `e` (0 above, 1 left).
     fn get(&self, e: usize, i: u32) -> i32 {
-        let v = self.values[e].get(i as usize).copied().unwrap_or(0);
-        i32::from(v as i8)
+        let v = self.values.get(e).and_then(|v| v.get(i as usize));
+        i32::from(v.copied().unwrap_or(0) as i8)
     }
 
     /// A smoothed pixel beside the leaf, `i` along edge `e`, drawn as `now`.
     fn smoothed(&mut self, e: usize, i: u32, now: u8) {
         let (Some(v), Some(word)) = (
-            self.values[e].get_mut(i as usize),
-            self.drawn[e].get_mut(i as usize / 32),
+            self.values.get_mut(e).and_then(|v| v.get_mut(i as usize)),
+            self.drawn
+                .get_mut(e)
+                .and_then(|d| d.get_mut(i as usize / 32)),
         ) else {
             return;
         };
@@ -777,8 +782,8 @@ impl EdgeShifts {
     }
 }
 
-#[cfg(feature = "smooth-enlarged")]
 /// The recording's tiles: the pixels drawn above and left of the leaf are the smoothed ones.
+#[cfg(feature = "smooth-enlarged")]
 impl TileOut for EdgeShifts {
     fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
         let Rect { x, y, w, h } = tile.area;
@@ -800,12 +805,12 @@ impl TileOut for EdgeShifts {
     }
 }
 
-#[cfg(feature = "smooth-enlarged")]
 /// The tiles of a leaf of an enlarged decode, with each smoothed step's whole correction
 /// ([`EdgeShifts`]) applied to the leaf's side: the leaf's first output row (column) moves by
 /// it, the rows (columns) after it by less, down to nothing one coded pixel in. The leaves
 /// before it were drawn as tabulated, so the leaf alone closes the step; its pixels one coded
 /// pixel in and beyond are untouched.
+#[cfg(feature = "smooth-enlarged")]
 struct Ramp<'a> {
     shifts: &'a EdgeShifts,
     /// The leaf's top-left output pixel.
