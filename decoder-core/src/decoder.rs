@@ -668,26 +668,11 @@ fn draw_leaf<const CAPACITY: usize>(
     };
 }
 
-/// A leaf of a decode larger than the coded size, without the `smooth-enlarged` feature: its
-/// edges recorded at the coded size, then the leaf drawn at its scale as tabulated.
-#[cfg(not(feature = "smooth-enlarged"))]
-fn draw_enlarged<const CAPACITY: usize>(
-    node: &Node,
-    step: i32,
-    patch: &Patch,
-    frontier: &mut Frontier<CAPACITY>,
-    (clip, scale): (Rect, Scale),
-    out: &mut dyn TileOut,
-) -> Result<(), Stop> {
-    frontier.record(node, step, patch, &mut Discard);
-    patch.render_scaled(node, scale, clip, out)
-}
-
 /// A leaf of a decode larger than the coded size: its edges recorded at the coded size, then
-/// the leaf drawn at its scale with what smoothing moved across the edges above and left of it
-/// ramped into its side ([`Ramp`]). Out of line: the shifts are on the stack only here.
-#[cfg(feature = "smooth-enlarged")]
-#[inline(never)]
+/// the leaf drawn at its scale, with (feature `smooth-enlarged`) what smoothing moved across
+/// the edges above and left of it ramped into its side ([`Ramp`]), else as tabulated. Out of
+/// line when smoothing: the shifts are on the stack only here.
+#[cfg_attr(feature = "smooth-enlarged", inline(never))]
 fn draw_enlarged<const CAPACITY: usize>(
     node: &Node,
     step: i32,
@@ -696,18 +681,26 @@ fn draw_enlarged<const CAPACITY: usize>(
     (clip, scale): (Rect, Scale),
     out: &mut dyn TileOut,
 ) -> Result<(), Stop> {
-    let mut shifts = EdgeShifts::before(frontier, node);
-    frontier.record(node, step, patch, &mut shifts);
-    shifts.finish();
-    let k = scale.log2().unsigned_abs();
-    let mut ramp = Ramp {
-        shifts: &shifts,
-        left: node.x << k,
-        top: node.y << k,
-        k,
-        out,
-    };
-    patch.render_scaled(node, scale, clip, &mut ramp)
+    #[cfg(feature = "smooth-enlarged")]
+    {
+        let mut shifts = EdgeShifts::before(frontier, node);
+        frontier.record(node, step, patch, &mut shifts);
+        shifts.finish();
+        let k = scale.log2().unsigned_abs();
+        let mut ramp = Ramp {
+            shifts: &shifts,
+            left: node.x << k,
+            top: node.y << k,
+            k,
+            out,
+        };
+        patch.render_scaled(node, scale, clip, &mut ramp)
+    }
+    #[cfg(not(feature = "smooth-enlarged"))]
+    {
+        frontier.record(node, step, patch, &mut Discard);
+        patch.render_scaled(node, scale, clip, out)
+    }
 }
 
 /// What edge smoothing moved across the edges above and left of a leaf, for each pixel of its
