@@ -890,9 +890,21 @@ pub struct Assembled {
     pub foreign: usize,
     /// Packets received more than once (the copies beyond the first).
     pub duplicates: usize,
+    /// What tells the image's packets from others' ([`identity`]).
+    identity: Identity,
 }
 
 impl Assembled {
+    /// Whether `packet` is one of the image's: a valid data packet of its id, size, channels
+    /// and count, or a parity packet of its id and count.
+    pub fn owns(&self, packet: &[u8]) -> bool {
+        let (image_id, .., count) = self.identity;
+        match decoder_core::ParityPacket::parse(packet) {
+            Ok(parity) => parity.image_id == image_id && parity.count == count,
+            Err(_) => Packet::parse(packet).is_ok_and(|p| identity(&p) == self.identity),
+        }
+    }
+
     /// How many more packets, any of the image's data or parity packets not held, would
     /// complete it: the data packets missing, less the parity packets held when any were sent
     /// (without parity, exactly the missing ones are needed).
@@ -1072,6 +1084,7 @@ pub fn assemble_at<'a>(
         rejected,
         foreign,
         duplicates,
+        identity: chosen,
     })
 }
 
@@ -1087,8 +1100,11 @@ fn parse_within(data: &[u8], max_pixels: u64) -> Result<Packet<'_>, DecodeError>
     Ok(p)
 }
 
-/// What tells one image's packets from another's.
-fn identity(p: &Packet<'_>) -> (u16, u16, u16, u8, u16) {
+/// What tells one image's packets from another's: its id, width, height, channels and count.
+type Identity = (u16, u16, u16, u8, u16);
+
+/// A packet's [`Identity`].
+fn identity(p: &Packet<'_>) -> Identity {
     (p.image_id, p.width, p.height, p.channels, p.count)
 }
 

@@ -504,23 +504,6 @@ fn ranges(indices: &[u16]) -> String {
     parts.join(",")
 }
 
-/// Whether `packet` is one of the assembled image's: a data packet of its id, size,
-/// channels and count, or a parity packet of its id and count.
-fn of_image(packet: &[u8], a: &Assembled) -> bool {
-    if let Ok(parity) = decoder_core::ParityPacket::parse(packet) {
-        return parity.image_id == a.image_id && parity.count == a.count;
-    }
-    Packet::parse(packet).is_ok_and(|p| {
-        (
-            p.image_id,
-            p.count,
-            u32::from(p.width),
-            u32::from(p.height),
-            p.channels,
-        ) == (a.image_id, a.count, a.width, a.height, a.channels)
-    })
-}
-
 /// `pifs info` of packets (those at `inputs`, merged): count, sizes, coverage; as one JSON
 /// object with `json`.
 pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
@@ -531,7 +514,7 @@ pub fn info(inputs: &[PathBuf], max_pixels: u64, json: bool) -> Result<()> {
         .join(", ");
     let a = &assembled;
     // The image's own packets: others (damaged, another image's) are counted apart.
-    let own: Vec<&Vec<u8>> = packets.iter().filter(|p| of_image(p, a)).collect();
+    let own: Vec<&Vec<u8>> = packets.iter().filter(|p| a.owns(p)).collect();
     let sizes: Vec<usize> = own.iter().map(|p| p.len()).collect();
     let total: usize = sizes.iter().sum();
     let previews = own
