@@ -6,8 +6,8 @@ mod common;
 
 use decoder_core::{Packet, PacketKind, ParityPacket, Rebuild, RebuildError, Rect, Scale};
 use host_encoder::packets::{
-    assemble, assemble_at, packetise, parity_for_loss, AssembleError, PacketError, PacketOptions,
-    Packetised,
+    assemble, assemble_at, overview_config, packetise, parity_for_loss, AssembleError, PacketError,
+    PacketOptions, Packetised, OVERVIEW_MIN_LEAF_LOG2,
 };
 use host_encoder::{EncoderConfig, Target};
 use proptest::prelude::*;
@@ -82,6 +82,47 @@ fn every_packet_fits_and_together_they_give_the_encoders_picture() {
         let psnr = common::psnr_u8(&all.pixels, source);
         assert!((psnr - set.psnr).abs() < 1e-9 && psnr > 25.0, "{psnr}");
     }
+}
+
+#[test]
+fn an_overview_analysis_makes_the_preview_with_its_own_leaf_sizes() {
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let source = plane.data.clone();
+    let overview = common::analyse_with(plane, &overview_config(&config()));
+    let options = PacketOptions {
+        size: SIZE,
+        image_id: Some(3),
+        ..PacketOptions::default()
+    };
+    let set = packetise(&overview, &config(), Target::Bytes(14 * SIZE), &options).unwrap();
+    assert_eq!((set.packets.len(), set.previews), (14, 1));
+    for bytes in &set.packets {
+        assert!(bytes.len() <= SIZE);
+        let p = Packet::parse(bytes).unwrap();
+        // Each packet carries its own stream's coding fields: the preview's leaves start at
+        // the overview's 8 px, the regions' at the configuration's 4 px.
+        let smallest = match p.kind {
+            PacketKind::Preview => OVERVIEW_MIN_LEAF_LOG2,
+            PacketKind::Region => config().min_leaf_log2,
+        };
+        assert_eq!(
+            p.stream_header().min_leaf_log2,
+            smallest,
+            "packet {}",
+            p.index
+        );
+    }
+    let all = assemble(set.packets.iter().map(Vec::as_slice), u64::MAX).unwrap();
+    assert_eq!(all.pixels, set.reconstruction);
+    // The regions are as good as those cut from a full analysis (the same budget and packets).
+    let (full, _, _) = sets();
+    let error = |pixels: &[u8]| common::sse(pixels, &source);
+    assert!(
+        error(&set.reconstruction) <= 1.05 * error(&full.reconstruction),
+        "{} against {}",
+        error(&set.reconstruction),
+        error(&full.reconstruction)
+    );
 }
 
 #[test]

@@ -179,9 +179,26 @@ impl From<EncodeError> for PacketError {
     }
 }
 
+/// The smallest leaf of an [`overview_config`] analysis, as a power of two: 8 pixels.
+pub const OVERVIEW_MIN_LEAF_LOG2: u8 = 3;
+
+/// The settings of the analysis of the whole image that [`packetise`] takes, for regions
+/// analysed with `config`: leaves from 8 pixels. That analysis only makes the preview (one
+/// packet for the whole image, whose leaves are large) and weighs where the regions' bits go,
+/// which it does about as well as one from 4 px leaves in a little over half the time (see
+/// docs/decisions.md).
+pub fn overview_config(config: &EncoderConfig) -> EncoderConfig {
+    EncoderConfig {
+        min_leaf_log2: config.min_leaf_log2.max(OVERVIEW_MIN_LEAF_LOG2),
+        max_leaf_log2: config.max_leaf_log2.max(OVERVIEW_MIN_LEAF_LOG2),
+        ..config.clone()
+    }
+}
+
 /// Cuts the image of `analysis` into packets of at most `options.size` bytes whose total is
-/// at most `target` (a rate or a size, whole packets counted). Regions are analysed with
-/// `config`, whose stripes, like those of `analysis`, are at most 512 pixels
+/// at most `target` (a rate or a size, whole packets counted). `analysis` makes the preview and
+/// the cut into regions ([`overview_config`] analyses it fastest); the regions are analysed
+/// with `config`, whose stripes, like those of `analysis`, are at most 512 pixels
 /// ([`crate::DEFAULT_STRIPE_TILES`], not the default whole width).
 pub fn packetise(
     analysis: &Analysis,
@@ -202,10 +219,7 @@ pub fn packetise(
         height: analysis.height() as u16,
         channels: analysis.channels(),
         region_units: None,
-        coding: [
-            analysis.max_leaf_log2() << 4 | analysis.min_leaf_log2(),
-            config.stripe,
-        ],
+        coding: coding_of(analysis, config.stripe),
         deblock: 0,
     };
     let mut packets = data_packets(analysis, config, &layout, &base)?;
@@ -506,7 +520,6 @@ fn data_packets(
     let leaves = analysis.leaf_bits(share.max(64))?;
     let mass = BitMass::of(analysis.width(), analysis.height(), &leaves);
     let areas = spread(mass.cut(layout.regions()));
-    let region_config = EncoderConfig { ..config.clone() };
     let mut packets = Vec::with_capacity(usize::from(layout.count));
     if layout.previews == 1 {
         packets.push(fill_packet(base, layout.preview_size, |capacity| {
@@ -522,7 +535,11 @@ fn data_packets(
                 region_units: Some(units_of(area)),
                 ..*base
             };
-            let region = analysis.region(*area, &region_config)?;
+            let region = analysis.region(*area, config)?;
+            let header = PacketHeader {
+                coding: coding_of(&region, config.stripe),
+                ..header
+            };
             fill_packet(&header, size, |capacity| region.encode_plain(capacity))
         })
         .collect();
@@ -530,6 +547,16 @@ fn data_packets(
         packets.push(packet?);
     }
     Ok(packets)
+}
+
+/// A packet's coding fields for a stream of `analysis` in stripes of `stripe` tiles: its leaf
+/// sizes and stripe (each packet carries its own stream's, so the preview's analysis may stop
+/// at larger leaves than the regions').
+fn coding_of(analysis: &Analysis, stripe: u8) -> [u8; 2] {
+    [
+        analysis.max_leaf_log2() << 4 | analysis.min_leaf_log2(),
+        stripe,
+    ]
 }
 
 /// An image id made from an image's data packets (written with id 0): the CRC-16 of their

@@ -462,7 +462,17 @@ pub fn analyse_loaded(
     targets: &[Target],
 ) -> Result<Analysed> {
     let (width, height) = image.size();
-    let config = image.config(&args.config(width as usize * height as usize, targets));
+    analyse_with(
+        image,
+        &args.config(width as usize * height as usize, targets),
+    )
+}
+
+/// Analyses a loaded image with `config` ([`io::Loaded::config`] of it), with a progress
+/// display on a terminal.
+pub fn analyse_with(image: &io::Loaded, config: &EncoderConfig) -> Result<Analysed> {
+    let (width, height) = image.size();
+    let config = image.config(config);
     let surface = match image {
         io::Loaded::Surface(surface) => Some(surface.clone()),
         _ => None,
@@ -833,10 +843,12 @@ fn encode_packets(args: &EncodeArgs, job: Job) -> Result<()> {
         )));
     }
     let analysis = args.analysis.for_packets();
-    let analysed = analyse_loaded(&image, &analysis, &[job.target])?;
+    let (width, height) = image.size();
+    let config = analysis.config(width as usize * height as usize, &[job.target]);
+    let overview = analyse_with(&image, &host_encoder::packets::overview_config(&config))?;
     crate::packets::encode(
-        &analysed,
-        &analysis,
+        &overview,
+        &config,
         &args.packets,
         job.target,
         args.output.as_deref(),

@@ -6,7 +6,7 @@
 //! index), or a framed file for serial links, each packet behind its length (two bytes,
 //! little-endian; `docs/bitstream.md`, section 9).
 
-use crate::encode::{Analysed, AnalysisArgs};
+use crate::encode::Analysed;
 use crate::error::{CliError, Result};
 use clap::Args;
 use decoder_core::{Packet, PacketKind, Scale};
@@ -15,7 +15,7 @@ use host_encoder::packets::{
     assemble_at, frame, packetise, parity_for_loss, unframe, AssembleError, Assembled,
     PacketOptions, Packetised, ParityChoice,
 };
-use host_encoder::Target;
+use host_encoder::{EncoderConfig, Target};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -99,19 +99,16 @@ impl PacketArgs {
     }
 }
 
-/// Encodes `analysed` for `target` as packets and writes them to `--packets DIR` or, framed,
-/// to `output`; prints a one-line summary.
+/// Encodes the image of `analysed` (its overview: [`host_encoder::packets::overview_config`])
+/// for `target` as packets whose regions are analysed with `config`, and writes them to
+/// `--packets DIR` or, framed, to `output`; prints a one-line summary.
 pub fn encode(
     analysed: &Analysed,
-    analysis_args: &AnalysisArgs,
+    config: &EncoderConfig,
     args: &PacketArgs,
     target: Target,
     output: Option<&Path>,
 ) -> Result<()> {
-    let config = analysis_args.config(
-        analysed.analysis.width() as usize * analysed.analysis.height() as usize,
-        &[target],
-    );
     let mut options = args.options();
     let started = std::time::Instant::now();
     let refused = |e: host_encoder::packets::PacketError| CliError::Refused(e.to_string());
@@ -124,7 +121,7 @@ pub fn encode(
         }
         None => None,
     };
-    let made = packetise(&analysed.analysis, &config, target, &options).map_err(refused)?;
+    let made = packetise(&analysed.analysis, config, target, &options).map_err(refused)?;
     let shown = match (&args.packets, output) {
         (Some(dir), _) => {
             let named: Vec<(String, &Vec<u8>)> = made
