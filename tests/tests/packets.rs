@@ -6,8 +6,8 @@ mod common;
 
 use decoder_core::{Packet, PacketKind, ParityPacket, Rebuild, RebuildError, Rect, Scale};
 use host_encoder::packets::{
-    assemble, assemble_at, overview_config, packetise, parity_for_loss, AssembleError, PacketError,
-    PacketOptions, Packetised, OVERVIEW_MIN_LEAF_LOG2,
+    assemble, assemble_at, overview_config, packetise, packetise_with_progress, parity_for_loss,
+    AssembleError, PacketError, PacketOptions, Packetised, OVERVIEW_MIN_LEAF_LOG2,
 };
 use host_encoder::{EncoderConfig, Target};
 use proptest::prelude::*;
@@ -123,6 +123,41 @@ fn an_overview_analysis_makes_the_preview_with_its_own_leaf_sizes() {
         error(&set.reconstruction),
         error(&full.reconstruction)
     );
+}
+
+#[test]
+fn progress_counts_every_region_and_its_pixels() {
+    let plane = common::synthetic(WIDTH, HEIGHT, 31, 6);
+    let analysis = common::analyse_with(plane, &config());
+    let options = PacketOptions {
+        size: SIZE,
+        image_id: Some(1),
+        ..PacketOptions::default()
+    };
+    let reports = std::sync::Mutex::new(Vec::new());
+    let set = packetise_with_progress(
+        &analysis,
+        &config(),
+        Target::Bytes(14 * SIZE),
+        &options,
+        &|done| reports.lock().unwrap().push(done),
+    )
+    .unwrap();
+    let mut reports = reports.into_inner().unwrap();
+    reports.sort_by_key(|r| r.done);
+    // One report before the regions and one per region, every count once; the shares grow
+    // with the counts (they are made under one lock) and end with the whole image.
+    let regions = set.packets.len() - set.previews;
+    assert!(regions > 1);
+    assert_eq!(reports.len(), regions + 1);
+    for (i, r) in reports.iter().enumerate() {
+        assert_eq!((r.done, r.regions), (i, regions));
+    }
+    assert!(reports.windows(2).all(|w| w[0].share < w[1].share));
+    assert_eq!(reports[0].share, 0.0);
+    assert!((reports[regions].share - 1.0).abs() < 1e-12);
+    // The same packets as without progress.
+    assert_eq!(set.packets, sets().0.packets);
 }
 
 #[test]

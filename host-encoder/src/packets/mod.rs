@@ -39,8 +39,7 @@ pub const DEFAULT_PACKET_SIZE: usize = 255;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PacketOptions {
     /// Largest packet, bytes ([`MIN_PACKET_SIZE`] to [`MAX_PACKET_SIZE`]): 255 for LoRa, 233
-    /// for Meshtastic (LoRaWAN at SF12 carries 51, below the smallest: a packet's 19 bytes of
-    /// header and checksum would leave too little for a picture).
+    /// for Meshtastic, 51 for LoRaWAN at SF12.
     pub size: usize,
     /// The image's number, which every packet carries (receivers tell images apart by it);
     /// `None` for one made from the packets' content ([`content_id`]), so that images sent one
@@ -195,6 +194,18 @@ pub fn overview_config(config: &EncoderConfig) -> EncoderConfig {
     }
 }
 
+/// How far [`packetise_with_progress`] is: the region packets made so far.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegionsDone {
+    /// Region packets made so far.
+    pub done: usize,
+    /// Region packets in all.
+    pub regions: usize,
+    /// The share of the image's pixels in the regions made so far (each region's analysis
+    /// takes time about in proportion to its pixels).
+    pub share: f64,
+}
+
 /// Cuts the image of `analysis` into packets of at most `options.size` bytes whose total is
 /// at most `target` (a rate or a size, whole packets counted). `analysis` makes the preview and
 /// the cut into regions ([`overview_config`] analyses it fastest); the regions are analysed
@@ -205,6 +216,18 @@ pub fn packetise(
     config: &EncoderConfig,
     target: Target,
     options: &PacketOptions,
+) -> Result<Packetised, PacketError> {
+    packetise_with_progress(analysis, config, target, options, &|_| {})
+}
+
+/// [`packetise`], calling `progress` before the region packets are made and each time one is
+/// (from any thread, in no particular order): the regions' analyses are most of its time.
+pub fn packetise_with_progress(
+    analysis: &Analysis,
+    config: &EncoderConfig,
+    target: Target,
+    options: &PacketOptions,
+    progress: &(dyn Fn(RegionsDone) + Sync),
 ) -> Result<Packetised, PacketError> {
     if config.stripe == crate::WHOLE_WIDTH || config.stripe > crate::DEFAULT_STRIPE_TILES {
         return Err(PacketError::StripeTooWide);
@@ -222,7 +245,7 @@ pub fn packetise(
         coding: coding_of(analysis, config.stripe),
         deblock: 0,
     };
-    let mut packets = data_packets(analysis, config, &layout, &base)?;
+    let mut packets = data_packets(analysis, config, &layout, &base, progress)?;
     let image_id = options.image_id.unwrap_or_else(|| content_id(&packets));
     for packet in &mut packets {
         set_image_id(packet, image_id);
@@ -511,6 +534,7 @@ fn data_packets(
     config: &EncoderConfig,
     layout: &Layout,
     base: &PacketHeader,
+    progress: &(dyn Fn(RegionsDone) + Sync),
 ) -> Result<Vec<Vec<u8>>, PacketError> {
     let size = layout.data_size;
     let mut head = [0u8; MAX_PACKET_HEADER_LEN];
@@ -520,6 +544,15 @@ fn data_packets(
     let leaves = analysis.leaf_bits(share.max(64))?;
     let mass = BitMass::of(analysis.width(), analysis.height(), &leaves);
     let areas = spread(mass.cut(layout.regions()));
+    let made = Made::new(
+        areas.len(),
+        analysis.width() as usize * analysis.height() as usize,
+    );
+    progress(RegionsDone {
+        done: 0,
+        regions: areas.len(),
+        share: 0.0,
+    });
     let mut packets = Vec::with_capacity(usize::from(layout.count));
     if layout.previews == 1 {
         packets.push(fill_packet(base, layout.preview_size, |capacity| {
@@ -540,13 +573,47 @@ fn data_packets(
                 coding: coding_of(&region, config.stripe),
                 ..header
             };
-            fill_packet(&header, size, |capacity| region.encode_plain(capacity))
+            let packet = fill_packet(&header, size, |capacity| region.encode_plain(capacity));
+            progress(made.add(area.w as usize * area.h as usize));
+            packet
         })
         .collect();
     for packet in regions {
         packets.push(packet?);
     }
     Ok(packets)
+}
+
+/// The region packets made so far and their pixels, counted from any thread.
+struct Made {
+    regions: usize,
+    pixels: usize,
+    counts: std::sync::Mutex<(usize, usize)>,
+}
+
+impl Made {
+    fn new(regions: usize, pixels: usize) -> Made {
+        Made {
+            regions,
+            pixels,
+            counts: std::sync::Mutex::new((0, 0)),
+        }
+    }
+
+    /// Counts one more region of `pixels` pixels made; what is done now.
+    fn add(&self, pixels: usize) -> RegionsDone {
+        let mut counts = match self.counts.lock() {
+            Ok(c) => c,
+            Err(poisoned) => poisoned.into_inner(),
+        };
+        counts.0 += 1;
+        counts.1 += pixels;
+        RegionsDone {
+            done: counts.0,
+            regions: self.regions,
+            share: counts.1 as f64 / self.pixels.max(1) as f64,
+        }
+    }
 }
 
 /// A packet's coding fields for a stream of `analysis` in stripes of `stripe` tiles: its leaf
@@ -1009,7 +1076,7 @@ pub fn assemble_at<'a>(
         }
     }
     // The image most packets agree on: its id and geometry.
-    let mut votes: BTreeMap<(u16, u16, u16, u8, u16), usize> = BTreeMap::new();
+    let mut votes: BTreeMap<Identity, usize> = BTreeMap::new();
     for (p, _) in &valid {
         *votes.entry(identity(p)).or_default() += 1;
     }

@@ -8,12 +8,13 @@
 
 use crate::encode::Analysed;
 use crate::error::{CliError, Result};
+use crate::progress::RegionsProgress;
 use clap::Args;
 use decoder_core::{Packet, PacketKind, Scale};
 use host_encoder::io::{self, Content, Output, OutputFormat};
 use host_encoder::packets::{
-    assemble_at, frame, packetise, parity_for_loss, unframe, AssembleError, Assembled,
-    PacketOptions, Packetised, ParityChoice,
+    assemble_at, frame, packetise_with_progress, parity_for_loss, unframe, AssembleError,
+    Assembled, PacketOptions, Packetised, ParityChoice,
 };
 use host_encoder::{EncoderConfig, Target};
 use std::io::Write;
@@ -121,7 +122,16 @@ pub fn encode(
         }
         None => None,
     };
-    let made = packetise(&analysed.analysis, config, target, &options).map_err(refused)?;
+    let progress = RegionsProgress::on_terminal();
+    let made = packetise_with_progress(&analysed.analysis, config, target, &options, &|done| {
+        if let Some(p) = &progress {
+            p.made(done);
+        }
+    });
+    if let Some(p) = &progress {
+        p.finish();
+    }
+    let made = made.map_err(refused)?;
     let shown = match (&args.packets, output) {
         (Some(dir), _) => {
             let named: Vec<(String, &Vec<u8>)> = made

@@ -4,6 +4,7 @@
 //! the analysis reports them), then a spinner again for the closing steps (the trial encode and
 //! the pruning), which report no progress and so get no estimate.
 
+use host_encoder::packets::RegionsDone;
 use host_encoder::{AnalysisStage, AnalysisSteps};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -200,6 +201,67 @@ impl Progress {
                     self.bar
                         .set_message(format!(", about {} left", duration_text(left)));
                 }
+            }
+        }
+    }
+
+    /// Removes the display.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// The progress display of the region packets' encoding (drawn on stderr, and only on a
+/// terminal): the regions made, and the time left from the share of the pixels done.
+#[derive(Debug)]
+pub struct RegionsProgress {
+    bar: ProgressBar,
+    start: Instant,
+    /// The largest share reported so far (reports may come out of order); `None` before the
+    /// first.
+    furthest: Mutex<Option<f64>>,
+}
+
+impl RegionsProgress {
+    /// A display, or `None` when stderr is not a terminal or displays are hidden.
+    pub fn on_terminal() -> Option<RegionsProgress> {
+        use std::io::IsTerminal;
+        if !std::io::stderr().is_terminal() || HIDDEN.load(Ordering::Relaxed) {
+            return None;
+        }
+        let bar = ProgressBar::new(1);
+        bar.set_style(style(
+            "{spinner} packets: cutting the image into regions, {elapsed}",
+        ));
+        bar.enable_steady_tick(Duration::from_millis(120));
+        Some(RegionsProgress {
+            bar,
+            start: Instant::now(),
+            furthest: Mutex::new(None),
+        })
+    }
+
+    /// Called with each region made (from any thread, not necessarily in order).
+    pub fn made(&self, done: RegionsDone) {
+        let mut furthest = match self.furthest.lock() {
+            Ok(f) => f,
+            Err(poisoned) => poisoned.into_inner(),
+        };
+        match *furthest {
+            Some(share) if done.share < share => return,
+            Some(_) => {}
+            None => self.bar.set_style(style(
+                "packets {bar:40} {pos}/{len} regions, {elapsed} so far{msg}",
+            )),
+        }
+        *furthest = Some(done.share);
+        self.bar.set_length(done.regions as u64);
+        self.bar.set_position(done.done as u64);
+        let elapsed = self.start.elapsed();
+        if estimate_is_meaningful(done.share, elapsed) {
+            if let Some(left) = time_left(done.share, elapsed) {
+                self.bar
+                    .set_message(format!(", about {} left", duration_text(left)));
             }
         }
     }
