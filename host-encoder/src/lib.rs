@@ -63,6 +63,6 @@ pub use encoder::{
     analyse, analyse_colour, analyse_colour_in_parts, analyse_in_parts, analysis_steps, psnr,
     Analysis, AnalysisInParts, AnalysisStage, AnalysisSteps, AnalysisTiming, ColourPlanes,
     EncodeError, Encoded, EncoderConfig, Plane, Target, Tune, BOUND_PENALTY, CHROMA_WEIGHTS,
-    DEFAULT_STRIPE_TILES, DEFAULT_TRIAL_BPP, FINE_STEPS_BELOW_BPP, FINE_STEP_MARGIN, MIN_TRIAL_BPP,
-    PART_PIXELS, WHOLE_WIDTH,
+    DEFAULT_STRIPE_TILES, DEFAULT_TRIAL_BPP, FINE_STEPS_BELOW_BPP, FINE_STEP_MARGIN, LOW_RATE_BPP,
+    LOW_RATE_MIN_LEAF_LOG2, MIN_TRIAL_BPP, PART_PIXELS, WHOLE_WIDTH,
 };

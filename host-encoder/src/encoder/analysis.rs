@@ -1158,7 +1158,9 @@ fn fine_sse(plane: &Plane, node: &Node, patch: &Patch) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::config::{Target, Tune, FINE_STEP_MARGIN};
+    use super::super::config::{
+        Target, Tune, FINE_STEP_MARGIN, LOW_RATE_BPP, LOW_RATE_MIN_LEAF_LOG2,
+    };
     use super::super::ids::leaf_syntax;
     use super::super::quantise::ROUNDING_VARIANTS;
     use super::*;
@@ -1483,6 +1485,24 @@ mod tests {
         assert_eq!(of(&[Target::Bpp(8.0)]), None);
         assert_eq!(of(&[]), None);
         assert_eq!(EncoderConfig::default().fine_steps, None);
+    }
+
+    /// Leaves start at 8 px only when every target is a rate of at most 0.1 bpp: a target
+    /// above it, or one whose rate is not known (a quality), keeps 4 px leaves.
+    #[test]
+    fn low_rates_only_analyse_from_8_px_leaves() {
+        let of = |targets: &[Target]| EncoderConfig::for_targets(targets, 1000).min_leaf_log2;
+        let (low, usual) = (
+            LOW_RATE_MIN_LEAF_LOG2,
+            EncoderConfig::default().min_leaf_log2,
+        );
+        assert_eq!((low, usual), (3, 2));
+        assert_eq!(of(&[Target::Bpp(0.05), Target::Bytes(12)]), low);
+        assert_eq!(of(&[Target::Bpp(LOW_RATE_BPP)]), low);
+        assert_eq!(of(&[Target::Bytes(13)]), usual);
+        assert_eq!(of(&[Target::Bpp(0.05), Target::Bpp(0.25)]), usual);
+        assert_eq!(of(&[Target::Bpp(0.05), Target::Psnr(30.0)]), usual);
+        assert_eq!(of(&[]), usual);
     }
 
     /// Searching the fine steps only where they pay near the trial's multiplier keeps the

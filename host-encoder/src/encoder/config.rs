@@ -78,17 +78,24 @@ pub const WHOLE_WIDTH: u8 = 0;
 
 impl EncoderConfig {
     /// The default settings for an analysis that serves `targets` on an image of `pixels`
-    /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`], and fine steps
+    /// pixels, as `pifs` chooses them: the trial rate of [`Target::trial_bpp`], fine steps
     /// searched near it ([`FINE_STEP_MARGIN`]) when every target is a rate below
-    /// [`FINE_STEPS_BELOW_BPP`] (a quality target's rate is not known before the analysis).
+    /// [`FINE_STEPS_BELOW_BPP`] (a quality target's rate is not known before the analysis), and
+    /// leaves from [`LOW_RATE_MIN_LEAF_LOG2`] when every target is a rate of at most
+    /// [`LOW_RATE_BPP`].
     pub fn for_targets(targets: &[Target], pixels: usize) -> EncoderConfig {
+        let all_rates = |below: &dyn Fn(f64) -> bool| {
+            !targets.is_empty() && (targets.iter()).all(|t| t.bpp(pixels).is_some_and(below))
+        };
+        let defaults = EncoderConfig::default();
         EncoderConfig {
             trial_bpp: Target::trial_bpp(targets, pixels),
-            fine_steps: (!targets.is_empty()
-                && (targets.iter())
-                    .all(|t| t.bpp(pixels).is_some_and(|b| b < FINE_STEPS_BELOW_BPP)))
-            .then_some(FINE_STEP_MARGIN),
-            ..EncoderConfig::default()
+            fine_steps: all_rates(&|b| b < FINE_STEPS_BELOW_BPP).then_some(FINE_STEP_MARGIN),
+            min_leaf_log2: match all_rates(&|b| b <= LOW_RATE_BPP) {
+                true => LOW_RATE_MIN_LEAF_LOG2,
+                false => defaults.min_leaf_log2,
+            },
+            ..defaults
         }
     }
 
@@ -132,6 +139,15 @@ pub const FINE_STEP_MARGIN: f64 = 16.0;
 /// (the unlimited budget of the highest quality) searches every step, where the finest (lossless
 /// on pixel grids) pay.
 pub const FINE_STEPS_BELOW_BPP: f64 = 8.0;
+
+/// Rate targets of at most this many bits per pixel are analysed from leaves of
+/// [`LOW_RATE_MIN_LEAF_LOG2`]: 4 px leaves are nearly never worth their bits there, and the
+/// analysis without them takes a little over half the time (see docs/decisions.md).
+pub const LOW_RATE_BPP: f64 = 0.1;
+
+/// The smallest leaf of [`EncoderConfig::for_targets`] for rates up to [`LOW_RATE_BPP`], as a
+/// power of two: 8 px.
+pub const LOW_RATE_MIN_LEAF_LOG2: u8 = 3;
 
 /// The trial rate of an analysis for targets that name no rate (a quality target), and
 /// [`EncoderConfig::default`]'s.

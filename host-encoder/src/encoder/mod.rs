@@ -36,7 +36,8 @@ pub use analysis::{analysis_steps, Analysis, AnalysisStage, AnalysisSteps, Analy
 pub use chroma::{ColourPlanes, CHROMA_WEIGHTS};
 pub use config::{
     EncoderConfig, Target, Tune, BOUND_PENALTY, DEFAULT_STRIPE_TILES, DEFAULT_TRIAL_BPP,
-    FINE_STEPS_BELOW_BPP, FINE_STEP_MARGIN, MIN_TRIAL_BPP, WHOLE_WIDTH,
+    FINE_STEPS_BELOW_BPP, FINE_STEP_MARGIN, LOW_RATE_BPP, LOW_RATE_MIN_LEAF_LOG2, MIN_TRIAL_BPP,
+    WHOLE_WIDTH,
 };
 pub use error::EncodeError;
 pub use parts::{analyse_colour_in_parts, analyse_in_parts, AnalysisInParts, PART_PIXELS};

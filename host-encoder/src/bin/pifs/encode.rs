@@ -176,8 +176,13 @@ pub fn check_image(
         height: u64::from(fh),
         decoded_bytes: probe.decoded_bytes,
     };
-    let per_pixel = memory::per_pixel(size, channels, analysis.min_leaf_log2);
-    let need = memory::encode_bytes(size, channels, analysis.min_leaf_log2);
+    // Priced with the default smallest leaf when none is given: at low rates the analysis
+    // stops at larger leaves and needs less.
+    let min_leaf_log2 = analysis
+        .min_leaf_log2
+        .unwrap_or(EncoderConfig::default().min_leaf_log2);
+    let per_pixel = memory::per_pixel(size, channels, min_leaf_log2);
+    let need = memory::encode_bytes(size, channels, min_leaf_log2);
     if pixels > limits.max_pixels() {
         return Err(CliError::Refused(format!(
             "{}: {w}x{h} is {:.1} megapixels, more than --max-pixels {} allows (encoding it needs about {}, {per_pixel} bytes per pixel)",
@@ -192,7 +197,7 @@ pub fn check_image(
         if need > budget {
             // Analysed part by part, an image needs memory for one part only.
             let stripe = u64::from(analysis.stripe_width.unwrap_or(0)) * 128;
-            match memory::parts_within(size, channels, analysis.min_leaf_log2, stripe, budget) {
+            match memory::parts_within(size, channels, min_leaf_log2, stripe, budget) {
                 Ok((part_pixels, parts_need)) => {
                     say!(
                         "{}: encoding {fw}x{fh} whole needs about {}, more than {} allowed by {source}: analysing it in parts (about {}, twice the time)",
@@ -296,12 +301,13 @@ impl Checked {
 /// The analysis settings of `encode` and `rd`.
 #[derive(Args, Debug, Clone)]
 pub struct AnalysisArgs {
-    /// Smallest leaf side as a power of two.
+    /// Smallest leaf side as a power of two [default: 2, or 3 at rates of at most 0.1 bpp].
     ///
     /// Leaves of 2 px make encoding much longer for little gain: 4 px leaves already code each
-    /// pixel with a pixel grid.
-    #[arg(long, default_value_t = EncoderConfig::default().min_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
-    pub min_leaf_log2: u8,
+    /// pixel with a pixel grid. At 0.1 bpp and below, 4 px leaves are nearly never worth their
+    /// bits, and leaving them out takes a little over half the time.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=7))]
+    pub min_leaf_log2: Option<u8>,
     /// Largest leaf side as a power of two.
     #[arg(long, default_value_t = EncoderConfig::default().max_leaf_log2, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub max_leaf_log2: u8,
@@ -391,7 +397,7 @@ impl Default for AnalysisArgs {
     fn default() -> Self {
         let d = EncoderConfig::default();
         AnalysisArgs {
-            min_leaf_log2: d.min_leaf_log2,
+            min_leaf_log2: None,
             max_leaf_log2: d.max_leaf_log2,
             stripe_width: None,
             deblock: Deblock(d.deblock),
@@ -418,9 +424,10 @@ impl AnalysisArgs {
     /// The analysis's settings for `targets` on an image of `pixels` pixels.
     pub fn config(&self, pixels: usize, targets: &[Target]) -> EncoderConfig {
         let chosen = EncoderConfig::for_targets(targets, pixels);
+        let min_leaf_log2 = self.min_leaf_log2.unwrap_or(chosen.min_leaf_log2);
         EncoderConfig {
-            min_leaf_log2: self.min_leaf_log2,
-            max_leaf_log2: self.max_leaf_log2.max(self.min_leaf_log2),
+            min_leaf_log2,
+            max_leaf_log2: self.max_leaf_log2.max(min_leaf_log2),
             stripe: self.stripe_width.unwrap_or(chosen.stripe),
             deblock: self.deblock.0,
             tune: self.tune,
