@@ -12,6 +12,8 @@ use std::fmt;
 #[derive(Debug, Clone, PartialEq)]
 pub struct EncoderConfig {
     /// Smallest leaf side, as a power of two (1 to 7; other values are taken as the nearest).
+    /// Default 2 (4 px); [`EncoderConfig::for_targets`] chooses 3 for rates up to
+    /// [`LOW_RATE_BPP`].
     pub min_leaf_log2: u8,
     /// Largest leaf side, as a power of two (at most 7, the format's largest; a larger value is
     /// taken as 7, a smaller one than the smallest leaf as that). Default 7 (128 px): larger
