@@ -7,7 +7,7 @@ mod common;
 use decoder_core::{Packet, PacketKind, ParityPacket, Rebuild, RebuildError, Rect, Scale};
 use host_encoder::packets::{
     assemble, assemble_at, overview_config, packetise, packetise_with_progress, parity_for_loss,
-    AssembleError, PacketError, PacketOptions, Packetised, OVERVIEW_MIN_LEAF_LOG2,
+    AssembleError, PacketError, PacketOptions, Packetised,
 };
 use host_encoder::{EncoderConfig, Target};
 use proptest::prelude::*;
@@ -102,7 +102,7 @@ fn an_overview_analysis_makes_the_preview_with_its_own_leaf_sizes() {
         // Each packet carries its own stream's coding fields: the preview's leaves start at
         // the overview's 8 px, the regions' at the configuration's 4 px.
         let smallest = match p.kind {
-            PacketKind::Preview => OVERVIEW_MIN_LEAF_LOG2,
+            PacketKind::Preview => host_encoder::LOW_RATE_MIN_LEAF_LOG2,
             PacketKind::Region => config().min_leaf_log2,
         };
         assert_eq!(

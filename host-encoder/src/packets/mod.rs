@@ -178,18 +178,16 @@ impl From<EncodeError> for PacketError {
     }
 }
 
-/// The smallest leaf of an [`overview_config`] analysis, as a power of two: 8 pixels.
-pub const OVERVIEW_MIN_LEAF_LOG2: u8 = 3;
-
 /// The settings of the analysis of the whole image that [`packetise`] takes, for regions
-/// analysed with `config`: leaves from 8 pixels. That analysis only makes the preview (one
-/// packet for the whole image, whose leaves are large) and weighs where the regions' bits go,
-/// which it does about as well as one from 4 px leaves in a little over half the time (see
-/// docs/decisions.md).
+/// analysed with `config`: leaves from a low rate's 8 pixels ([`crate::LOW_RATE_MIN_LEAF_LOG2`]).
+/// That analysis only makes the preview (one packet for the whole image, a low-rate stream)
+/// and weighs where the regions' bits go, which it does about as well as one from 4 px leaves
+/// in a little over half the time (see docs/decisions.md).
 pub fn overview_config(config: &EncoderConfig) -> EncoderConfig {
+    let smallest = crate::LOW_RATE_MIN_LEAF_LOG2;
     EncoderConfig {
-        min_leaf_log2: config.min_leaf_log2.max(OVERVIEW_MIN_LEAF_LOG2),
-        max_leaf_log2: config.max_leaf_log2.max(OVERVIEW_MIN_LEAF_LOG2),
+        min_leaf_log2: config.min_leaf_log2.max(smallest),
+        max_leaf_log2: config.max_leaf_log2.max(smallest),
         ..config.clone()
     }
 }
