@@ -637,7 +637,13 @@ fn draw_leaf<const CAPACITY: usize>(
             frontier.record(node, step, patch, &mut clipped);
             Ok(())
         } else {
-            patch.render_to(node, area, &mut frontier.capture(node, step, &mut clipped))
+            // Nothing to cut when all it draws is inside the clip: the tiles go straight on.
+            let out: &mut dyn TileOut = if inside(reach(node, image), clip) {
+                clipped.out
+            } else {
+                &mut clipped
+            };
+            patch.render_to(node, area, &mut frontier.capture(node, step, out))
         }
     } else if k < 0 {
         let shift = k.unsigned_abs();
@@ -666,6 +672,25 @@ fn draw_leaf<const CAPACITY: usize>(
     } else {
         draw_enlarged(node, step, patch, frontier, (clip, scale), out)
     };
+}
+
+/// Where the pixels a leaf draws at the coded size can lie: its own, and the row above and the
+/// column left of it that wait for it (see [`crate::prediction::Capture`]), inside `image`.
+fn reach(node: &Node, image: Rect) -> Rect {
+    let (x, y) = (node.x.saturating_sub(1), node.y.saturating_sub(1));
+    let end = |start: u32| start.saturating_add(node.size());
+    Rect {
+        x,
+        y,
+        w: end(node.x) - x,
+        h: end(node.y) - y,
+    }
+    .intersect(&image)
+}
+
+/// Whether `area` lies inside `clip`.
+fn inside(area: Rect, clip: Rect) -> bool {
+    area.intersect(&clip) == area
 }
 
 /// A leaf of a decode larger than the coded size: its edges recorded at the coded size, then

@@ -44,23 +44,40 @@ pub trait SamplePrediction {
     /// top-left pixel (a DPCM leaf's first value); with the leaf's side, a prediction of the
     /// block's mean (what a grid transform's low band is, rather than its corner).
     fn predict(&self, x: u32, y: u32, width: u32) -> (i32, bool) {
-        let (mut sum, mut count, mut sides) = (0u32, 0u32, 0);
-        for row in [true, false] {
-            let before = count;
-            for k in 0..width {
-                let (px, py) = if row { (x + k, y) } else { (x, y + k) };
-                if let Some(v) = self.beside(row, px, py) {
-                    // Pixels are non-negative sample values.
-                    sum += v as u32;
-                    count += 1;
-                }
+        predict_by_pixels(self, x, y, width)
+    }
+}
+
+/// [`SamplePrediction::predict`] pixel by pixel, through [`SamplePrediction::beside`].
+fn predict_by_pixels<P: SamplePrediction + ?Sized>(
+    prediction: &P,
+    x: u32,
+    y: u32,
+    width: u32,
+) -> (i32, bool) {
+    let (mut sum, mut count, mut sides) = (0u32, 0u32, 0);
+    for row in [true, false] {
+        let before = count;
+        for k in 0..width {
+            let (px, py) = if row { (x + k, y) } else { (x, y + k) };
+            if let Some(v) = prediction.beside(row, px, py) {
+                // Pixels are non-negative sample values.
+                sum += v as u32;
+                count += 1;
             }
-            sides += u32::from(count > before);
         }
-        match count {
-            0 => (128 * SAMPLE_ONE, false),
-            _ => (crate::format::div_floor(sum, count) as i32, sides == 2),
-        }
+        sides += u32::from(count > before);
+    }
+    mean_prediction(sum, count, sides == 2)
+}
+
+/// The prediction of [`SamplePrediction::predict`] from the `count` known pixels beside a leaf
+/// summing to `sum` (sample units), `both` when both edges had one.
+#[inline]
+fn mean_prediction(sum: u32, count: u32, both: bool) -> (i32, bool) {
+    match count {
+        0 => (128 * SAMPLE_ONE, false),
+        _ => (crate::format::div_floor(sum, count) as i32, both),
     }
 }
 
@@ -599,17 +616,16 @@ impl TileOut for Capture<'_> {
         if keep_w < wu {
             // Row `j` moves `j` places left (`keep_w = wu - 1`), never onto a later row's
             // unread pixels: over the span from its new start to its old end, each byte put
-            // `j` places back (a `copy_within` would bring in a general memmove, over a
-            // kilobyte of flash).
+            // `j` places back, first to last (a `copy_within` would bring in a general
+            // memmove, over a kilobyte of flash).
             for j in 1..keep_h {
                 let Some(span) = buf.get_mut(j * keep_w..j * wu + keep_w) else {
                     break;
                 };
-                for k in j..span.len() {
-                    let q = span[k];
-                    if let Some(to) = span.get_mut(k - j) {
-                        *to = q;
-                    }
+                // Cells: the span read and written through one shared view, without checks.
+                let cells = core::cell::Cell::from_mut(span).as_slice_of_cells();
+                for (to, from) in cells.iter().zip(cells.get(j..).unwrap_or_default()) {
+                    to.set(from.get());
                 }
             }
         }
@@ -641,6 +657,36 @@ impl<const STRIPE: usize> SamplePrediction for Frontier<STRIPE> {
             self.rows.get((y % CODING_TILE) as usize)
         };
         slot.map(|&p| i32::from(p) * SAMPLE_ONE)
+    }
+
+    /// The mean pixel by pixel, summed over runs of slots: a leaf lies inside one coding tile,
+    /// so the pixels above it are consecutive columns of one stripe and those left of it
+    /// consecutive rows of one band (runs end at the tile's edge, which no leaf crosses).
+    fn predict(&self, x: u32, y: u32, width: u32) -> (i32, bool) {
+        // Known pixels above: in columns inside the image, unless on its top row; left: in
+        // rows inside the image, unless on a stripe's left edge.
+        let run = |start: u32, end: u32| {
+            let in_tile = CODING_TILE - start % CODING_TILE;
+            width.min(end.saturating_sub(start)).min(in_tile) as usize
+        };
+        let column = self.stripe.column(x) as usize;
+        let above = if y > 0 && y < self.height {
+            run(x, self.width)
+        } else {
+            0
+        };
+        let left = if column != 0 && x < self.width {
+            run(y, self.height)
+        } else {
+            0
+        };
+        let row = (y % CODING_TILE) as usize;
+        let above = self.columns.get(column..column + above).unwrap_or_default();
+        let left = self.rows.get(row..row + left).unwrap_or_default();
+        let sum = |run: &[u8]| run.iter().map(|&p| u32::from(p)).sum::<u32>();
+        let total = (sum(above) + sum(left)) * SAMPLE_ONE as u32;
+        let count = (above.len() + left.len()) as u32;
+        mean_prediction(total, count, !above.is_empty() && !left.is_empty())
     }
 }
 
@@ -723,6 +769,40 @@ mod tests {
             Frontier::<128>::EMPTY.predict(0, 0, 1),
             (128 * SAMPLE_ONE, false)
         );
+    }
+
+    /// The frontier's mean over runs of slots is the mean pixel by pixel, for every position
+    /// and width inside a coding tile (as every leaf is), at the image's and the stripes' edges
+    /// and past them.
+    #[test]
+    fn run_means_are_the_pixel_means() {
+        for (width, height, stripe) in [(300, 200, 128), (256, 130, 256), (77, 45, 128)] {
+            let mut frontier = Frontier::<256>::EMPTY;
+            assert!(frontier.start(width, height, stripe, 0));
+            // Slots of every value, none equal to its neighbour's.
+            for (i, slot) in frontier.columns.iter_mut().enumerate() {
+                *slot = (i * 37 % 251) as u8;
+            }
+            for (i, slot) in frontier.rows.iter_mut().enumerate() {
+                *slot = (i * 91 % 253) as u8;
+            }
+            // Leaf corners (multiples of 4) and other positions.
+            let some = |v: &u32| v.is_multiple_of(4) || v % 7 == 3;
+            for y in (0..height + 2).filter(some) {
+                for x in (0..width + 2).filter(some) {
+                    for w in [0, 1, 2, 4, 8, 16, 32, 64, 128] {
+                        if x % CODING_TILE + w > CODING_TILE || y % CODING_TILE + w > CODING_TILE {
+                            continue;
+                        }
+                        assert_eq!(
+                            frontier.predict(x, y, w),
+                            predict_by_pixels(&frontier, x, y, w),
+                            "{width}x{height} in stripes of {stripe}: ({x}, {y}), width {w}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
