@@ -678,7 +678,8 @@ fn draw_leaf<const CAPACITY: usize>(
 /// column left of it that wait for it (see [`crate::prediction::Capture`]), inside `image`.
 fn reach(node: &Node, image: Rect) -> Rect {
     let (x, y) = (node.x.saturating_sub(1), node.y.saturating_sub(1));
-    let end = |start: u32| start.saturating_add(node.size());
+    // No overflow: a node lies within a coding tile of an image of at most 65535 pixels a side.
+    let end = |start: u32| start + node.size();
     Rect {
         x,
         y,
