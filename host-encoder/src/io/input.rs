@@ -1,11 +1,11 @@
-//! Images in: any format the `image` crate reads here (PNG, JPEG, PNM, BMP, TIFF), from a file
-//! or standard input, read within limits and converted to 8-bit luma.
+//! Images in: any format the `image` crate reads here (PNG, JPEG, PNM, BMP, TIFF, WebP, GIF),
+//! from a file or standard input, read within limits and converted to 8-bit luma.
 //!
 //! An image is looked at twice: first its header alone ([`ImageProbe::read`]: format,
 //! dimensions, EXIF orientation, pages), so that a caller can refuse it before a pixel is
 //! decoded; then its pixels ([`DecodedImage::decode`]), with the `image` crate's allocation
 //! limit set, its orientation applied (a phone photo arrives the way it was shown) and, for a
-//! TIFF of several pages, the first page taken.
+//! TIFF of several pages or an animated GIF, the first page or frame taken.
 
 use super::{input_name, is_std_stream, FileError};
 use crate::encoder::{analyse, analyse_colour, Analysis, EncodeError, EncoderConfig, Plane};
@@ -134,7 +134,7 @@ pub struct ImageProbe {
     pub colour: bool,
     /// The orientation the file asks for (applied by [`DecodedImage::decode`]).
     pub orientation: Orientation,
-    /// Pages (TIFF images in one file; 1 for every other format).
+    /// Pages: a TIFF's images, an animated GIF's frames (1 for every other format).
     pub pages: usize,
 }
 
@@ -165,10 +165,10 @@ impl ImageProbe {
             decoded_bytes: decoder.total_bytes(),
             colour: decoder.color_type().has_color(),
             orientation,
-            pages: if format == ImageFormat::Tiff {
-                tiff_pages(bytes)
-            } else {
-                1
+            pages: match format {
+                ImageFormat::Tiff => tiff_pages(bytes),
+                ImageFormat::Gif => gif_frames(bytes),
+                _ => 1,
             },
         })
     }
@@ -203,6 +203,21 @@ fn tiff_pages(bytes: &[u8]) -> usize {
     pages
 }
 
+/// The number of frames of a GIF file (at least 1; counting stops at 65536). The frames'
+/// pixels are not decompressed.
+fn gif_frames(bytes: &[u8]) -> usize {
+    let mut options = gif::DecodeOptions::new();
+    options.skip_frame_decoding(true);
+    let Ok(mut decoder) = options.read_info(Cursor::new(bytes)) else {
+        return 1;
+    };
+    let mut frames = 0;
+    while frames < 1 << 16 && matches!(decoder.read_next_frame(), Ok(Some(_))) {
+        frames += 1;
+    }
+    frames.max(1)
+}
+
 /// A decoded image as 8-bit luma (and RGB when it has colour), and what was done to get it.
 #[derive(Debug, Clone)]
 pub struct DecodedImage {
@@ -213,7 +228,9 @@ pub struct DecodedImage {
     pub rgb: Option<Vec<u8>>,
     /// The orientation that was applied.
     pub orientation: Orientation,
-    /// The file's pages: only the first was decoded.
+    /// The format the file was in.
+    pub format: ImageFormat,
+    /// The file's pages (a TIFF's) or frames (a GIF's): only the first was decoded.
     pub pages: usize,
     /// A 16-bit grayscale image's samples (a heightmap, often), which [`to_luma`] maps to 8
     /// bits from the type's full range: what a 16-bit stream codes.
@@ -398,6 +415,7 @@ impl DecodedImage {
             plane: to_luma(&img),
             rgb,
             orientation: probe.orientation,
+            format: probe.format,
             pages: probe.pages,
             surface: Surface::of_gray16(&img),
         })
@@ -631,10 +649,30 @@ mod tests {
         out
     }
 
+    /// WebP (lossless here) and GIF files read as their pixels, as PNG does; a GIF's first
+    /// frame.
+    #[test]
+    fn webp_and_gif_inputs_are_read() {
+        let gray = image::GrayImage::from_fn(9, 7, |x, y| image::Luma([(x * 25 + y * 3) as u8]));
+        let rgb = DynamicImage::ImageLuma8(gray.clone()).to_rgb8();
+        for (format, name) in [(ImageFormat::WebP, "a.webp"), (ImageFormat::Gif, "a.gif")] {
+            let mut bytes = Vec::new();
+            DynamicImage::ImageRgb8(rgb.clone())
+                .write_to(&mut Cursor::new(&mut bytes), format)
+                .unwrap();
+            // Named as another format: the contents decide.
+            for path in [name, "misnamed.png"] {
+                let plane = decode_luma(&bytes, Path::new(path)).unwrap();
+                assert_eq!((plane.width, plane.height), (9, 7), "{path}");
+                assert_eq!(plane.data, gray.as_raw().as_slice(), "{path}");
+            }
+        }
+    }
+
     #[test]
     fn image_extensions_are_recognised() {
         for p in [
-            "a.png", "a.JPG", "a.jpeg", "a.tif", "a.bmp", "a.pgm", "a.webp",
+            "a.png", "a.JPG", "a.jpeg", "a.tif", "a.bmp", "a.pgm", "a.webp", "a.gif",
         ] {
             assert!(has_image_extension(Path::new(p)), "{p}");
         }

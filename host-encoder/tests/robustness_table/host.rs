@@ -22,6 +22,7 @@ pub const TESTS: &[&str] = &[
     "pipes_carry_streams_and_images",
     "exif_orientation_is_applied",
     "multi_page_tiff_notes_its_first_page",
+    "animated_gif_notes_its_first_frame",
     "target_messages_say_what_to_ask_for",
 ];
 
@@ -1104,6 +1105,44 @@ fn multi_page_tiff_notes_its_first_page() {
         ),
     )];
     record("multi_page_tiff_notes_its_first_page", &rows);
+}
+
+#[test]
+fn animated_gif_notes_its_first_frame() {
+    let dir = scratch("gif");
+    let path = dir.join("frames.gif");
+    {
+        let file = std::fs::File::create(&path).unwrap();
+        let palette: Vec<u8> = (0..=255u8).flat_map(|v| [v, v, v]).collect();
+        let mut gif = gif::Encoder::new(file, 40, 30, &palette).unwrap();
+        for shade in [0u8, 90] {
+            let pixels: Vec<u8> = (0..40 * 30).map(|i| shade + (i % 120) as u8).collect();
+            gif.write_frame(&gif::Frame::from_indexed_pixels(40, 30, pixels, None))
+                .unwrap();
+        }
+    }
+    let out = dir.join("frames.pifs");
+    let stdout = ok(&pifs()
+        .args(["encode", "--bytes", "300", s(&path), "-o", s(&out)])
+        .output()
+        .unwrap());
+    let note = stdout
+        .lines()
+        .find(|l| l.contains("note:"))
+        .expect("a note")
+        .replace(&*dir.to_string_lossy(), "DIR");
+    assert_eq!(note, "DIR/frames.gif: note: 2 frames; encoding the first");
+    let (w, h, _) = decoded(&std::fs::read(&out).unwrap());
+    assert_eq!((w, h), (40, 30));
+    let rows = [row(
+        &dir,
+        "an animated GIF of two frames (40x30)",
+        &format!("pifs encode --bytes 300 {} -o {}", s(&path), s(&out)),
+        &format!(
+            "the first frame encoded (a 40x30 stream), with a note on standard output: `{note}`"
+        ),
+    )];
+    record("animated_gif_notes_its_first_frame", &rows);
 }
 
 #[test]

@@ -47,7 +47,7 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Encode an image (PNG, JPEG, PGM/PPM, BMP, TIFF) into a PIFS stream.
+    /// Encode an image (PNG, JPEG, PGM/PPM, BMP, TIFF, WebP, GIF) into a PIFS stream.
     Encode(encode::EncodeArgs),
     /// Decode a PIFS stream into an image (.png, .pgm, .pnm or .ppm, by the output's name).
     ///
