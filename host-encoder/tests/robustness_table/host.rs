@@ -1083,27 +1083,8 @@ fn multi_page_tiff_notes_its_first_page() {
         tiff.write_image::<colortype::Gray8>(20, 10, &second)
             .unwrap();
     }
-    let out = dir.join("pages.pifs");
-    let stdout = ok(&pifs()
-        .args(["encode", "--bytes", "300", s(&path), "-o", s(&out)])
-        .output()
-        .unwrap());
-    let note = stdout
-        .lines()
-        .find(|l| l.contains("note:"))
-        .expect("a note")
-        .replace(&*dir.to_string_lossy(), "DIR");
-    assert_eq!(note, "DIR/pages.tiff: note: 2 pages; encoding the first");
-    let (w, h, _) = decoded(&std::fs::read(&out).unwrap());
-    assert_eq!((w, h), (40, 30));
-    let rows = [row(
-        &dir,
-        "a TIFF of two pages (40x30, then 20x10)",
-        &format!("pifs encode --bytes 300 {} -o {}", s(&path), s(&out)),
-        &format!(
-            "the first page encoded (a 40x30 stream), with a note on standard output: `{note}`"
-        ),
-    )];
+    let what = ("a TIFF of two pages (40x30, then 20x10)", "page");
+    let rows = [first_of_several(&dir, &path, what)];
     record("multi_page_tiff_notes_its_first_page", &rows);
 }
 
@@ -1121,9 +1102,18 @@ fn animated_gif_notes_its_first_frame() {
                 .unwrap();
         }
     }
-    let out = dir.join("frames.pifs");
+    let what = ("an animated GIF of two frames (40x30)", "frame");
+    let rows = [first_of_several(&dir, &path, what)];
+    record("animated_gif_notes_its_first_frame", &rows);
+}
+
+/// Encodes `path`, a file of two images of which the first is 40x30 (`what`: how the row
+/// names the file, and what an image of it is called), and checks that the first was encoded
+/// with a note saying so; the row of the table.
+fn first_of_several(dir: &Path, path: &Path, (file, image): (&str, &str)) -> String {
+    let out = path.with_extension("pifs");
     let stdout = ok(&pifs()
-        .args(["encode", "--bytes", "300", s(&path), "-o", s(&out)])
+        .args(["encode", "--bytes", "300", s(path), "-o", s(&out)])
         .output()
         .unwrap());
     let note = stdout
@@ -1131,18 +1121,21 @@ fn animated_gif_notes_its_first_frame() {
         .find(|l| l.contains("note:"))
         .expect("a note")
         .replace(&*dir.to_string_lossy(), "DIR");
-    assert_eq!(note, "DIR/frames.gif: note: 2 frames; encoding the first");
+    let name = path.file_name().unwrap().to_string_lossy();
+    assert_eq!(
+        note,
+        format!("DIR/{name}: note: 2 {image}s; encoding the first")
+    );
     let (w, h, _) = decoded(&std::fs::read(&out).unwrap());
     assert_eq!((w, h), (40, 30));
-    let rows = [row(
-        &dir,
-        "an animated GIF of two frames (40x30)",
-        &format!("pifs encode --bytes 300 {} -o {}", s(&path), s(&out)),
+    row(
+        dir,
+        file,
+        &format!("pifs encode --bytes 300 {} -o {}", s(path), s(&out)),
         &format!(
-            "the first frame encoded (a 40x30 stream), with a note on standard output: `{note}`"
+            "the first {image} encoded (a 40x30 stream), with a note on standard output: `{note}`"
         ),
-    )];
-    record("animated_gif_notes_its_first_frame", &rows);
+    )
 }
 
 #[test]
