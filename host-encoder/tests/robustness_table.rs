@@ -1101,7 +1101,7 @@ fn render(rows: &[String], refused: usize) -> String {
          Conversion rule for images that are not 8-bit grayscale: colour to luma with the BT.601\n\
          weights; any bit depth scaled from its full range to 8 bits; palettes expanded;\n\
          transparency composited over white; the EXIF orientation applied; the first page of a\n\
-         TIFF of several, the first frame of an animated GIF.\n\
+         TIFF of several, the first frame of an animated GIF or WebP.\n\
          \n\
          | input | command | outcome | message (stderr) | file at the output path afterwards |\n\
          |---|---|---|---|---|\n\

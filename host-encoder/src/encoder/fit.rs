@@ -653,9 +653,7 @@ mod tests {
                 Tabulator::new(model, false).run(
                     &control,
                     log2,
-                    &|dx, dy| {
-                        dx < size && dy < size && dx % stride == 0 && dy % stride == 0
-                    },
+                    &|dx, dy| dx < size && dy < size && dx % stride == 0 && dy % stride == 0,
                     &|_, _, _| true,
                     &mut |dx, dy, s| {
                         let row = cached.at(dx, dy, stride);

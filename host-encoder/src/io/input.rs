@@ -5,7 +5,7 @@
 //! dimensions, EXIF orientation, pages), so that a caller can refuse it before a pixel is
 //! decoded; then its pixels ([`DecodedImage::decode`]), with the `image` crate's allocation
 //! limit set, its orientation applied (a phone photo arrives the way it was shown) and, for a
-//! TIFF of several pages or an animated GIF, the first page or frame taken.
+//! TIFF of several pages or an animated GIF or WebP, the first page or frame taken.
 
 use super::{input_name, is_std_stream, FileError};
 use crate::encoder::{analyse, analyse_colour, Analysis, EncodeError, EncoderConfig, Plane};
@@ -134,7 +134,7 @@ pub struct ImageProbe {
     pub colour: bool,
     /// The orientation the file asks for (applied by [`DecodedImage::decode`]).
     pub orientation: Orientation,
-    /// Pages: a TIFF's images, an animated GIF's frames (1 for every other format).
+    /// Pages: a TIFF's images, an animated GIF's or WebP's frames (1 for every other format).
     pub pages: usize,
 }
 
@@ -168,6 +168,7 @@ impl ImageProbe {
             pages: match format {
                 ImageFormat::Tiff => tiff_pages(bytes),
                 ImageFormat::Gif => gif_frames(bytes),
+                ImageFormat::WebP => webp_frames(bytes),
                 _ => 1,
             },
         })
@@ -218,6 +219,12 @@ fn gif_frames(bytes: &[u8]) -> usize {
     frames.max(1)
 }
 
+/// The number of frames of a WebP file (1 unless it is animated), from its headers.
+fn webp_frames(bytes: &[u8]) -> usize {
+    image_webp::WebPDecoder::new(Cursor::new(bytes))
+        .map_or(1, |decoder| decoder.num_frames().max(1) as usize)
+}
+
 /// A decoded image as 8-bit luma (and RGB when it has colour), and what was done to get it.
 #[derive(Debug, Clone)]
 pub struct DecodedImage {
@@ -230,7 +237,7 @@ pub struct DecodedImage {
     pub orientation: Orientation,
     /// The format the file was in.
     pub format: ImageFormat,
-    /// The file's pages (a TIFF's) or frames (a GIF's): only the first was decoded.
+    /// The file's pages (a TIFF's) or frames (a GIF's or a WebP's): only the first was decoded.
     pub pages: usize,
     /// A 16-bit grayscale image's samples (a heightmap, often), which [`to_luma`] maps to 8
     /// bits from the type's full range: what a 16-bit stream codes.
@@ -667,6 +674,32 @@ mod tests {
                 assert_eq!(plane.data, gray.as_raw().as_slice(), "{path}");
             }
         }
+    }
+
+    /// An animated WebP of two 2x2 frames, red then green (Pillow: `Image.new("RGB", (2, 2),
+    /// (200, 20, 30)).save("a.webp", save_all=True, append_images=[Image.new("RGB", (2, 2),
+    /// (20, 200, 30))], duration=100, lossless=True)`): two frames, the first decoded.
+    #[test]
+    fn an_animated_webp_is_its_first_frame() {
+        const WEBP: [u8; 144] = [
+            0x52, 0x49, 0x46, 0x46, 0x88, 0x00, 0x00, 0x00, 0x57, 0x45, 0x42, 0x50, 0x56, 0x50,
+            0x38, 0x58, 0x0a, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x01,
+            0x00, 0x00, 0x41, 0x4e, 0x49, 0x4d, 0x06, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+            0x00, 0x00, 0x41, 0x4e, 0x4d, 0x46, 0x2a, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+            0x00, 0x00, 0x01, 0x00, 0x00, 0x01, 0x00, 0x00, 0x64, 0x00, 0x00, 0x02, 0x56, 0x50,
+            0x38, 0x4c, 0x11, 0x00, 0x00, 0x00, 0x2f, 0x01, 0x40, 0x00, 0x00, 0x07, 0x50, 0x8a,
+            0x22, 0xd7, 0xa3, 0xff, 0x81, 0x88, 0xe8, 0x7f, 0x00, 0x00, 0x41, 0x4e, 0x4d, 0x46,
+            0x2a, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x01,
+            0x00, 0x00, 0x64, 0x00, 0x00, 0x00, 0x56, 0x50, 0x38, 0x4c, 0x11, 0x00, 0x00, 0x00,
+            0x2f, 0x01, 0x40, 0x00, 0x00, 0x07, 0x50, 0xe4, 0x52, 0xd4, 0xa3, 0xff, 0x81, 0x88,
+            0xe8, 0x7f, 0x00, 0x00,
+        ];
+        let path = Path::new("a.webp");
+        let probe = ImageProbe::read(&WEBP, path).unwrap();
+        assert_eq!((probe.format, probe.pages), (ImageFormat::WebP, 2));
+        let decoded = DecodedImage::decode(&WEBP, path, &ImageLimits::DEFAULT).unwrap();
+        assert_eq!(decoded.pages, 2);
+        assert_eq!(decoded.rgb.unwrap(), [200, 20, 30].repeat(4));
     }
 
     #[test]

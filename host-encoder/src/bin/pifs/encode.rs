@@ -35,9 +35,10 @@ pub const DEFAULT_BPP: f64 = 0.25;
 pub struct EncodeArgs {
     /// Input images (PNG, JPEG, PGM/PPM, BMP, TIFF, WebP, GIF); "-" reads standard input.
     ///
-    /// The EXIF orientation is applied, the first page of a TIFF (frame of a GIF) taken. A
-    /// colour image gives a colour stream (YCbCr 4:2:0) unless --gray; a gray one (or a colour
-    /// image whose pixels are all gray) a grayscale stream. Several images need --out-dir.
+    /// The EXIF orientation is applied, the first page of a TIFF (frame of a GIF or WebP)
+    /// taken. A colour image gives a colour stream (YCbCr 4:2:0) unless --gray; a gray one (or
+    /// a colour image whose pixels are all gray) a grayscale stream. Several images need
+    /// --out-dir.
     #[arg(required = true, num_args = 1..)]
     pub input: Vec<PathBuf>,
     /// Encode in grayscale (the image's luma), even from a colour image.
@@ -245,7 +246,8 @@ impl Checked {
 
     /// Decodes the pixels as the encoder takes them (colour unless `gray` or the image is
     /// gray; a 16-bit grayscale image as a surface unless `depth` says 8), orientation
-    /// applied; a note for a TIFF of several pages or an animated GIF (the first is taken).
+    /// applied; a note for a TIFF of several pages or an animated GIF or WebP (the first is
+    /// taken).
     pub fn decode(self, gray: bool, depth: io::Depth) -> Result<io::Loaded> {
         let decoded = self.decode_image(depth)?;
         Ok(decoded.into_loaded(gray, depth))
@@ -275,7 +277,7 @@ impl Checked {
         }
         if decoded.pages > 1 {
             let what = match decoded.format {
-                image::ImageFormat::Gif => "frames",
+                image::ImageFormat::Gif | image::ImageFormat::WebP => "frames",
                 _ => "pages",
             };
             say!(
