@@ -32,7 +32,7 @@ use crate::syntax::{
 };
 #[cfg(not(feature = "smooth-enlarged"))]
 use crate::synthesis::Discard;
-use crate::synthesis::{Catch, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut, TILE};
+use crate::synthesis::{Catch, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut};
 use crate::walk::{self, LeafInfo, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -891,48 +891,56 @@ struct Subsample<'a> {
 }
 
 impl Subsample<'_> {
-    /// Hands on the tile's pixels on the grid, row by row, with their samples when `samples`
-    /// holds the tile's.
-    fn pick(&mut self, tile: TileMut<'_>, samples: Option<&[i16]>) -> Result<(), Stop> {
-        let unit = 1u32 << self.shift;
+    /// Hands on the tile's pixels on the grid as one tile, with their samples when `samples`
+    /// holds the tile's: moved to the front in place (the `n`-th pixel on the grid comes from
+    /// the `n`-th position or a later one).
+    fn pick(&mut self, tile: TileMut<'_>, mut samples: Option<&mut [i16]>) -> Result<(), Stop> {
+        let (shift, unit) = (self.shift, 1u32 << self.shift);
         let Rect { x, y, w, h } = tile.area;
-        let first_x = x.next_multiple_of(unit);
-        if first_x >= x + w {
+        let (first_x, first_y) = (x.next_multiple_of(unit), y.next_multiple_of(unit));
+        if first_x >= x + w || first_y >= y + h {
             return Ok(());
         }
-        let mut row = [0u8; TILE];
-        let mut picked = [0i16; TILE];
-        for j in (y.next_multiple_of(unit)..y + h).step_by(unit as usize) {
-            let mut n = 0;
+        // Grid points in the tile's columns and rows (by shifts: no division on a Cortex-M0).
+        let cols = (x + w - first_x + unit - 1) >> shift;
+        let rows = (y + h - first_y + unit - 1) >> shift;
+        let mut n = 0;
+        for j in (first_y..y + h).step_by(unit as usize) {
             for i in (first_x..x + w).step_by(unit as usize) {
                 let at = ((j - y) * w + (i - x)) as usize;
-                if let (Some(&p), Some(slot), Some(sample)) =
-                    (tile.pixels.get(at), row.get_mut(n), picked.get_mut(n))
-                {
-                    *slot = p;
-                    *sample = samples.and_then(|s| s.get(at)).copied().unwrap_or(0);
-                    n += 1;
+                if let Some(&p) = tile.pixels.get(at) {
+                    if let Some(slot) = tile.pixels.get_mut(n) {
+                        *slot = p;
+                    }
                 }
-            }
-            let (Some(pixels), Some(picked)) = (row.get_mut(..n), picked.get_mut(..n)) else {
-                continue;
-            };
-            let tile = TileMut {
-                area: Rect {
-                    x: first_x >> self.shift,
-                    y: j >> self.shift,
-                    w: n as u32,
-                    h: 1,
-                },
-                pixels,
-                channels: 1,
-            };
-            match samples {
-                Some(_) => self.out.put_samples(tile, picked)?,
-                None => self.out.put(tile)?,
+                if let Some(s) = samples.as_deref_mut() {
+                    if let Some(&v) = s.get(at) {
+                        if let Some(slot) = s.get_mut(n) {
+                            *slot = v;
+                        }
+                    }
+                }
+                n += 1;
             }
         }
-        Ok(())
+        let count = (cols * rows) as usize;
+        let Some(pixels) = tile.pixels.get_mut(..count) else {
+            return Ok(());
+        };
+        let tile = TileMut {
+            area: Rect {
+                x: first_x >> shift,
+                y: first_y >> shift,
+                w: cols,
+                h: rows,
+            },
+            pixels,
+            channels: 1,
+        };
+        match samples.and_then(|s| s.get_mut(..count)) {
+            Some(picked) => self.out.put_samples(tile, picked),
+            None => self.out.put(tile),
+        }
     }
 }
 
