@@ -908,17 +908,9 @@ impl Subsample<'_> {
         for j in (first_y..y + h).step_by(unit as usize) {
             for i in (first_x..x + w).step_by(unit as usize) {
                 let at = ((j - y) * w + (i - x)) as usize;
-                if let Some(&p) = tile.pixels.get(at) {
-                    if let Some(slot) = tile.pixels.get_mut(n) {
-                        *slot = p;
-                    }
-                }
+                move_back(tile.pixels, at, n);
                 if let Some(s) = samples.as_deref_mut() {
-                    if let Some(&v) = s.get(at) {
-                        if let Some(slot) = s.get_mut(n) {
-                            *slot = v;
-                        }
-                    }
+                    move_back(s, at, n);
                 }
                 n += 1;
             }
@@ -940,6 +932,16 @@ impl Subsample<'_> {
         match samples.and_then(|s| s.get_mut(..count)) {
             Some(picked) => self.out.put_samples(tile, picked),
             None => self.out.put(tile),
+        }
+    }
+}
+
+/// `values[to] = values[from]`, where both are in `values`.
+#[inline(always)]
+fn move_back<T: Copy>(values: &mut [T], from: usize, to: usize) {
+    if let Some(&v) = values.get(from) {
+        if let Some(slot) = values.get_mut(to) {
+            *slot = v;
         }
     }
 }

@@ -459,7 +459,7 @@ fn for_each_residual(
             if !lattice.wants(dx, dy) {
                 continue;
             }
-            let row = derivatives.at(dx, dy, lattice.stride);
+            let row = derivatives.at(dx, dy);
             let value: f64 = row.iter().zip(control).map(|(d, c)| d * c).sum();
             f(plane.value(node.x + dx, node.y + dy) - value, row);
         }
@@ -531,6 +531,8 @@ fn clamp_control(control: &mut [f64]) {
 /// needs at the samples inside the image, tabulated once per model and block size (the
 /// 9x9 model's at 32 to 128 px, 1024 samples of 81 derivatives, are 0.66 MB each).
 struct LatticeDerivatives {
+    /// The lattice's stride, pixels.
+    stride: u32,
     /// Samples per row of the lattice.
     per_row: usize,
     /// Values per sample.
@@ -570,15 +572,17 @@ impl LatticeDerivatives {
             },
         );
         LatticeDerivatives {
+            stride,
             per_row,
             controls,
             values,
         }
     }
 
-    /// The derivatives at block offset `(dx, dy)`, a sample of the lattice of stride `stride`.
-    fn at(&self, dx: u32, dy: u32, stride: u32) -> &[f64] {
-        let at = ((dy / stride) as usize * self.per_row + (dx / stride) as usize) * self.controls;
+    /// The derivatives at block offset `(dx, dy)`, a sample of the lattice.
+    fn at(&self, dx: u32, dy: u32) -> &[f64] {
+        let (x, y) = ((dx / self.stride) as usize, (dy / self.stride) as usize);
+        let at = (y * self.per_row + x) * self.controls;
         &self.values[at..at + self.controls]
     }
 }
@@ -656,7 +660,7 @@ mod tests {
                     &|dx, dy| dx < size && dy < size && dx % stride == 0 && dy % stride == 0,
                     &|_, _, _| true,
                     &mut |dx, dy, s| {
-                        let row = cached.at(dx, dy, stride);
+                        let row = cached.at(dx, dy);
                         let value: f64 = row.iter().zip(&control).map(|(d, c)| d * c).sum();
                         assert!((value - s[0]).abs() < 1e-9, "{m:?} {log2} ({dx}, {dy})");
                         samples += 1;
