@@ -37,7 +37,7 @@
 //! `PIFS_BENCH_STREAMS` (a path list, `:`-separated), decodes each once with
 //! `decoder_core::Decoder` into a sink that sums the pixels, and prints
 //! `PIFS-BENCH name=… w=… h=… bytes=… stack=… instr=… checksum=… ok=…` per stream, then
-//! `PIFS-BENCH-SCALED name=… scale=… instr=… checksum=… ok=…` for its decodes at 1/2, 1/4 and
+//! `PIFS-BENCH-SCALED name=… scale=… stack=… instr=… checksum=… ok=…` for its decodes at 1/2, 1/4 and
 //! 1/8;
 //! `baseline` builds the same firmware, harness and all, with a stand-in that only reads the
 //! stream where the decoder is called (for the flash and RAM deltas).
@@ -186,13 +186,17 @@ fn run(counter: &measure::Counter) -> bool {
             decoder_core::Scale::Eighth,
         ] {
             let mut sum = Sum(0);
+            measure::paint();
+            let base = measure::sp();
             let t0 = measure::ticks();
             let ok = decode_scaled(v.data, scale, &mut sum);
             let t1 = measure::ticks();
+            let stack = measure::peak(base);
             heprintln!(
-                "PIFS-BENCH-SCALED name={} scale={} instr={} checksum={} ok={}",
+                "PIFS-BENCH-SCALED name={} scale={} stack={} instr={} checksum={} ok={}",
                 v.name,
                 scale.log2(),
+                stack,
                 counter.instructions(t1 - t0),
                 sum.0,
                 ok
