@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # Embedded budgets of the PIFS decoder, measured on emulated MCUs (QEMU):
 #   RAM   = static RAM (.data + .bss of the firmware) + peak stack of the deepest of a stream's
-#           decodes at 1, 1/2, 1/4 and 1/8 of its size (stack painting; the CSV keeps the full
-#           decode's and the scaled decodes' apart), on Cortex-M3 (lm3s6965evb, 64 KiB RAM) and Cortex-M0 (microbit,
+#           decodes at 1, 1/2, 1/4, 1/8, 2 and 4 times its size (stack painting; the CSV keeps
+#           the full, reduced and enlarged decodes' apart), on Cortex-M3 (lm3s6965evb, 64 KiB RAM) and Cortex-M0 (microbit,
 #           16 KiB RAM);
 #   flash = code + read-only data the decoder adds: firmware with the decoder call minus the
 #           same firmware with a stand-in for the decoder call (`baseline` feature: the same
 #           harness, scaled decodes included), size-optimised release build;
 #   speed = instructions per output pixel on Cortex-M3 and Cortex-M0 (SysTick under
-#           `-icount shift=0`, from decode entry to return), and the instructions of decodes at
-#           1/2, 1/4 and 1/8 of the size as a share of the full decode's.
+#           `-icount shift=0`, from decode entry to return), the instructions of decodes at
+#           1/2, 1/4 and 1/8 of the size as a share of the full decode's, and per output pixel
+#           of decodes at 2 and 4 times the size.
 # Images: kodim23 as 128x128, 320x240 and 768x512, grayscale and colour (format 13, decoded to
 # RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder in
 # stripes of 512 pixels (what decoder-core's default decoder holds; the encoder's default is
@@ -179,7 +180,7 @@ for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
                 l=$(echo "$lines" | grep "^PIFS-BENCH name=$n ")
                 stack[$target/$n]=$(echo "$l" | field stack)
                 instr[$target/$n]=$(echo "$l" | field instr)
-                for k in -1 -2 -3; do
+                for k in -1 -2 -3 1 2; do
                     l=$(echo "$lines" | grep "^PIFS-BENCH-SCALED name=$n scale=$k ")
                     scaled[$target/$n/$k]=$(echo "$l" | field instr)
                     scaled_stack[$target/$n/$k]=$(echo "$l" | field stack)
@@ -205,17 +206,18 @@ done
 # 3. The tables and the CSV.
 v7=thumbv7m-none-eabi
 v6=thumbv6m-none-eabi
-scaled_peak() { # target name -> the deepest of its scaled decodes' stacks (empty if none)
-    local k s peak=
-    for k in -1 -2 -3; do
-        s=${scaled_stack[$1/$2/$k]:-}
+scaled_peak() { # target name scales... -> the deepest of those decodes' stacks (empty if none)
+    local t=$1 n=$2 k s peak=
+    shift 2
+    for k in "$@"; do
+        s=${scaled_stack[$t/$n/$k]:-}
         [[ $s =~ ^[0-9]+$ ]] && { [ -z "$peak" ] || [ "$s" -gt "$peak" ]; } && peak=$s
     done
     echo "$peak"
 }
 peak_stack() { # target name -> the deepest stack of its decodes at every scale
     local s=${stack[$1/$2]:-} k
-    k=$(scaled_peak "$1" "$2")
+    k=$(scaled_peak "$1" "$2" -1 -2 -3 1 2)
     [[ $s =~ ^[0-9]+$ && -n $k && $k -gt $s ]] && s=$k
     echo "$s"
 }
@@ -232,7 +234,7 @@ share() { # part whole
 }
 csv=$root/bench/results/embedded.csv
 mkdir -p "$root/bench/results"
-echo "target,image,bpp,stream_bytes,ram_static,ram_stack,ram_stack_scaled,ram_total,decoder_flash,instructions,instr_per_pixel,half_share,quarter_share,eighth_share" >"$csv"
+echo "target,image,bpp,stream_bytes,ram_static,ram_stack,ram_stack_reduced,ram_stack_enlarged,ram_total,decoder_flash,instructions,instr_per_pixel,half_share,quarter_share,eighth_share,double_instr_per_pixel,quadruple_instr_per_pixel" >"$csv"
 echo
 echo "### PIFS decoder on Cortex-M (QEMU), firmware-example \`bench\` build, opt-level \"s\", LTO"
 echo
@@ -256,7 +258,7 @@ for s in "${streams[@]}"; do
         st=$(peak_stack $t "$n")
         total=n/a
         [[ $st =~ ^[0-9]+$ ]] && total=$((st + static[$t]))
-        echo "$t,${kind}_$size,$bpp,$bytes,${static[$t]},${stack[$t/$n]:-},$(scaled_peak $t "$n"),$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}")" >>"$csv"
+        echo "$t,${kind}_$size,$bpp,$bytes,${static[$t]},${stack[$t/$n]:-},$(scaled_peak $t "$n" -1 -2 -3),$(scaled_peak $t "$n" 1 2),$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}"),$(per_px "${scaled[$t/$n/1]:-}" $((4 * px))),$(per_px "${scaled[$t/$n/2]:-}" $((16 * px)))" >>"$csv"
     done
 done
 echo
@@ -306,6 +308,32 @@ for s in "${streams[@]}"; do
         for k in -1 -2 -3; do
             row="$row $(share "${scaled[$t/$n/$k]:-}" "${instr[$t/$n]:-}") |"
         done
+    done
+    echo "$row"
+done
+echo
+echo "Enlarged decodes (instructions per output pixel), and the peak stack of each kind of decode"
+echo "(bytes; the RAM columns above add the static RAM to the deepest):"
+echo
+echo "| image | bpp | M3 2x | M3 4x | M0 2x | M0 4x | M3 stack: full / 1/2..1/8 / 2x, 4x | M0 stack: full / 1/2..1/8 / 2x, 4x |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for s in "${streams[@]}"; do
+    n=$(basename "$s")
+    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
+    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
+    px=$(( ${size%x*} * ${size#*x} ))
+    case ${n%%_*} in
+        kodim23c) label="kodim23 $size colour" ;;
+        kodim23d) label="kodim23 $size 16-bit" ;;
+        kodim23s) label="kodim23 $size, 8-bit twin" ;;
+        *) label="kodim23 $size" ;;
+    esac
+    row="| $label | $bpp |"
+    for t in $v7 $v6; do
+        row="$row $(per_px "${scaled[$t/$n/1]:-}" $((4 * px))) | $(per_px "${scaled[$t/$n/2]:-}" $((16 * px))) |"
+    done
+    for t in $v7 $v6; do
+        row="$row ${stack[$t/$n]:-n/a} / $(scaled_peak $t "$n" -1 -2 -3) / $(scaled_peak $t "$n" 1 2) |"
     done
     echo "$row"
 done

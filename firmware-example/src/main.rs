@@ -37,8 +37,8 @@
 //! `PIFS_BENCH_STREAMS` (a path list, `:`-separated), decodes each once with
 //! `decoder_core::Decoder` into a sink that sums the pixels, and prints
 //! `PIFS-BENCH name=… w=… h=… bytes=… stack=… instr=… checksum=… ok=…` per stream, then
-//! `PIFS-BENCH-SCALED name=… scale=… stack=… instr=… checksum=… ok=…` for its decodes at 1/2, 1/4 and
-//! 1/8;
+//! `PIFS-BENCH-SCALED name=… scale=… stack=… instr=… checksum=… ok=…` for its decodes at 1/2, 1/4,
+//! 1/8, 2 and 4 times its size;
 //! `baseline` builds the same firmware, harness and all, with a stand-in that only reads the
 //! stream where the decoder is called (for the flash and RAM deltas).
 #![no_std]
@@ -184,6 +184,8 @@ fn run(counter: &measure::Counter) -> bool {
             decoder_core::Scale::Half,
             decoder_core::Scale::Quarter,
             decoder_core::Scale::Eighth,
+            decoder_core::Scale::Double,
+            decoder_core::Scale::Quadruple,
         ] {
             let mut sum = Sum(0);
             measure::paint();
