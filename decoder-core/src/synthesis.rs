@@ -327,6 +327,13 @@ pub struct Patch {
     pub model: ModelType,
 }
 
+impl Default for Patch {
+    /// [`Patch::CLEARED`].
+    fn default() -> Self {
+        Patch::CLEARED
+    }
+}
+
 /// Converts a sample value to an 8-bit pixel (round to nearest, saturate).
 #[inline]
 pub fn sample_to_pixel(v: i32) -> u8 {
@@ -994,6 +1001,16 @@ impl Patch {
     /// A flat bilinear patch at zero (a placeholder to reconstruct into).
     pub const EMPTY: Patch = Patch {
         model: crate::model::MODELS[0],
+        control: [0; MAX_CONTROL],
+    };
+
+    /// A patch of no model (all zero bits, so that a decoder's state holding one is cleared in
+    /// place): it draws nothing, and is a place to reconstruct a leaf into.
+    pub const CLEARED: Patch = Patch {
+        model: crate::model::ModelType {
+            intervals: 0,
+            transforms: 0,
+        },
         control: [0; MAX_CONTROL],
     };
 

@@ -16,7 +16,6 @@ use crate::entropy::Coder;
 use crate::error::{DecodeError, PayloadError, SyntaxElement};
 use crate::format::{CODING_TILE, DEFAULT_STRIPE, MAX_LEAF_LOG2};
 pub use crate::geometry::Node;
-use crate::model::{MAX_CONTROL, MODELS};
 use crate::prediction::{Frontier, SamplePrediction};
 use crate::syntax::{
     code_chroma, code_chroma_subtree, code_leaf, code_split, reconstruct_chroma, reconstruct_into,
@@ -149,6 +148,9 @@ pub struct WalkState<const STRIPE: usize = DEFAULT_STRIPE> {
     pub contexts: Contexts,
     /// Prediction memory.
     pub frontier: Frontier<STRIPE>,
+    /// The leaf being drawn: kept here rather than made for each leaf, whose reconstruction
+    /// writes every control value the patch's model reads.
+    patch: Patch,
 }
 
 impl<const STRIPE: usize> WalkState<STRIPE> {
@@ -158,6 +160,7 @@ impl<const STRIPE: usize> WalkState<STRIPE> {
     pub const FRESH: WalkState<STRIPE> = WalkState {
         contexts: Contexts::UNSTARTED,
         frontier: Frontier::EMPTY,
+        patch: Patch::CLEARED,
     };
 }
 
@@ -359,28 +362,19 @@ fn walk_leaf<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     own_chroma: bool,
     node: Node,
 ) -> Result<(), V::Error> {
-    let mut patch = Patch {
-        model: MODELS[0],
-        control: [0; MAX_CONTROL],
-    };
     let mut info = LeafInfo {
         node,
         model: 0,
         cquant: 0,
         coding: ControlCoding::Dpcm,
     };
-    code_leaf_patch(coder, visitor, state, &mut info, &mut patch).map_err(lift)?;
+    code_leaf_patch(coder, visitor, state, &mut info).map_err(lift)?;
+    let WalkState {
+        frontier, patch, ..
+    } = state;
     match chroma {
-        None => visitor.leaf(&info, &patch, &mut state.frontier),
-        Some(chroma) => colour_leaf(
-            coder,
-            visitor,
-            chroma,
-            own_chroma,
-            &info,
-            &patch,
-            &mut state.frontier,
-        ),
+        None => visitor.leaf(&info, patch, frontier),
+        Some(chroma) => colour_leaf(coder, visitor, chroma, own_chroma, &info, patch, frontier),
     }
 }
 
@@ -443,7 +437,6 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     visitor: &mut V,
     state: &mut WalkState<STRIPE>,
     info: &mut LeafInfo,
-    patch: &mut Patch,
 ) -> Result<(), PayloadError> {
     let node = info.node;
     let mut leaf = LeafSyntax::default();
@@ -455,7 +448,7 @@ fn code_leaf_patch<C: Coder, V: TreeVisitor, const STRIPE: usize>(
         &state.frontier,
         &mut leaf,
     )?;
-    reconstruct_into(&leaf, node.log2, patch)?;
+    reconstruct_into(&leaf, node.log2, &mut state.patch)?;
     info.model = leaf.model;
     info.cquant = leaf.cquant;
     info.coding = leaf.coding;
