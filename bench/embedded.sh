@@ -232,6 +232,18 @@ per_px() { # instructions pixels
 share() { # part whole
     if [[ ${1:-} =~ ^[0-9]+$ && ${2:-} =~ ^[0-9]+$ ]]; then awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; else echo n/a; fi
 }
+describe() { # stream file name [twin label] -> sets size, bpp, kind, px and label
+    size=$(echo "$1" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
+    bpp=$(echo "$1" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
+    kind=${1%%_*}
+    px=$(( ${size%x*} * ${size#*x} ))
+    case $kind in
+        kodim23c) label="kodim23 $size colour" ;;
+        kodim23d) label="kodim23 $size 16-bit" ;;
+        kodim23s) label="kodim23 $size, ${2:-8-bit twin}" ;;
+        *) label="kodim23 $size" ;;
+    esac
+}
 csv=$root/bench/results/embedded.csv
 mkdir -p "$root/bench/results"
 echo "target,image,bpp,stream_bytes,ram_static,ram_stack,ram_stack_reduced,ram_stack_enlarged,ram_total,decoder_flash,instructions,instr_per_pixel,half_share,quarter_share,eighth_share,double_instr_per_pixel,quadruple_instr_per_pixel" >"$csv"
@@ -242,17 +254,8 @@ echo "| image | bpp | stream bytes | M3 RAM: static + peak stack (bytes) | M0 RA
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
-    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
-    kind=$(echo "$n" | sed 's/_.*//')
-    case $kind in
-        kodim23c) label="kodim23 $size colour" ;;
-        kodim23d) label="kodim23 $size 16-bit" ;;
-        kodim23s) label="kodim23 $size, the 16-bit stream's 8-bit twin" ;;
-        *) label="kodim23 $size" ;;
-    esac
+    describe "$n" "the 16-bit stream's 8-bit twin"
     bytes=$(stat -c %s "$s")
-    px=$(( ${size%x*} * ${size#*x} ))
     echo "| $label | $bpp | $bytes | $(ram $v7 "$n") | $(ram $v6 "$n") | $(per_px "${instr[$v7/$n]:-}" $px) | $(per_px "${instr[$v6/$n]:-}" $px) | $(share "${scaled[$v7/$n/-2]:-}" "${instr[$v7/$n]:-}") | $(share "${scaled[$v6/$n/-2]:-}" "${instr[$v6/$n]:-}") |"
     for t in $v7 $v6; do
         st=$(peak_stack $t "$n")
@@ -274,10 +277,8 @@ echo "| image | bpp | M3 RAM | M0 RAM | M3 instr/pixel | M0 instr/pixel |"
 echo "|---|---:|---:|---:|---:|---:|"
 for s in "${gray_streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
-    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
-    px=$(( ${size%x*} * ${size#*x} ))
-    row="| kodim23 $size | $bpp |"
+    describe "$n"
+    row="| $label | $bpp |"
     for t in $v7 $v6; do
         st=${nodeep_stack[$t/$n]:-}
         if [[ $st =~ ^[0-9]+$ ]]; then row="$row $((st + static[$t])) |"; else row="$row n/a |"; fi
@@ -295,14 +296,7 @@ echo "| image | bpp | M3 1/2 | M3 1/4 | M3 1/8 | M0 1/2 | M0 1/4 | M0 1/8 |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
-    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
-    case ${n%%_*} in
-        kodim23c) label="kodim23 $size colour" ;;
-        kodim23d) label="kodim23 $size 16-bit" ;;
-        kodim23s) label="kodim23 $size, 8-bit twin" ;;
-        *) label="kodim23 $size" ;;
-    esac
+    describe "$n"
     row="| $label | $bpp |"
     for t in $v7 $v6; do
         for k in -1 -2 -3; do
@@ -319,15 +313,7 @@ echo "| image | bpp | M3 2x | M3 4x | M0 2x | M0 4x | M3 stack: full / 1/2..1/8 
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${streams[@]}"; do
     n=$(basename "$s")
-    size=$(echo "$n" | sed 's/kodim23[a-z]*_\([0-9x]*\)_.*/\1/')
-    bpp=$(echo "$n" | sed 's/.*_\([0-9.]*\)bpp.pifs/\1/')
-    px=$(( ${size%x*} * ${size#*x} ))
-    case ${n%%_*} in
-        kodim23c) label="kodim23 $size colour" ;;
-        kodim23d) label="kodim23 $size 16-bit" ;;
-        kodim23s) label="kodim23 $size, 8-bit twin" ;;
-        *) label="kodim23 $size" ;;
-    esac
+    describe "$n"
     row="| $label | $bpp |"
     for t in $v7 $v6; do
         row="$row $(per_px "${scaled[$t/$n/1]:-}" $((4 * px))) | $(per_px "${scaled[$t/$n/2]:-}" $((16 * px))) |"

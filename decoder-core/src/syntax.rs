@@ -1089,7 +1089,7 @@ pub fn zero_context(
 /// Reconstructs the patch a leaf of side `2^log2` describes. Fails on a model or control
 /// quantiser out of range.
 pub fn reconstruct(leaf: &LeafSyntax, log2: u8) -> Result<Patch, PayloadError> {
-    let mut patch = Patch::EMPTY;
+    let mut patch = Patch::CLEARED;
     reconstruct_into(leaf, log2, &mut patch)?;
     Ok(patch)
 }

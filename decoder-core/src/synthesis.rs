@@ -998,12 +998,6 @@ fn grid_points<P: Point>(
 }
 
 impl Patch {
-    /// A flat bilinear patch at zero (a placeholder to reconstruct into).
-    pub const EMPTY: Patch = Patch {
-        model: crate::model::MODELS[0],
-        control: [0; MAX_CONTROL],
-    };
-
     /// A patch of no model (all zero bits, so that a decoder's state holding one is cleared in
     /// place): it draws nothing, and is a place to reconstruct a leaf into.
     pub const CLEARED: Patch = Patch {
