@@ -224,6 +224,55 @@ fn images_of_any_size_encode_with_the_default_target() {
 }
 
 #[test]
+fn a_stream_too_wide_for_the_default_decoder_is_named_at_encode() {
+    let dir = scratch("wide");
+    let png = dir.join("wide.png");
+    textured(640, 24).save(&png).unwrap();
+    let whole = dir.join("whole.pifs");
+    let stdout = ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        whole.to_str().unwrap(),
+        "--bpp",
+        "1",
+    ]));
+    assert!(
+        stdout.contains("note: stripes of 640 px, wider than the 512 columns")
+            && stdout.contains("--stripe-width 512"),
+        "{stdout}"
+    );
+    // The note is true: decoder-core's default decoder refuses the stream.
+    let bytes = std::fs::read(&whole).unwrap();
+    let err = decoder_core::Decoder::new(&bytes[..])
+        .unwrap()
+        .decode_into(&mut vec![0u8; 640 * 24])
+        .unwrap_err();
+    assert!(
+        matches!(err, decoder_core::DecodeError::StripeTooWide { .. }),
+        "{err:?}"
+    );
+    // Coded in stripes of 512 it decodes there, and no note is printed.
+    let narrow = dir.join("narrow.pifs");
+    let stdout = ok(&pifs(&[
+        "encode",
+        png.to_str().unwrap(),
+        "-o",
+        narrow.to_str().unwrap(),
+        "--bpp",
+        "1",
+        "--stripe-width",
+        "512",
+    ]));
+    assert!(!stdout.contains("note:"), "{stdout}");
+    let bytes = std::fs::read(&narrow).unwrap();
+    decoder_core::Decoder::new(&bytes[..])
+        .unwrap()
+        .decode_into(&mut vec![0u8; 640 * 24])
+        .unwrap();
+}
+
+#[test]
 fn the_best_psnr_reported_is_reached() {
     let dir = scratch("psnr");
     let png = dir.join("tex.png");

@@ -19,6 +19,7 @@ use host_encoder::{
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Largest image `pifs encode` and `pifs rd` accept unless told otherwise: 2^25 pixels (33.6
@@ -641,7 +642,27 @@ fn write_made(
         made.seconds,
         t.elapsed().as_secs_f64()
     );
+    if let Some(note) = stripe_note(&encoded.bytes) {
+        say!("{}: {note}", name.display());
+    }
     Ok(encoded)
+}
+
+/// A note, once a run, when `stream`'s stripes are wider than decoder-core's default decoder
+/// holds (a microcontroller would refuse it with `StripeTooWide`), naming the option that fits.
+fn stripe_note(stream: &[u8]) -> Option<String> {
+    static NOTED: AtomicBool = AtomicBool::new(false);
+    let stripe = decoder_core::Decoder::new(stream)
+        .ok()?
+        .header()
+        .stripe_width();
+    let capacity = decoder_core::internal::format::DEFAULT_STRIPE as u32;
+    (stripe > capacity && !NOTED.swap(true, Ordering::Relaxed)).then(|| {
+        format!(
+            "note: stripes of {stripe} px, wider than the {capacity} columns of decoder-core's \
+             default decoder (for a microcontroller, encode with --stripe-width {capacity})"
+        )
+    })
 }
 
 /// The error of the 16-bit `stream` against the `surface` it codes, in the surface's units.
