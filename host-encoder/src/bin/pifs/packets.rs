@@ -172,10 +172,15 @@ fn summary(
     let (w, h) = analysed.size();
     let total = made.total_bytes();
     format!(
-        "{}: {w}x{h} -> image {}, {} packets of at most {} bytes ({} preview, {} parity), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
+        "{}: {w}x{h} -> image {}, {} {} of at most {} bytes ({} preview, {} parity), {total} bytes, {:.4} bpp, {} bytes of headers and checksums ({:.1}%), PSNR {:.2} dB with every packet, analysis {:.2} s + packets {:.2} s",
         shown.display(),
         made.image_id,
         made.packets.len(),
+        if made.packets.len() == 1 {
+            "packet"
+        } else {
+            "packets"
+        },
         options.size,
         made.previews,
         made.parity,
