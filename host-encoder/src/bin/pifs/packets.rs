@@ -263,7 +263,33 @@ pub fn read_packets(path: &Path) -> Result<Vec<Vec<u8>>> {
     if Packet::parse(&data).is_ok() {
         return Ok(vec![data]);
     }
+    // An image given where a stream belongs is a slip worth naming.
+    if let Ok(format) = image::guess_format(&data) {
+        return Err(CliError::Refused(format!(
+            "{}: {} image, not a PIFS stream or packets (use 'pifs encode' to make one)",
+            path.display(),
+            image_name(format)
+        )));
+    }
     Ok(unframe(&data))
+}
+
+/// "a PNG", "a JPEG", "a WebP": the kind of an image file, with its article.
+fn image_name(format: image::ImageFormat) -> String {
+    use image::ImageFormat as F;
+    let name = match format {
+        F::Png => "PNG".to_string(),
+        F::Jpeg => "JPEG".to_string(),
+        F::WebP => "WebP".to_string(),
+        F::Pnm => "PNM".to_string(),
+        other => format!("{other:?}").to_uppercase(),
+    };
+    let article = if name.starts_with(['A', 'E', 'I', 'O', 'U']) {
+        "an"
+    } else {
+        "a"
+    };
+    format!("{article} {name}")
 }
 
 /// Assembles the packets at `inputs` at `scale` (an image of at most `max_pixels` at its
