@@ -10,7 +10,10 @@
 #   speed = instructions per output pixel on Cortex-M3 and Cortex-M0 (SysTick under
 #           `-icount shift=0`, from decode entry to return), the instructions of decodes at
 #           1/2, 1/4 and 1/8 of the size as a share of the full decode's, and per output pixel
-#           of decodes at 2 and 4 times the size.
+#           of decodes at 2 and 4 times the size;
+#   draw  = the same streams drawn as an application draws them (`draw` feature:
+#           `graphics::PifsImage` onto an RGB565 display that only sums the colours, ordered
+#           dither): instructions per pixel and peak stack, the display adapter included.
 # Images: kodim23 as 128x128, 320x240 and 768x512, grayscale and colour (format 13, decoded to
 # RGB as a display gets it), encoded at 0.1 and 0.5 bpp with the host `pifs` encoder in
 # stripes of 512 pixels (what decoder-core's default decoder holds; the encoder's default is
@@ -135,7 +138,7 @@ run() { # target elf -> PIFS-BENCH lines on stdout; QEMU's status in $out/status
     grep '^PIFS-BENCH' "$out/qemu.err" || true
 }
 field() { sed -n "s/.* $1=\([^ ]*\).*/\1/p"; }
-declare -A stack instr static flash base_flash gray_flash scaled scaled_stack nodeep_flash nodeep_stack nodeep_instr
+declare -A stack instr static flash base_flash gray_flash scaled scaled_stack nodeep_flash nodeep_stack nodeep_instr draw_instr draw_stack
 gray_streams=()
 for s in "${streams[@]}"; do
     case $(basename "$s") in kodim23_*) gray_streams+=("$s") ;; esac
@@ -167,6 +170,16 @@ for target in thumbv7m-none-eabi thumbv6m-none-eabi; do
     nelf=$(build $target nodeep:baseline "${gray_streams[@]}")
     read -r nbtext nbdata _ < <(size "$nelf" | tail -1)
     nodeep_flash[$target]=$((ntext + ndata - nbtext - nbdata))
+    # Drawn through embedded-graphics onto RGB565 (instructions and stack only: the build holds
+    # the display adapter, which the decoder's flash above leaves out).
+    delf=$(build $target draw "${streams[@]}")
+    lines=$(run $target "$delf")
+    for s in "${streams[@]}"; do
+        n=$(basename "$s")
+        l=$(echo "$lines" | grep "^PIFS-BENCH-DRAW name=$n " || true)
+        draw_instr[$target/$n]=$(echo "$l" | field instr)
+        draw_stack[$target/$n]=$(echo "$l" | field stack)
+    done
     # A decode that overflows the board's RAM locks the core up: note it, rebuild without that
     # stream and go on with the rest.
     todo=("${streams[@]}")
@@ -246,7 +259,7 @@ describe() { # stream file name [twin label] -> sets size, bpp, kind, px and lab
 }
 csv=$root/bench/results/embedded.csv
 mkdir -p "$root/bench/results"
-echo "target,image,bpp,stream_bytes,ram_static,ram_stack,ram_stack_reduced,ram_stack_enlarged,ram_total,decoder_flash,instructions,instr_per_pixel,half_share,quarter_share,eighth_share,double_instr_per_pixel,quadruple_instr_per_pixel" >"$csv"
+echo "target,image,bpp,stream_bytes,ram_static,ram_stack,ram_stack_reduced,ram_stack_enlarged,ram_total,decoder_flash,instructions,instr_per_pixel,half_share,quarter_share,eighth_share,double_instr_per_pixel,quadruple_instr_per_pixel,draw_rgb565_instr_per_pixel,draw_rgb565_stack" >"$csv"
 echo
 echo "### PIFS decoder on Cortex-M (QEMU), firmware-example \`bench\` build, opt-level \"s\", LTO"
 echo
@@ -261,7 +274,7 @@ for s in "${streams[@]}"; do
         st=$(peak_stack $t "$n")
         total=n/a
         [[ $st =~ ^[0-9]+$ ]] && total=$((st + static[$t]))
-        echo "$t,${kind}_$size,$bpp,$bytes,${static[$t]},${stack[$t/$n]:-},$(scaled_peak $t "$n" -1 -2 -3),$(scaled_peak $t "$n" 1 2),$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}"),$(per_px "${scaled[$t/$n/1]:-}" $((4 * px))),$(per_px "${scaled[$t/$n/2]:-}" $((16 * px)))" >>"$csv"
+        echo "$t,${kind}_$size,$bpp,$bytes,${static[$t]},${stack[$t/$n]:-},$(scaled_peak $t "$n" -1 -2 -3),$(scaled_peak $t "$n" 1 2),$total,$((flash[$t] - base_flash[$t])),${instr[$t/$n]:-},$(per_px "${instr[$t/$n]:-}" $px),$(share "${scaled[$t/$n/-1]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-2]:-}" "${instr[$t/$n]:-}"),$(share "${scaled[$t/$n/-3]:-}" "${instr[$t/$n]:-}"),$(per_px "${scaled[$t/$n/1]:-}" $((4 * px))),$(per_px "${scaled[$t/$n/2]:-}" $((16 * px))),$(per_px "${draw_instr[$t/$n]:-}" $px),${draw_stack[$t/$n]:-}" >>"$csv"
     done
 done
 echo
@@ -322,6 +335,22 @@ for s in "${streams[@]}"; do
         row="$row ${stack[$t/$n]:-n/a} / $(scaled_peak $t "$n" -1 -2 -3) / $(scaled_peak $t "$n" 1 2) |"
     done
     echo "$row"
+done
+echo
+echo "Drawn as an application draws them: \`graphics::PifsImage\` onto an RGB565 display (ordered"
+echo "dither; the display sums the colours it is given, a driver at no cost of its own), against"
+echo "the decode into a sink that sums the pixels (instructions per pixel; peak stack in bytes):"
+echo
+echo "| image | bpp | M3 draw | M3 decode | M0 draw | M0 decode | M3 draw stack | M0 draw stack |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for s in "${streams[@]}"; do
+    n=$(basename "$s")
+    describe "$n"
+    row="| $label | $bpp |"
+    for t in $v7 $v6; do
+        row="$row $(per_px "${draw_instr[$t/$n]:-}" $px) | $(per_px "${instr[$t/$n]:-}" $px) |"
+    done
+    echo "$row ${draw_stack[$v7/$n]:-n/a} | ${draw_stack[$v6/$n]:-n/a} |"
 done
 tj=$root/../shared/bench/tjpgdec/out/compare.md
 if [ -f "$tj" ]; then

@@ -175,21 +175,21 @@ pub enum Dither {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Threshold(u16);
 
-/// A 4 x 4 Bayer matrix of thresholds, `(2 k + 1) / 32` for the rank `k` by row and column
-/// modulo 4.
-const ORDERED: [[Threshold; 4]; 4] = {
-    const RANKS: [[u16; 4]; 4] = [[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]];
-    let mut table = [[Threshold(0); 4]; 4];
+/// A 4 x 4 Bayer matrix of thresholds, `(2 k + 1) / 32` for the rank `k`, row-major by row
+/// and column modulo 4 (index `4 (y & 3) + (x & 3)`).
+const ORDERED: [Threshold; 16] = {
+    const RANKS: [u16; 16] = [0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5];
+    let mut table = [Threshold(0); 16];
     let mut i = 0;
     while i < 16 {
-        table[i / 4][i % 4] = Threshold(2048 * (2 * RANKS[i / 4][i % 4] + 1));
+        table[i] = Threshold(2048 * (2 * RANKS[i] + 1));
         i += 1;
     }
     table
 };
 
 /// [`ORDERED`]'s shape with every threshold a half: the nearest level everywhere.
-const NEAREST: [[Threshold; 4]; 4] = [[Threshold::NEAREST; 4]; 4];
+const NEAREST: [Threshold; 16] = [Threshold::NEAREST; 16];
 
 impl Threshold {
     /// A half: the nearest level (rounded as embedded-graphics' conversions round; a
@@ -201,7 +201,7 @@ impl Threshold {
     /// value is its exact level `value max / 255` to within 1/32 of a level.
     #[inline]
     pub fn ordered(x: u32, y: u32) -> Threshold {
-        ORDERED[(y & 3) as usize][(x & 3) as usize]
+        ORDERED[((y & 3) << 2 | (x & 3)) as usize]
     }
 
     /// The level of channel value `value` (0 to 255) on a scale of `0..=max`:
@@ -651,29 +651,71 @@ fn visible_clip<I: Input, D: Dimensions, const STRIPE: usize>(
     })
 }
 
-/// The image coordinates of a tile's pixels, row by row from `(x, y)`, columns `left..right`
-/// (the dither's positions).
-struct Positions {
+/// The dither thresholds of a tile's pixels, row by row: a row's four thresholds packed as
+/// ranks in the bytes of one word ([`packed_rows`]), rotated a byte per pixel (one register
+/// on a Cortex-M0).
+struct Thresholds {
+    /// The table's rows, packed.
+    rows: &'static [u32; 4],
+    /// The current row's thresholds from the next pixel's on.
+    row: u32,
+    /// Pixels left in the current row, and in every row.
     left: u32,
-    right: u32,
-    x: u32,
+    width: u32,
+    /// The rotation that starts a row at the tile's first column (`8 (x & 3)`).
+    turn: u32,
+    /// The next row's `y`.
     y: u32,
 }
 
-impl Iterator for Positions {
-    type Item = (u32, u32);
-
-    #[inline]
-    fn next(&mut self) -> Option<(u32, u32)> {
-        if self.x == self.right {
-            self.x = self.left;
-            self.y += 1;
+impl Thresholds {
+    /// The thresholds of a tile of `width` pixels a row from image pixel `(x, y)`, from the
+    /// packed rows of a table.
+    fn new(rows: &'static [u32; 4], x: u32, y: u32, width: u32) -> Thresholds {
+        Thresholds {
+            rows,
+            row: 0,
+            left: 0,
+            width,
+            turn: 8 * (x & 3),
+            y,
         }
-        let at = (self.x, self.y);
-        self.x += 1;
-        Some(at)
     }
 }
+
+impl Iterator for Thresholds {
+    type Item = Threshold;
+
+    #[inline]
+    fn next(&mut self) -> Option<Threshold> {
+        if self.left == 0 {
+            self.row = self.rows[(self.y & 3) as usize].rotate_right(self.turn);
+            self.left = self.width;
+            self.y += 1;
+        }
+        // Wrapping: a tile of no width has no pixels to ask for thresholds.
+        self.left = self.left.wrapping_sub(1);
+        let t = Threshold(((self.row & 0xFF) << 11) as u16);
+        self.row = self.row.rotate_right(8);
+        Some(t)
+    }
+}
+
+/// A 4 x 4 table's rows, each row's thresholds as ranks (`threshold >> 11`, exact for the
+/// tables here: multiples of 2048 below 65536) in the bytes of a word, column 0 lowest.
+const fn packed_rows(table: &[Threshold; 16]) -> [u32; 4] {
+    let mut rows = [0u32; 4];
+    let mut i = 0;
+    while i < 16 {
+        rows[i / 4] |= ((table[i].0 >> 11) as u32) << (8 * (i % 4));
+        i += 1;
+    }
+    rows
+}
+
+/// [`ORDERED`] and [`NEAREST`], packed.
+const ORDERED_ROWS: [u32; 4] = packed_rows(&ORDERED);
+const NEAREST_ROWS: [u32; 4] = packed_rows(&NEAREST);
 
 /// A [`PixelSink`] that draws decoded tiles onto an embedded-graphics target in its colours,
 /// dithered ([`Dither`]) by the pixels' image coordinates: what [`PifsImage`] draws through,
@@ -738,17 +780,11 @@ where
             };
         }
         // One way for both dithers: the nearest level is the threshold of a half everywhere.
-        let table = match self.dither {
-            Dither::Ordered => &ORDERED,
-            Dither::Nearest => &NEAREST,
+        let rows = match self.dither {
+            Dither::Ordered => &ORDERED_ROWS,
+            Dither::Nearest => &NEAREST_ROWS,
         };
-        let mut positions = Positions {
-            left: x,
-            right: x + w,
-            x,
-            y,
-        }
-        .map(|(px, py)| table[(py & 3) as usize][(px & 3) as usize]);
+        let mut positions = Thresholds::new(rows, x, y, w);
         if tile.channels == 3 {
             let colors = tile.pixels.chunks_exact(3).map(|p| {
                 let t = positions.next().unwrap_or(Threshold::NEAREST);
@@ -762,5 +798,35 @@ where
             });
             self.target.fill_contiguous(&area, colors)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthesis::TILE;
+
+    /// A tile's thresholds, stepped along its rows, are the table's at each pixel's image
+    /// coordinates, for every phase of the tile's corner and every width.
+    #[test]
+    fn thresholds_follow_the_pixels_coordinates() {
+        for (rows, table) in [(&ORDERED_ROWS, &ORDERED), (&NEAREST_ROWS, &NEAREST)] {
+            for (x, y) in (0..8).flat_map(|x| (0..8).map(move |y| (x, y))) {
+                for w in 1..=TILE as u32 {
+                    let mut thresholds = Thresholds::new(rows, x, y, w);
+                    for j in 0..TILE as u32 {
+                        for i in 0..w {
+                            let at = ((y + j) & 3) << 2 | ((x + i) & 3);
+                            assert_eq!(
+                                thresholds.next(),
+                                Some(table[at as usize]),
+                                "({x}, {y}) width {w}, pixel ({i}, {j})"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(Threshold::ordered(5, 6), ORDERED[2 << 2 | 1]);
     }
 }

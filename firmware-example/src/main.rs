@@ -40,7 +40,10 @@
 //! `PIFS-BENCH-SCALED name=… scale=… stack=… instr=… checksum=… ok=…` for its decodes at 1/2, 1/4,
 //! 1/8, 2 and 4 times its size;
 //! `baseline` builds the same firmware, harness and all, with a stand-in that only reads the
-//! stream where the decoder is called (for the flash and RAM deltas).
+//! stream where the decoder is called (for the flash and RAM deltas); `draw` draws each stream
+//! through `graphics::PifsImage` onto an RGB565 display that sums the colours instead
+//! (`PIFS-BENCH-DRAW name=… stack=… instr=… checksum=… ok=…`: what an application's draw
+//! costs, the display adapter and its dither included).
 #![no_std]
 #![no_main]
 
@@ -135,7 +138,7 @@ fn run(counter: &measure::Counter) -> bool {
     ok
 }
 
-#[cfg(feature = "bench")]
+#[cfg(all(feature = "bench", not(feature = "draw")))]
 fn run(counter: &measure::Counter) -> bool {
     /// Sums the pixels, so that the decode cannot be optimised away.
     struct Sum(u32);
@@ -209,8 +212,88 @@ fn run(counter: &measure::Counter) -> bool {
     all_ok
 }
 
+/// With `draw`: each stream drawn once as an application draws it, through
+/// `graphics::PifsImage` (ordered dither) onto an RGB565 display that only sums the colours it
+/// is given (a driver streaming each tile to the panel at no cost of its own), printing
+/// `PIFS-BENCH-DRAW name=… stack=… instr=… checksum=… ok=…`.
+#[cfg(feature = "draw")]
+fn run(counter: &measure::Counter) -> bool {
+    use embedded_graphics::pixelcolor::{raw::RawU16, Rgb565};
+    use embedded_graphics::prelude::*;
+    use embedded_graphics::primitives::Rectangle;
+
+    /// An RGB565 panel that sums the raw colours drawn onto it.
+    struct Panel(u32);
+
+    impl OriginDimensions for Panel {
+        fn size(&self) -> Size {
+            Size::new(u32::from(u16::MAX), u32::from(u16::MAX))
+        }
+    }
+
+    impl DrawTarget for Panel {
+        type Color = Rgb565;
+        type Error = core::convert::Infallible;
+
+        fn draw_iter<I: IntoIterator<Item = Pixel<Rgb565>>>(
+            &mut self,
+            pixels: I,
+        ) -> Result<(), Self::Error> {
+            for Pixel(_, c) in pixels {
+                self.0 = self.0.wrapping_add(u32::from(RawU16::from(c).into_inner()));
+            }
+            Ok(())
+        }
+
+        fn fill_contiguous<I: IntoIterator<Item = Rgb565>>(
+            &mut self,
+            _area: &Rectangle,
+            colors: I,
+        ) -> Result<(), Self::Error> {
+            for c in colors {
+                self.0 = self.0.wrapping_add(u32::from(RawU16::from(c).into_inner()));
+            }
+            Ok(())
+        }
+    }
+
+    /// The measured call, not inlined so that all its stack is below the caller's.
+    #[inline(never)]
+    fn draw_once(data: &'static [u8], panel: &mut Panel) -> bool {
+        decoder_core::graphics::PifsImage::<Rgb565>::new(core::hint::black_box(data)).is_ok_and(
+            |picture| {
+                embedded_graphics::image::Image::new(&picture, Point::zero())
+                    .draw(panel)
+                    .is_ok()
+            },
+        )
+    }
+
+    let mut all_ok = true;
+    for v in VECTORS {
+        defmt::info!("draw: {=str}, {=usize} bytes", v.name, v.data.len());
+        let mut panel = Panel(0);
+        measure::paint();
+        let base = measure::sp();
+        let t0 = measure::ticks();
+        let ok = draw_once(v.data, &mut panel);
+        let t1 = measure::ticks();
+        let stack = measure::peak(base);
+        heprintln!(
+            "PIFS-BENCH-DRAW name={} stack={} instr={} checksum={} ok={}",
+            v.name,
+            stack,
+            counter.instructions(t1 - t0),
+            panel.0,
+            ok
+        );
+        all_ok &= ok;
+    }
+    all_ok
+}
+
 /// A decode at `scale` (every decode of the bench), not inlined.
-#[cfg(all(feature = "bench", not(feature = "baseline")))]
+#[cfg(all(feature = "bench", not(feature = "baseline"), not(feature = "draw")))]
 #[inline(never)]
 fn decode_scaled<S: decoder_core::PixelSink>(
     data: &'static [u8],
