@@ -3,6 +3,8 @@
 //! - [`decode_bytes`]: decoding never panics, never writes outside the image or a pixel twice,
 //!   and `Ok` means every pixel was written; the bytes are tried as given and with their
 //!   checksum made to match, so that damage also reaches the syntax checks behind the checksum.
+//!   Every tile also goes through the display adapter (`graphics::DrawSink`, dithered onto
+//!   RGB565), whatever its shape.
 //! - [`stream_equals_slice`]: the stream decoded from memory and delivered byte by byte through
 //!   the streaming decoder gives the same result and the same tiles, and the streaming decoder
 //!   never pulls a byte past the stream's end.
@@ -24,9 +26,15 @@
 //!   packets declare.
 
 use crate::CoverageSink;
+use decoder_core::graphics::DrawSink;
 use decoder_core::internal::syntax::seal;
 use decoder_core::ByteSource;
+use decoder_core::Tile;
 use decoder_core::{DecodeError, PixelSink};
+use embedded_graphics_core::draw_target::DrawTarget;
+use embedded_graphics_core::geometry::{OriginDimensions, Size};
+use embedded_graphics_core::pixelcolor::Rgb565;
+use embedded_graphics_core::Pixel;
 
 /// Largest image [`decode_bytes`] and [`stream_equals_slice`] decode (larger headers are checked
 /// against a small buffer and the caller's limits only): the decoder's work follows the
@@ -78,8 +86,12 @@ fn decode_checked(data: &[u8]) {
         assert_eq!(tiles.count, 0, "a stream that failed its checks was drawn");
         return;
     }
-    let mut sink = CoverageSink::new(u32::from(header.width), u32::from(header.height));
+    let mut sink = Drawn {
+        coverage: CoverageSink::new(u32::from(header.width), u32::from(header.height)),
+        panel: NullPanel,
+    };
     let result = crate::decode(data, &mut sink);
+    let sink = sink.coverage;
     assert!(sink.violations.is_empty(), "{:?}", sink.violations[0]);
     assert!(
         sink.counts.iter().all(|&c| c <= 1),
@@ -101,6 +113,45 @@ fn decode_checked(data: &[u8]) {
             }
         }
         None => assert_eq!(sink.tiles_with_values, 0, "values from an 8-bit stream"),
+    }
+}
+
+/// Every tile checked by a [`CoverageSink`] and drawn through the display adapter.
+struct Drawn {
+    coverage: CoverageSink,
+    panel: NullPanel,
+}
+
+impl PixelSink for Drawn {
+    type Error = std::convert::Infallible;
+
+    fn tile(&mut self, tile: Tile<'_>) -> Result<(), Self::Error> {
+        self.coverage.tile(tile)?;
+        DrawSink::new(&mut self.panel).tile(tile)
+    }
+}
+
+/// An RGB565 display that takes every colour drawn onto it and keeps none.
+struct NullPanel;
+
+impl OriginDimensions for NullPanel {
+    fn size(&self) -> Size {
+        Size::new(u32::from(u16::MAX), u32::from(u16::MAX))
+    }
+}
+
+impl DrawTarget for NullPanel {
+    type Color = Rgb565;
+    type Error = std::convert::Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Rgb565>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Self::Error> {
+        for pixel in pixels {
+            std::hint::black_box(pixel);
+        }
+        Ok(())
     }
 }
 
