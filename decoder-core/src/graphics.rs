@@ -784,16 +784,16 @@ where
             Dither::Ordered => &ORDERED_ROWS,
             Dither::Nearest => &NEAREST_ROWS,
         };
-        let mut positions = Thresholds::new(rows, x, y, w);
+        let mut thresholds = Thresholds::new(rows, x, y, w);
         if tile.channels == 3 {
             let colors = tile.pixels.chunks_exact(3).map(|p| {
-                let t = positions.next().unwrap_or(Threshold::NEAREST);
+                let t = thresholds.next().unwrap_or(Threshold::NEAREST);
                 D::Color::from_rgb_with(p[0], p[1], p[2], t)
             });
             self.target.fill_contiguous(&area, colors)
         } else {
             let colors = tile.pixels.iter().map(|&l| {
-                let t = positions.next().unwrap_or(Threshold::NEAREST);
+                let t = thresholds.next().unwrap_or(Threshold::NEAREST);
                 D::Color::from_gray_with(l, t)
             });
             self.target.fill_contiguous(&area, colors)
