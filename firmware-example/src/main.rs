@@ -165,24 +165,19 @@ fn run(counter: &measure::Counter) -> bool {
     for v in VECTORS {
         defmt::info!("bench: {=str}, {=usize} bytes", v.name, v.data.len());
         let mut sum = Sum(0);
-        measure::paint();
-        let base = measure::sp();
-        let t0 = measure::ticks();
-        let ok = decode_once(v.data, &mut sum);
-        let t1 = measure::ticks();
-        let stack = measure::peak(base);
+        let m = counter.measure(|| decode_once(v.data, &mut sum));
         heprintln!(
             "PIFS-BENCH name={} w={} h={} bytes={} stack={} instr={} checksum={} ok={}",
             v.name,
             v.width,
             v.height,
             v.data.len(),
-            stack,
-            counter.instructions(t1 - t0),
+            m.stack,
+            m.instructions,
             sum.0,
-            ok
+            m.value
         );
-        all_ok &= ok;
+        all_ok &= m.value;
         for scale in [
             decoder_core::Scale::Half,
             decoder_core::Scale::Quarter,
@@ -191,22 +186,17 @@ fn run(counter: &measure::Counter) -> bool {
             decoder_core::Scale::Quadruple,
         ] {
             let mut sum = Sum(0);
-            measure::paint();
-            let base = measure::sp();
-            let t0 = measure::ticks();
-            let ok = decode_scaled(v.data, scale, &mut sum);
-            let t1 = measure::ticks();
-            let stack = measure::peak(base);
+            let m = counter.measure(|| decode_scaled(v.data, scale, &mut sum));
             heprintln!(
                 "PIFS-BENCH-SCALED name={} scale={} stack={} instr={} checksum={} ok={}",
                 v.name,
                 scale.log2(),
-                stack,
-                counter.instructions(t1 - t0),
+                m.stack,
+                m.instructions,
                 sum.0,
-                ok
+                m.value
             );
-            all_ok &= ok;
+            all_ok &= m.value;
         }
     }
     all_ok
@@ -273,21 +263,16 @@ fn run(counter: &measure::Counter) -> bool {
     for v in VECTORS {
         defmt::info!("draw: {=str}, {=usize} bytes", v.name, v.data.len());
         let mut panel = Panel(0);
-        measure::paint();
-        let base = measure::sp();
-        let t0 = measure::ticks();
-        let ok = draw_once(v.data, &mut panel);
-        let t1 = measure::ticks();
-        let stack = measure::peak(base);
+        let m = counter.measure(|| draw_once(v.data, &mut panel));
         heprintln!(
             "PIFS-BENCH-DRAW name={} stack={} instr={} checksum={} ok={}",
             v.name,
-            stack,
-            counter.instructions(t1 - t0),
+            m.stack,
+            m.instructions,
             panel.0,
-            ok
+            m.value
         );
-        all_ok &= ok;
+        all_ok &= m.value;
     }
     all_ok
 }

@@ -105,6 +105,33 @@ impl Counter {
             .checked_div(self.ticks)
             .unwrap_or(0)
     }
+
+    /// Runs `call` from the caller's frame (inlined), the free stack painted before and
+    /// scanned after: its result, peak stack and instructions.
+    #[inline(always)]
+    pub fn measure<T>(&self, call: impl FnOnce() -> T) -> Measured<T> {
+        paint();
+        let base = sp();
+        let t0 = ticks();
+        let value = call();
+        let t1 = ticks();
+        let stack = peak(base);
+        Measured {
+            value,
+            stack,
+            instructions: self.instructions(t1 - t0),
+        }
+    }
+}
+
+/// What one measured call ([`Counter::measure`]) gave and cost.
+pub struct Measured<T> {
+    /// The call's result.
+    pub value: T,
+    /// Its peak stack, in bytes.
+    pub stack: usize,
+    /// Its instructions.
+    pub instructions: u64,
 }
 
 extern "C" {

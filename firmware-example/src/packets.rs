@@ -116,13 +116,11 @@ fn rebuild(set: &PacketSet, counter: &measure::Counter) -> bool {
             return false;
         }
     }
-    measure::paint();
-    let base = measure::sp();
-    let t0 = measure::ticks();
-    let rebuilt = rebuild_lost(&mut code);
-    let t1 = measure::ticks();
-    let stack = measure::peak(base);
-    let instr = counter.instructions(t1 - t0);
+    let measure::Measured {
+        value: rebuilt,
+        stack,
+        instructions: instr,
+    } = counter.measure(|| rebuild_lost(&mut code));
     if let Err(e) = rebuilt {
         heprintln!("PIFS-ERROR name={} rebuild: {}", set.name, e);
         return false;
