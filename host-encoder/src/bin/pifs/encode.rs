@@ -652,10 +652,7 @@ fn write_made(
 /// holds (a microcontroller would refuse it with `StripeTooWide`), naming the option that fits.
 fn stripe_note(stream: &[u8]) -> Option<String> {
     static NOTED: AtomicBool = AtomicBool::new(false);
-    let stripe = decoder_core::Decoder::new(stream)
-        .ok()?
-        .header()
-        .stripe_width();
+    let stripe = decoder_core::Header::read(stream).ok()?.stripe_width();
     let capacity = decoder_core::internal::format::DEFAULT_STRIPE as u32;
     (stripe > capacity && !NOTED.swap(true, Ordering::Relaxed)).then(|| {
         format!(
