@@ -10,6 +10,10 @@ on Kodak.
 
     python3 bench/experiments/chroma_ceiling.py ../shared/images/kodak/*.png
 
+With `--repeated` first, the same two 2 x 2 means ceilings (plain luma, luma made up) with the
+chroma drawn as the decoder draws it and repeated over each 2 x 2 block instead (what JPEG
+decoders' plain upsampling does; docs/decisions.md, "Chroma repeated over 2 x 2 pixels").
+
 Needs numpy and Pillow. Images of even sizes.
 """
 import sys
@@ -63,6 +67,35 @@ def made_up_luma(rgb, cb, cr):
     return best
 
 
+def repeated(paths):
+    """The 2 x 2 means ceilings, chroma drawn (as `main`) and chroma repeated."""
+    rows = []
+    for path in paths:
+        rgb = np.asarray(Image.open(path).convert("RGB"))
+        h, w, _ = rgb.shape
+        y, cb, cr = to_ycbcr(rgb)
+        uy, ux = interpolation(h), interpolation(w)
+        means = [np.round(c.reshape(h // 2, 2, w // 2, 2).mean(axis=(1, 3))) for c in (cb, cr)]
+        drawn = [np.round(uy @ c @ ux.T).astype(np.int64) for c in means]
+        repeat = [np.repeat(np.repeat(c, 2, 0), 2, 1).astype(np.int64) for c in means]
+        row = [
+            psnr(rgb, to_rgb(y, *drawn)),
+            psnr(rgb, to_rgb(y, *repeat)),
+            psnr(rgb, to_rgb(made_up_luma(rgb, *drawn), *drawn)),
+            psnr(rgb, to_rgb(made_up_luma(rgb, *repeat), *repeat)),
+        ]
+        rows.append(row)
+        print(
+            f"{path}: drawn {row[0]:.2f} dB, repeated {row[1]:.2f} dB; with the luma made up: "
+            f"drawn {row[2]:.2f} dB, repeated {row[3]:.2f} dB"
+        )
+    m = np.mean(rows, axis=0)
+    print(
+        f"mean over {len(paths)}: drawn {m[0]:.2f} dB, repeated {m[1]:.2f} dB; with the luma "
+        f"made up: drawn {m[2]:.2f} dB, repeated {m[3]:.2f} dB"
+    )
+
+
 def main(paths):
     means, least, made_up = [], [], []
     for path in paths:
@@ -95,4 +128,7 @@ def main(paths):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    if sys.argv[1:2] == ["--repeated"]:
+        repeated(sys.argv[2:])
+    else:
+        main(sys.argv[1:])
