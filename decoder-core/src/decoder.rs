@@ -897,17 +897,20 @@ impl Subsample<'_> {
     fn pick(&mut self, tile: TileMut<'_>, mut samples: Option<&mut [i16]>) -> Result<(), Stop> {
         let (shift, unit) = (self.shift, 1u32 << self.shift);
         let Rect { x, y, w, h } = tile.area;
-        let (first_x, first_y) = (x.next_multiple_of(unit), y.next_multiple_of(unit));
+        // Coordinates are below 2^16: no overflow; shifts, no division on a Cortex-M0.
+        let on_grid = |v: u32| (v + unit - 1) >> shift << shift;
+        let (first_x, first_y) = (on_grid(x), on_grid(y));
         if first_x >= x + w || first_y >= y + h {
             return Ok(());
         }
-        // Grid points in the tile's columns and rows (by shifts: no division on a Cortex-M0).
+        // Grid points in the tile's columns and rows.
         let cols = (x + w - first_x + unit - 1) >> shift;
         let rows = (y + h - first_y + unit - 1) >> shift;
+        let (dx, dy) = (first_x - x, first_y - y);
         let mut n = 0;
-        for j in (first_y..y + h).step_by(unit as usize) {
-            for i in (first_x..x + w).step_by(unit as usize) {
-                let at = ((j - y) * w + (i - x)) as usize;
+        for r in 0..rows {
+            for c in 0..cols {
+                let at = ((dy + (r << shift)) * w + dx + (c << shift)) as usize;
                 move_back(tile.pixels, at, n);
                 if let Some(s) = samples.as_deref_mut() {
                     move_back(s, at, n);

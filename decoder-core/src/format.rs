@@ -185,7 +185,65 @@ pub fn div_floor(n: u32, d: u32) -> u32 {
         // floor(n / (3 * 2^k)) = floor(floor(n / 2^k) / 3); floor(m / 3) = (m * 43691) >> 17
         // exactly for m < 2^16 (43691 = ceil(2^17 / 3), one over).
         3 if n >> k < 1 << 16 => ((n >> k) * 43_691) >> 17,
-        _ => n / d.max(1),
+        _ => divide(n, d),
+    }
+}
+
+/// `floor(n / d)` for `d > 0` (0 counts as 1), for the few divisions that are not by a
+/// constant or a power of two (set-up, and the prediction's rare divisors). Where the target
+/// has 32-bit atomics (ARMv7-M, hosts: a divide instruction) a division; on the Cortex-M0
+/// (ARMv6-M), which has none, shifts and subtractions, one per bit of the quotient, so that the
+/// decoder links no general division routine there.
+pub const fn divide(n: u32, d: u32) -> u32 {
+    let d = if d == 0 { 1 } else { d };
+    #[cfg(target_has_atomic = "32")]
+    {
+        n / d
+    }
+    #[cfg(not(target_has_atomic = "32"))]
+    {
+        divide_by_bits(n, d)
+    }
+}
+
+/// [`divide`] for the Cortex-M0, `d > 0`.
+#[cfg(any(test, not(target_has_atomic = "32")))]
+const fn divide_by_bits(n: u32, d: u32) -> u32 {
+    let mut divisor = d;
+    if divisor > n {
+        return 0;
+    }
+    // The divisor shifted up to the quotient's top bit (`divisor <= n < 2 divisor`).
+    let mut bits = 0;
+    while divisor <= n >> 1 {
+        divisor <<= 1;
+        bits += 1;
+    }
+    let (mut quotient, mut rest) = (0u32, n);
+    loop {
+        quotient <<= 1;
+        if rest >= divisor {
+            rest -= divisor;
+            quotient |= 1;
+        }
+        if bits == 0 {
+            return quotient;
+        }
+        bits -= 1;
+        divisor >>= 1;
+    }
+}
+
+/// `v mod 255`, by folding bytes (`256 = 1 mod 255`): no division on a Cortex-M0.
+pub const fn mod255(v: usize) -> usize {
+    let mut v = v;
+    while v > 255 {
+        v = (v >> 8) + (v & 255);
+    }
+    if v == 255 {
+        0
+    } else {
+        v
     }
 }
 
@@ -286,6 +344,35 @@ mod tests {
                 let n = v.unsigned_abs();
                 assert_eq!(div_floor(n, step as u32), n / step as u32, "{n} / {step}");
             }
+        }
+    }
+
+    /// The bit-at-a-time division and the folded remainder are the processor's, over the
+    /// whole range of both operands.
+    #[test]
+    fn division_by_bits_is_division() {
+        let mut seed = 0x9e37_79b9u32;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        let edges = [0, 1, 2, 3, 254, 255, 256, 1 << 31, u32::MAX - 1, u32::MAX];
+        for _ in 0..20_000 {
+            let (n, d) = (next(), next() >> (next() % 32));
+            for (n, d) in [(n, d), (n, d.max(1) & 0xffff), (n >> 12, d >> 20)] {
+                assert_eq!(divide(n, d), n / d.max(1), "{n} / {d}");
+                assert_eq!(divide_by_bits(n, d.max(1)), n / d.max(1), "{n} / {d}");
+            }
+            assert_eq!(mod255(n as usize), n as usize % 255, "{n} mod 255");
+        }
+        for n in edges {
+            for d in edges {
+                assert_eq!(divide(n, d), n / d.max(1), "{n} / {d}");
+                assert_eq!(divide_by_bits(n, d.max(1)), n / d.max(1), "{n} / {d}");
+            }
+            assert_eq!(mod255(n as usize), n as usize % 255, "{n} mod 255");
         }
     }
 

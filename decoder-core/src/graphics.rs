@@ -509,13 +509,15 @@ where
         let area = Rectangle::new(at, Size::new(w, h));
         let map = self.map;
         if tile.values.is_empty() {
-            let step = usize::from(tile.channels.max(1));
-            let luma = tile.pixels.chunks_exact(step).map(|p| match *p {
-                [r, g, b] => rgb_to_luma(r, g, b),
-                _ => p[0],
-            });
-            self.target
-                .fill_contiguous(&area, luma.map(|l| map(u16::from(l))))
+            if tile.channels == 3 {
+                let luma = triples(tile.pixels).map(|p| rgb_to_luma(p[0], p[1], p[2]));
+                self.target
+                    .fill_contiguous(&area, luma.map(|l| map(u16::from(l))))
+            } else {
+                let luma = tile.pixels.iter();
+                self.target
+                    .fill_contiguous(&area, luma.map(|&l| map(u16::from(l))))
+            }
         } else {
             let colors = tile.values.iter().map(|&v| map(v));
             self.target.fill_contiguous(&area, colors)
@@ -551,6 +553,29 @@ impl<C: FromGray, const STRIPE: usize> ImageDrawable for PifsImage<'_, C, STRIPE
         D: DrawTarget<Color = Self::Color>,
     {
         ignore_decode_errors(self.draw_sub_image_checked(target, area))
+    }
+}
+
+/// The RGB pixels of a colour tile, three bytes each: taken three at a time, where
+/// `chunks_exact(3)` divides the length by 3 (a routine call on a Cortex-M0). By reference:
+/// an array value is packed into a word and unpacked again.
+fn triples(pixels: &[u8]) -> Triples<'_> {
+    Triples { rest: pixels }
+}
+
+/// The iterator of [`triples`].
+struct Triples<'a> {
+    rest: &'a [u8],
+}
+
+impl<'a> Iterator for Triples<'a> {
+    type Item = &'a [u8; 3];
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<&'a [u8; 3]> {
+        let (pixel, tail) = self.rest.split_first_chunk::<3>()?;
+        self.rest = tail;
+        Some(pixel)
     }
 }
 
@@ -769,10 +794,7 @@ where
         if !D::Color::DITHERED {
             // Eight bits a channel: the pixels as they are, whatever the dither.
             return if tile.channels == 3 {
-                let colors = tile
-                    .pixels
-                    .chunks_exact(3)
-                    .map(|p| D::Color::from_rgb(p[0], p[1], p[2]));
+                let colors = triples(tile.pixels).map(|p| D::Color::from_rgb(p[0], p[1], p[2]));
                 self.target.fill_contiguous(&area, colors)
             } else {
                 let colors = tile.pixels.iter().map(|&l| D::Color::from_gray(l));
@@ -786,7 +808,7 @@ where
         };
         let mut thresholds = Thresholds::new(rows, x, y, w);
         if tile.channels == 3 {
-            let colors = tile.pixels.chunks_exact(3).map(|p| {
+            let colors = triples(tile.pixels).map(|p| {
                 let t = thresholds.next().unwrap_or(Threshold::NEAREST);
                 D::Color::from_rgb_with(p[0], p[1], p[2], t)
             });

@@ -253,8 +253,12 @@ impl<S: PixelSink + ?Sized> PixelSink for Around<'_, '_, S> {
         if row_len == 0 {
             return Ok(());
         }
-        for (r, row) in tile.pixels.chunks_exact(row_len).enumerate() {
-            let y = area.y + r as u32;
+        // Row by row without `chunks_exact`, whose set-up divides (a routine call on a
+        // Cortex-M0).
+        let mut rest = tile.pixels;
+        let mut y = area.y;
+        while let Some((row, tail)) = rest.split_at_checked(row_len) {
+            rest = tail;
             let mut x = area.x;
             let end = area.x + area.w;
             while x < end {
@@ -289,6 +293,7 @@ impl<S: PixelSink + ?Sized> PixelSink for Around<'_, '_, S> {
                 })?;
                 x = stop;
             }
+            y += 1;
         }
         Ok(())
     }

@@ -11,7 +11,7 @@
 
 use crate::checksum::crc16;
 use crate::error::{DecodeError, HeaderField};
-use crate::format::{PACKET_TAG, PARITY_TAG};
+use crate::format::{mod255, PACKET_TAG, PARITY_TAG};
 use crate::packet::{packet_crc, read_field, Packet, CRC_LEN};
 use crate::syntax::check_first_byte;
 use core::fmt;
@@ -334,7 +334,7 @@ impl<'b> Rebuild<'b> {
                 .filter(|&&other| other != q)
                 .map(|&other| usize::from(LOG[usize::from(q ^ other)]))
                 .sum();
-            *d = (sum % 255) as u8;
+            *d = mod255(sum) as u8;
         }
         for m in 0..count {
             if self.held.contains(m) {
@@ -347,10 +347,10 @@ impl<'b> Rebuild<'b> {
                 .sum();
             self.slot_mut(m)?.fill(0);
             for (&q, &d) in known.iter().zip(&denominator) {
-                let log = numerator % 255 + 2 * 255
+                let log = mod255(numerator) + 2 * 255
                     - usize::from(LOG[usize::from(m ^ q)])
                     - usize::from(d);
-                self.add_scaled(m, q, (log % 255) as u8);
+                self.add_scaled(m, q, mod255(log) as u8);
             }
         }
         for m in 0..count {

@@ -177,7 +177,7 @@ impl StripeWidth {
         if !pixels.is_multiple_of(CODING_TILE) || tiles == 0 || tiles > MAX_TILES {
             return None;
         }
-        let reciprocal = (1u32 << RECIPROCAL_BITS).div_ceil(tiles);
+        let reciprocal = crate::format::divide((1u32 << RECIPROCAL_BITS) + tiles - 1, tiles);
         Some(StripeWidth(reciprocal << TILE_COUNT_BITS | tiles))
     }
 

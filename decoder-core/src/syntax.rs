@@ -836,7 +836,8 @@ pub fn chroma_grid(leaf: &LeafSyntax, log2: u8) -> ControlGrid {
     ControlGrid {
         step: control_step(leaf.cquant).max(1),
         side: usize::from(g) + usize::from(!pixel_grid),
-        spacing: (size / u32::from(g)).max(1),
+        // `g` is a power of two: a shift, no division.
+        spacing: (size >> g.trailing_zeros()).max(1),
         transform: leaf.coding == ControlCoding::Transform,
     }
 }

@@ -246,18 +246,26 @@ fn walk_planes<C: Coder, V: TreeVisitor, const STRIPE: usize>(
     }
     let tile_log2 = header.root_log2().min(MAX_LEAF_LOG2);
     let tile = 1u32 << tile_log2;
-    // The stripe is a multiple of the coding tile, hence of `tile`.
-    for x0 in (0..width).step_by(stripe.max(CODING_TILE) as usize) {
-        for y in (0..height).step_by(tile as usize) {
-            for x in (x0..width.min(x0 + stripe)).step_by(tile as usize) {
+    // The stripe is a multiple of the coding tile, hence of `tile`. Loops of additions, not
+    // `step_by`, whose set-up divides (a routine call on a Cortex-M0).
+    let stripe = stripe.max(CODING_TILE);
+    let mut x0 = 0;
+    while x0 < width {
+        let mut y = 0;
+        while y < height {
+            let mut x = x0;
+            while x < width.min(x0 + stripe) {
                 let root = Node {
                     x,
                     y,
                     log2: tile_log2,
                 };
                 walk_tile(header, coder, visitor, state, chroma.as_deref_mut(), root)?;
+                x += tile;
             }
+            y += tile;
         }
+        x0 += stripe;
     }
     Ok(())
 }

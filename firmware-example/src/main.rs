@@ -54,6 +54,7 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, heprintln};
 
 mod measure;
+use measure::Decimal;
 #[cfg(not(feature = "bench"))]
 mod packets;
 #[cfg(not(feature = "bench"))]
@@ -80,11 +81,12 @@ fn main() -> ! {
     let core = cortex_m::Peripherals::take().unwrap();
     let counter = measure::Counter::start(core.SYST);
     let milli = counter.milli_instr_per_tick();
+    let units = measure::divide(milli, 1000);
     heprintln!(
         "PIFS-CALIB instr_per_tick={}.{:03} free_stack={}",
-        milli / 1000,
-        milli % 1000,
-        measure::free_stack()
+        Decimal(units as i64),
+        Decimal((milli - 1000 * units) as i64),
+        Decimal(measure::free_stack() as i64)
     );
     let ok = run(&counter);
     debug::exit(if ok {
@@ -99,7 +101,7 @@ fn main() -> ! {
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     match info.location() {
-        Some(l) => heprintln!("PIFS-PANIC at {}:{}", l.file(), l.line()),
+        Some(l) => heprintln!("PIFS-PANIC at {}:{}", l.file(), Decimal(l.line().into())),
         None => heprintln!("PIFS-PANIC"),
     }
     debug::exit(debug::EXIT_FAILURE);
@@ -169,12 +171,12 @@ fn run(counter: &measure::Counter) -> bool {
         heprintln!(
             "PIFS-BENCH name={} w={} h={} bytes={} stack={} instr={} checksum={} ok={}",
             v.name,
-            v.width,
-            v.height,
-            v.data.len(),
-            m.stack,
-            m.instructions,
-            sum.0,
+            Decimal(v.width.into()),
+            Decimal(v.height.into()),
+            Decimal(v.data.len() as i64),
+            Decimal(m.stack as i64),
+            Decimal(m.instructions as i64),
+            Decimal(sum.0.into()),
             m.value
         );
         all_ok &= m.value;
@@ -190,10 +192,10 @@ fn run(counter: &measure::Counter) -> bool {
             heprintln!(
                 "PIFS-BENCH-SCALED name={} scale={} stack={} instr={} checksum={} ok={}",
                 v.name,
-                scale.log2(),
-                m.stack,
-                m.instructions,
-                sum.0,
+                Decimal(scale.log2().into()),
+                Decimal(m.stack as i64),
+                Decimal(m.instructions as i64),
+                Decimal(sum.0.into()),
                 m.value
             );
             all_ok &= m.value;
@@ -267,9 +269,9 @@ fn run(counter: &measure::Counter) -> bool {
         heprintln!(
             "PIFS-BENCH-DRAW name={} stack={} instr={} checksum={} ok={}",
             v.name,
-            m.stack,
-            m.instructions,
-            panel.0,
+            Decimal(m.stack as i64),
+            Decimal(m.instructions as i64),
+            Decimal(panel.0.into()),
             m.value
         );
         all_ok &= m.value;

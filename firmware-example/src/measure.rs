@@ -96,14 +96,12 @@ impl Counter {
 
     /// Instructions per tick, times 1000 (0 when SysTick does not run).
     pub fn milli_instr_per_tick(&self) -> u64 {
-        (self.instr * 1000).checked_div(self.ticks).unwrap_or(0)
+        divide(self.instr * 1000, self.ticks)
     }
 
     /// Instructions executed in `ticks` SysTick ticks (rounded; one tick of resolution).
     pub fn instructions(&self, ticks: u64) -> u64 {
-        (ticks * self.instr + self.ticks / 2)
-            .checked_div(self.ticks)
-            .unwrap_or(0)
+        divide(ticks * self.instr + self.ticks / 2, self.ticks)
     }
 
     /// Runs `call` from the caller's frame (inlined), the free stack painted before and
@@ -183,4 +181,68 @@ pub fn peak(base: usize) -> usize {
 /// Bytes of free stack (end of static RAM to `sp`).
 pub fn free_stack() -> usize {
     sp().saturating_sub(stack_floor())
+}
+
+/// `n / d` (0 when `d` is 0), a bit at a time. The harness divides nowhere else and prints
+/// with [`Decimal`], so that it links no division routine on a Cortex-M0 (which has no divide
+/// instruction): a routine the decoder needed would then show in the decoder's flash, which the
+/// bench measures against this harness.
+pub fn divide(n: u64, d: u64) -> u64 {
+    if d == 0 {
+        return 0;
+    }
+    let (mut quotient, mut rest) = (0u64, 0u128);
+    for bit in (0..64).rev() {
+        rest = rest << 1 | u128::from(n >> bit & 1);
+        if rest >= u128::from(d) {
+            rest -= u128::from(d);
+            quotient |= 1 << bit;
+        }
+    }
+    quotient
+}
+
+/// An integer written in decimal by subtracting powers of ten: `core::fmt`'s integer formatting
+/// divides (see [`divide`]).
+pub struct Decimal(pub i64);
+
+/// `10^19, 10^18, …, 1`.
+const POWERS_OF_TEN: [u64; 20] = {
+    let mut powers = [1u64; 20];
+    let mut k = 19;
+    while k > 0 {
+        k -= 1;
+        powers[k] = powers[k + 1] * 10;
+    }
+    powers
+};
+
+impl core::fmt::Display for Decimal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        use core::fmt::Write;
+        if self.0 < 0 {
+            f.write_char('-')?;
+        }
+        let mut n = self.0.unsigned_abs();
+        // `{:0N}`: zeros up to `N` digits.
+        let digits = POWERS_OF_TEN.iter().filter(|&&p| p <= n.max(1)).count();
+        if f.sign_aware_zero_pad() {
+            for _ in digits..f.width().unwrap_or(0) {
+                f.write_char('0')?;
+            }
+        }
+        let mut started = false;
+        for (k, power) in POWERS_OF_TEN.into_iter().enumerate() {
+            let mut digit = 0u8;
+            while n >= power {
+                n -= power;
+                digit += 1;
+            }
+            started |= digit > 0 || k == POWERS_OF_TEN.len() - 1;
+            if started {
+                f.write_char(char::from(b'0' + digit))?;
+            }
+        }
+        Ok(())
+    }
 }
