@@ -174,18 +174,14 @@ fn byte_compared(v: i32) -> u8 {
     }
 }
 
-/// `floor(n / d)` for `d > 0` (0 counts as 1). The divisors a stream divides by are `2^k` or
-/// `3 * 2^k` (the control steps, the pixels beside a leaf): for those a shift and a multiply,
-/// as a Cortex-M0 has no divider (out of line: one copy for every caller).
+/// `floor(n / d)` for `d > 0` (0 counts as 1): a shift for a power of two (the pixels beside a
+/// leaf, most control steps), else [`divide`] (out of line: one copy for every caller).
 #[inline(never)]
 pub fn div_floor(n: u32, d: u32) -> u32 {
-    let k = d.trailing_zeros();
-    match d >> k {
-        1 => n >> k,
-        // floor(n / (3 * 2^k)) = floor(floor(n / 2^k) / 3); floor(m / 3) = (m * 43691) >> 17
-        // exactly for m < 2^16 (43691 = ceil(2^17 / 3), one over).
-        3 if n >> k < 1 << 16 => ((n >> k) * 43_691) >> 17,
-        _ => divide(n, d),
+    if d.is_power_of_two() {
+        n >> d.trailing_zeros()
+    } else {
+        divide(n, d)
     }
 }
 

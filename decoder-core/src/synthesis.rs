@@ -603,9 +603,31 @@ fn refine_line(
 #[inline(always)]
 fn halve_line(line: &Row, lo0: usize, out: &mut Row, points: (usize, usize), m: usize) {
     match m {
-        1 => halve_blocks::<1>(line, lo0, out, points, 1),
+        1 => halve_intervals(line, lo0, out, points),
         2 => halve_blocks::<2>(line, lo0, out, points, 2),
         _ => halve_blocks::<4>(line, lo0, out, points, m),
+    }
+}
+
+/// [`halve_line`] for blocks of one interval (the bilinear model): each interval's old point
+/// and midpoint, `(p1 + p2 + 1) >> 1` (the line rule with both taps mirrored), each point of
+/// `line` read once.
+#[inline(never)]
+fn halve_intervals(line: &Row, lo0: usize, out: &mut Row, (lo1, n): (usize, usize)) {
+    let at = |k: usize| i32::from(line[k.wrapping_sub(lo0) % STRIP]);
+    let mut k = lo1 >> 1;
+    let mut p = at(k);
+    let mut odd = lo1 & 1 == 1;
+    for v in out.iter_mut().take(n) {
+        if odd {
+            k += 1;
+            let q = at(k);
+            *v = ((p + q + 1) >> 1) as i16;
+            p = q;
+        } else {
+            *v = p as i16;
+        }
+        odd = !odd;
     }
 }
 
