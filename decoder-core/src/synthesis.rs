@@ -596,10 +596,10 @@ fn refine_line(
     }
 }
 
-/// [`refine_line`] by 2: each interval's old point and midpoint, compiled for blocks of one
-/// and of two intervals (so that the bilinear model's mirrored taps, and the alternating ones of
-/// two-interval blocks, are constants) and once for the longer blocks, whose length `m` (4 or
-/// 8) is a variable: a copy for each cost 0.6 KiB of flash for 1% of the instructions.
+/// [`refine_line`] by 2: each interval's old point and midpoint; blocks of one interval (the
+/// bilinear model) by a loop of their own, the kernel compiled for blocks of two intervals (so
+/// that their alternating taps are constants) and once for the longer blocks, whose length `m`
+/// (4 or 8) is a variable: a copy for each cost 0.6 KiB of flash for 1% of the instructions.
 #[inline(always)]
 fn halve_line(line: &Row, lo0: usize, out: &mut Row, points: (usize, usize), m: usize) {
     match m {
@@ -631,9 +631,9 @@ fn halve_intervals(line: &Row, lo0: usize, out: &mut Row, (lo1, n): (usize, usiz
     }
 }
 
-/// [`halve_line`] for blocks of `m` intervals (`M` when it is 1 or 2; `M` is 4 for every
-/// longer block): whole blocks (or four intervals of a longer block) at a time where the strip
-/// holds them, their taps and mirrors fixed; else an interval at a time.
+/// [`halve_line`] for blocks of `m` intervals (`M` when it is 2; `M` is 4 for every longer
+/// block): whole blocks (or four intervals of a longer block) at a time where the strip holds
+/// them, their taps and mirrors fixed; else an interval at a time.
 #[inline(never)]
 fn halve_blocks<const M: usize>(
     line: &Row,
@@ -642,7 +642,7 @@ fn halve_blocks<const M: usize>(
     (lo1, n): (usize, usize),
     m: usize,
 ) {
-    let m = if M <= 2 { M } else { m.max(M) };
+    let m = if M == 2 { M } else { m.max(M) };
     let at = |k: usize| line[k.wrapping_sub(lo0) % STRIP];
     let half = |p0: i16, p1: i16, p2: i16, p3: i16| Half::default().apply(p0, p1, p2, p3);
     // The midpoint of interval `k`, its taps mirrored at the ends of its block.
@@ -661,20 +661,14 @@ fn halve_blocks<const M: usize>(
     }
     while i < n {
         let b = (lo1 + i) >> 1;
-        if M <= 2 && b % M == 0 && i + 2 * M <= n {
-            // A whole block: points b ..= b + M of the line.
-            let (v0, v1) = (at(b), at(b + 1));
-            if M == 1 {
-                out[i % STRIP] = v0;
-                out[(i + 1) % STRIP] = ((i32::from(v0) + i32::from(v1) + 1) >> 1) as i16;
-            } else {
-                let v2 = at(b + 2);
-                out[i % STRIP] = v0;
-                out[(i + 1) % STRIP] = half(v1, v0, v1, v2);
-                out[(i + 2) % STRIP] = v1;
-                out[(i + 3) % STRIP] = half(v0, v1, v2, v1);
-            }
-            i += 2 * M;
+        if M == 2 && b % 2 == 0 && i + 4 <= n {
+            // A whole block: points b ..= b + 2 of the line.
+            let (v0, v1, v2) = (at(b), at(b + 1), at(b + 2));
+            out[i % STRIP] = v0;
+            out[(i + 1) % STRIP] = half(v1, v0, v1, v2);
+            out[(i + 2) % STRIP] = v1;
+            out[(i + 3) % STRIP] = half(v0, v1, v2, v1);
+            i += 4;
         } else if M >= 4 && b % 4 == 0 && i + 8 <= n {
             // Four intervals of a block: points b - 1 ..= b + 5, mirrored at the block's ends.
             let (v0, v1, v2, v3, v4) = (at(b), at(b + 1), at(b + 2), at(b + 3), at(b + 4));
