@@ -67,14 +67,20 @@ pub enum Leb128Error {
 
 /// Reads an unsigned LEB128 value (7 bits a byte, least significant group first, bit 7 set on
 /// every byte but the last) of at most `max_bytes` bytes at `*pos`, advancing `*pos`; a
-/// redundant final zero group (a last byte of 0 after others) is malformed. The headers' sizes
-/// and payload length and the packet header's fields are such values.
-pub fn read_leb128(data: &[u8], pos: &mut usize, max_bytes: usize) -> Result<u64, Leb128Error> {
-    let mut value = 0u64;
-    for k in 0..max_bytes {
+/// redundant final zero group (a last byte of 0 after others) is malformed, and so is a value
+/// past 32 bits. The headers' sizes and payload length and the packet header's fields are such
+/// values (32 bits: no 64-bit shifts on a Cortex-M0).
+pub fn read_leb128(data: &[u8], pos: &mut usize, max_bytes: usize) -> Result<u32, Leb128Error> {
+    let mut value = 0u32;
+    // Five groups hold 32 bits.
+    for k in 0..max_bytes.min(5) {
         let b = *data.get(*pos).ok_or(Leb128Error::Truncated)?;
         *pos += 1;
-        value |= u64::from(b & 0x7F) << (7 * k);
+        let (group, shift) = (u32::from(b & 0x7F), 7 * k as u32);
+        if (group << shift) >> shift != group {
+            return Err(Leb128Error::Malformed);
+        }
+        value |= group << shift;
         if b & 0x80 == 0 {
             return match k > 0 && b == 0 {
                 true => Err(Leb128Error::Malformed),
@@ -341,6 +347,46 @@ mod tests {
                 assert_eq!(div_floor(n, step as u32), n / step as u32, "{n} / {step}");
             }
         }
+    }
+
+    /// LEB128 values up to 32 bits read back; past 32 bits, past the byte limit, or with a
+    /// redundant final zero group they are malformed, and cut short truncated.
+    #[test]
+    fn leb128_values_are_32_bits() {
+        for v in [
+            0,
+            1,
+            127,
+            128,
+            16_383,
+            16_384,
+            1 << 21,
+            u32::MAX - 1,
+            u32::MAX,
+        ] {
+            let mut out = [0u8; 5];
+            let end = write_leb128(&mut out, 0, v);
+            let mut pos = 0;
+            assert_eq!(read_leb128(&out[..end], &mut pos, 5), Ok(v));
+            assert_eq!(pos, end);
+            let mut pos = 0;
+            assert_eq!(
+                read_leb128(&out[..end - 1], &mut pos, 5),
+                Err(Leb128Error::Truncated)
+            );
+        }
+        let read = |bytes: &[u8], max: usize| read_leb128(bytes, &mut 0, max);
+        assert_eq!(
+            read(&[0x80, 0x80, 0x80, 0x80, 0x10], 5),
+            Err(Leb128Error::Malformed)
+        );
+        assert_eq!(read(&[0xFF, 0xFF, 0xFF, 0xFF, 0x0F], 5), Ok(u32::MAX));
+        assert_eq!(
+            read(&[0x80, 0x80, 0x80, 0x01], 3),
+            Err(Leb128Error::Malformed)
+        );
+        assert_eq!(read(&[0x85, 0x00], 3), Err(Leb128Error::Malformed));
+        assert_eq!(read(&[0x00], 3), Ok(0));
     }
 
     /// The bit-at-a-time division and the folded remainder are the processor's, over the

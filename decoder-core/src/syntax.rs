@@ -296,13 +296,13 @@ impl Header {
             checksum: u32::from_le_bytes([fixed[2], fixed[3], fixed[4], fixed[5]]),
             range: None,
         };
-        // Payload length: LEB128, at most five bytes, no redundant trailing zero group.
-        let len = read_leb128(data, &mut pos, MAX_LENGTH_BYTES).map_err(|e| match e {
-            Leb128Error::Truncated => DecodeError::Truncated,
-            Leb128Error::Malformed => DecodeError::InvalidHeader(HeaderField::PayloadLength),
-        })?;
-        header.payload_len = u32::try_from(len)
-            .map_err(|_| DecodeError::InvalidHeader(HeaderField::PayloadLength))?;
+        // Payload length: LEB128, at most five bytes and 32 bits, no redundant trailing zero
+        // group.
+        header.payload_len =
+            read_leb128(data, &mut pos, MAX_LENGTH_BYTES).map_err(|e| match e {
+                Leb128Error::Truncated => DecodeError::Truncated,
+                Leb128Error::Malformed => DecodeError::InvalidHeader(HeaderField::PayloadLength),
+            })?;
         if bit_depth == 16 {
             // A deep stream's samples are delivered as the leaves make them: nothing is
             // smoothed (see the prediction frontier's `Capture`).
