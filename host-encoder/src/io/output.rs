@@ -58,12 +58,6 @@ pub fn use_unnamed_temporary_files(enabled: bool) {
     UNNAMED.store(enabled, Ordering::Relaxed);
 }
 
-fn register(path: &Path) {
-    if let Ok(mut list) = TEMPORARY.lock() {
-        list.push(path.to_path_buf());
-    }
-}
-
 fn unregister(path: &Path) {
     if let Ok(mut list) = TEMPORARY.lock() {
         list.retain(|p| p != path);
@@ -111,9 +105,21 @@ enum Temp {
 struct Registered(Option<tempfile::TempPath>);
 
 impl Registered {
-    fn new(path: tempfile::TempPath) -> Self {
-        register(&path);
-        Registered(Some(path))
+    /// A new hidden temporary file in `dir` whose permissions follow the umask, listed: made
+    /// while the list is held, so that a signal's handler (which takes the list) cannot find
+    /// the file in the directory but not in the list.
+    fn create_in(dir: &Path) -> std::io::Result<(File, Registered)> {
+        let mut list = TEMPORARY
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let named = tempfile::Builder::new()
+            .prefix(".pifs-tmp-")
+            .permissions(mode_for_new_files())
+            .tempfile_in(dir)
+            .map_err(without_temporary_path)?;
+        let (file, path) = named.into_parts();
+        list.push(path.to_path_buf());
+        Ok((file, Registered(Some(path))))
     }
 
     /// Renames the file to `target`.
@@ -354,13 +360,8 @@ fn temporary_in(dir: &Path) -> std::io::Result<(File, Temp)> {
             Err(e) => return Err(e),
         }
     }
-    let named = tempfile::Builder::new()
-        .prefix(".pifs-tmp-")
-        .permissions(mode_for_new_files())
-        .tempfile_in(dir)
-        .map_err(without_temporary_path)?;
-    let (file, path) = named.into_parts();
-    Ok((file, Temp::Named(Registered::new(path))))
+    let (file, named) = Registered::create_in(dir)?;
+    Ok((file, Temp::Named(named)))
 }
 
 /// `0666`, which the system narrows by the umask, as for any new file.
@@ -602,21 +603,12 @@ mod tests {
     #[test]
     fn named_temporary_files_are_listed_until_done() {
         let dir = tempfile::tempdir().unwrap();
-        let named = tempfile::Builder::new()
-            .prefix(".pifs-tmp-")
-            .tempfile_in(dir.path())
-            .unwrap();
-        let (file, path) = named.into_parts();
-        let kept = Registered::new(path);
+        let (file, kept) = Registered::create_in(dir.path()).unwrap();
         assert_eq!(leftovers(dir.path()).len(), 1);
         remove_temporary_files();
         assert!(leftovers(dir.path()).is_empty());
         drop((file, kept));
-        let named = tempfile::Builder::new()
-            .prefix(".pifs-tmp-")
-            .tempfile_in(dir.path())
-            .unwrap();
-        let kept = Registered::new(named.into_parts().1);
+        let (_file, kept) = Registered::create_in(dir.path()).unwrap();
         kept.persist(&dir.path().join("done")).unwrap();
         assert!(leftovers(dir.path()).is_empty());
         assert!(dir.path().join("done").exists());
