@@ -24,7 +24,7 @@ use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE
 use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
 use crate::synthesis::Patch;
 use control::{
-    band_level, band_level_table, coefficient_step, expand_pixel_grid, grid_position,
+    band_level, coefficient_step, expand_pixel_grid, fine_starts, grid_position,
     inverse_grid_transform, transform_order, CONTROL_QUANTISERS, CONTROL_STEPS,
 };
 use initial_contexts::{CHROMA_INITIAL_PROBABILITIES, INITIAL_PROBABILITIES};
@@ -957,8 +957,8 @@ fn control_index(index: i32) -> Result<i16, PayloadError> {
     i16::try_from(index).map_err(|_| PayloadError::InvalidData(SyntaxElement::ControlValue))
 }
 
-/// The grid transform's detail coefficients, after the low band: coded as they are, class by
-/// transform level, in the transform's coding order.
+/// The grid transform's detail coefficients, after the low band: coded as they are, in the
+/// transform's coding order, in runs of one class each (coarse levels, level 1, level 0).
 fn code_details<C: Coder>(
     c: &mut C,
     contexts: &mut [IntContexts; CONTROL_CLASSES],
@@ -966,16 +966,48 @@ fn code_details<C: Coder>(
     first_magnitude: usize,
     control: &mut [i16; MAX_CONTROL],
 ) -> Result<(), PayloadError> {
-    let levels = band_level_table(side);
-    for &i in transform_order(side).iter().skip(1) {
-        let i = usize::from(i);
-        let (r, col) = grid_position(i, side);
-        let class = detail_class(usize::from(levels.get(i).copied().unwrap_or(0)));
-        let ctx = zero_context(control, first_magnitude, side, r, col);
-        let mut index = i32::from(load(control, i));
-        contexts[class].code(c, ctx, &mut index)?;
-        // A coded integer has fewer than 16 bits.
-        store(control, i, index as i16);
+    // Position 0 holds its residual's magnitude while the details are coded, so that every
+    // neighbour is read alike; its index is put back after.
+    let first = control[0];
+    control[0] = first_magnitude as i16;
+    let coded = code_detail_runs(c, contexts, side, control);
+    control[0] = first;
+    coded
+}
+
+// `code_detail_runs` has a run for each detail class, and they are the last classes.
+const _: () = assert!(DETAIL_CLASSES == 3 && CLASS_DETAIL + DETAIL_CLASSES == CONTROL_CLASSES);
+
+/// [`code_details`] with position 0 standing for its residual's magnitude.
+fn code_detail_runs<C: Coder>(
+    c: &mut C,
+    contexts: &mut [IntContexts; CONTROL_CLASSES],
+    side: usize,
+    control: &mut [i16; MAX_CONTROL],
+) -> Result<(), PayloadError> {
+    let order = transform_order(side);
+    let [medium, fine] = fine_starts(side);
+    // The detail classes are the last three, finest first.
+    let [.., level_0, level_1, coarse] = contexts;
+    let runs = [
+        (1..medium, coarse),
+        (medium..fine, level_1),
+        (fine..order.len(), level_0),
+    ];
+    for (run, ints) in runs {
+        for &i in order.get(run).unwrap_or_default() {
+            let i = usize::from(i);
+            let (r, col) = grid_position(i, side);
+            // The zero context (see `zero_context`): the neighbours left and above, or twice
+            // the one there is (position 0, which has neither, is the low band).
+            let above = if r > 0 { i - side } else { i.wrapping_sub(1) };
+            let left = if col > 0 { i.wrapping_sub(1) } else { above };
+            let ctx = magnitude(load(control, left)) + magnitude(load(control, above));
+            let mut index = i32::from(load(control, i));
+            ints.code(c, ctx, &mut index)?;
+            // A coded integer has fewer than 16 bits.
+            store(control, i, index as i16);
+        }
     }
     Ok(())
 }
@@ -1133,6 +1165,89 @@ pub fn reconstruct_into(
 mod tests {
     use super::*;
     use crate::model::SAMPLE_ONE;
+
+    /// The detail runs of every coded side give each coefficient the class of its band level,
+    /// and the zero context of every position is [`zero_context`]'s.
+    #[test]
+    fn detail_runs_are_the_band_levels_classes() {
+        for side in [2, 3, 4, 5, 8, 9] {
+            let order = transform_order(side);
+            let [medium, fine] = fine_starts(side);
+            assert!(
+                1 <= medium && medium <= fine && fine <= order.len(),
+                "side {side}"
+            );
+            for (j, &i) in order.iter().enumerate().skip(1) {
+                let i = usize::from(i);
+                let class = match j {
+                    j if j < medium => CLASS_DETAIL + 2,
+                    j if j < fine => CLASS_DETAIL + 1,
+                    _ => CLASS_DETAIL,
+                };
+                assert_eq!(
+                    class,
+                    control_class(true, side, i / side, i % side),
+                    "{side} {i}"
+                );
+            }
+        }
+    }
+
+    /// Coding the details with position 0 standing for its residual's magnitude gives every
+    /// coefficient the zero context [`zero_context`] defines, and puts the first index back.
+    #[test]
+    fn details_are_coded_with_their_zero_contexts() {
+        /// A coder that records the zero context of every integer, coding nothing.
+        struct Contexts([usize; MAX_CONTROL], usize);
+        impl Coder for Contexts {
+            fn bit(&mut self, _: &mut Prob, _: &mut bool) -> Result<(), PayloadError> {
+                Ok(())
+            }
+            fn bypass(&mut self, _: &mut bool) -> Result<(), PayloadError> {
+                Ok(())
+            }
+            fn int(
+                &mut self,
+                _: &mut IntContexts,
+                ctx: usize,
+                _: &mut i32,
+            ) -> Result<(), PayloadError> {
+                self.0[self.1] = ctx;
+                self.1 += 1;
+                Ok(())
+            }
+        }
+        let mut seed = 7u32;
+        for side in [2, 3, 4, 5, 8, 9] {
+            for first_magnitude in 0..3 {
+                let mut control = [0i16; MAX_CONTROL];
+                for v in control.iter_mut().take(side * side) {
+                    seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                    *v = ((seed >> 16) % 7) as i16 - 3;
+                }
+                let before = control;
+                let mut coder = Contexts([0; MAX_CONTROL], 0);
+                let mut contexts = [IntContexts::FRESH; CONTROL_CLASSES];
+                code_details(
+                    &mut coder,
+                    &mut contexts,
+                    side,
+                    first_magnitude,
+                    &mut control,
+                )
+                .unwrap();
+                assert_eq!(control, before);
+                let order = transform_order(side);
+                assert_eq!(coder.1, order.len() - 1);
+                for (&i, &ctx) in order.iter().skip(1).zip(&coder.0) {
+                    let i = usize::from(i);
+                    let (r, c) = (i / side, i % side);
+                    let expected = zero_context(&control, first_magnitude, side, r, c);
+                    assert_eq!(ctx, expected, "side {side}, position {i}");
+                }
+            }
+        }
+    }
 
     /// A colour header parses with the `colour` feature (on by default) and is refused on its
     /// channel count without it, a 16-bit one likewise with `deep` and its depth; a grayscale

@@ -82,10 +82,43 @@ const fn band_levels(side: usize) -> [u8; MAX_CONTROL] {
     out
 }
 
-/// [`band_level`] of every position of a coded grid of side `side`, row-major.
-pub fn band_level_table(side: usize) -> &'static [u8] {
-    grid_entries(&BAND_LEVELS, side)
+/// Where the detail coefficients of band level at most 1, and of level 0 (the finest), begin
+/// in the coding order of a coded grid of side `side` ([`transform_order`], which runs from the
+/// coarsest level to the finest): positions past the low band's first, so that the details
+/// are coded in runs of one level class each.
+pub fn fine_starts(side: usize) -> [usize; 2] {
+    let k = usize::from(GRID_SLOTS[side.min(MAX_GRID)]);
+    let [medium, fine] = FINE_STARTS.get(k).copied().unwrap_or_default();
+    [usize::from(medium), usize::from(fine)]
 }
+
+/// [`fine_starts`] of every coded grid side.
+const FINE_STARTS: [[u8; 2]; GRID_SIDES.len()] = {
+    let mut out = [[0u8; 2]; GRID_SIDES.len()];
+    let mut k = 0;
+    while k < GRID_SIDES.len() {
+        let side = GRID_SIDES[k];
+        let scan = transform_scan(side);
+        let n = side * side;
+        let mut starts = [n as u8; 2];
+        // Backwards, so that each start ends at the first position of its levels.
+        let mut j = n;
+        while j > 1 {
+            j -= 1;
+            let i = scan[j] as usize;
+            let level = band_level_of(side, i / side, i % side);
+            if level <= 1 {
+                starts[0] = j as u8;
+            }
+            if level == 0 {
+                starts[1] = j as u8;
+            }
+        }
+        out[k] = starts;
+        k += 1;
+    }
+    out
+};
 
 /// [`band_levels`] of every coded grid side.
 const BAND_LEVELS: [u8; GRID_TABLE_LEN] = per_side_table(GridTable::BandLevels);
