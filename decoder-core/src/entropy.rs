@@ -115,6 +115,22 @@ pub trait Coder {
     {
         ints.code_bits(self, ctx, v)
     }
+
+    /// [`Coder::int`] at the one site where most integers are zero (a grid transform's
+    /// details): a decoder decides the zero flag there in line, and calls out only for the
+    /// rest.
+    #[inline(always)]
+    fn int_mostly_zero(
+        &mut self,
+        ints: &mut IntContexts,
+        ctx: usize,
+        v: &mut i32,
+    ) -> Result<(), PayloadError>
+    where
+        Self: Sized,
+    {
+        self.int(ints, ctx, v)
+    }
 }
 
 /// Sequential source of payload bytes for the [`RangeDecoder`].
@@ -273,14 +289,50 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
     }
 
     /// The zero flag first, on its own (a zero, the commonest value, costs one decision and
-    /// nothing more), then the sign and the prefix bits.
+    /// nothing more), then the rest ([`RangeDecoder::nonzero`]).
     #[inline(never)]
     fn int(&mut self, ints: &mut IntContexts, ctx: usize, v: &mut i32) -> Result<(), PayloadError> {
-        let probs = &mut ints.probs;
-        if !self.decision(&mut probs[ctx.min(ZERO_CONTEXTS - 1)])? {
+        self.zero_or_nonzero(ints, ctx, v)
+    }
+
+    /// Where the core has the registers for it (ARMv7-M, hosts). On ARMv6-M (eight low
+    /// registers) the decision in line spills, gains nothing and costs flash: the call stays.
+    #[cfg(target_has_atomic = "32")]
+    #[inline(always)]
+    fn int_mostly_zero(
+        &mut self,
+        ints: &mut IntContexts,
+        ctx: usize,
+        v: &mut i32,
+    ) -> Result<(), PayloadError> {
+        self.zero_or_nonzero(ints, ctx, v)
+    }
+}
+
+impl<S: ByteSource> RangeDecoder<S> {
+    /// [`Coder::int`]: the zero flag, then [`RangeDecoder::nonzero`].
+    #[inline(always)]
+    fn zero_or_nonzero(
+        &mut self,
+        ints: &mut IntContexts,
+        ctx: usize,
+        v: &mut i32,
+    ) -> Result<(), PayloadError> {
+        if !self.decision(&mut ints.probs[ctx.min(ZERO_CONTEXTS - 1)])? {
             *v = 0;
             return Ok(());
         }
+        *v = self.nonzero(ints)?;
+        Ok(())
+    }
+
+    /// An integer known not to be zero: its sign, then its magnitude's prefix and suffix bits.
+    /// Out of line where [`Coder::int_mostly_zero`] decides zeros in line, else in
+    /// [`Coder::int`].
+    #[cfg_attr(target_has_atomic = "32", inline(never))]
+    #[cfg_attr(not(target_has_atomic = "32"), inline(always))]
+    fn nonzero(&mut self, ints: &mut IntContexts) -> Result<i32, PayloadError> {
+        let probs = &mut ints.probs;
         let negative = self.decision(&mut probs[SIGN])?;
         // Ones of the Exp-Golomb prefix so far: the magnitude has that many suffix bits.
         let mut k = 0;
@@ -295,8 +347,7 @@ impl<S: ByteSource> Coder for RangeDecoder<S> {
             mag = (mag << 1) | u32::from(self.even()?);
         }
         // mag < 2^MAX_PREFIX, so the cast is lossless.
-        *v = if negative { -(mag as i32) } else { mag as i32 };
-        Ok(())
+        Ok(if negative { -(mag as i32) } else { mag as i32 })
     }
 }
 

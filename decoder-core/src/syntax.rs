@@ -1004,7 +1004,7 @@ fn code_detail_runs<C: Coder>(
             let left = if col > 0 { i.wrapping_sub(1) } else { above };
             let ctx = magnitude(load(control, left)) + magnitude(load(control, above));
             let mut index = i32::from(load(control, i));
-            ints.code(c, ctx, &mut index)?;
+            c.int_mostly_zero(ints, ctx, &mut index)?;
             // A coded integer has fewer than 16 bits.
             store(control, i, index as i16);
         }
