@@ -116,9 +116,9 @@ pub trait Coder {
         ints.code_bits(self, ctx, v)
     }
 
-    /// [`Coder::int`] at the one site where most integers are zero (a grid transform's
-    /// details): a decoder decides the zero flag there in line, and calls out only for the
-    /// rest.
+    /// [`Coder::int`] at the sites where most integers are zero (a grid transform's details,
+    /// DPCM's interior): a decoder decides the zero flag there in line, and calls out only for
+    /// the rest.
     #[inline(always)]
     fn int_mostly_zero(
         &mut self,

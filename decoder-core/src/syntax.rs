@@ -1082,7 +1082,7 @@ fn code_dpcm<C: Coder>(
         for i in row + 1..row + side {
             let ctx = magnitude(load(control, i - 1)) + magnitude(load(control, i - side));
             let mut index = i32::from(load(control, i));
-            interior.code(c, ctx, &mut index)?;
+            c.int_mostly_zero(interior, ctx, &mut index)?;
             // A coded integer has fewer than 16 bits.
             store(control, i, index as i16);
         }
