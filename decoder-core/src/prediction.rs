@@ -144,15 +144,25 @@ pub fn edge_pixels<P: SamplePrediction + ?Sized>(
     if k == 0 || along >= node.size() {
         return None;
     }
-    let pixel = |d: u32| {
-        let (x, y) = if row {
-            (node.x + d, node.y)
-        } else {
-            (node.x, node.y + d)
-        };
-        prediction.beside(row, x, y)
-    };
+    let pixel = |d: u32| edge_pixel(prediction, node, row, d);
     Some((pixel(along)?, pixel(along - spacing)?))
+}
+
+/// The pixel next to a leaf's first row (`row == true`) or column, `along` pixels from its
+/// corner, if known.
+#[inline]
+pub fn edge_pixel<P: SamplePrediction + ?Sized>(
+    prediction: &P,
+    node: &Node,
+    row: bool,
+    along: u32,
+) -> Option<i32> {
+    let (x, y) = if row {
+        (node.x + along, node.y)
+    } else {
+        (node.x, node.y + along)
+    };
+    prediction.beside(row, x, y)
 }
 
 /// A stripe width, a whole number of coding tiles, whose remainders are made by a multiply

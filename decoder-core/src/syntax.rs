@@ -21,7 +21,7 @@ pub use crate::format::{
 };
 use crate::geometry::Node;
 use crate::model::{ModelType, MAX_CONTROL, MAX_GRID, MODELS, MODEL_COUNT, SAMPLE_MAX, SAMPLE_MIN};
-use crate::prediction::{edge_context, edge_offset, edge_pixels, SamplePrediction};
+use crate::prediction::{edge_context, edge_offset, edge_pixel, SamplePrediction};
 use crate::synthesis::Patch;
 use control::{
     band_level, coefficient_step, expand_pixel_grid, fine_starts, grid_position,
@@ -896,10 +896,10 @@ fn fill_control(
 /// (raster for DPCM, [`transform_order`] for the grid transform). The first coded index is
 /// coded as its difference from a prediction by earlier leaves ([`SamplePrediction::predict`]:
 /// of the corner under DPCM, of the block's mean for the transform's low band; with their own
-/// contexts when both edges are known), in units of its own step. Under DPCM,
-/// every other index of the first row and column is coded as its difference from
-/// [`edge_offset`] where the pixels beside it are known ([`edge_pixels`]); the rest as they
-/// are. Contexts are by position (DPCM: first row and column or interior) or transform level.
+/// contexts when both edges are known), in units of its own step. Under DPCM, every other
+/// index of the first row and column is coded as its difference from [`edge_offset`] where the
+/// pixels beside it are known ([`crate::prediction::edge_pixels`]); the rest as they are.
+/// Contexts are by position (DPCM: first row and column or interior) or transform level.
 fn code_control<C: Coder>(
     c: &mut C,
     contexts: &mut [IntContexts; CONTROL_CLASSES],
@@ -935,13 +935,14 @@ fn code_control<C: Coder>(
     if transform {
         code_details(c, contexts, side, first_magnitude, control)
     } else {
-        let edges = DpcmEdges {
+        let mut edges = DpcmEdges {
             node,
             prediction,
             spacing,
             step,
+            before: None,
         };
-        code_dpcm(c, contexts, side, first_magnitude, &edges, control)
+        code_dpcm(c, contexts, side, first_magnitude, &mut edges, control)
     }
 }
 
@@ -1018,6 +1019,8 @@ struct DpcmEdges<'a> {
     prediction: &'a dyn SamplePrediction,
     spacing: u32,
     step: i32,
+    /// The pixel beside the point before the one being coded (read with it).
+    before: Option<i32>,
 }
 
 impl DpcmEdges<'_> {
@@ -1026,7 +1029,7 @@ impl DpcmEdges<'_> {
     /// are seen; returns its reconstructed value.
     #[inline]
     fn code<C: Coder>(
-        &self,
+        &mut self,
         c: &mut C,
         ints: &mut IntContexts,
         (row, k): (bool, usize),
@@ -1034,7 +1037,19 @@ impl DpcmEdges<'_> {
         index: &mut i16,
     ) -> Result<i32, PayloadError> {
         let step = self.step;
-        let (predicted, ctx) = match edge_pixels(self.prediction, self.node, self.spacing, row, k) {
+        // `edge_pixels`, each pixel read once: point `k`'s pixel is point `k + 1`'s earlier one.
+        let along = k as u32 * self.spacing;
+        if k == 1 {
+            self.before = edge_pixel(self.prediction, self.node, row, 0);
+        }
+        let outside = if along < self.node.size() {
+            edge_pixel(self.prediction, self.node, row, along)
+        } else {
+            None
+        };
+        let pixels = outside.zip(self.before);
+        self.before = outside;
+        let (predicted, ctx) = match pixels {
             Some((a, b)) => (edge_offset(base, a, b, step), edge_context(ctx, a, b, step)),
             None => (0, ctx),
         };
@@ -1054,7 +1069,7 @@ fn code_dpcm<C: Coder>(
     contexts: &mut [IntContexts; CONTROL_CLASSES],
     side: usize,
     first_magnitude: usize,
-    edges: &DpcmEdges<'_>,
+    edges: &mut DpcmEdges<'_>,
     control: &mut [i16; MAX_CONTROL],
 ) -> Result<(), PayloadError> {
     let first_value = i32::from(dequantise_control(0, edges.step, i32::from(control[0])));
