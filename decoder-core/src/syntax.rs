@@ -1181,8 +1181,7 @@ mod tests {
     use super::*;
     use crate::model::SAMPLE_ONE;
 
-    /// The detail runs of every coded side give each coefficient the class of its band level,
-    /// and the zero context of every position is [`zero_context`]'s.
+    /// The detail runs of every coded side give each coefficient the class of its band level.
     #[test]
     fn detail_runs_are_the_band_levels_classes() {
         for side in [2, 3, 4, 5, 8, 9] {
