@@ -1080,10 +1080,42 @@ impl PixelSink for Buffer<'_> {
     fn tile(&mut self, tile: Tile<'_>) -> Result<(), Infallible> {
         place_rows(self.out, self.width, &tile, |dst, at| {
             if let Some(src) = tile.pixels.get(at) {
-                dst.copy_from_slice(src);
+                copy_row(dst, src);
             }
         });
         Ok(())
+    }
+}
+
+/// `dst.copy_from_slice(src)` for a tile's row (at most 8 gray or 24 RGB bytes): two
+/// overlapping moves of a fixed size, where `copy_from_slice` calls `memcpy` for a length it
+/// does not know (6% of a host decode's time).
+#[inline(always)]
+fn copy_row(dst: &mut [u8], src: &[u8]) {
+    if dst.len() != src.len() {
+        return;
+    }
+    match src.len() {
+        1 => copy_ends::<1>(dst, src),
+        2..4 => copy_ends::<2>(dst, src),
+        4..8 => copy_ends::<4>(dst, src),
+        8..16 => copy_ends::<8>(dst, src),
+        16..=32 => copy_ends::<16>(dst, src),
+        _ => dst.copy_from_slice(src),
+    }
+}
+
+/// Copies the first and the last `N` bytes of `src` (as long as `dst`, at least `N` and at
+/// most `2 N` bytes) into `dst`.
+#[inline(always)]
+fn copy_ends<const N: usize>(dst: &mut [u8], src: &[u8]) {
+    if let (Some(&head), Some(&tail)) = (src.first_chunk::<N>(), src.last_chunk::<N>()) {
+        if let Some(d) = dst.first_chunk_mut::<N>() {
+            *d = head;
+        }
+        if let Some(d) = dst.last_chunk_mut::<N>() {
+            *d = tail;
+        }
     }
 }
 
@@ -1121,12 +1153,15 @@ fn place_rows<T>(
 ) {
     let Rect { x, y, w, h } = tile.area;
     let ch = usize::from(tile.channels.max(1));
-    let (x, y, w) = (x as usize * ch, y as usize, w as usize * ch);
-    for row in 0..h as usize {
-        let start = (y + row) * width * ch + x;
+    let (stride, w) = (width * ch, w as usize * ch);
+    let mut start = y as usize * stride + x as usize * ch;
+    let mut from = 0;
+    for _ in 0..h {
         if let Some(dst) = out.get_mut(start..start + w) {
-            fill(dst, row * w..row * w + w);
+            fill(dst, from..from + w);
         }
+        start += stride;
+        from += w;
     }
 }
 
@@ -1149,6 +1184,17 @@ mod tests {
     use std::path::PathBuf;
     use std::string::String;
     use std::vec::Vec;
+
+    #[test]
+    fn rows_are_copied_whole() {
+        let src: Vec<u8> = (1..=40).collect();
+        for n in 0..=40 {
+            let mut dst = [0u8; 40];
+            copy_row(&mut dst[..n], &src[..n]);
+            assert_eq!(dst[..n], src[..n], "length {n}");
+            assert!(dst[n..].iter().all(|&b| b == 0), "length {n}: past the row");
+        }
+    }
 
     /// Records every tile.
     #[derive(Default, PartialEq, Debug)]
