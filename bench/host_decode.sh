@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Host decoding time on the Kodak set (768x512 grayscale), two ways:
 #   1. in process: `decode_speed` (host-encoder example), median of REPEATS decodes per stream,
-#      then the median over the streams of each rate;
+#      then the median over the streams of each rate; with OLD_SPEED=path/to/another/decode_speed,
+#      the two are run in turn on each stream, ROUNDS times, and the medians over the rounds and
+#      their ratio are printed instead;
 #   2. whole process: `pifs decode STREAM -o out.pgm` wall time, the median of ROUNDS runs per
 #      stream; with OLD=path/to/another/pifs, runs of the two binaries are interleaved and the
 #      ratio of their medians is printed too (this machine's load drifts, so only interleaved
@@ -9,7 +11,8 @@
 # Streams: STREAMS_DIR/kodimNN-RATEbpp.pifs (default target/kodak-streams-gray, made with
 # `pifs rd --gray IMAGE --out-dir target/kodak-streams-gray` for every Kodak image when missing).
 #
-#   [OLD=target/baseline/pifs-before] [REPEATS=15] [ROUNDS=5] bash bench/host_decode.sh
+#   [OLD=target/baseline/pifs-before] [OLD_SPEED=target/baseline/decode_speed-before]
+#   [REPEATS=15] [ROUNDS=5] bash bench/host_decode.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=${STREAMS_DIR:-target/kodak-streams-gray}
@@ -21,10 +24,34 @@ for img in ../shared/images/kodak/kodim*.png; do
     stem=$(basename "$img" .png)
     [ -s "$dir/$stem-0.5bpp.pifs" ] || ./target/release/pifs rd --gray "$img" --out-dir "$dir" >/dev/null
 done
+speed=target/release/examples/decode_speed
+if [ -n "${OLD_SPEED:-}" ]; then
+    echo "| rate (bpp) | in process, median over the images of the rounds' median (ms) | previous binary (ms) | ratio |"
+    echo "|---:|---:|---:|---:|"
+    for rate in 0.05 0.1 0.25 0.5; do
+        for _ in $(seq "$rounds"); do
+            for s in "$dir"/kodim*-${rate}bpp.pifs; do
+                new=$(REPEATS=$repeats "$speed" "$s" | awk 'NR == 1 {print $NF}')
+                old=$(REPEATS=$repeats "$OLD_SPEED" "$s" | awk 'NR == 1 {print $NF}')
+                echo "$s $new $old"
+            done
+        done | python3 -c '
+import collections, statistics, sys
+runs = collections.defaultdict(lambda: ([], []))
+for line in sys.stdin:
+    name, new, old = line.split()
+    runs[name][0].append(float(new))
+    runs[name][1].append(float(old))
+new = statistics.median(statistics.median(n) for n, _ in runs.values())
+old = statistics.median(statistics.median(o) for _, o in runs.values())
+print(f"| {sys.argv[1]} | {new:.2f} | {old:.2f} | {new / old:.3f} |")' "$rate"
+    done
+    echo
+fi
 echo "| rate (bpp) | in process, median of the per-image medians (ms) | min | max |"
 echo "|---:|---:|---:|---:|"
 for rate in 0.05 0.1 0.25 0.5; do
-    line=$(REPEATS=$repeats ./target/release/examples/decode_speed "$dir"/kodim*-${rate}bpp.pifs | tail -1)
+    line=$(REPEATS=$repeats "$speed" "$dir"/kodim*-${rate}bpp.pifs | tail -1)
     med=$(echo "$line" | sed 's/.*streams: \([0-9.]*\) ms.*/\1/')
     min=$(echo "$line" | sed 's/.*min \([0-9.]*\),.*/\1/')
     max=$(echo "$line" | sed 's/.*max \([0-9.]*\)).*/\1/')
