@@ -337,8 +337,9 @@ impl<S: ByteSource> RangeDecoder<S> {
     }
 
     /// An integer known not to be zero: its sign, then its magnitude's prefix and suffix bits.
-    /// Out of line where [`Coder::int_mostly_zero`] decides zeros in line, else in
-    /// [`Coder::int`].
+    /// Out of line on ARMv7-M, where [`Coder::int_mostly_zero`] decides zeros in line (flash);
+    /// in line in [`Coder::int`] on ARMv6-M, and at every call on hosts (1.4% fewer
+    /// instructions there).
     #[cfg_attr(all(target_has_atomic = "32", target_os = "none"), inline(never))]
     #[cfg_attr(not(all(target_has_atomic = "32", target_os = "none")), inline(always))]
     fn nonzero(&mut self, ints: &mut IntContexts) -> Result<i32, PayloadError> {
