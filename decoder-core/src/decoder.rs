@@ -19,7 +19,7 @@ use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 use crate::format::DEFAULT_STRIPE;
 #[cfg(feature = "smooth-enlarged")]
-use crate::format::{byte, CODING_TILE};
+use crate::format::{byte, ends, put_ends, CODING_TILE};
 use crate::geometry::{Node, Rect};
 #[cfg(feature = "smooth-enlarged")]
 use crate::model::SAMPLE_ONE;
@@ -1105,17 +1105,11 @@ fn copy_row(dst: &mut [u8], src: &[u8]) {
     }
 }
 
-/// Copies the first and the last `N` bytes of `src` (as long as `dst`, at least `N` and at
-/// most `2 N` bytes) into `dst`.
+/// Copies `src` (as long as `dst`, `N` to `2 N` bytes) into `dst` by its two ends.
 #[inline(always)]
 fn copy_ends<const N: usize>(dst: &mut [u8], src: &[u8]) {
-    if let (Some(&head), Some(&tail)) = (src.first_chunk::<N>(), src.last_chunk::<N>()) {
-        if let Some(d) = dst.first_chunk_mut::<N>() {
-            *d = head;
-        }
-        if let Some(d) = dst.last_chunk_mut::<N>() {
-            *d = tail;
-        }
+    if let Some(both) = ends::<N>(src) {
+        put_ends(dst, both);
     }
 }
 

@@ -151,6 +151,25 @@ pub const fn store(values: &mut [i16], i: usize, v: i16) {
     }
 }
 
+/// The first and the last `N` bytes of `bytes` (at least `N` of them), both read before
+/// anything is written: with [`put_ends`], a copy of `N` to `2 N` bytes as two fixed-size
+/// moves, where `copy_from_slice` calls `memcpy` for a length it does not know.
+#[inline(always)]
+pub(crate) fn ends<const N: usize>(bytes: &[u8]) -> Option<([u8; N], [u8; N])> {
+    Some((*bytes.first_chunk::<N>()?, *bytes.last_chunk::<N>()?))
+}
+
+/// Writes `ends` as the first and the last `N` bytes of `out` (see [`ends`]).
+#[inline(always)]
+pub(crate) fn put_ends<const N: usize>(out: &mut [u8], (head, tail): ([u8; N], [u8; N])) {
+    if let Some(first) = out.first_chunk_mut::<N>() {
+        *first = head;
+    }
+    if let Some(last) = out.last_chunk_mut::<N>() {
+        *last = tail;
+    }
+}
+
 /// `v` clamped to `0..=255`, as a byte. Where the target has 32-bit atomics (ARMv7-M, hosts)
 /// a plain clamp, which a Cortex-M3 makes one saturating instruction; on the Cortex-M0
 /// (ARMv6-M: no atomics, no saturation) one unsigned compare while `v` is in range, as it

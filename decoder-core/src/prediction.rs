@@ -481,23 +481,15 @@ fn move_row_back(span: &mut [u8], by: usize) {
     }
 }
 
-/// `span[..n] = span[by..]` (`n = span.len() - by`, from `N` to `2 N` bytes) by the first and
-/// the last `N` bytes, both read before either is written.
+/// `span[..n] = span[by..]` (`n = span.len() - by`, from `N` to `2 N` bytes) by its two ends.
 #[cfg(not(target_os = "none"))]
 #[inline(always)]
 fn move_back<const N: usize>(span: &mut [u8], by: usize) {
     let n = span.len().saturating_sub(by);
-    let (Some(&head), Some(&tail)) = (
-        span.get(by..).and_then(|s| s.first_chunk::<N>()),
-        span.last_chunk::<N>(),
-    ) else {
-        return;
-    };
-    if let Some(d) = span.first_chunk_mut::<N>() {
-        *d = head;
-    }
-    if let Some(d) = span.get_mut(..n).and_then(|s| s.last_chunk_mut::<N>()) {
-        *d = tail;
+    if let Some(both) = span.get(by..).and_then(crate::format::ends::<N>) {
+        if let Some(to) = span.get_mut(..n) {
+            crate::format::put_ends(to, both);
+        }
     }
 }
 
