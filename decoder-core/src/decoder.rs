@@ -17,9 +17,9 @@ use crate::checksum::Crc32;
 use crate::colour::{ChromaFrontier, ChromaPatch, ColourOut};
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
-use crate::format::DEFAULT_STRIPE;
 #[cfg(feature = "smooth-enlarged")]
-use crate::format::{byte, ends, put_ends, CODING_TILE};
+use crate::format::{byte, CODING_TILE};
+use crate::format::{ends, put_ends, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
 #[cfg(feature = "smooth-enlarged")]
 use crate::model::SAMPLE_ONE;
