@@ -426,11 +426,13 @@ impl<I: Input, O: FnMut(&LeafInfo), const STRIPE: usize> Decoder<I, O, STRIPE> {
         let (width, height) = self.output_size();
         let image = Rect::of_size(width, height);
         let mut drawer = Drawer {
-            clip: self.clip.intersect(&image),
-            image,
+            placement: Placement {
+                clip: self.clip.intersect(&image),
+                image,
+                scale: self.scale,
+            },
             sink,
             observer: self.observer,
-            scale: self.scale,
             range: header.range,
         };
         let mut coder = match RangeDecoder::start(self.input) {
@@ -545,13 +547,10 @@ fn run_walk<B: ByteSource, V: TreeVisitor, const STRIPE: usize>(
 /// The one visitor of every decode: draws each leaf's pixels inside the clip into the sink and
 /// keeps the prediction frontier.
 struct Drawer<'s, S: PixelSink + ?Sized, O> {
-    /// What to draw, already cut to the image (output coordinates).
-    clip: Rect,
-    /// The output image.
-    image: Rect,
+    /// Where the leaves go.
+    placement: Placement,
     sink: &'s mut S,
     observer: O,
-    scale: Scale,
     /// A 16-bit stream's value range, which its samples are mapped onto for the sink.
     range: Option<SampleRange>,
 }
@@ -576,13 +575,7 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
     ) -> Result<(), Self::Error> {
         (self.observer)(info);
         let mut catch = Catch::with_range(&mut *self.sink, self.range);
-        draw_leaf(
-            (self.clip, self.image, self.scale),
-            info,
-            patch,
-            frontier,
-            &mut catch,
-        );
+        draw_leaf(&self.placement, info, patch, frontier, &mut catch);
         catch.finish().map_err(DrawError::Sink)
     }
 
@@ -602,24 +595,20 @@ impl<S: PixelSink + ?Sized, O: FnMut(&LeafInfo)> TreeVisitor for Drawer<'_, S, O
         let mut colour = ColourOut {
             patch: chroma,
             frontier: chroma_frontier,
-            scale: self.scale,
+            scale: self.placement.scale,
             out: &mut catch,
         };
-        draw_leaf(
-            (self.clip, self.image, self.scale),
-            info,
-            patch,
-            frontier,
-            &mut colour,
-        );
+        draw_leaf(&self.placement, info, patch, frontier, &mut colour);
         catch.finish().map_err(DrawError::Sink)
     }
 }
 
 /// Draws a leaf's luma into `out` (see [`Drawer`]'s `leaf`), with the decode's clip, output
-/// image and scale. A stop comes only from the sink, whose error its [`Catch`] keeps.
+/// image and scale. A stop comes only from the sink, whose error its [`Catch`] keeps. In line:
+/// one of three paths, each out of line.
+#[inline(always)]
 fn draw_leaf<const CAPACITY: usize>(
-    (clip, image, scale): (Rect, Rect, Scale),
+    at: &Placement,
     info: &LeafInfo,
     patch: &Patch,
     frontier: &mut Frontier<CAPACITY>,
@@ -627,71 +616,110 @@ fn draw_leaf<const CAPACITY: usize>(
 ) {
     let node = &info.node;
     let step = control_step(info.cquant);
-    // Cut to the clip on the way out: the leaf's pixels, and the pixels beside it it draws.
-    let mut clipped = ClipOut { clip, out };
-    let k = scale.log2();
+    let k = at.scale.log2();
     // A stop comes only from the sink, whose error `finish` returns.
     let _ = if k == 0 {
-        let area = node.rect().intersect(&image);
-        if area.intersect(&clip).is_empty() {
-            frontier.record(node, step, patch, &mut clipped);
-            Ok(())
-        } else {
-            // Nothing to cut when all it draws is inside the clip: the tiles go straight on.
-            let out: &mut dyn TileOut = if inside(reach(node, image), clip) {
-                clipped.out
-            } else {
-                &mut clipped
-            };
-            patch.render_to(node, area, &mut frontier.capture(node, step, out))
-        }
+        draw_coded(node, step, patch, frontier, at, out)
     } else if k < 0 {
-        let shift = k.unsigned_abs();
-        frontier.record(
-            node,
-            step,
-            patch,
-            &mut Subsample {
-                shift,
-                out: &mut clipped,
-            },
-        );
-        if node.size() <= RECORD_WHOLE {
-            // Recorded whole: every pixel of the leaf went to the subsampling.
-            return;
-        }
-        // The leaf's first row and column are the edges' (its last ones are off the grid).
-        let (x, y, n) = (node.x >> shift, node.y >> shift, node.size() >> shift);
-        let interior = Rect {
-            x: x + 1,
-            y: y + 1,
-            w: n.saturating_sub(1),
-            h: n.saturating_sub(1),
-        };
-        patch.render_scaled(node, scale, clip.intersect(&interior), out)
+        draw_reduced(node, step, patch, frontier, at, out)
     } else {
-        draw_enlarged(node, step, patch, frontier, (clip, scale), out)
+        draw_enlarged(node, step, patch, frontier, at, out)
     };
 }
 
-/// Where the pixels a leaf draws at the coded size can lie: its own, and the row above and the
-/// column left of it that wait for it (see [`crate::prediction::Capture`]), inside `image`.
-fn reach(node: &Node, image: Rect) -> Rect {
-    let (x, y) = (node.x.saturating_sub(1), node.y.saturating_sub(1));
-    // No overflow: a node lies within a coding tile of an image of at most 65535 pixels a side.
-    let end = |start: u32| start + node.size();
-    Rect {
-        x,
-        y,
-        w: end(node.x) - x,
-        h: end(node.y) - y,
-    }
-    .intersect(&image)
+/// Where a decode's leaves go: the output image (at the decode's scale), the part of it drawn
+/// (already cut to the image) and the scale.
+#[derive(Debug, Clone, Copy)]
+struct Placement {
+    clip: Rect,
+    image: Rect,
+    scale: Scale,
 }
 
-/// Whether `area` lies inside `clip`.
-fn inside(area: Rect, clip: Rect) -> bool {
-    area.intersect(&clip) == area
+/// A leaf of a decode at the coded size: drawn through the frontier's capture, cut to the clip
+/// where it reaches past it; recorded only when none of it is inside the clip. Out of line, as
+/// [`draw_reduced`] and [`draw_enlarged`] are: only the path taken is on the stack.
+#[inline(never)]
+fn draw_coded<const CAPACITY: usize>(
+    node: &Node,
+    step: i32,
+    patch: &Patch,
+    frontier: &mut Frontier<CAPACITY>,
+    &Placement { clip, image, .. }: &Placement,
+    out: &mut dyn TileOut,
+) -> Result<(), Stop> {
+    // Cut to the clip on the way out: the leaf's pixels, and the pixels beside it it draws.
+    let mut clipped = ClipOut { clip, out };
+    let area = node.rect().intersect(&image);
+    if area.intersect(&clip).is_empty() {
+        frontier.record(node, step, patch, &mut clipped);
+        Ok(())
+    } else {
+        // Nothing to cut when all it draws is inside the clip: the tiles go straight on.
+        let out: &mut dyn TileOut = if draws_inside(node, 0, image, clip) {
+            clipped.out
+        } else {
+            &mut clipped
+        };
+        patch.render_to(node, area, &mut frontier.capture(node, step, out))
+    }
+}
+
+/// A leaf of a decode smaller than the coded size: recorded at the coded size, the pixels on
+/// the output's grid picked from what the recording draws (all of them for a leaf recorded
+/// whole), then the rest of the leaf drawn at its scale. Out of line: the recording is on the
+/// stack only here.
+#[inline(never)]
+fn draw_reduced<const CAPACITY: usize>(
+    node: &Node,
+    step: i32,
+    patch: &Patch,
+    frontier: &mut Frontier<CAPACITY>,
+    &Placement { clip, image, scale }: &Placement,
+    out: &mut dyn TileOut,
+) -> Result<(), Stop> {
+    let shift = scale.log2().unsigned_abs();
+    // As at the coded size: nothing to cut when all it picks is inside the clip.
+    let mut clipped = ClipOut { clip, out };
+    let picked: &mut dyn TileOut = if draws_inside(node, shift, image, clip) {
+        clipped.out
+    } else {
+        &mut clipped
+    };
+    frontier.record(node, step, patch, &mut Subsample { shift, out: picked });
+    if node.size() <= RECORD_WHOLE {
+        // Recorded whole: every pixel of the leaf went to the subsampling.
+        return Ok(());
+    }
+    // The leaf's first row and column are the edges' (its last ones are off the grid).
+    let (x, y, n) = (node.x >> shift, node.y >> shift, node.size() >> shift);
+    let interior = Rect {
+        x: x + 1,
+        y: y + 1,
+        w: n.saturating_sub(1),
+        h: n.saturating_sub(1),
+    };
+    patch.render_scaled(node, scale, clip.intersect(&interior), clipped.out)
+}
+
+/// Whether all a leaf draws at the coded size (its own pixels, and the row above and the
+/// column left of it that wait for it: see [`crate::prediction::Capture`]) lies inside `clip`
+/// where it lies inside `image`, on the grid of a decode at `1 / 2^shift` of the coded size
+/// (`image` and `clip` are that decode's). Then it needs no cut.
+#[inline(always)]
+fn draws_inside(node: &Node, shift: u32, image: Rect, clip: Rect) -> bool {
+    // No overflow: a node lies within a coding tile of an image of at most 65535 pixels a side.
+    let last = node.size() - 1;
+    // Along one axis: the span of the leaf's reach inside the image's, empty or inside the
+    // clip's.
+    let axis =
+        |start: u32, (image_start, image_len): (u32, u32), (clip_start, clip_len): (u32, u32)| {
+            let first = (start.saturating_sub(1) >> shift).max(image_start);
+            let end = ((start + last) >> shift).min((image_start + image_len).saturating_sub(1));
+            first > end || (clip_start <= first && end < clip_start + clip_len)
+        };
+    axis(node.x, (image.x, image.w), (clip.x, clip.w))
+        && axis(node.y, (image.y, image.h), (clip.y, clip.h))
 }
 
 /// A leaf of a decode larger than the coded size: its edges recorded at the coded size, then
@@ -704,7 +732,7 @@ fn draw_enlarged<const CAPACITY: usize>(
     step: i32,
     patch: &Patch,
     frontier: &mut Frontier<CAPACITY>,
-    (clip, scale): (Rect, Scale),
+    &Placement { clip, scale, .. }: &Placement,
     out: &mut dyn TileOut,
 ) -> Result<(), Stop> {
     #[cfg(feature = "smooth-enlarged")]
@@ -894,7 +922,7 @@ impl Subsample<'_> {
     /// Hands on the tile's pixels on the grid as one tile, with their samples when `samples`
     /// holds the tile's: moved to the front in place (the `n`-th pixel on the grid comes from
     /// the `n`-th position or a later one).
-    fn pick(&mut self, tile: TileMut<'_>, mut samples: Option<&mut [i16]>) -> Result<(), Stop> {
+    fn pick(&mut self, mut tile: TileMut<'_>, mut samples: Option<&mut [i16]>) -> Result<(), Stop> {
         let (shift, unit) = (self.shift, 1u32 << self.shift);
         let Rect { x, y, w, h } = tile.area;
         // Coordinates are below 2^16: no overflow; shifts, no division on a Cortex-M0.
@@ -919,18 +947,16 @@ impl Subsample<'_> {
             }
         }
         let count = (cols * rows) as usize;
-        let Some(pixels) = tile.pixels.get_mut(..count) else {
+        // The tile made the picked one in place.
+        let Some(pixels) = core::mem::take(&mut tile.pixels).get_mut(..count) else {
             return Ok(());
         };
-        let tile = TileMut {
-            area: Rect {
-                x: first_x >> shift,
-                y: first_y >> shift,
-                w: cols,
-                h: rows,
-            },
-            pixels,
-            channels: 1,
+        tile.pixels = pixels;
+        tile.area = Rect {
+            x: first_x >> shift,
+            y: first_y >> shift,
+            w: cols,
+            h: rows,
         };
         match samples.and_then(|s| s.get_mut(..count)) {
             Some(picked) => self.out.put_samples(tile, picked),
