@@ -18,21 +18,17 @@ use crate::colour::{ChromaFrontier, ChromaPatch, ColourOut};
 use crate::entropy::{ByteSource, RangeDecoder, SliceSource};
 use crate::error::{DecodeError, DrawError, HeaderField, SyntaxElement};
 #[cfg(feature = "smooth-enlarged")]
-use crate::format::{byte, CODING_TILE};
+use crate::format::byte;
 use crate::format::{ends, put_ends, DEFAULT_STRIPE};
 use crate::geometry::{Node, Rect};
-#[cfg(feature = "smooth-enlarged")]
-use crate::model::SAMPLE_ONE;
-#[cfg(feature = "smooth-enlarged")]
-use crate::prediction::SamplePrediction;
 use crate::prediction::{Frontier, RECORD_WHOLE};
 use crate::syntax::control_step;
 use crate::syntax::{
     stream_checksum, Header, SampleRange, CHECKSUM_BYTES, MAX_HEADER_LEN, MIN_HEADER_LEN,
 };
-#[cfg(not(feature = "smooth-enlarged"))]
-use crate::synthesis::Discard;
-use crate::synthesis::{Catch, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut};
+#[cfg(feature = "smooth-enlarged")]
+use crate::synthesis::TILE;
+use crate::synthesis::{Catch, Discard, Patch, PixelSink, Scale, Stop, Tile, TileMut, TileOut};
 use crate::walk::{self, LeafInfo, TreeVisitor, WalkState};
 
 /// Bounds a caller sets on the images it accepts, checked on the header alone, before anything
@@ -722,33 +718,52 @@ fn draws_inside(node: &Node, shift: u32, image: Rect, clip: Rect) -> bool {
         && axis(node.y, (image.y, image.h), (clip.y, clip.h))
 }
 
-/// A leaf of a decode larger than the coded size: its edges recorded at the coded size, then
-/// the leaf drawn at its scale, with (feature `smooth-enlarged`) what smoothing moved across
-/// the edges above and left of it ramped into its side ([`Ramp`]), else as tabulated. Out of
-/// line when smoothing: the shifts are on the stack only here.
-#[cfg_attr(feature = "smooth-enlarged", inline(never))]
+/// A leaf of a decode larger than the coded size, drawn at its scale: with (feature
+/// `smooth-enlarged`) its pixels on the coded grid taken through the frontier's capture as it
+/// goes and what smoothing moved across the edges above and left of it ramped into its side
+/// ([`Enlarged`]); else recorded at the coded size, then drawn as tabulated. A leaf outside the
+/// clip is only recorded. Out of line: only the path taken is on the stack.
+#[inline(never)]
 fn draw_enlarged<const CAPACITY: usize>(
     node: &Node,
     step: i32,
     patch: &Patch,
     frontier: &mut Frontier<CAPACITY>,
-    &Placement { clip, scale, .. }: &Placement,
+    &Placement { clip, image, scale }: &Placement,
     out: &mut dyn TileOut,
 ) -> Result<(), Stop> {
+    let k = scale.log2().unsigned_abs();
+    // The leaf's square at the scale, inside the image: its tiles start on the coded grid.
+    let square = Rect {
+        x: node.x << k,
+        y: node.y << k,
+        w: node.size() << k,
+        h: node.size() << k,
+    }
+    .intersect(&image);
+    if square.intersect(&clip).is_empty() {
+        frontier.record(node, step, patch, &mut Discard);
+        return Ok(());
+    }
     #[cfg(feature = "smooth-enlarged")]
     {
-        let mut shifts = EdgeShifts::before(frontier, node);
-        frontier.record(node, step, patch, &mut shifts);
-        shifts.finish();
-        let k = scale.log2().unsigned_abs();
-        let mut ramp = Ramp {
-            shifts: &shifts,
-            left: node.x << k,
-            top: node.y << k,
+        // Cut to the clip on the way out, where the leaf reaches past it.
+        let mut clipped = ClipOut { clip, out };
+        let out: &mut dyn TileOut = if inside(square, clip) {
+            clipped.out
+        } else {
+            &mut clipped
+        };
+        let beside = Beside::default();
+        let mut moves: &Beside = &beside;
+        let mut enlarged = Enlarged {
+            capture: frontier.capture(node, step, &mut moves),
+            beside: &beside,
+            node: *node,
             k,
             out,
         };
-        patch.render_scaled(node, scale, clip, &mut ramp)
+        patch.render_scaled(node, scale, square, &mut enlarged)
     }
     #[cfg(not(feature = "smooth-enlarged"))]
     {
@@ -757,157 +772,245 @@ fn draw_enlarged<const CAPACITY: usize>(
     }
 }
 
-/// What edge smoothing moved across the edges above and left of a leaf, for each pixel of its
-/// first row (by column from the leaf's left) and first column (by row from its top): the
-/// step's whole correction, twice the move of the pixel beside the leaf (smoothing moves the two
-/// pixels of a step towards each other alike), clamped to `i8`. Made while the leaf is
-/// recorded at the coded size: the pixels beside it as the frontier holds them before, and as
-/// the recording draws them smoothed (it takes the recording's tiles).
+/// Whether `area` lies inside `clip`.
 #[cfg(feature = "smooth-enlarged")]
-#[derive(Debug)]
-struct EdgeShifts {
+fn inside(area: Rect, clip: Rect) -> bool {
+    area.intersect(&clip) == area
+}
+
+/// Side of the coded tile under an output tile of an enlarged decode, at most.
+#[cfg(feature = "smooth-enlarged")]
+const UNDER: usize = TILE / 2;
+
+/// The tiles of a leaf of an enlarged decode (`2^k` times the coded size, drawn whole, each
+/// tile starting on the coded grid). The pixels of each tile on the coded grid (the coded
+/// pixels, exactly) go through the frontier's [`Capture`](crate::prediction::Capture), as a
+/// coded tile of at most [`UNDER`] pixels a side, which smooths the leaf's steps with the pixels
+/// waiting beside it and keeps its edges. What it moved each waiting pixel by, twice (the
+/// step's whole correction: smoothing moves the two pixels of a step towards each other alike)
+/// and clamped to `i8`, is closed on the leaf's side: the leaf's first output row (column) moves
+/// by it, the rows (columns) after it by less, down to nothing one coded pixel in. The leaves
+/// before it were drawn as tabulated, so the leaf alone closes the step.
+#[cfg(feature = "smooth-enlarged")]
+struct Enlarged<'c, 'o> {
+    capture: crate::prediction::Capture<'c>,
+    /// The waiting pixels the capture draws, smoothed.
+    beside: &'c Beside,
     node: Node,
-    /// The pixels beside the leaf before smoothing, then (once [`EdgeShifts::finish`]ed) the
-    /// shifts as `i8` bits: above it, then left of it.
-    values: [[u8; CODING_TILE as usize]; 2],
-    /// Which pixels beside the leaf the recording drew: those were smoothed.
-    drawn: [[u32; CODING_TILE as usize / 32]; 2],
+    /// The scale's power of two.
+    k: u32,
+    out: &'o mut dyn TileOut,
 }
 
 #[cfg(feature = "smooth-enlarged")]
-impl EdgeShifts {
-    /// Before the leaf `node` is recorded: the pixels above and left of it that the frontier
-    /// holds.
-    fn before<const CAPACITY: usize>(frontier: &Frontier<CAPACITY>, node: &Node) -> EdgeShifts {
-        let mut shifts = EdgeShifts {
-            node: *node,
-            values: [[0; CODING_TILE as usize]; 2],
-            drawn: [[0; CODING_TILE as usize / 32]; 2],
+impl Enlarged<'_, '_> {
+    /// The coded tile under the output tile `area` (which starts on the coded grid), if it
+    /// holds a pixel of the leaf's first or last row or column: the capture passes the others
+    /// on untouched.
+    fn under(&self, area: Rect) -> Option<Rect> {
+        let k = self.k;
+        let unit = 1u32 << k;
+        let side = |length: u32| ((length + unit - 1) >> k).min(UNDER as u32);
+        let coded = Rect {
+            x: area.x >> k,
+            y: area.y >> k,
+            w: side(area.w),
+            h: side(area.h),
         };
-        let n = node.size().min(CODING_TILE);
-        for i in 0..n {
-            let pixel = |v: Option<i32>| v.map_or(0, |v| (v / SAMPLE_ONE) as u8);
-            shifts.values[0][i as usize] = pixel(frontier.above(node.x + i, node.y));
-            shifts.values[1][i as usize] = pixel(frontier.left(node.x, node.y + i));
-        }
-        shifts
+        let last = self.node.size() - 1;
+        let on_edge = |start: u32, length: u32, first: u32| {
+            start == first || start + length.saturating_sub(1) == first + last
+        };
+        (on_edge(coded.x, coded.w, self.node.x) || on_edge(coded.y, coded.h, self.node.y))
+            .then_some(coded)
     }
 
-    /// Turns the pixels the recording drew into shifts; the others shift nothing.
-    fn finish(&mut self) {
-        for (values, drawn) in self.values.iter_mut().zip(&self.drawn) {
-            for (i, v) in values.iter_mut().enumerate() {
-                if drawn
-                    .get(i / 32)
-                    .is_none_or(|word| word & (1 << (i % 32)) == 0)
+    /// The values of the output tile `values` (`w` a row) on the coded grid, into `coded` (the
+    /// coded tile `area`'s, row-major).
+    fn pick<T: Copy>(&self, values: &[T], w: u32, area: Rect, coded: &mut [T]) {
+        let k = self.k;
+        for r in 0..area.h {
+            for c in 0..area.w {
+                let from = ((r << k) * w + (c << k)) as usize;
+                if let (Some(&v), Some(to)) =
+                    (values.get(from), coded.get_mut((r * area.w + c) as usize))
                 {
-                    *v = 0;
+                    *to = v;
                 }
             }
         }
     }
-
-    /// The shift at `i` of edge `e` (0 above, 1 left).
-    fn get(&self, e: usize, i: u32) -> i32 {
-        let v = self.values.get(e).and_then(|v| v.get(i as usize));
-        i32::from(v.copied().unwrap_or(0) as i8)
-    }
-
-    /// A smoothed pixel beside the leaf, `i` along edge `e`, drawn as `now`.
-    fn smoothed(&mut self, e: usize, i: u32, now: u8) {
-        let (Some(v), Some(word)) = (
-            self.values.get_mut(e).and_then(|v| v.get_mut(i as usize)),
-            self.drawn
-                .get_mut(e)
-                .and_then(|d| d.get_mut(i as usize / 32)),
-        ) else {
-            return;
-        };
-        let moved = -2 * (i32::from(now) - i32::from(*v));
-        *v = moved.clamp(-127, 127) as i8 as u8;
-        *word |= 1 << (i % 32);
-    }
-}
-
-/// The recording's tiles: the pixels drawn above and left of the leaf are the smoothed ones.
-#[cfg(feature = "smooth-enlarged")]
-impl TileOut for EdgeShifts {
-    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
-        let Rect { x, y, w, h } = tile.area;
-        let (left, top) = (self.node.x, self.node.y);
-        let n = (w * h) as usize;
-        let Some(pixels) = tile.pixels.get(..n) else {
-            return Ok(());
-        };
-        if h == 1 && top > 0 && y == top - 1 && x >= left {
-            for (i, &p) in pixels.iter().enumerate() {
-                self.smoothed(0, x - left + i as u32, p);
-            }
-        } else if w == 1 && left > 0 && x == left - 1 && y >= top {
-            for (j, &p) in pixels.iter().enumerate() {
-                self.smoothed(1, y - top + j as u32, p);
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The tiles of a leaf of an enlarged decode, with each smoothed step's whole correction
-/// ([`EdgeShifts`]) applied to the leaf's side: the leaf's first output row (column) moves by
-/// it, the rows (columns) after it by less, down to nothing one coded pixel in. The leaves
-/// before it were drawn as tabulated, so the leaf alone closes the step; its pixels one coded
-/// pixel in and beyond are untouched.
-#[cfg(feature = "smooth-enlarged")]
-struct Ramp<'a> {
-    shifts: &'a EdgeShifts,
-    /// The leaf's top-left output pixel.
-    left: u32,
-    top: u32,
-    /// The scale's power of two.
-    k: u32,
-    out: &'a mut dyn TileOut,
 }
 
 #[cfg(feature = "smooth-enlarged")]
-impl TileOut for Ramp<'_> {
+impl TileOut for Enlarged<'_, '_> {
     #[cfg(feature = "deep")]
     fn depth(&self) -> crate::synthesis::Depth {
         self.out.depth()
     }
 
-    /// A 16-bit stream is not smoothed: its tiles go on as they are.
+    /// A 16-bit stream is not smoothed: the coded tile goes through the capture with its
+    /// samples (which keeps the leaf's edges), and the tile on as it is.
     #[cfg(feature = "deep")]
     fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
+        if let Some(area) = self.under(tile.area) {
+            let n = (area.w * area.h) as usize;
+            let mut coded = [0u8; UNDER * UNDER];
+            let mut coded_samples = [0i16; UNDER * UNDER];
+            let (coded, coded_samples) = (
+                coded.get_mut(..n).unwrap_or_default(),
+                coded_samples.get_mut(..n).unwrap_or_default(),
+            );
+            self.pick(tile.pixels, tile.area.w, area, coded);
+            self.pick(samples, tile.area.w, area, coded_samples);
+            let pixels = TileMut {
+                area,
+                pixels: coded,
+                channels: 1,
+            };
+            self.capture.put_samples(pixels, coded_samples)?;
+        }
         self.out.put_samples(tile, samples)
     }
 
     fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
-        let Rect { x, y, w, h } = tile.area;
-        let unit = 1u32 << self.k;
-        let (rows, columns) = (self.top + unit, self.left + unit);
-        if y < rows || x < columns {
-            for j in 0..h {
-                let oy = y + j;
-                for i in 0..w {
-                    let ox = x + i;
-                    let mut moved = 0i32;
-                    if oy < rows {
-                        let t = self.shifts.get(0, (ox - self.left) >> self.k);
-                        moved += t * (rows - oy) as i32;
-                    }
-                    if ox < columns {
-                        let l = self.shifts.get(1, (oy - self.top) >> self.k);
-                        moved += l * (columns - ox) as i32;
-                    }
-                    if moved != 0 {
-                        if let Some(v) = tile.pixels.get_mut((j * w + i) as usize) {
-                            *v = byte(i32::from(*v) + ((moved + (unit >> 1) as i32) >> self.k));
-                        }
+        let Some(area) = self.under(tile.area) else {
+            return self.out.put(tile);
+        };
+        let (first_row, first_column) = (area.y == self.node.y, area.x == self.node.x);
+        // The waiting pixels beside the coded tile, before it smooths them.
+        let mut above = [0u8; UNDER];
+        let mut left = [0u8; UNDER];
+        if first_row {
+            for (i, p) in (0..area.w).zip(&mut above) {
+                *p = self.capture.waiting(true, area.x + i);
+            }
+        }
+        if first_column {
+            for (j, p) in (0..area.h).zip(&mut left) {
+                *p = self.capture.waiting(false, area.y + j);
+            }
+        }
+        self.beside.start(area);
+        let mut coded = [0u8; UNDER * UNDER];
+        let coded = coded
+            .get_mut(..(area.w * area.h) as usize)
+            .unwrap_or_default();
+        self.pick(tile.pixels, tile.area.w, area, coded);
+        self.capture.put(TileMut {
+            area,
+            pixels: coded,
+            channels: 1,
+        })?;
+        if first_row || first_column {
+            let shifts = Shifts {
+                above: self.beside.shifts(true, &above),
+                left: self.beside.shifts(false, &left),
+            };
+            shifts.ramp(tile.area, tile.pixels, self.k);
+        }
+        self.out.put(tile)
+    }
+}
+
+/// What smoothing moved across a leaf's edges under one output tile of an enlarged decode, as
+/// the step's whole correction: by coded column of the tile (the edge above) and by coded row
+/// (the edge left).
+#[cfg(feature = "smooth-enlarged")]
+struct Shifts {
+    above: [i8; UNDER],
+    left: [i8; UNDER],
+}
+
+#[cfg(feature = "smooth-enlarged")]
+impl Shifts {
+    /// Closes the shifts in the output tile `area` (`pixels`, row-major), which starts on the
+    /// coded grid of a decode at `2^k`: its first output row (column) moves by the shift above
+    /// (left of) its coded column (row) in full, the `t`-th after it by `1 - t / 2^k` of it; a
+    /// pixel in both moves by the sum, rounded once.
+    fn ramp(&self, area: Rect, pixels: &mut [u8], k: u32) {
+        let unit = 1u32 << k;
+        let w = area.w;
+        for j in 0..area.h {
+            // Past the first coded row only the first coded column moves.
+            let columns = if j < unit { w } else { w.min(unit) };
+            for i in 0..columns {
+                let mut moved = 0i32;
+                if j < unit {
+                    let t = self.above.get((i >> k) as usize).copied().unwrap_or(0);
+                    moved += i32::from(t) * (unit - j) as i32;
+                }
+                if i < unit {
+                    let l = self.left.get((j >> k) as usize).copied().unwrap_or(0);
+                    moved += i32::from(l) * (unit - i) as i32;
+                }
+                if moved != 0 {
+                    if let Some(v) = pixels.get_mut((j * w + i) as usize) {
+                        *v = byte(i32::from(*v) + ((moved + (unit >> 1) as i32) >> k));
                     }
                 }
             }
         }
-        self.out.put(tile)
+    }
+}
+
+/// The waiting pixels beside a coded tile of an enlarged leaf that the frontier's capture
+/// draws (smoothed) while it takes the tile: above its columns and left of its rows, by offset
+/// from its first column and row. Shared (cells): the capture draws into it while the leaf's
+/// [`Enlarged`] reads it.
+#[cfg(feature = "smooth-enlarged")]
+#[derive(Default)]
+struct Beside {
+    /// The coded tile.
+    tile: core::cell::Cell<(u32, u32)>,
+    above: [core::cell::Cell<Option<u8>>; UNDER],
+    left: [core::cell::Cell<Option<u8>>; UNDER],
+}
+
+#[cfg(feature = "smooth-enlarged")]
+impl Beside {
+    /// Before the capture takes the coded tile `area`: nothing drawn yet.
+    fn start(&self, area: Rect) {
+        self.tile.set((area.x, area.y));
+        for cell in self.above.iter().chain(&self.left) {
+            cell.set(None);
+        }
+    }
+
+    /// The shifts above (`above`) or left of the tile: twice what smoothing moved each pixel
+    /// drawn from `before` (the step's whole correction), clamped to `i8`; 0 where none was
+    /// drawn.
+    fn shifts(&self, above: bool, before: &[u8; UNDER]) -> [i8; UNDER] {
+        let drawn = if above { &self.above } else { &self.left };
+        let mut shifts = [0; UNDER];
+        for ((shift, now), &was) in shifts.iter_mut().zip(drawn).zip(before) {
+            if let Some(now) = now.get() {
+                *shift = (-2 * (i32::from(now) - i32::from(was))).clamp(-127, 127) as i8;
+            }
+        }
+        shifts
+    }
+}
+
+#[cfg(feature = "smooth-enlarged")]
+impl TileOut for &Beside {
+    fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
+        let Rect { x, y, w, h } = tile.area;
+        let (left, top) = self.tile.get();
+        // The row above the tile, or a run of the column left of it; the tile's own pixels
+        // (and nothing else the capture draws) lie right of and below both.
+        let (cells, from) = if h == 1 && y + 1 == top && x >= left {
+            (&self.above, x - left)
+        } else if w == 1 && x + 1 == left && y >= top {
+            (&self.left, y - top)
+        } else {
+            return Ok(());
+        };
+        let cells = cells.get(from as usize..).unwrap_or_default();
+        for (cell, &p) in cells.iter().zip(tile.pixels.iter()) {
+            cell.set(Some(p));
+        }
+        Ok(())
     }
 }
 
@@ -1232,7 +1335,7 @@ mod tests {
     }
 
     #[cfg(feature = "smooth-enlarged")]
-    use crate::synthesis::Discard;
+    use crate::model::SAMPLE_ONE;
 
     /// A flat patch of grey `value`.
     #[cfg(feature = "smooth-enlarged")]
@@ -1245,8 +1348,9 @@ mod tests {
         }
     }
 
-    /// An enlarged decode's record of a leaf gives, for each pixel of its first row and
-    /// column, the whole correction smoothing made to its step: twice its neighbour's move.
+    /// A coded tile taken through the capture of an enlarged decode gives, for each pixel of
+    /// the leaf's first row and column in it, the whole correction smoothing made to its step:
+    /// twice its neighbour's move.
     #[test]
     #[cfg(feature = "smooth-enlarged")]
     fn shifts_are_the_whole_smoothing_of_each_step() {
@@ -1257,21 +1361,42 @@ mod tests {
         frontier.record(&node(4, 0), 64, &flat(100), &mut Discard);
         frontier.record(&node(0, 4), 64, &flat(106), &mut Discard);
         // Below 100 and right of 106: 120 (steps of 20 and 14, each side moved by 1 and 2).
-        let leaf = node(4, 4);
-        let mut shifts = EdgeShifts::before(&frontier, &leaf);
-        frontier.record(&leaf, 64, &flat(120), &mut shifts);
-        shifts.finish();
-        let along = |e| (0..8).map(|i| shifts.get(e, i)).collect::<Vec<i32>>();
-        assert_eq!(along(0), [-2, -2, -2, -2, 0, 0, 0, 0]);
+        let shifts = |frontier: &mut Frontier<128>, leaf: Node, value: u8| {
+            let beside = Beside::default();
+            let mut moves: &Beside = &beside;
+            let mut capture = frontier.capture(&leaf, 64, &mut moves);
+            let waiting = |above| {
+                let first = if above { leaf.x } else { leaf.y };
+                core::array::from_fn(|i| capture.waiting(above, first + i as u32))
+            };
+            let (above, left): ([u8; UNDER], [u8; UNDER]) = (waiting(true), waiting(false));
+            let area = Rect {
+                x: leaf.x,
+                y: leaf.y,
+                w: 4,
+                h: 4,
+            };
+            beside.start(area);
+            let mut pixels = [value; 16];
+            capture
+                .put(TileMut {
+                    area,
+                    pixels: &mut pixels,
+                    channels: 1,
+                })
+                .unwrap();
+            (beside.shifts(true, &above), beside.shifts(false, &left))
+        };
+        let (above, left) = shifts(&mut frontier, node(4, 4), 120);
+        assert_eq!(above, [-2, -2, -2, -2]);
         // The left neighbour's bottom-right pixel waits with its row (the leaf below it
         // smooths it), so the last row has no step yet.
-        assert_eq!(along(1), [-4, -4, -4, 0, 0, 0, 0, 0]);
+        assert_eq!(left, [-4, -4, -4, 0]);
         // A step past four limits is an edge: nothing smoothed, nothing shifted.
-        let leaf = node(8, 0);
-        let mut shifts = EdgeShifts::before(&frontier, &leaf);
-        frontier.record(&leaf, 64, &flat(200), &mut shifts);
-        shifts.finish();
-        assert!((0..4).all(|i| shifts.get(0, i) == 0 && shifts.get(1, i) == 0));
+        assert_eq!(
+            shifts(&mut frontier, node(8, 0), 200),
+            ([0; UNDER], [0; UNDER])
+        );
     }
 
     /// An enlarged leaf's first output rows and columns take the whole shift at the coded
@@ -1279,35 +1404,11 @@ mod tests {
     #[test]
     #[cfg(feature = "smooth-enlarged")]
     fn a_ramp_closes_the_step_on_the_leafs_side() {
-        struct Keep(Vec<u8>);
-        impl TileOut for Keep {
-            fn put(&mut self, tile: TileMut<'_>) -> Result<(), Stop> {
-                self.0 = tile.pixels.to_vec();
-                Ok(())
-            }
-        }
-        let leaf = Node {
-            x: 4,
-            y: 4,
-            log2: 2,
+        let shifts = Shifts {
+            above: [-4, 6, 0, 0],
+            left: [-4, 0, 0, 0],
         };
-        let mut shifts = EdgeShifts {
-            node: leaf,
-            values: [[0; CODING_TILE as usize]; 2],
-            drawn: [[0; CODING_TILE as usize / 32]; 2],
-        };
-        shifts.values[0][0] = -4i8 as u8;
-        shifts.values[0][1] = 6;
-        shifts.values[1][0] = -4i8 as u8;
-        let mut kept = Keep(Vec::new());
-        // The leaf drawn at 4x: output (16, 16); one 8 x 8 tile of 100.
-        let mut ramp = Ramp {
-            shifts: &shifts,
-            left: 16,
-            top: 16,
-            k: 2,
-            out: &mut kept,
-        };
+        // A leaf's first tile drawn at 4x: one 8 x 8 tile of 100.
         let mut pixels = [100u8; 64];
         let area = Rect {
             x: 16,
@@ -1315,13 +1416,8 @@ mod tests {
             w: 8,
             h: 8,
         };
-        ramp.put(TileMut {
-            area,
-            pixels: &mut pixels,
-            channels: 1,
-        })
-        .unwrap();
-        let row = |j: usize| kept.0[j * 8..j * 8 + 8].to_vec();
+        shifts.ramp(area, &mut pixels, 2);
+        let row = |j: usize| pixels[j * 8..j * 8 + 8].to_vec();
         // Row 0: the top shift in full (-4 under coded column 0, +6 under column 1), and the
         // left shift (coded row 0) in full at column 0 and by 3/4, 1/2, 1/4 after it.
         assert_eq!(row(0), [92, 93, 94, 95, 106, 106, 106, 106]);

@@ -649,6 +649,20 @@ impl Capture<'_> {
     }
 }
 
+#[cfg(feature = "smooth-enlarged")]
+impl Capture<'_> {
+    /// The pixel waiting beside the leaf above column `at` (`above`) or left of row `at`, as
+    /// the frontier holds it: before the leaf's tile there smooths it.
+    pub(crate) fn waiting(&self, above: bool, at: u32) -> u8 {
+        let slot = if above {
+            self.columns.get(self.stripe.column(at) as usize)
+        } else {
+            self.rows.get((at % CODING_TILE) as usize)
+        };
+        slot.copied().unwrap_or(0)
+    }
+}
+
 impl TileOut for Capture<'_> {
     #[cfg(feature = "deep")]
     fn depth(&self) -> crate::synthesis::Depth {
