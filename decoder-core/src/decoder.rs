@@ -700,22 +700,19 @@ fn draw_reduced<const CAPACITY: usize>(
 
 /// Whether all a leaf draws at the coded size (its own pixels, and the row above and the
 /// column left of it that wait for it: see [`crate::prediction::Capture`]) lies inside `clip`
-/// where it lies inside `image`, on the grid of a decode at `1 / 2^shift` of the coded size
-/// (`image` and `clip` are that decode's). Then it needs no cut.
-#[inline(always)]
+/// where it lies inside `image` (whose top-left pixel is `(0, 0)`), on the grid of a decode at
+/// `1 / 2^shift` of the coded size (`image` and `clip` are that decode's). Then it needs no cut.
+#[inline(never)]
 fn draws_inside(node: &Node, shift: u32, image: Rect, clip: Rect) -> bool {
     // No overflow: a node lies within a coding tile of an image of at most 65535 pixels a side.
     let last = node.size() - 1;
-    // Along one axis: the span of the leaf's reach inside the image's, empty or inside the
-    // clip's.
-    let axis =
-        |start: u32, (image_start, image_len): (u32, u32), (clip_start, clip_len): (u32, u32)| {
-            let first = (start.saturating_sub(1) >> shift).max(image_start);
-            let end = ((start + last) >> shift).min((image_start + image_len).saturating_sub(1));
-            first > end || (clip_start <= first && end < clip_start + clip_len)
-        };
-    axis(node.x, (image.x, image.w), (clip.x, clip.w))
-        && axis(node.y, (image.y, image.h), (clip.y, clip.h))
+    // Along one axis: the leaf's reach inside the image is empty or inside the clip.
+    let axis = |start: u32, image_end: u32, clip_start: u32, clip_end: u32| {
+        let first = start.saturating_sub(1) >> shift;
+        let end = ((start + last) >> shift).min(image_end.saturating_sub(1));
+        first > end || (clip_start <= first && end < clip_end)
+    };
+    axis(node.x, image.w, clip.x, clip.x + clip.w) && axis(node.y, image.h, clip.y, clip.y + clip.h)
 }
 
 /// A leaf of a decode larger than the coded size, drawn at its scale: with (feature
@@ -732,21 +729,21 @@ fn draw_enlarged<const CAPACITY: usize>(
     &Placement { clip, image, scale }: &Placement,
     out: &mut dyn TileOut,
 ) -> Result<(), Stop> {
-    let k = scale.log2().unsigned_abs();
-    // The leaf's square at the scale, inside the image: its tiles start on the coded grid.
-    let square = Rect {
-        x: node.x << k,
-        y: node.y << k,
-        w: node.size() << k,
-        h: node.size() << k,
-    }
-    .intersect(&image);
-    if square.intersect(&clip).is_empty() {
-        frontier.record(node, step, patch, &mut Discard);
-        return Ok(());
-    }
     #[cfg(feature = "smooth-enlarged")]
     {
+        let k = scale.log2().unsigned_abs();
+        // The leaf's square at the scale, inside the image: its tiles start on the coded grid.
+        let square = Rect {
+            x: node.x << k,
+            y: node.y << k,
+            w: node.size() << k,
+            h: node.size() << k,
+        }
+        .intersect(&image);
+        if square.intersect(&clip).is_empty() {
+            frontier.record(node, step, patch, &mut Discard);
+            return Ok(());
+        }
         // Cut to the clip on the way out, where the leaf reaches past it.
         let mut clipped = ClipOut { clip, out };
         let out: &mut dyn TileOut = if inside(square, clip) {
@@ -767,6 +764,7 @@ fn draw_enlarged<const CAPACITY: usize>(
     }
     #[cfg(not(feature = "smooth-enlarged"))]
     {
+        let _ = image;
         frontier.record(node, step, patch, &mut Discard);
         patch.render_scaled(node, scale, clip, out)
     }

@@ -283,39 +283,30 @@ impl<const STRIPE: usize> Frontier<STRIPE> {
     /// rendered from its patch (each pixel once, the first row and column first).
     #[inline(never)]
     pub fn record(&mut self, node: &Node, step: i32, patch: &Patch, out: &mut dyn TileOut) {
-        let parts = if node.size() <= RECORD_WHOLE { 1 } else { 4 };
-        let leaf = Recorded { node, step, patch };
-        for part in 0..parts {
-            self.record_part(&leaf, part, out);
-        }
-    }
-
-    /// Part `part` of what [`Frontier::record`] draws of a leaf, through [`Frontier::capture`]
-    /// into `out`: for a leaf drawn whole the leaf, else its first row, its first column below
-    /// it, its last row right of it and its last column between them. One part at a time, so
-    /// that only one is on the stack.
-    #[inline(never)]
-    fn record_part(&mut self, leaf: &Recorded<'_>, part: u32, out: &mut dyn TileOut) {
-        let node = leaf.node;
         let s = node.size();
-        let (x, y, w, h) = match part {
-            0 if s <= RECORD_WHOLE => (node.x, node.y, s, s),
-            0 => (node.x, node.y, s, 1),
-            1 => (node.x, node.y + 1, 1, s - 1),
-            2 => (node.x + 1, node.y + s - 1, s - 1, 1),
-            _ => (node.x + s - 1, node.y + 1, 1, s.saturating_sub(2)),
-        };
-        // Inside the image (an empty part draws nothing).
-        let (w, h) = (
-            w.min(self.width.saturating_sub(x)),
-            h.min(self.height.saturating_sub(y)),
-        );
-        // A stop is the caller's to report: its own out stops it again.
-        let _ = leaf.patch.render_to(
-            node,
-            Rect { x, y, w, h },
-            &mut self.capture(node, leaf.step, out),
-        );
+        let whole = s <= RECORD_WHOLE;
+        // For a leaf drawn whole the leaf, else its first row, its first column below it, its
+        // last row right of it and its last column between them; one at a time.
+        for part in 0..if whole { 1 } else { 4 } {
+            let (x, y, w, h) = match part {
+                0 if whole => (node.x, node.y, s, s),
+                0 => (node.x, node.y, s, 1),
+                1 => (node.x, node.y + 1, 1, s - 1),
+                2 => (node.x + 1, node.y + s - 1, s - 1, 1),
+                _ => (node.x + s - 1, node.y + 1, 1, s.saturating_sub(2)),
+            };
+            // Inside the image (an empty part draws nothing).
+            let (w, h) = (
+                w.min(self.width.saturating_sub(x)),
+                h.min(self.height.saturating_sub(y)),
+            );
+            // A stop is the caller's to report: its own out stops it again.
+            let _ = patch.render_to(
+                node,
+                Rect { x, y, w, h },
+                &mut self.capture(node, step, out),
+            );
+        }
     }
 
     /// A tile output for drawing the whole leaf `node` (control step `step`) into `out`, in
@@ -398,13 +389,6 @@ impl core::fmt::Debug for Capture<'_> {
             .field("bottom", &self.bottom)
             .finish_non_exhaustive()
     }
-}
-
-/// A leaf [`Frontier::record`] draws: its node, control step and patch.
-struct Recorded<'a> {
-    node: &'a Node,
-    step: i32,
-    patch: &'a Patch,
 }
 
 /// How far past the limit edge smoothing reaches, in limits: a step between one and
