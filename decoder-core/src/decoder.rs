@@ -847,26 +847,23 @@ impl TileOut for Enlarged<'_, '_> {
         self.out.depth()
     }
 
-    /// A 16-bit stream is not smoothed: the coded tile goes through the capture with its
-    /// samples (which keeps the leaf's edges), and the tile on as it is.
+    /// A 16-bit stream is not smoothed: the coded tile goes through the capture as a 16-bit
+    /// stream's (which keeps the leaf's edge pixels, and needs no samples for it), and the tile
+    /// on as it is.
     #[cfg(feature = "deep")]
     fn put_samples(&mut self, tile: TileMut<'_>, samples: &mut [i16]) -> Result<(), Stop> {
         if let Some(area) = self.under(tile.area) {
-            let n = (area.w * area.h) as usize;
             let mut coded = [0u8; UNDER * UNDER];
-            let mut coded_samples = [0i16; UNDER * UNDER];
-            let (coded, coded_samples) = (
-                coded.get_mut(..n).unwrap_or_default(),
-                coded_samples.get_mut(..n).unwrap_or_default(),
-            );
+            let coded = coded
+                .get_mut(..(area.w * area.h) as usize)
+                .unwrap_or_default();
             self.pick(tile.pixels, tile.area.w, area, coded);
-            self.pick(samples, tile.area.w, area, coded_samples);
             let pixels = TileMut {
                 area,
                 pixels: coded,
                 channels: 1,
             };
-            self.capture.put_samples(pixels, coded_samples)?;
+            self.capture.put_samples(pixels, &mut [])?;
         }
         self.out.put_samples(tile, samples)
     }
@@ -876,18 +873,17 @@ impl TileOut for Enlarged<'_, '_> {
             return self.out.put(tile);
         };
         let (first_row, first_column) = (area.y == self.node.y, area.x == self.node.x);
-        // The waiting pixels beside the coded tile, before it smooths them.
-        let mut above = [0u8; UNDER];
-        let mut left = [0u8; UNDER];
+        // The waiting pixels beside the coded tile (above it, then left of it), before it
+        // smooths them.
+        let mut before = [0u8; 2 * UNDER];
+        let (above, left) = before.split_at_mut(UNDER);
         if first_row {
-            for (i, p) in (0..area.w).zip(&mut above) {
-                *p = self.capture.waiting(true, area.x + i);
-            }
+            let run = above.get_mut(..area.w as usize).unwrap_or_default();
+            self.capture.waiting(true, area.x, run);
         }
         if first_column {
-            for (j, p) in (0..area.h).zip(&mut left) {
-                *p = self.capture.waiting(false, area.y + j);
-            }
+            let run = left.get_mut(..area.h as usize).unwrap_or_default();
+            self.capture.waiting(false, area.y, run);
         }
         self.beside.start(area);
         let mut coded = [0u8; UNDER * UNDER];
@@ -901,24 +897,18 @@ impl TileOut for Enlarged<'_, '_> {
             channels: 1,
         })?;
         if first_row || first_column {
-            let shifts = Shifts {
-                above: self.beside.shifts(true, &above),
-                left: self.beside.shifts(false, &left),
-            };
-            shifts.ramp(tile.area, tile.pixels, self.k);
+            self.beside
+                .shifts(&before)
+                .ramp(tile.area, tile.pixels, self.k);
         }
         self.out.put(tile)
     }
 }
 
 /// What smoothing moved across a leaf's edges under one output tile of an enlarged decode, as
-/// the step's whole correction: by coded column of the tile (the edge above) and by coded row
-/// (the edge left).
-#[cfg(feature = "smooth-enlarged")]
-struct Shifts {
-    above: [i8; UNDER],
-    left: [i8; UNDER],
-}
+/// the step's whole correction: by coded column of the tile (the edge above), then by coded
+/// row (the edge left).
+struct Shifts([i8; 2 * UNDER]);
 
 #[cfg(feature = "smooth-enlarged")]
 impl Shifts {
@@ -935,11 +925,11 @@ impl Shifts {
             for i in 0..columns {
                 let mut moved = 0i32;
                 if j < unit {
-                    let t = self.above.get((i >> k) as usize).copied().unwrap_or(0);
+                    let t = self.0.get((i >> k) as usize).copied().unwrap_or(0);
                     moved += i32::from(t) * (unit - j) as i32;
                 }
                 if i < unit {
-                    let l = self.left.get((j >> k) as usize).copied().unwrap_or(0);
+                    let l = self.0.get(UNDER + (j >> k) as usize).copied().unwrap_or(0);
                     moved += i32::from(l) * (unit - i) as i32;
                 }
                 if moved != 0 {
@@ -961,8 +951,8 @@ impl Shifts {
 struct Beside {
     /// The coded tile.
     tile: core::cell::Cell<(u32, u32)>,
-    above: [core::cell::Cell<Option<u8>>; UNDER],
-    left: [core::cell::Cell<Option<u8>>; UNDER],
+    /// Above its columns, then left of its rows.
+    drawn: [core::cell::Cell<Option<u8>>; 2 * UNDER],
 }
 
 #[cfg(feature = "smooth-enlarged")]
@@ -970,23 +960,21 @@ impl Beside {
     /// Before the capture takes the coded tile `area`: nothing drawn yet.
     fn start(&self, area: Rect) {
         self.tile.set((area.x, area.y));
-        for cell in self.above.iter().chain(&self.left) {
+        for cell in &self.drawn {
             cell.set(None);
         }
     }
 
-    /// The shifts above (`above`) or left of the tile: twice what smoothing moved each pixel
-    /// drawn from `before` (the step's whole correction), clamped to `i8`; 0 where none was
-    /// drawn.
-    fn shifts(&self, above: bool, before: &[u8; UNDER]) -> [i8; UNDER] {
-        let drawn = if above { &self.above } else { &self.left };
-        let mut shifts = [0; UNDER];
-        for ((shift, now), &was) in shifts.iter_mut().zip(drawn).zip(before) {
+    /// The shifts: twice what smoothing moved each pixel drawn from `before` (the step's whole
+    /// correction), clamped to `i8`; 0 where none was drawn.
+    fn shifts(&self, before: &[u8; 2 * UNDER]) -> Shifts {
+        let mut shifts = [0; 2 * UNDER];
+        for ((shift, now), &was) in shifts.iter_mut().zip(&self.drawn).zip(before) {
             if let Some(now) = now.get() {
                 *shift = (-2 * (i32::from(now) - i32::from(was))).clamp(-127, 127) as i8;
             }
         }
-        shifts
+        Shifts(shifts)
     }
 }
 
@@ -997,14 +985,14 @@ impl TileOut for &Beside {
         let (left, top) = self.tile.get();
         // The row above the tile, or a run of the column left of it; the tile's own pixels
         // (and nothing else the capture draws) lie right of and below both.
-        let (cells, from) = if h == 1 && y + 1 == top && x >= left {
-            (&self.above, x - left)
+        let from = if h == 1 && y + 1 == top && x >= left {
+            x - left
         } else if w == 1 && x + 1 == left && y >= top {
-            (&self.left, y - top)
+            UNDER as u32 + y - top
         } else {
             return Ok(());
         };
-        let cells = cells.get(from as usize..).unwrap_or_default();
+        let cells = self.drawn.get(from as usize..).unwrap_or_default();
         for (cell, &p) in cells.iter().zip(tile.pixels.iter()) {
             cell.set(Some(p));
         }
@@ -1363,11 +1351,10 @@ mod tests {
             let beside = Beside::default();
             let mut moves: &Beside = &beside;
             let mut capture = frontier.capture(&leaf, 64, &mut moves);
-            let waiting = |above| {
-                let first = if above { leaf.x } else { leaf.y };
-                core::array::from_fn(|i| capture.waiting(above, first + i as u32))
-            };
-            let (above, left): ([u8; UNDER], [u8; UNDER]) = (waiting(true), waiting(false));
+            let mut before = [0u8; 2 * UNDER];
+            let (above, left) = before.split_at_mut(UNDER);
+            capture.waiting(true, leaf.x, above);
+            capture.waiting(false, leaf.y, left);
             let area = Rect {
                 x: leaf.x,
                 y: leaf.y,
@@ -1383,18 +1370,17 @@ mod tests {
                     channels: 1,
                 })
                 .unwrap();
-            (beside.shifts(true, &above), beside.shifts(false, &left))
+            beside.shifts(&before).0
         };
-        let (above, left) = shifts(&mut frontier, node(4, 4), 120);
-        assert_eq!(above, [-2, -2, -2, -2]);
-        // The left neighbour's bottom-right pixel waits with its row (the leaf below it
-        // smooths it), so the last row has no step yet.
-        assert_eq!(left, [-4, -4, -4, 0]);
-        // A step past four limits is an edge: nothing smoothed, nothing shifted.
+        // Above the leaf, then left of it.
         assert_eq!(
-            shifts(&mut frontier, node(8, 0), 200),
-            ([0; UNDER], [0; UNDER])
+            shifts(&mut frontier, node(4, 4), 120),
+            [-2, -2, -2, -2, -4, -4, -4, 0]
         );
+        // (The left neighbour's bottom-right pixel waits with its row: the leaf below it
+        // smooths it, so the last row has no step yet.) A step past four limits is an edge:
+        // nothing smoothed, nothing shifted.
+        assert_eq!(shifts(&mut frontier, node(8, 0), 200), [0; 2 * UNDER]);
     }
 
     /// An enlarged leaf's first output rows and columns take the whole shift at the coded
@@ -1402,10 +1388,8 @@ mod tests {
     #[test]
     #[cfg(feature = "smooth-enlarged")]
     fn a_ramp_closes_the_step_on_the_leafs_side() {
-        let shifts = Shifts {
-            above: [-4, 6, 0, 0],
-            left: [-4, 0, 0, 0],
-        };
+        // Above: -4 and +6 under coded columns 0 and 1; left: -4 beside coded row 0.
+        let shifts = Shifts([-4, 6, 0, 0, -4, 0, 0, 0]);
         // A leaf's first tile drawn at 4x: one 8 x 8 tile of 100.
         let mut pixels = [100u8; 64];
         let area = Rect {

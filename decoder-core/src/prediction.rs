@@ -635,15 +635,21 @@ impl Capture<'_> {
 
 #[cfg(feature = "smooth-enlarged")]
 impl Capture<'_> {
-    /// The pixel waiting beside the leaf above column `at` (`above`) or left of row `at`, as
-    /// the frontier holds it: before the leaf's tile there smooths it.
-    pub(crate) fn waiting(&self, above: bool, at: u32) -> u8 {
-        let slot = if above {
-            self.columns.get(self.stripe.column(at) as usize)
+    /// The pixels waiting beside the leaf above columns `first..` (`above`) or left of rows
+    /// `first..` of one coding tile, as many as `run` holds, as the frontier holds them:
+    /// before the leaf's tiles there smooth them.
+    pub(crate) fn waiting(&self, above: bool, first: u32, run: &mut [u8]) {
+        let (slots, at) = if above {
+            (&self.columns[..], self.stripe.column(first))
         } else {
-            self.rows.get((at % CODING_TILE) as usize)
+            (&self.rows[..], first % CODING_TILE)
         };
-        slot.copied().unwrap_or(0)
+        for (p, &slot) in run
+            .iter_mut()
+            .zip(slots.get(at as usize..).unwrap_or_default())
+        {
+            *p = slot;
+        }
     }
 }
 
