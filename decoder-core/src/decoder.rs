@@ -908,6 +908,7 @@ impl TileOut for Enlarged<'_, '_> {
 /// What smoothing moved across a leaf's edges under one output tile of an enlarged decode, as
 /// the step's whole correction: by coded column of the tile (the edge above), then by coded
 /// row (the edge left).
+#[cfg(feature = "smooth-enlarged")]
 struct Shifts([i8; 2 * UNDER]);
 
 #[cfg(feature = "smooth-enlarged")]
