@@ -143,7 +143,7 @@ fn smaller_decodes_are_the_full_decode_subsampled_and_larger_ones_contain_it() {
 #[test]
 fn clipped_and_streamed_scaled_decodes_agree_with_the_whole_one() {
     for (name, data) in streams() {
-        for scale in [Scale::Quarter, Scale::Half, Scale::Double] {
+        for scale in [Scale::Quarter, Scale::Half, Scale::Double, Scale::Quadruple] {
             let whole = decode_scaled(&data, scale, Rect::EVERYTHING);
             let (w, h) = (whole.width, whole.height);
             let clip = Rect {
