@@ -6,9 +6,10 @@
 //! ```
 //!
 //! Prints one line per stream (`name pixels median_ms`) and the median over the streams; with
-//! `SCALE=1/4` (or any `pifs decode --scale` value) decodes at that scale.
+//! `SCALE=1/4` (or any `pifs decode --scale` value) decodes at that scale, and with
+//! `CLIP=X,Y,W,H` draws only that rectangle of the (scaled) image.
 
-use decoder_core::{Decoder, Scale};
+use decoder_core::{Decoder, Rect, Scale};
 use host_encoder::io::HOST_STRIPE;
 use std::time::Instant;
 
@@ -25,6 +26,16 @@ fn main() {
         Ok("4") => Scale::Quadruple,
         _ => Scale::One,
     };
+    let clip = std::env::var("CLIP").ok().map(|v| {
+        let f: Vec<u32> = v.split(',').filter_map(|n| n.trim().parse().ok()).collect();
+        assert_eq!(f.len(), 4, "CLIP=X,Y,W,H");
+        Rect {
+            x: f[0],
+            y: f[1],
+            w: f[2],
+            h: f[3],
+        }
+    });
     let mut medians = Vec::new();
     for path in std::env::args().skip(1) {
         let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
@@ -41,6 +52,7 @@ fn main() {
                 .and_then(|d| {
                     d.stripe_capacity::<HOST_STRIPE>()
                         .scale(scale)
+                        .clip(clip.unwrap_or(Rect::EVERYTHING))
                         .decode_into(&mut out)
                 })
                 .unwrap_or_else(|e| panic!("{path}: {e}"));
