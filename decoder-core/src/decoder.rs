@@ -823,15 +823,15 @@ impl Enlarged<'_, '_> {
             .then_some(coded)
     }
 
-    /// The values of the output tile `values` (`w` a row) on the coded grid, into `coded` (the
+    /// The pixels of the output tile `pixels` (`w` a row) on the coded grid, into `coded` (the
     /// coded tile `area`'s, row-major).
-    fn pick<T: Copy>(&self, values: &[T], w: u32, area: Rect, coded: &mut [T]) {
+    fn pick(&self, pixels: &[u8], w: u32, area: Rect, coded: &mut [u8]) {
         let k = self.k;
         for r in 0..area.h {
             for c in 0..area.w {
                 let from = ((r << k) * w + (c << k)) as usize;
                 if let (Some(&v), Some(to)) =
-                    (values.get(from), coded.get_mut((r * area.w + c) as usize))
+                    (pixels.get(from), coded.get_mut((r * area.w + c) as usize))
                 {
                     *to = v;
                 }

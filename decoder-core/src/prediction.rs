@@ -631,10 +631,8 @@ impl Capture<'_> {
             channels: 1,
         })
     }
-}
 
-#[cfg(feature = "smooth-enlarged")]
-impl Capture<'_> {
+    #[cfg(feature = "smooth-enlarged")]
     /// The pixels waiting beside the leaf above columns `first..` (`above`) or left of rows
     /// `first..` of one coding tile, as many as `run` holds, as the frontier holds them:
     /// before the leaf's tiles there smooth them.
